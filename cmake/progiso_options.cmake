@@ -1,0 +1,20 @@
+# Warning flags and sanitizer switches shared by every progiso target.
+add_library(progiso_warnings INTERFACE)
+target_compile_options(progiso_warnings INTERFACE
+  -Wall -Wextra -Wpedantic -Wshadow -Wconversion -Wnon-virtual-dtor
+  -Wold-style-cast -Woverloaded-virtual -Wnull-dereference -Wdouble-promotion
+  $<$<BOOL:${PROGISO_WERROR}>:-Werror>)
+
+if(PROGISO_SANITIZE STREQUAL "address-undefined")
+  # -fno-sanitize=vptr: with gcc, UBSan's vptr check aborts inside oneTBB's flow-graph headers.
+  add_compile_options(-fsanitize=address,undefined -fno-sanitize=vptr
+                      -fno-sanitize-recover=undefined -fno-omit-frame-pointer)
+  add_link_options(-fsanitize=address,undefined)
+  add_compile_definitions(PROGISO_SANITIZER_BUILD=1)
+elseif(PROGISO_SANITIZE STREQUAL "thread")
+  add_compile_options(-fsanitize=thread -fno-omit-frame-pointer)
+  add_link_options(-fsanitize=thread)
+  add_compile_definitions(PROGISO_SANITIZER_BUILD=1 PROGISO_TSAN=1)
+elseif(NOT PROGISO_SANITIZE STREQUAL "")
+  message(FATAL_ERROR "PROGISO_SANITIZE must be empty, address-undefined or thread")
+endif()

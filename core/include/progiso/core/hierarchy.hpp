@@ -1,0 +1,115 @@
+// progiso/core/hierarchy.hpp — the implicit 3D longest-edge-bisection (diamond) hierarchy.
+//
+// The grid of a volume is embedded in a forest of root cubes of side N = 2^L (paper §4;
+// DESIGN.md §2). Every grid vertex that is not a root-cube corner is the centre of exactly one
+// diamond: the tetrahedra that share the diamond's spine and are bisected together. Everything
+// about a diamond follows from its centre c by integer arithmetic, nothing is stored:
+//
+//  * scale h = 2^min(tz(c_q)) with tz capped at L; odd axes are those where c_q / h is odd;
+//    type = 3 - #odd axes (0: cube centre, 1: face centre, 2: edge midpoint).
+//  * spine = c ± h s with s_q = 0 on even axes and, on odd axes, +1 if (c_q + h) mod 4h = 0,
+//    else -1. Ring vertices surround the spine in cyclic order (6, 4 or 8 of them); tetrahedron
+//    m of the diamond is (spine0, spine1, ring[m], ring[m+1]) when both ring vertices exist.
+//  * parents are the ring vertices one level coarser; children are c ± h e_q (type 0, all
+//    axes; type 1, odd axes) or c + (h/2)(±1, ±1, ±1) (type 2, h ≥ 2).
+//
+// With several root cubes the hierarchy is the restriction of one infinite hierarchy whose root
+// cubes alternate by reflection, so the forest is conforming across cube faces and its finest
+// level is still the reflected-Kuhn mesh: every unit cube cut into 6 tetrahedra around the
+// diagonal from its all-even to its all-odd corner. The tests check all of this against a
+// brute-force bisection.
+//
+// Choice of N: the largest power of two ≤ min(dims) - 1, so the padding beyond the data box is
+// less than one root cube per axis. Padding vertices take the value of the nearest data vertex.
+#pragma once
+
+#include <array>
+#include <cstdint>
+
+#include <progiso/core/marching.hpp>
+#include <progiso/core/volume.hpp>
+
+namespace progiso {
+
+/// What the centre of a diamond determines.
+struct diamond {
+  ipoint centre{};
+  std::int32_t scale = 0;             ///< h
+  int type = 0;                       ///< 0 cube centre, 1 face centre, 2 edge midpoint
+  int depth = 0;                      ///< 0 for roots; parents have depth - 1
+  std::array<ipoint, 2> spine{};      ///< c - h s, c + h s
+  int ring_size = 0;                  ///< 6, 4 or 8 (before clipping to the grid)
+  std::array<ipoint, 8> ring{};       ///< cyclic
+  std::uint8_t ring_in_grid = 0;      ///< bit m set when ring[m] is a grid vertex
+};
+
+/// The forest of root cubes covering a volume's grid, and diamond arithmetic on it.
+class hierarchy {
+ public:
+  /// Hierarchy for a volume with the given dims (each ≥ 2).
+  explicit hierarchy(const index3& data_dims);
+
+  [[nodiscard]] int levels() const noexcept { return levels_; }              ///< L
+  [[nodiscard]] std::int32_t root_size() const noexcept { return root_; }    ///< N = 2^L
+  [[nodiscard]] const ipoint& cubes() const noexcept { return cubes_; }      ///< root cubes per axis
+  [[nodiscard]] const ipoint& grid_max() const noexcept { return grid_max_; }  ///< cubes * N
+  [[nodiscard]] const ipoint& data_max() const noexcept { return data_max_; }  ///< dims - 1
+  [[nodiscard]] std::uint64_t vertex_count() const noexcept { return vertex_count_; }
+  /// Deepest depth a diamond can have (type 2 at h = 1), or -1 when N = 1.
+  [[nodiscard]] int max_depth() const noexcept { return 3 * (levels_ - 1) + 2; }
+
+  [[nodiscard]] bool in_grid(const ipoint& p) const noexcept {
+    return p[0] >= 0 && p[1] >= 0 && p[2] >= 0 && p[0] <= grid_max_[0] && p[1] <= grid_max_[1] &&
+           p[2] <= grid_max_[2];
+  }
+  /// Linear index of a grid vertex, x fastest.
+  [[nodiscard]] std::uint64_t index(const ipoint& p) const noexcept {
+    return static_cast<std::uint64_t>(p[0]) +
+           stride_y_ * static_cast<std::uint64_t>(p[1]) +
+           stride_z_ * static_cast<std::uint64_t>(p[2]);
+  }
+  [[nodiscard]] ipoint point(std::uint64_t index) const noexcept;
+
+  /// True when p is a grid vertex that is the centre of a diamond (not a root-cube corner).
+  [[nodiscard]] bool is_diamond(const ipoint& p) const noexcept;
+  /// Scale of a centre: 2^min(tz), tz capped at L.
+  [[nodiscard]] std::int32_t scale_of(const ipoint& p) const noexcept;
+  /// Depth of a diamond centre (see diamond::depth).
+  [[nodiscard]] int depth_of(const ipoint& p) const noexcept;
+  /// Everything about the diamond centred at c. Precondition: is_diamond(c).
+  [[nodiscard]] diamond make_diamond(const ipoint& c) const noexcept;
+
+  /// Parents that are grid vertices; returns how many were written.
+  int parents(const diamond& d, std::array<ipoint, 4>& out) const noexcept;
+  /// Children that are grid vertices; returns how many were written.
+  int children(const diamond& d, std::array<ipoint, 8>& out) const noexcept;
+
+  /// Root cubes' centres (the root diamonds when N ≥ 2), and their 6 tetrahedra each.
+  [[nodiscard]] std::uint64_t root_count() const noexcept {
+    return static_cast<std::uint64_t>(cubes_[0]) * static_cast<std::uint64_t>(cubes_[1]) *
+           static_cast<std::uint64_t>(cubes_[2]);
+  }
+  /// Minimum corner of root cube r and its 6 tetrahedra (around the reflected diagonal).
+  void root_tets(std::uint64_t r, std::array<std::array<ipoint, 4>, 6>& out) const noexcept;
+
+  /// The two ends of the grid edge with the given edge key (canonical order: lower first).
+  [[nodiscard]] std::array<ipoint, 2> edge_ends(std::uint64_t key) const noexcept;
+
+  /// True when the region of the diamond lies wholly in the padding outside the data box
+  /// (its pieces of surface would all be clipped away).
+  [[nodiscard]] bool outside_data(const ipoint& c, std::int32_t h) const noexcept {
+    return c[0] - h >= data_max_[0] || c[1] - h >= data_max_[1] || c[2] - h >= data_max_[2];
+  }
+
+ private:
+  int levels_ = 0;
+  std::int32_t root_ = 1;
+  ipoint cubes_{};
+  ipoint grid_max_{};
+  ipoint data_max_{};
+  std::uint64_t stride_y_ = 0;
+  std::uint64_t stride_z_ = 0;
+  std::uint64_t vertex_count_ = 0;
+};
+
+}  // namespace progiso

@@ -1,0 +1,165 @@
+// progiso/core/refiner.hpp — sequential progressive isosurface refinement and cut extraction.
+//
+// A refiner holds one isovalue's progressive surface over a volume: the set of split diamonds
+// (always parent-closed: a diamond is split only after all its parents) and the split records
+// produced so far. The surface of the current cut is the marching-tetrahedra surface of the
+// conforming bisection mesh it defines, so every surface a refiner returns is crack-free and free
+// of self-intersections, and the fully refined one equals marching tetrahedra on the finest mesh.
+//
+// Work is output sensitive: only diamonds whose nested range straddles the isovalue are ever
+// split (range_data.hpp). The first surface, from the root tetrahedra, needs no split at all.
+// Ready diamonds (all parents split) wait in a queue ordered breadth first (full refinement) or
+// by largest nested error (quality-, budget- and time-driven refinement).
+//
+// Records: the root record holds the surface pieces of the root tetrahedra; each split appends
+// the pieces of its children tetrahedra, each tagged with the diamond that owns it. A piece is
+// in a cut exactly when its record is in the cut and its owner is not, so extract() and
+// extract_cut() walk records without touching the field except to place vertices.
+//
+// extract_isosurface() is the one-shot entry point used by the command-line tool.
+//
+// Thread safety: a refiner is a single-threaded object; distinct refiners over the same
+// volume, hierarchy and range data may run concurrently.
+#pragma once
+
+#include <array>
+#include <chrono>
+#include <cstdint>
+#include <functional>
+#include <memory>
+#include <vector>
+
+#include <progiso/core/hierarchy.hpp>
+#include <progiso/core/mesh.hpp>
+#include <progiso/core/range_data.hpp>
+#include <progiso/core/split_record.hpp>
+#include <progiso/core/volume.hpp>
+
+namespace progiso {
+
+/// Counters of a refinement.
+struct refine_statistics {
+  std::uint64_t splits = 0;            ///< diamonds split
+  std::uint64_t visited = 0;           ///< diamonds examined (became ready), split or not
+  std::uint64_t culled = 0;            ///< examined and rejected by their range
+  std::uint64_t triangles = 0;         ///< triangles in the current cut (before box clipping)
+  std::uint64_t record_triangles = 0;  ///< triangles held by all records
+  std::array<std::uint64_t, tet_case_count> cases{};
+  std::array<std::uint64_t, primitive_count> primitives{};
+  std::array<std::uint64_t, split_configuration_count> configurations{};
+};
+
+/// Order in which ready diamonds are split.
+enum class refine_order { breadth_first, largest_error_first };
+
+/// Sequential progressive refinement at one isovalue.
+class refiner {
+ public:
+  /// Starts at the root cut. The volume, hierarchy and range data must outlive the refiner.
+  /// Throws progiso::error when the isovalue is not finite.
+  refiner(const volume& vol, const hierarchy& hier, const range_data& ranges, double isovalue,
+          refine_order order = refine_order::largest_error_first);
+  ~refiner();
+  refiner(const refiner&) = delete;
+  refiner& operator=(const refiner&) = delete;
+
+  [[nodiscard]] double isovalue() const noexcept { return isovalue_; }
+  /// True when no split can change the surface any more (the cut is full resolution).
+  [[nodiscard]] bool done() const noexcept;
+  /// Nested error of the next diamond to split (0 when done).
+  [[nodiscard]] double next_error() const noexcept;
+  /// Depth of the next diamond to split (-1 when done).
+  [[nodiscard]] int next_depth() const noexcept;
+
+  /// Splits the next ready diamond. Returns false when none is left.
+  bool split_next();
+  /// Splits the next ready diamond only if the cut then has at most max_triangles triangles.
+  bool split_next_within(std::uint64_t max_triangles);
+
+  /// Splits until done.
+  void refine_full();
+  /// Splits, largest error first, until every remaining error is ≤ max_error.
+  void refine_to_error(double max_error);
+  /// Splits while the cut stays within max_triangles.
+  void refine_to_triangles(std::uint64_t max_triangles);
+  /// Splits until the deadline; checked between splits.
+  void refine_until(std::chrono::steady_clock::time_point deadline);
+
+  [[nodiscard]] std::uint64_t triangle_count() const noexcept { return stats_.triangles; }
+  [[nodiscard]] const refine_statistics& statistics() const noexcept { return stats_; }
+  [[nodiscard]] bool is_split(const ipoint& centre) const noexcept;
+
+  /// The surface of the current cut: indexed, clipped to the data box, physical coordinates.
+  [[nodiscard]] triangle_mesh extract() const;
+  /// The coarser cut made of the split diamonds whose nested error exceeds max_error.
+  [[nodiscard]] triangle_mesh extract_cut(double max_error) const;
+
+ private:
+  struct record {
+    std::uint64_t diamond;  // grid index, or no_owner for the root record
+    std::uint64_t first;
+    std::uint32_t count;
+    double error;
+  };
+  struct ready {
+    double error;
+    int depth;
+    std::uint64_t index;
+  };
+  struct queue;
+
+  bool split(std::uint64_t max_triangles);
+  template <class InCut, class Take>
+  triangle_mesh build_mesh(InCut&& in_cut, Take&& take) const;
+
+  const volume& vol_;
+  const hierarchy& hier_;
+  const range_data& ranges_;
+  double isovalue_;
+  std::unique_ptr<std::uint8_t, void (*)(void*)> state_;
+  std::vector<owned_triangle> triangles_;
+  std::vector<record> records_;
+  std::unique_ptr<queue> queue_;
+  refine_statistics stats_;
+};
+
+// -------------------------------------------------------------------------------------------
+// One-shot extraction (what the command-line tool runs).
+
+enum class extract_mode { full, error, triangles, time };
+
+/// Progress of a running extraction.
+struct extract_progress {
+  std::uint64_t splits = 0;
+  std::uint64_t triangles = 0;
+  int depth = 0;      ///< depth being refined
+  int max_depth = 0;  ///< deepest level of the hierarchy
+};
+
+struct extract_options {
+  extract_mode mode = extract_mode::full;
+  double max_error = 0.0;                   ///< extract_mode::error
+  std::uint64_t max_triangles = 0;          ///< extract_mode::triangles
+  std::chrono::duration<double> time_budget{0.0};  ///< extract_mode::time, from refinement start
+  /// Called about every 4096 splits.
+  std::function<void(const extract_progress&)> progress;
+};
+
+struct extract_result {
+  triangle_mesh mesh;
+  refine_statistics stats;
+  double range_build_seconds = 0.0;
+  double first_surface_seconds = 0.0;  ///< refinement start → root surface extracted
+  double refine_seconds = 0.0;
+  double extract_seconds = 0.0;
+  double total_seconds = 0.0;
+  std::size_t range_bytes = 0;
+  bool isovalue_outside_data = false;  ///< empty because the isovalue misses the data range
+};
+
+/// Builds the hierarchy and range data, refines in the requested mode and extracts the cut.
+/// Throws progiso::error for a non-finite isovalue or invalid options.
+[[nodiscard]] extract_result extract_isosurface(const volume& vol, double isovalue,
+                                                const extract_options& options);
+
+}  // namespace progiso

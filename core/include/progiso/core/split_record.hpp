@@ -1,0 +1,93 @@
+// progiso/core/split_record.hpp — what splitting one diamond does to the surface (paper §4).
+//
+// Splitting diamond D bisects its spine (c, d) at its centre e and replaces each of its k
+// tetrahedra (c, d, a, b) by (c, e, a, b) and (e, d, a, b). The surface changes only inside D:
+// the pieces in D's tetrahedra are replaced by the pieces in the 2k children tetrahedra, each of
+// which belongs to one child diamond (the diamond centred at the midpoint of its longest edge)
+// or to none at the finest level. A split record lists those new pieces, each tagged with the
+// owning child, and classifies the split:
+//
+//  * per tetrahedron, the paper's case (Figure 7–9): 1 when c and d differ in colour and a, b
+//    agree; 2 when c, d differ and a, b differ; 3/4/5 when c and d agree and a, b both share
+//    their colour / both oppose it / differ; suffix b when e has c's colour (1: e has a's
+//    colour), c otherwise. Cases 2b and 2c differ by whether e takes c's colour (2b) or d's.
+//  * the primitives it amounts to (§4.2), counted per diamond with these rules:
+//    - c ≠ d: one VertexMove (the spine's surface vertex moves to c-e or e-d);
+//    - c ≠ d, or c = d = e: one VertexSplit per ring vertex a whose new edge a-e is crossed,
+//      or VertexOpen when facet (a, c, d) is on the grid boundary (one triangle, not two);
+//    - c = d ≠ e: all tetrahedra 3a → NewLoop (closed ring) or NewSurf (open ring); all 4a →
+//      CylinderFlip; otherwise per component {5a 4a^h 5'a 3a^l} one VertexSplit for the new
+//      spine vertex pair, one VertexSplit/VertexOpen per crossed edge a-e and one EdgeFlip per
+//      4a tetrahedron, plus one ConnectivityChange per component beyond the first.
+//
+// compute_split() is a pure function of (diamond, field, isovalue): records can be computed in
+// any order and in parallel; only their publication must follow parent-before-child order.
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <string_view>
+#include <vector>
+
+#include <progiso/core/hierarchy.hpp>
+#include <progiso/core/volume.hpp>
+
+namespace progiso {
+
+/// The paper's per-tetrahedron cases, after the split.
+enum class tet_case : std::uint8_t { c1b, c1c, c2b, c2c, c3b, c3c, c4b, c4c, c5b, c5c };
+inline constexpr std::size_t tet_case_count = 10;
+[[nodiscard]] std::string_view to_string(tet_case c) noexcept;
+
+/// The paper's refinement primitives (§4.2).
+enum class primitive : std::uint8_t {
+  vertex_move,
+  vertex_split,
+  vertex_open,
+  edge_flip,
+  new_loop,
+  new_surf,
+  cylinder_flip,
+  connectivity_change
+};
+inline constexpr std::size_t primitive_count = 8;
+[[nodiscard]] std::string_view to_string(primitive p) noexcept;
+
+/// The global configuration of a split around its spine (paper §4.3–4.5).
+enum class split_configuration : std::uint8_t {
+  spine_crossed,        ///< c ≠ d (§4.3)
+  no_new_crossing,      ///< c = d = e (§4.4)
+  empty_region,         ///< c = d ≠ e, all 3a
+  cylinder,             ///< c = d ≠ e, all 4a
+  single_component,     ///< c = d ≠ e, one {5a 4a^h 5'a 3a^l}
+  multiple_components   ///< c = d ≠ e, several
+};
+inline constexpr std::size_t split_configuration_count = 6;
+[[nodiscard]] std::string_view to_string(split_configuration c) noexcept;
+
+/// Owner value of a triangle in a finest tetrahedron (no diamond ever splits it).
+inline constexpr std::uint64_t no_owner = ~std::uint64_t{0};
+
+/// A surface triangle (three edge keys, oriented) in a tetrahedron owned by diamond `owner`
+/// (grid index of its centre). It is part of every cut in which the owner is not split.
+struct owned_triangle {
+  std::uint64_t owner = no_owner;
+  std::array<std::uint64_t, 3> keys{};
+};
+
+/// Classification of one split.
+struct split_summary {
+  int tets = 0;                 ///< tetrahedra of the diamond inside the grid
+  int removed_triangles = 0;    ///< surface triangles in those tetrahedra before the split
+  int added_triangles = 0;      ///< in the 2 * tets children
+  split_configuration configuration = split_configuration::no_new_crossing;
+  std::array<std::uint8_t, tet_case_count> cases{};
+  std::array<std::uint16_t, primitive_count> primitives{};
+};
+
+/// Computes the split record of diamond d at isovalue w: appends the new triangles to `out`
+/// and returns the classification. Pure: depends only on (d, the field, w).
+split_summary compute_split(const hierarchy& hier, const volume& vol, double isovalue,
+                            const diamond& d, std::vector<owned_triangle>& out);
+
+}  // namespace progiso

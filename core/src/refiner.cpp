@@ -1,0 +1,412 @@
+#include <progiso/core/refiner.hpp>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdlib>
+#include <map>
+#include <string>
+
+#include <progiso/core/detail/flat_map.hpp>
+#include <progiso/core/error.hpp>
+#include <progiso/core/marching.hpp>
+
+namespace progiso {
+namespace {
+
+// Per-diamond state, one byte per grid vertex (lazily zeroed by calloc).
+constexpr std::uint8_t split_bit = 0x80;
+constexpr std::uint8_t parent_count_mask = 0x07;
+
+}  // namespace
+
+// Ready diamonds: a FIFO for breadth-first order, a binary heap for largest error first.
+struct refiner::queue {
+  refine_order order;
+  std::vector<ready> items;
+  std::size_t head = 0;
+
+  static bool before(const ready& a, const ready& b) noexcept {
+    // Heap comparator: true when a ranks below b.
+    if (a.error != b.error) return a.error < b.error;
+    if (a.depth != b.depth) return a.depth > b.depth;
+    return a.index > b.index;
+  }
+  [[nodiscard]] bool empty() const noexcept { return head == items.size(); }
+  [[nodiscard]] const ready& top() const noexcept {
+    return order == refine_order::breadth_first ? items[head] : items.front();
+  }
+  void push(const ready& r) {
+    items.push_back(r);
+    if (order == refine_order::largest_error_first) std::push_heap(items.begin(), items.end(), before);
+  }
+  void pop() {
+    if (order == refine_order::breadth_first) {
+      ++head;
+      if (head == items.size()) {
+        items.clear();
+        head = 0;
+      }
+    } else {
+      std::pop_heap(items.begin(), items.end(), before);
+      items.pop_back();
+    }
+  }
+};
+
+refiner::refiner(const volume& vol, const hierarchy& hier, const range_data& ranges,
+                 double isovalue, refine_order order)
+    : vol_(vol),
+      hier_(hier),
+      ranges_(ranges),
+      isovalue_(isovalue),
+      state_(static_cast<std::uint8_t*>(std::calloc(hier.vertex_count(), 1)), &std::free),
+      queue_(std::make_unique<queue>()) {
+  if (!std::isfinite(isovalue)) {
+    throw error("isovalue: expected a finite number, found " + std::to_string(isovalue));
+  }
+  if (!state_) throw std::bad_alloc();
+  queue_->order = order;
+  // Root record: the surface in the root tetrahedra, owned by the root diamonds.
+  records_.push_back({no_owner, 0, 0, 0.0});
+  std::array<std::array<ipoint, 4>, 6> tets{};
+  for (std::uint64_t r = 0; r < hier_.root_count(); ++r) {
+    hier_.root_tets(r, tets);
+    ipoint centre{};
+    for (std::size_t q = 0; q < 3; ++q) centre[q] = (tets[0][0][q] + tets[0][3][q]) / 2;
+    const bool has_diamond = hier_.root_size() >= 2;
+    const std::uint64_t owner = has_diamond ? hier_.index(centre) : no_owner;
+    for (const auto& t : tets) {
+      std::array<double, 4> f{};
+      for (std::size_t i = 0; i < 4; ++i) f[i] = vol_.value(t[i][0], t[i][1], t[i][2]);
+      const tet_surface s = march_tet(t, f, isovalue_);
+      for (int k = 0; k < s.count; ++k) {
+        triangles_.push_back({owner, s.triangles[static_cast<std::size_t>(k)]});
+      }
+    }
+    if (has_diamond) {
+      const diamond d = hier_.make_diamond(centre);
+      ++stats_.visited;
+      const diamond_range rr = ranges_.get(d);
+      if (rr.straddles(isovalue_)) {
+        queue_->push({rr.error, d.depth, owner});
+      } else {
+        ++stats_.culled;
+      }
+    }
+  }
+  records_[0].count = static_cast<std::uint32_t>(triangles_.size());
+  stats_.triangles = triangles_.size();
+  stats_.record_triangles = triangles_.size();
+}
+
+refiner::~refiner() = default;
+
+bool refiner::done() const noexcept { return queue_->empty(); }
+double refiner::next_error() const noexcept { return done() ? 0.0 : queue_->top().error; }
+int refiner::next_depth() const noexcept { return done() ? -1 : queue_->top().depth; }
+
+bool refiner::is_split(const ipoint& centre) const noexcept {
+  return hier_.in_grid(centre) && (state_.get()[hier_.index(centre)] & split_bit) != 0;
+}
+
+bool refiner::split_next() { return split(~std::uint64_t{0}); }
+bool refiner::split_next_within(std::uint64_t max_triangles) { return split(max_triangles); }
+
+bool refiner::split(std::uint64_t max_triangles) {
+  if (queue_->empty()) return false;
+  const ready next = queue_->top();
+  const diamond d = hier_.make_diamond(hier_.point(next.index));
+  const std::size_t first = triangles_.size();
+  const split_summary s = compute_split(hier_, vol_, isovalue_, d, triangles_);
+  const std::uint64_t after = stats_.triangles + static_cast<std::uint64_t>(s.added_triangles) -
+                              static_cast<std::uint64_t>(s.removed_triangles);
+  if (after > max_triangles) {
+    triangles_.resize(first);
+    return false;
+  }
+  queue_->pop();
+  std::uint8_t* state = state_.get();
+  state[next.index] = static_cast<std::uint8_t>(state[next.index] | split_bit);
+  records_.push_back({next.index, first, static_cast<std::uint32_t>(s.added_triangles), next.error});
+  stats_.triangles = after;
+  stats_.record_triangles += static_cast<std::uint64_t>(s.added_triangles);
+  ++stats_.splits;
+  for (std::size_t i = 0; i < tet_case_count; ++i) stats_.cases[i] += s.cases[i];
+  for (std::size_t i = 0; i < primitive_count; ++i) stats_.primitives[i] += s.primitives[i];
+  ++stats_.configurations[static_cast<std::size_t>(s.configuration)];
+
+  // Children whose parents are now all split become ready.
+  std::array<ipoint, 8> children{};
+  const int nc = hier_.children(d, children);
+  std::array<ipoint, 4> parents{};
+  for (int i = 0; i < nc; ++i) {
+    const ipoint& c = children[static_cast<std::size_t>(i)];
+    const std::uint64_t ci = hier_.index(c);
+    const auto count = static_cast<std::uint8_t>((state[ci] & parent_count_mask) + 1);
+    state[ci] = static_cast<std::uint8_t>((state[ci] & ~parent_count_mask) | count);
+    const diamond cd = hier_.make_diamond(c);
+    if (count != hier_.parents(cd, parents)) continue;
+    ++stats_.visited;
+    const diamond_range r = ranges_.get(cd);
+    if (r.straddles(isovalue_)) {
+      queue_->push({r.error, cd.depth, ci});
+    } else {
+      ++stats_.culled;
+    }
+  }
+  return true;
+}
+
+void refiner::refine_full() {
+  while (split_next()) {
+  }
+}
+
+void refiner::refine_to_error(double max_error) {
+  while (!done() && next_error() > max_error) split_next();
+}
+
+void refiner::refine_to_triangles(std::uint64_t max_triangles) {
+  while (split_next_within(max_triangles)) {
+  }
+}
+
+void refiner::refine_until(std::chrono::steady_clock::time_point deadline) {
+  while (!done() && std::chrono::steady_clock::now() < deadline) split_next();
+}
+
+// ---------------------------------------------------------------------------------------------
+// Extraction: deduplicate surface vertices by edge key, place them on their edges, clip pieces
+// that reach past the data box (only coarse tetrahedra of padded hierarchies do), and map to
+// physical coordinates.
+
+namespace {
+
+class mesh_builder {
+ public:
+  mesh_builder(const hierarchy& hier, const volume& vol, double w, std::size_t expected)
+      : hier_(hier), vol_(vol), w_(w), keys_(expected) {
+    for (std::size_t q = 0; q < 3; ++q) box_[q] = static_cast<double>(hier.data_max()[q]);
+    grid_.reserve(expected);
+    mesh_.triangles.reserve(expected * 2);
+  }
+
+  void add(const std::array<std::uint64_t, 3>& keys) {
+    std::array<std::uint32_t, 3> ids{};
+    bool inside = true;
+    for (std::size_t i = 0; i < 3; ++i) {
+      ids[i] = vertex(keys[i]);
+      const vec3& p = grid_[ids[i]];
+      inside = inside && p[0] <= box_[0] && p[1] <= box_[1] && p[2] <= box_[2];
+    }
+    if (inside) {
+      mesh_.triangles.push_back(ids);
+    } else {
+      clip(ids);
+    }
+  }
+
+  triangle_mesh finish() {
+    const auto& sp = vol_.spacing();
+    const auto& org = vol_.origin();
+    mesh_.vertices.resize(grid_.size());
+    for (std::size_t i = 0; i < grid_.size(); ++i) {
+      for (std::size_t q = 0; q < 3; ++q) mesh_.vertices[i][q] = org[q] + grid_[i][q] * sp[q];
+    }
+    // Drop vertices that only clipped-away triangles used.
+    std::vector<std::uint32_t> remap(grid_.size(), ~std::uint32_t{0});
+    std::uint32_t n = 0;
+    for (auto& t : mesh_.triangles) {
+      for (auto& v : t) {
+        if (remap[v] == ~std::uint32_t{0}) remap[v] = n++;
+        v = remap[v];
+      }
+    }
+    if (n != grid_.size()) {
+      std::vector<vec3> kept(n);
+      for (std::size_t i = 0; i < grid_.size(); ++i) {
+        if (remap[i] != ~std::uint32_t{0}) kept[remap[i]] = mesh_.vertices[i];
+      }
+      mesh_.vertices = std::move(kept);
+    } else {
+      std::vector<vec3> ordered(n);
+      for (std::size_t i = 0; i < grid_.size(); ++i) ordered[remap[i]] = mesh_.vertices[i];
+      mesh_.vertices = std::move(ordered);
+    }
+    return std::move(mesh_);
+  }
+
+ private:
+  std::uint32_t vertex(std::uint64_t key) {
+    const auto [id, inserted] = keys_.try_emplace(key, static_cast<std::uint32_t>(grid_.size()));
+    if (inserted) {
+      const auto ends = hier_.edge_ends(key);
+      const double fa = vol_.value(ends[0][0], ends[0][1], ends[0][2]);
+      const double fb = vol_.value(ends[1][0], ends[1][1], ends[1][2]);
+      grid_.push_back(interpolate(ends[0], fa, ends[1], fb, w_));
+    }
+    return id;
+  }
+
+  std::uint32_t clip_vertex(const vec3& p) {
+    const auto [it, inserted] = clipped_.try_emplace(p, static_cast<std::uint32_t>(grid_.size()));
+    if (inserted) grid_.push_back(p);
+    return it->second;
+  }
+
+  // Sutherland–Hodgman against x_q ≤ box_q. Each crossing point is computed from the segment's
+  // ends in lexicographic order, so the two triangles sharing a segment get the same point.
+  void clip(const std::array<std::uint32_t, 3>& ids) {
+    std::vector<std::uint32_t> poly(ids.begin(), ids.end());
+    std::vector<std::uint32_t> next;
+    for (std::size_t q = 0; q < 3 && poly.size() >= 3; ++q) {
+      next.clear();
+      for (std::size_t i = 0; i < poly.size(); ++i) {
+        const std::uint32_t a = poly[i];
+        const std::uint32_t b = poly[(i + 1) % poly.size()];
+        const bool ain = grid_[a][q] <= box_[q];
+        const bool bin = grid_[b][q] <= box_[q];
+        if (ain) next.push_back(a);
+        if (ain != bin) {
+          vec3 p = grid_[a];
+          vec3 r = grid_[b];
+          if (r < p) std::swap(p, r);
+          const double s = (box_[q] - p[q]) / (r[q] - p[q]);
+          vec3 x{};
+          for (std::size_t k = 0; k < 3; ++k) x[k] = p[k] + s * (r[k] - p[k]);
+          x[q] = box_[q];
+          next.push_back(clip_vertex(x));
+        }
+      }
+      poly.swap(next);
+    }
+    if (poly.size() < 3) return;
+    for (std::size_t i = 1; i + 1 < poly.size(); ++i) {
+      const std::array<std::uint32_t, 3> t{poly[0], poly[i], poly[i + 1]};
+      if (grid_[t[0]] == grid_[t[1]] || grid_[t[1]] == grid_[t[2]] || grid_[t[0]] == grid_[t[2]]) {
+        continue;
+      }
+      mesh_.triangles.push_back(t);
+    }
+  }
+
+  const hierarchy& hier_;
+  const volume& vol_;
+  double w_;
+  vec3 box_{};
+  detail::flat_map keys_;
+  std::map<vec3, std::uint32_t> clipped_;
+  std::vector<vec3> grid_;
+  triangle_mesh mesh_;
+};
+
+}  // namespace
+
+template <class InCut, class Take>
+triangle_mesh refiner::build_mesh(InCut&& in_cut, Take&& take) const {
+  mesh_builder b(hier_, vol_, isovalue_, static_cast<std::size_t>(stats_.triangles / 2 + 16));
+  for (const record& r : records_) {
+    if (!in_cut(r)) continue;
+    for (std::uint64_t i = r.first; i < r.first + r.count; ++i) {
+      const owned_triangle& t = triangles_[i];
+      if (take(t.owner)) b.add(t.keys);
+    }
+  }
+  return b.finish();
+}
+
+triangle_mesh refiner::extract() const {
+  const std::uint8_t* state = state_.get();
+  return build_mesh([](const record&) { return true; },
+                    [state](std::uint64_t owner) {
+                      return owner == no_owner || (state[owner] & split_bit) == 0;
+                    });
+}
+
+triangle_mesh refiner::extract_cut(double max_error) const {
+  const std::uint8_t* state = state_.get();
+  return build_mesh(
+      [max_error](const record& r) { return r.diamond == no_owner || r.error > max_error; },
+      [&](std::uint64_t owner) {
+        if (owner == no_owner || (state[owner] & split_bit) == 0) return true;
+        const diamond d = hier_.make_diamond(hier_.point(owner));
+        return !(ranges_.get(d).error > max_error);
+      });
+}
+
+// ---------------------------------------------------------------------------------------------
+
+extract_result extract_isosurface(const volume& vol, double isovalue,
+                                  const extract_options& options) {
+  using clock = std::chrono::steady_clock;
+  const auto seconds = [](clock::duration d) { return std::chrono::duration<double>(d).count(); };
+  if (!std::isfinite(isovalue)) {
+    throw error("--iso: expected a finite isovalue, found " + std::to_string(isovalue));
+  }
+  if (options.mode == extract_mode::error && !(options.max_error >= 0.0)) {
+    throw error("--error: expected a non-negative error, found " + std::to_string(options.max_error));
+  }
+  if (options.mode == extract_mode::time && !(options.time_budget.count() >= 0.0)) {
+    throw error("--time-ms: expected a non-negative time budget");
+  }
+  extract_result res;
+  const auto t0 = clock::now();
+  const hierarchy hier(vol.dims());
+  const range_data ranges(vol, hier);
+  const auto t1 = clock::now();
+  res.range_build_seconds = seconds(t1 - t0);
+  res.range_bytes = ranges.byte_size();
+  const auto [lo, hi] = vol.value_range();
+  res.isovalue_outside_data = !(lo <= isovalue && isovalue < hi);
+
+  const refine_order order = options.mode == extract_mode::full ? refine_order::breadth_first
+                                                                : refine_order::largest_error_first;
+  refiner ref(vol, hier, ranges, isovalue, order);
+  {
+    const triangle_mesh first = ref.extract();
+    res.first_surface_seconds = seconds(clock::now() - t1);
+  }
+  const auto deadline =
+      t1 + std::chrono::duration_cast<clock::duration>(options.time_budget);
+  extract_progress prog;
+  prog.max_depth = hier.max_depth();
+  std::uint64_t since = 0;
+  const auto report = [&] {
+    if (!options.progress || ++since < 4096) return;
+    since = 0;
+    prog.splits = ref.statistics().splits;
+    prog.triangles = ref.triangle_count();
+    prog.depth = ref.next_depth();
+    options.progress(prog);
+  };
+  switch (options.mode) {
+    case extract_mode::full:
+      while (ref.split_next()) report();
+      break;
+    case extract_mode::error:
+      while (!ref.done() && ref.next_error() > options.max_error) {
+        ref.split_next();
+        report();
+      }
+      break;
+    case extract_mode::triangles:
+      while (ref.split_next_within(options.max_triangles)) report();
+      break;
+    case extract_mode::time:
+      while (!ref.done() && clock::now() < deadline) {
+        ref.split_next();
+        report();
+      }
+      break;
+  }
+  const auto t2 = clock::now();
+  res.refine_seconds = seconds(t2 - t1);
+  res.mesh = ref.extract();
+  const auto t3 = clock::now();
+  res.extract_seconds = seconds(t3 - t2);
+  res.total_seconds = seconds(t3 - t0);
+  res.stats = ref.statistics();
+  return res;
+}
+
+}  // namespace progiso

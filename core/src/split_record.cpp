@@ -1,0 +1,189 @@
+#include <progiso/core/split_record.hpp>
+
+#include <progiso/core/marching.hpp>
+
+namespace progiso {
+
+std::string_view to_string(tet_case c) noexcept {
+  static constexpr std::string_view names[] = {"1b", "1c", "2b", "2c", "3b",
+                                               "3c", "4b", "4c", "5b", "5c"};
+  return names[static_cast<std::size_t>(c)];
+}
+
+std::string_view to_string(primitive p) noexcept {
+  static constexpr std::string_view names[] = {"VertexMove",    "VertexSplit",  "VertexOpen",
+                                               "EdgeFlip",      "NewLoop",      "NewSurf",
+                                               "CylinderFlip",  "ConnectivityChange"};
+  return names[static_cast<std::size_t>(p)];
+}
+
+std::string_view to_string(split_configuration c) noexcept {
+  static constexpr std::string_view names[] = {"spine_crossed",   "no_new_crossing",
+                                               "empty_region",    "cylinder",
+                                               "single_component", "multiple_components"};
+  return names[static_cast<std::size_t>(c)];
+}
+
+namespace {
+
+std::int64_t dist2(const ipoint& a, const ipoint& b) noexcept {
+  std::int64_t s = 0;
+  for (std::size_t q = 0; q < 3; ++q) {
+    const std::int64_t d = a[q] - b[q];
+    s += d * d;
+  }
+  return s;
+}
+
+// The diamond that owns a tetrahedron: the one centred at the midpoint of its longest edge, or
+// none when that midpoint is not a grid vertex (a finest tetrahedron).
+std::uint64_t owner_of(const hierarchy& hier, const std::array<ipoint, 4>& t) noexcept {
+  std::int64_t best = -1;
+  std::size_t bi = 0;
+  std::size_t bj = 1;
+  for (std::size_t i = 0; i < 4; ++i) {
+    for (std::size_t j = i + 1; j < 4; ++j) {
+      const std::int64_t l = dist2(t[i], t[j]);
+      if (l > best) {
+        best = l;
+        bi = i;
+        bj = j;
+      }
+    }
+  }
+  ipoint m{};
+  for (std::size_t q = 0; q < 3; ++q) {
+    const std::int32_t s = t[bi][q] + t[bj][q];
+    if (s & 1) return no_owner;
+    m[q] = s / 2;
+  }
+  return hier.is_diamond(m) ? hier.index(m) : no_owner;
+}
+
+void bump(split_summary& s, primitive p, int n = 1) noexcept {
+  s.primitives[static_cast<std::size_t>(p)] =
+      static_cast<std::uint16_t>(s.primitives[static_cast<std::size_t>(p)] + n);
+}
+
+}  // namespace
+
+split_summary compute_split(const hierarchy& hier, const volume& vol, double w, const diamond& d,
+                            std::vector<owned_triangle>& out) {
+  split_summary s;
+  const auto value = [&](const ipoint& p) { return vol.value(p[0], p[1], p[2]); };
+  const ipoint& c = d.spine[0];
+  const ipoint& dd = d.spine[1];
+  const ipoint& e = d.centre;
+  const double fc = value(c);
+  const double fd = value(dd);
+  const double fe = value(e);
+  const bool bc = fc > w;
+  const bool bd = fd > w;
+  const bool be = fe > w;
+  const int n = d.ring_size;
+  std::array<double, 8> fr{};
+  std::array<bool, 8> br{};
+  for (int m = 0; m < n; ++m) {
+    if ((d.ring_in_grid >> m) & 1u) {
+      fr[static_cast<std::size_t>(m)] = value(d.ring[static_cast<std::size_t>(m)]);
+      br[static_cast<std::size_t>(m)] = fr[static_cast<std::size_t>(m)] > w;
+    }
+  }
+  const auto tet_exists = [&](int m) {
+    const int m1 = (m + 1) % n;
+    return ((d.ring_in_grid >> m) & 1u) && ((d.ring_in_grid >> m1) & 1u);
+  };
+
+  // ---- The children tetrahedra and their surface pieces, per tetrahedron's case. ----------
+  int count_3a = 0;
+  int count_4a = 0;
+  for (int m = 0; m < n; ++m) {
+    if (!tet_exists(m)) continue;
+    const auto um = static_cast<std::size_t>(m);
+    const auto um1 = static_cast<std::size_t>((m + 1) % n);
+    const ipoint& a = d.ring[um];
+    const ipoint& b = d.ring[um1];
+    ++s.tets;
+    const unsigned mask = (bc ? 1u : 0u) | (bd ? 2u : 0u) | (br[um] ? 4u : 0u) | (br[um1] ? 8u : 0u);
+    s.removed_triangles += tet_triangle_count(mask);
+    tet_case tc;
+    if (bc != bd) {
+      if (br[um] == br[um1]) {
+        tc = be != br[um] ? tet_case::c1b : tet_case::c1c;
+      } else {
+        tc = be == bc ? tet_case::c2b : tet_case::c2c;
+      }
+    } else if (br[um] == br[um1]) {
+      if (br[um] == bc) {
+        tc = be == bc ? tet_case::c3b : tet_case::c3c;
+        ++count_3a;
+      } else {
+        tc = be == bc ? tet_case::c4b : tet_case::c4c;
+        ++count_4a;
+      }
+    } else {
+      tc = be == bc ? tet_case::c5b : tet_case::c5c;
+    }
+    ++s.cases[static_cast<std::size_t>(tc)];
+    for (int half = 0; half < 2; ++half) {
+      const std::array<ipoint, 4> t = half == 0 ? std::array<ipoint, 4>{c, e, a, b}
+                                                : std::array<ipoint, 4>{e, dd, a, b};
+      const std::array<double, 4> f = half == 0 ? std::array<double, 4>{fc, fe, fr[um], fr[um1]}
+                                                : std::array<double, 4>{fe, fd, fr[um], fr[um1]};
+      const tet_surface ts = march_tet(t, f, w);
+      if (ts.count == 0) continue;
+      const std::uint64_t owner = owner_of(hier, t);
+      for (int k = 0; k < ts.count; ++k) {
+        out.push_back({owner, ts.triangles[static_cast<std::size_t>(k)]});
+      }
+      s.added_triangles += ts.count;
+    }
+  }
+
+  // ---- Primitives around the spine. --------------------------------------------------------
+  const auto facet_interior = [&](int m) { return tet_exists(m) && tet_exists((m + n - 1) % n); };
+  const auto ring_splits = [&](bool want_colour_ne_e) {
+    for (int m = 0; m < n; ++m) {
+      if (!((d.ring_in_grid >> m) & 1u)) continue;
+      if (!tet_exists(m) && !tet_exists((m + n - 1) % n)) continue;
+      if ((br[static_cast<std::size_t>(m)] != be) != want_colour_ne_e) continue;
+      bump(s, facet_interior(m) ? primitive::vertex_split : primitive::vertex_open);
+    }
+  };
+  if (bc != bd) {
+    s.configuration = split_configuration::spine_crossed;
+    bump(s, primitive::vertex_move);
+    ring_splits(true);
+  } else if (be == bc) {
+    s.configuration = split_configuration::no_new_crossing;
+    ring_splits(true);
+  } else if (count_3a == s.tets) {
+    s.configuration = split_configuration::empty_region;
+    bool closed = true;
+    for (int m = 0; m < n; ++m) closed = closed && tet_exists(m);
+    bump(s, closed ? primitive::new_loop : primitive::new_surf);
+  } else if (count_4a == s.tets) {
+    s.configuration = split_configuration::cylinder;
+    bump(s, primitive::cylinder_flip);
+  } else {
+    // Components: maximal runs of ring vertices opposite to c in colour, along existing tets.
+    int components = 0;
+    for (int m = 0; m < n; ++m) {
+      const auto um = static_cast<std::size_t>(m);
+      if (!((d.ring_in_grid >> m) & 1u) || br[um] == bc) continue;
+      const int prev = (m + n - 1) % n;
+      const bool continues = tet_exists(prev) && br[static_cast<std::size_t>(prev)] != bc;
+      if (!continues) ++components;
+    }
+    if (components == 0) components = 1;  // closed ring wholly opposite: handled as cylinder
+    s.configuration = components == 1 ? split_configuration::single_component
+                                      : split_configuration::multiple_components;
+    bump(s, primitive::vertex_split, components);
+    ring_splits(true);
+    bump(s, primitive::edge_flip, count_4a);
+    bump(s, primitive::connectivity_change, components - 1);
+  }
+  return s;
+}
+
+}  // namespace progiso

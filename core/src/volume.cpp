@@ -1,0 +1,83 @@
+#include <progiso/core/volume.hpp>
+
+#include <cmath>
+#include <limits>
+#include <string>
+
+#include <progiso/core/error.hpp>
+
+namespace progiso {
+
+std::size_t sample_size(sample_type type) noexcept {
+  switch (type) {
+    case sample_type::u8:
+    case sample_type::i8: return 1;
+    case sample_type::u16:
+    case sample_type::i16: return 2;
+    case sample_type::u32:
+    case sample_type::i32:
+    case sample_type::f32: return 4;
+    case sample_type::f64: return 8;
+  }
+  return 1;
+}
+
+std::string_view to_string(sample_type type) noexcept {
+  switch (type) {
+    case sample_type::u8: return "u8";
+    case sample_type::i8: return "i8";
+    case sample_type::u16: return "u16";
+    case sample_type::i16: return "i16";
+    case sample_type::u32: return "u32";
+    case sample_type::i32: return "i32";
+    case sample_type::f32: return "f32";
+    case sample_type::f64: return "f64";
+  }
+  return "?";
+}
+
+std::optional<sample_type> parse_sample_type(std::string_view name) noexcept {
+  for (auto t : {sample_type::u8, sample_type::i8, sample_type::u16, sample_type::i16,
+                 sample_type::u32, sample_type::i32, sample_type::f32, sample_type::f64}) {
+    if (name == to_string(t)) return t;
+  }
+  return std::nullopt;
+}
+
+volume::volume(index3 dims, sample_type type, std::vector<std::byte> samples,
+               std::array<double, 3> spacing, std::array<double, 3> origin)
+    : dims_(dims), type_(type), samples_(std::move(samples)), spacing_(spacing), origin_(origin) {
+  for (int a = 0; a < 3; ++a) {
+    if (dims_[a] < 2) {
+      throw error("volume: every dim must be at least 2, found " + std::to_string(dims_[0]) + "," +
+                  std::to_string(dims_[1]) + "," + std::to_string(dims_[2]));
+    }
+    if (dims_[a] > (std::int64_t{1} << 15) + 1) {
+      throw error("volume: dims above 32769 per axis are not supported, found " +
+                  std::to_string(dims_[a]));
+    }
+    if (!(std::isfinite(spacing_[a]) && spacing_[a] > 0.0)) {
+      throw error("volume: spacing must be finite and positive, found " +
+                  std::to_string(spacing_[a]));
+    }
+    if (!std::isfinite(origin_[a])) throw error("volume: origin must be finite");
+  }
+  const std::size_t expected = voxel_count() * sample_size(type_);
+  if (samples_.size() != expected) {
+    throw error("volume: expected " + std::to_string(expected) + " bytes of samples, found " +
+                std::to_string(samples_.size()));
+  }
+  double lo = std::numeric_limits<double>::infinity();
+  double hi = -lo;
+  visit_samples([&](const auto* s) {
+    const std::size_t n = voxel_count();
+    for (std::size_t i = 0; i < n; ++i) {
+      const auto v = static_cast<double>(s[i]);
+      if (v < lo) lo = v;
+      if (v > hi) hi = v;
+    }
+  });
+  range_ = {lo, hi};
+}
+
+}  // namespace progiso
