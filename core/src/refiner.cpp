@@ -267,7 +267,9 @@ class mesh_builder {
         const bool ain = grid_[a][q] <= box_[q];
         const bool bin = grid_[b][q] <= box_[q];
         if (ain) next.push_back(a);
-        if (ain != bin) {
+        // A crossing whose inside end lies on the plane is that end itself, already emitted.
+        const bool on_plane = ain ? grid_[a][q] == box_[q] : grid_[b][q] == box_[q];
+        if (ain != bin && !on_plane) {
           vec3 p = grid_[a];
           vec3 r = grid_[b];
           if (r < p) std::swap(p, r);

@@ -15,10 +15,11 @@
 //
 // Storage: entries {lo, hi, error} in the volume's sample type (error as an unsigned integer of
 // the same width, rounded up, or as float for floating-point volumes) for every diamond of scale
-// h ≥ 2 and for the cube-centre diamonds of scale 1, in one dense array per scale clipped to the
-// data box. That is about a quarter of the grid vertices, so the data takes about 0.75× the
-// volume's own bytes. The face- and edge-centred diamonds of scale 1 (3/4 of all diamonds) are
-// computed on demand from at most 51 samples.
+// h ≥ 2, in one dense array per scale clipped to the data box (plus the margin that a subtree
+// can reach). That is about 1/8 of the grid vertices, so the data takes about 3/8 of the
+// volume's own bytes (more, up to ~0.8×, for small volumes where the margin counts). Diamonds of
+// scale 1 (7/8 of all) are computed on demand: cube centres from a fixed stencil of samples
+// (about 60 reads plus 19 split errors), face centres and edge midpoints from at most 51.
 //
 // Thread safety: immutable after construction; concurrent get() calls are safe.
 #pragma once

@@ -1,0 +1,114 @@
+// Range data: nested (never grows toward children), covering (contains every value of every
+// tetrahedron in the diamond's subtree), sound for culling, and within the volume's own bytes.
+#include <progiso/core/analytic.hpp>
+#include <progiso/core/range_data.hpp>
+
+#include <map>
+
+#include <gtest/gtest.h>
+
+#include "support/test_data.hpp"
+
+namespace progiso {
+namespace {
+
+// Nested (lo, hi, error) of d from the definition: own vertex set plus descendants', with a memo
+// over the DAG; no stencils, no storage bounds.
+struct nested {
+  double lo = 1e300, hi = -1e300, err = 0.0;
+};
+
+nested subtree_values(const hierarchy& h, const volume& v, const diamond& d,
+                      std::map<ipoint, nested>& memo) {
+  if (const auto it = memo.find(d.centre); it != memo.end()) return it->second;
+  nested r;
+  if (!h.outside_data(d.centre, d.scale)) {
+    const auto f = [&](const ipoint& p) { return v.value(p[0], p[1], p[2]); };
+    for (const ipoint& p : {d.centre, d.spine[0], d.spine[1]}) {
+      r.lo = std::min(r.lo, f(p));
+      r.hi = std::max(r.hi, f(p));
+    }
+    for (int m = 0; m < d.ring_size; ++m) {
+      if ((d.ring_in_grid >> m) & 1u) {
+        r.lo = std::min(r.lo, f(d.ring[static_cast<std::size_t>(m)]));
+        r.hi = std::max(r.hi, f(d.ring[static_cast<std::size_t>(m)]));
+      }
+    }
+    r.err = std::abs(f(d.centre) - 0.5 * (f(d.spine[0]) + f(d.spine[1])));
+  }
+  std::array<ipoint, 8> ch{};
+  const int n = h.children(d, ch);
+  for (int i = 0; i < n; ++i) {
+    const nested c = subtree_values(h, v, h.make_diamond(ch[static_cast<std::size_t>(i)]), memo);
+    r.lo = std::min(r.lo, c.lo);
+    r.hi = std::max(r.hi, c.hi);
+    r.err = std::max(r.err, c.err);
+  }
+  memo[d.centre] = r;
+  return r;
+}
+
+void check_all_diamonds(const volume& v) {
+  const hierarchy h(v.dims());
+  const range_data rd(v, h);
+  std::map<ipoint, nested> memo;
+  for (std::int32_t z = 0; z <= h.grid_max()[2]; ++z)
+    for (std::int32_t y = 0; y <= h.grid_max()[1]; ++y)
+      for (std::int32_t x = 0; x <= h.grid_max()[0]; ++x) {
+        const ipoint c{x, y, z};
+        if (!h.is_diamond(c)) continue;
+        const diamond d = h.make_diamond(c);
+        const diamond_range r = rd.get(d);
+        const nested expected = subtree_values(h, v, d, memo);
+        if (expected.lo <= expected.hi) {
+          EXPECT_LE(r.lo, expected.lo) << x << "," << y << "," << z;
+          EXPECT_GE(r.hi, expected.hi) << x << "," << y << "," << z;
+        }
+        EXPECT_GE(r.error, expected.err - 1e-6) << x << "," << y << "," << z;
+        std::array<ipoint, 8> ch{};
+        const int n = h.children(d, ch);
+        for (int i = 0; i < n; ++i) {
+          const diamond_range cr = rd.get(h.make_diamond(ch[static_cast<std::size_t>(i)]));
+          EXPECT_LE(cr.error, r.error);
+          if (!cr.empty()) {
+            EXPECT_LE(r.lo, cr.lo);
+            EXPECT_GE(r.hi, cr.hi);
+          }
+        }
+      }
+}
+
+TEST(RangeData, ranges_cover_every_subtree_and_are_nested_on_a_power_of_two_grid) {
+  check_all_diamonds(make_gaussian_blobs({17, 17, 17}, 5, 1u));
+}
+
+TEST(RangeData, ranges_cover_every_subtree_and_are_nested_on_a_padded_grid) {
+  check_all_diamonds(make_gaussian_blobs({20, 14, 23}, 5, 2u));
+}
+
+TEST(RangeData, ranges_cover_every_subtree_with_padding_of_many_small_scales) {
+  check_all_diamonds(make_gaussian_blobs({26, 21, 19}, 6, 3u));
+  check_all_diamonds(make_gaussian_blobs({35, 10, 12}, 6, 4u));
+}
+
+TEST(RangeData, integer_volume_errors_are_rounded_up_not_down) {
+  std::vector<std::byte> b(9 * 9 * 9);
+  for (std::size_t i = 0; i < b.size(); ++i) b[i] = static_cast<std::byte>((i * 37) % 251);
+  check_all_diamonds(volume({9, 9, 9}, sample_type::u8, std::move(b)));
+}
+
+TEST(RangeData, memory_stays_below_the_volume_bytes) {
+  const volume big = make_gaussian_blobs({129, 129, 129}, 4, 1u);
+  const hierarchy h(big.dims());
+  EXPECT_LE(range_data(big, h).byte_size(), big.byte_size());
+  const auto dir = test::shared_data_dir();
+  if (!dir) GTEST_SKIP() << "shared data not found";
+  for (const auto& info : test::shared_volumes()) {
+    const volume v = test::load_shared_volume(info, *dir);
+    const hierarchy hv(v.dims());
+    EXPECT_LE(range_data(v, hv).byte_size(), v.byte_size()) << info.name;
+  }
+}
+
+}  // namespace
+}  // namespace progiso
