@@ -1,0 +1,195 @@
+// The progiso command as a user runs it: success paths write a readable mesh and statistics;
+// every kind of bad input prints one error line naming the problem, exits with status 2 and
+// leaves no output file behind.
+#include <progiso/core/mesh_io.hpp>
+
+#include <sys/wait.h>
+
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <random>
+#include <sstream>
+#include <string>
+
+#include <gtest/gtest.h>
+
+#include "support/test_data.hpp"
+
+namespace progiso {
+namespace {
+
+namespace fs = std::filesystem;
+
+struct run_result {
+  int status = -1;
+  std::string out;
+  std::string err;
+};
+
+class Cli : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    std::random_device rd;
+    dir_ = fs::temp_directory_path() / ("progiso-cli-" + std::to_string(rd()));
+    fs::create_directories(dir_);
+  }
+  void TearDown() override { fs::remove_all(dir_); }
+
+  run_result run(const std::string& args) const {
+    const fs::path out = dir_ / "stdout.txt";
+    const fs::path err = dir_ / "stderr.txt";
+    const std::string cmd = std::string(PROGISO_CLI) + " " + args + " >" + out.string() + " 2>" +
+                            err.string();
+    const int raw = std::system(cmd.c_str());
+    run_result r;
+    r.status = WIFEXITED(raw) ? WEXITSTATUS(raw) : -1;
+    r.out = slurp(out);
+    r.err = slurp(err);
+    fs::remove(out);
+    fs::remove(err);
+    return r;
+  }
+
+  static std::string slurp(const fs::path& p) {
+    std::ifstream in(p);
+    std::stringstream ss;
+    ss << in.rdbuf();
+    return ss.str();
+  }
+
+  fs::path write_file(const std::string& name, const std::string& bytes) const {
+    const fs::path p = dir_ / name;
+    std::ofstream(p, std::ios::binary) << bytes;
+    return p;
+  }
+
+  // Expects exit status 2, exactly one stderr line containing `needle`, and no output files.
+  void expect_bad_input(const std::string& args, const std::string& needle) const {
+    const run_result r = run(args + " -o " + (dir_ / "out.ply").string() + " --stats-json " +
+                             (dir_ / "stats.json").string());
+    EXPECT_EQ(r.status, 2) << args;
+    EXPECT_NE(r.err.find(needle), std::string::npos) << "stderr: " << r.err;
+    EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << "stderr: " << r.err;
+    EXPECT_FALSE(fs::exists(dir_ / "out.ply"));
+    EXPECT_FALSE(fs::exists(dir_ / "stats.json"));
+    for (const auto& e : fs::directory_iterator(dir_)) {
+      EXPECT_EQ(e.path().string().find(".tmp"), std::string::npos) << "left " << e.path();
+    }
+  }
+
+  fs::path dir_;
+};
+
+std::string cube_bytes(int n) {
+  std::string s(static_cast<std::size_t>(n * n * n), '\0');
+  for (int i = 0; i < n * n * n; ++i) s[static_cast<std::size_t>(i)] = static_cast<char>(i % 200);
+  return s;
+}
+
+TEST_F(Cli, demo_writes_a_ply_mesh_and_statistics) {
+  const fs::path out = dir_ / "demo.ply";
+  const fs::path stats = dir_ / "demo.json";
+  const run_result r = run("extract --demo -o " + out.string() + " --stats-json " + stats.string() +
+                           " --max-triangles 20000");
+  ASSERT_EQ(r.status, 0) << r.err;
+  const triangle_mesh m = read_ply(out);
+  EXPECT_GT(m.triangles.size(), 1000u);
+  EXPECT_LE(m.triangles.size(), 20000u);
+  const std::string json = slurp(stats);
+  for (const char* key : {"\"splits\"", "\"diamonds_visited\"", "\"triangles\"",
+                          "\"time_to_first_surface_ms\"", "\"total_ms\"", "\"range_data_bytes\"",
+                          "\"cases\"", "\"primitives\"", "\"VertexSplit\"", "\"1b\""}) {
+    EXPECT_NE(json.find(key), std::string::npos) << key;
+  }
+  EXPECT_NE(json.find("\"triangles\": " + std::to_string(m.triangles.size())), std::string::npos);
+}
+
+TEST_F(Cli, raw_volume_with_spacing_gives_physical_coordinates_in_obj) {
+  const auto data = test::shared_data_dir();
+  if (!data) GTEST_SKIP() << "shared data not found";
+  const fs::path out = dir_ / "head.obj";
+  const run_result r =
+      run("extract " + (*data / "headsq_64x64x93_int16le.raw").string() +
+          " --dims 64,64,93 --type i16 --spacing 3.2,3.2,1.5 --iso 500 --error 200 -o " +
+          out.string());
+  ASSERT_EQ(r.status, 0) << r.err;
+  std::ifstream in(out);
+  std::string tag;
+  double x = 0, y = 0, z = 0, max_x = 0, max_z = 0;
+  std::size_t faces = 0;
+  while (in >> tag) {
+    if (tag == "v") {
+      in >> x >> y >> z;
+      max_x = std::max(max_x, x);
+      max_z = std::max(max_z, z);
+    } else {
+      std::getline(in, tag);
+      ++faces;
+    }
+  }
+  EXPECT_GT(faces, 100u);
+  EXPECT_GT(max_x, 63.0 * 1.5);  // x is scaled by 3.2, beyond what 1.5 could give
+  EXPECT_LE(max_x, 63.0 * 3.2);
+  EXPECT_LE(max_z, 92.0 * 1.5);
+}
+
+TEST_F(Cli, isovalue_outside_the_data_range_writes_an_empty_mesh_and_says_so) {
+  const fs::path in = write_file("c.raw", cube_bytes(8));
+  const fs::path out = dir_ / "empty.ply";
+  const run_result r = run("extract " + in.string() + " --dims 8,8,8 --type u8 --iso 250 -o " +
+                           out.string());
+  EXPECT_EQ(r.status, 0) << r.err;
+  EXPECT_NE(r.err.find("outside the data range"), std::string::npos) << r.err;
+  EXPECT_TRUE(read_ply(out).empty());
+}
+
+TEST_F(Cli, bad_inputs_exit_2_with_one_clear_line_and_no_output) {
+  const fs::path good = write_file("c.raw", cube_bytes(8));
+  const std::string g = good.string();
+  expect_bad_input("extract " + (dir_ / "missing.raw").string() + " --dims 8,8,8 --type u8 --iso 1",
+                   "missing.raw");
+  expect_bad_input("extract " + g + " --dims 8,8,9 --type u8 --iso 1", "does not match");
+  expect_bad_input("extract " + g + " --dims 8,8,8 --type q8 --iso 1", "--type");
+  expect_bad_input("extract " + g + " --dims 8,8,8 --type u8 --iso nan", "finite");
+  expect_bad_input("extract " + g + " --dims 0,8,8 --type u8 --iso 1", "--dims");
+  expect_bad_input("extract " + g + " --dims 8,8 --type u8 --iso 1", "three");
+  expect_bad_input("extract " + g + " --iso 1", "unknown volume format");
+  expect_bad_input("extract " + g + " --dims 8,8,8 --type u8", "--iso");
+  expect_bad_input("extract " + g + " --dims 8,8,8 --type u8 --iso 1 --full --error 2", "at most one");
+  expect_bad_input("extract " + g + " --dims 8,8,8 --type u8 --iso 1 --bogus", "--bogus");
+  const fs::path bad_header = write_file("bad.nrrd", "NRRD0004\ntype: banana\ndimension: 3\n\n");
+  expect_bad_input("extract " + bad_header.string() + " --iso 1", "bad.nrrd");
+  const fs::path two_d = write_file("flat.nrrd",
+                                    "NRRD0004\ntype: uchar\ndimension: 2\nsizes: 2 2\n"
+                                    "encoding: raw\n\n" + std::string(4, '\1'));
+  expect_bad_input("extract " + two_d.string() + " --iso 1", "flat.nrrd");
+  const run_result r = run("extract " + g + " --dims 8,8,8 --type u8 --iso 1 -o " +
+                           (dir_ / "out.stl").string());
+  EXPECT_EQ(r.status, 2);
+  EXPECT_NE(r.err.find(".ply or .obj"), std::string::npos) << r.err;
+}
+
+TEST_F(Cli, nrrd_input_is_read_with_its_spacing) {
+  std::string payload = cube_bytes(9);
+  const fs::path in = write_file("v.nrrd", "NRRD0004\ntype: uchar\ndimension: 3\nsizes: 9 9 9\n"
+                                           "spacings: 2 2 2\nencoding: raw\n\n" + payload);
+  const fs::path out = dir_ / "v.obj";
+  const run_result r = run("extract " + in.string() + " --iso 100 -o " + out.string());
+  ASSERT_EQ(r.status, 0) << r.err;
+  std::ifstream f(out);
+  std::string tag;
+  double x = 0, y = 0, z = 0, max_c = 0;
+  while (f >> tag) {
+    if (tag == "v") {
+      f >> x >> y >> z;
+      max_c = std::max({max_c, x, y, z});
+    } else {
+      std::getline(f, tag);
+    }
+  }
+  EXPECT_GT(max_c, 8.0);  // spacing 2: coordinates reach beyond the index range 0..8
+}
+
+}  // namespace
+}  // namespace progiso
