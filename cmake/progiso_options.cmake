@@ -18,3 +18,7 @@ elseif(PROGISO_SANITIZE STREQUAL "thread")
 elseif(NOT PROGISO_SANITIZE STREQUAL "")
   message(FATAL_ERROR "PROGISO_SANITIZE must be empty, address-undefined or thread")
 endif()
+
+# Shared surface vertices must be bit-identical however they are computed (a + t (b - a),
+# origin + p * spacing): forbid fused multiply-add contraction, which clang applies by default.
+add_compile_options(-ffp-contract=off)
