@@ -66,9 +66,9 @@ bool hierarchy::is_diamond(const ipoint& p) const noexcept {
 
 int hierarchy::depth_of(const ipoint& p) const noexcept {
   const std::int32_t h = scale_of(p);
-  int odd = 0;
-  for (int q = 0; q < 3; ++q) odd += (p[static_cast<std::size_t>(q)] / h) & 1;
   const int lg = std::countr_zero(static_cast<std::uint32_t>(h));
+  int odd = 0;
+  for (std::size_t q = 0; q < 3; ++q) odd += (p[q] >> lg) & 1;
   return 3 * (levels_ - 1 - lg) + (3 - odd);
 }
 
@@ -77,6 +77,7 @@ diamond hierarchy::make_diamond(const ipoint& c) const noexcept {
   diamond d;
   d.centre = c;
   const std::int32_t h = scale_of(c);
+  const int lg = std::countr_zero(static_cast<std::uint32_t>(h));
   d.scale = h;
   ipoint s{0, 0, 0};
   int odd_axes[3];
@@ -85,15 +86,15 @@ diamond hierarchy::make_diamond(const ipoint& c) const noexcept {
   int n_even = 0;
   for (int q = 0; q < 3; ++q) {
     const auto uq = static_cast<std::size_t>(q);
-    if ((c[uq] / h) & 1) {
-      s[uq] = ((c[uq] + h) % (4 * h) == 0) ? 1 : -1;
+    if ((c[uq] >> lg) & 1) {
+      s[uq] = ((c[uq] + h) & (4 * h - 1)) == 0 ? 1 : -1;
       odd_axes[n_odd++] = q;
     } else {
       even_axes[n_even++] = q;
     }
   }
   d.type = 3 - n_odd;
-  d.depth = 3 * (levels_ - 1 - std::countr_zero(static_cast<std::uint32_t>(h))) + d.type;
+  d.depth = 3 * (levels_ - 1 - lg) + d.type;
   const ipoint hs{h * s[0], h * s[1], h * s[2]};
   d.spine[0] = {c[0] - hs[0], c[1] - hs[1], c[2] - hs[2]};
   d.spine[1] = add(c, hs);
@@ -161,6 +162,26 @@ int hierarchy::parents(const diamond& d, std::array<ipoint, 4>& out) const noexc
   return n;
 }
 
+int hierarchy::parent_count(const ipoint& c) const noexcept {
+  const std::int32_t h = scale_of(c);
+  const int lg = std::countr_zero(static_cast<std::uint32_t>(h));
+  int odd = 0;
+  for (std::size_t q = 0; q < 3; ++q) odd += (c[q] >> lg) & 1;
+  if (odd == 3) {
+    // A cube centre: its parents are three corners of its own cube, inside the grid, unless
+    // it is a root.
+    return h == root_ / 2 ? 0 : 3;
+  }
+  // Face centres and edge midpoints: parents at c ± h along each even axis.
+  int n = 0;
+  for (std::size_t q = 0; q < 3; ++q) {
+    if ((c[q] >> lg) & 1) continue;
+    n += c[q] - h >= 0 ? 1 : 0;
+    n += c[q] + h <= grid_max_[q] ? 1 : 0;
+  }
+  return n;
+}
+
 int hierarchy::children(const diamond& d, std::array<ipoint, 8>& out) const noexcept {
   int n = 0;
   const ipoint& c = d.centre;
@@ -176,9 +197,10 @@ int hierarchy::children(const diamond& d, std::array<ipoint, 8>& out) const noex
     }
     return n;
   }
+  const int lg = std::countr_zero(static_cast<std::uint32_t>(h));
   for (int q = 0; q < 3; ++q) {
     const auto uq = static_cast<std::size_t>(q);
-    const bool odd = ((c[uq] / h) & 1) != 0;
+    const bool odd = ((c[uq] >> lg) & 1) != 0;
     if (d.type == 1 && !odd) continue;
     push(add(c, axis(q, h)));
     push(add(c, axis(q, -h)));

@@ -139,7 +139,8 @@ class block_writer {
     char b[40];
     const auto r = std::to_chars(b, b + sizeof b, v);
     PROGISO_ASSERT(r.ec == std::errc{});
-    bytes(b, static_cast<std::size_t>(r.ptr - b));
+    // The min() only tells gcc's -Warray-bounds what to_chars guarantees.
+    bytes(b, std::min(sizeof b, static_cast<std::size_t>(r.ptr - b)));
   }
   void flush() {
     out_.write(buffer_.data(), buffer_.size());

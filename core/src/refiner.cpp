@@ -138,14 +138,13 @@ bool refiner::split(std::uint64_t max_triangles) {
   // Children whose parents are now all split become ready.
   std::array<ipoint, 8> children{};
   const int nc = hier_.children(d, children);
-  std::array<ipoint, 4> parents{};
   for (int i = 0; i < nc; ++i) {
     const ipoint& c = children[static_cast<std::size_t>(i)];
     const std::uint64_t ci = hier_.index(c);
     const auto count = static_cast<std::uint8_t>((state[ci] & parent_count_mask) + 1);
     state[ci] = static_cast<std::uint8_t>((state[ci] & ~parent_count_mask) | count);
+    if (count != hier_.parent_count(c)) continue;
     const diamond cd = hier_.make_diamond(c);
-    if (count != hier_.parents(cd, parents)) continue;
     ++stats_.visited;
     const diamond_range r = ranges_.get(cd);
     if (r.straddles(isovalue_)) {

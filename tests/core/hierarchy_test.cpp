@@ -142,6 +142,7 @@ void check_against_brute_force(const index3& dims) {
     EXPECT_EQ(pset, it == bf.parents.end() ? std::set<ipoint>{} : it->second)
         << "parents of " << c[0] << "," << c[1] << "," << c[2];
     for (const auto& p : pset) EXPECT_EQ(h.depth_of(p), d.depth - 1);
+    EXPECT_EQ(h.parent_count(c), np);
     std::array<ipoint, 8> cs{};
     const int nc = h.children(d, cs);
     const std::set<ipoint> cset(cs.begin(), cs.begin() + nc);

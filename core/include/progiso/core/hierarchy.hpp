@@ -39,7 +39,7 @@ struct diamond {
   int depth = 0;                      ///< 0 for roots; parents have depth - 1
   std::array<ipoint, 2> spine{};      ///< c - h s, c + h s
   int ring_size = 0;                  ///< 6, 4 or 8 (before clipping to the grid)
-  std::array<ipoint, 8> ring{};       ///< cyclic
+  std::array<ipoint, 8> ring;         ///< cyclic; entries past ring_size are unspecified
   std::uint8_t ring_in_grid = 0;      ///< bit m set when ring[m] is a grid vertex
 };
 
@@ -81,6 +81,8 @@ class hierarchy {
 
   /// Parents that are grid vertices; returns how many were written.
   int parents(const diamond& d, std::array<ipoint, 4>& out) const noexcept;
+  /// Number of parents that are grid vertices, without building the diamond.
+  [[nodiscard]] int parent_count(const ipoint& c) const noexcept;
   /// Children that are grid vertices; returns how many were written.
   int children(const diamond& d, std::array<ipoint, 8>& out) const noexcept;
 
