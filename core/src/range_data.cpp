@@ -11,6 +11,7 @@ namespace progiso {
 struct range_data::impl {
   virtual ~impl() = default;
   [[nodiscard]] virtual diamond_range get(const diamond& d) const noexcept = 0;
+  [[nodiscard]] virtual diamond_range get_at(const ipoint& c) const noexcept = 0;
   [[nodiscard]] virtual std::size_t byte_size() const noexcept = 0;
   const volume* vol = nullptr;
   const hierarchy* hier = nullptr;
@@ -52,17 +53,6 @@ struct range_data::impl {
     into.lo = std::min(into.lo, r.lo);
     into.hi = std::max(into.hi, r.hi);
     into.error = std::max(into.error, r.error);
-  }
-
-  // Nested range of a scale-1 face or edge diamond, computed from samples.
-  [[nodiscard]] diamond_range fine(const diamond& d) const noexcept {
-    diamond_range r = own(d);
-    if (d.type == 1) {
-      std::array<ipoint, 8> ch{};
-      const int n = hier->children(d, ch);
-      for (int i = 0; i < n; ++i) merge(r, own(hier->make_diamond(ch[static_cast<std::size_t>(i)])));
-    }
-    return r;
   }
 };
 
@@ -111,6 +101,14 @@ E quantize_error(double e) noexcept {
 // c_q ≥ data_max_q + 5h (scale 1 cube centres: data_max_q + 3) therefore have empty ranges.
 template <class T>
 class typed_range_data final : public range_data::impl {
+  // Offsets of the samples and splits of a subtree of fixed shape (see make_stencils()).
+  struct stencil {
+    std::vector<std::int64_t> points;                         // linear offsets
+    std::vector<std::array<std::int64_t, 3>> splits;          // centre, spine ends
+    std::vector<ipoint> rel_points;                           // the same as grid offsets
+    std::vector<std::array<ipoint, 3>> rel_splits;
+  };
+
  public:
   typed_range_data(const volume& v, const hierarchy& h) {
     vol = &v;
@@ -135,8 +133,18 @@ class typed_range_data final : public range_data::impl {
   }
 
   [[nodiscard]] diamond_range get(const diamond& d) const noexcept override {
-    if (d.scale == 1) return d.type == 0 ? scale1_cube(d) : fine(d);
+    if (d.scale == 1) return scale1_at(d.centre);
     const entry<T>* e = find(d.centre, d.scale);
+    if (e == nullptr) return {};
+    return decode(*e);
+  }
+
+  [[nodiscard]] diamond_range get_at(const ipoint& c) const noexcept override {
+    const std::int32_t h = hier->scale_of(c);
+    if (h == 1) {
+      return scale1_at(c);
+    }
+    const entry<T>* e = find(c, h);
     if (e == nullptr) return {};
     return decode(*e);
   }
@@ -215,6 +223,21 @@ class typed_range_data final : public range_data::impl {
               const int odd = (x & 1) + (y & 1) + (z & 1);
               if (3 - odd != type || odd == 0) continue;
               if (!h.is_diamond(c)) continue;
+              if (k == 1 && type == 2) {
+                const stencil& st = edge2_stencils_[static_cast<std::size_t>(
+                    (c[0] & 7) | ((c[1] & 7) << 3) | ((c[2] & 7) << 6))];
+                // Its subtree reaches 3 per axis; beyond that it is wholly in the padding.
+                const ipoint& dm = h.data_max();
+                const bool outside = c[0] - 3 >= dm[0] || c[1] - 3 >= dm[1] || c[2] - 3 >= dm[2];
+                store(c, hh, outside           ? diamond_range{}
+                             : interior(c, 3) ? read_stencil(st, c)
+                                              : read_stencil_clamped(st, c));
+                continue;
+              }
+              if (hh >= 2 && interior(c, hh)) {
+                store(c, hh, from_own_stencil(k, c));
+                continue;
+              }
               const diamond d = h.make_diamond(c);
               diamond_range r = own(d);
               std::array<ipoint, 8> ch{};
@@ -223,7 +246,7 @@ class typed_range_data final : public range_data::impl {
               for (int i = 0; i < n; ++i) {
                 const ipoint& cc = ch[static_cast<std::size_t>(i)];
                 if (child_scale == 1) {
-                  merge(r, scale1_cube(h.make_diamond(cc)));
+                  merge(r, scale1_at(cc));
                 } else if (const entry<T>* e = find(cc, child_scale)) {
                   merge(r, decode(*e));
                 }
@@ -236,69 +259,183 @@ class typed_range_data final : public range_data::impl {
     }
   }
 
-  // Nested range of a scale-1 cube centre: a stencil read away from the data boundary, the
-  // definition (own range and children's) near it.
-  [[nodiscard]] diamond_range scale1_cube(const diamond& d) const noexcept {
-    if (interior(d.centre)) return from_stencil(d.centre);
-    diamond_range r = own(d);
-    std::array<ipoint, 8> ch{};
-    const int n = hier->children(d, ch);
-    for (int i = 0; i < n; ++i) merge(r, fine(hier->make_diamond(ch[static_cast<std::size_t>(i)])));
+  // Stored diamonds away from the data boundary: own samples and children's entries through
+  // offsets that depend only on the scale and (c / h) mod 4, made on first use per class.
+  struct own_stencil {
+    bool made = false;
+    std::vector<std::int64_t> points;  // spine ends first, then ring; centre implied
+    std::vector<ipoint> children;
+    std::int32_t child_scale = 0;
+  };
+
+  [[nodiscard]] diamond_range from_own_stencil(int k, const ipoint& c) {
+    const std::int32_t hh = std::int32_t{1} << k;
+    const std::size_t cls = static_cast<std::size_t>(((c[0] >> k) & 3) | (((c[1] >> k) & 3) << 2) |
+                                                     (((c[2] >> k) & 3) << 4));
+    own_stencil& st = own_stencils_[static_cast<std::size_t>(k)][cls];
+    if (!st.made) {
+      const diamond d = hier->make_diamond(c);
+      const auto& dims = vol->dims();
+      const auto lin = [&](const ipoint& p) {
+        return (p[0] - c[0]) + dims[0] * ((p[1] - c[1]) + dims[1] * std::int64_t{p[2] - c[2]});
+      };
+      st.points = {lin(d.spine[0]), lin(d.spine[1])};
+      for (int m = 0; m < d.ring_size; ++m) st.points.push_back(lin(d.ring[static_cast<std::size_t>(m)]));
+      std::array<ipoint, 8> ch{};
+      const int n = hier->children(d, ch);
+      for (int i = 0; i < n; ++i) {
+        const ipoint& x = ch[static_cast<std::size_t>(i)];
+        st.children.push_back({x[0] - c[0], x[1] - c[1], x[2] - c[2]});
+      }
+      st.child_scale = d.type == 2 ? hh / 2 : hh;
+      st.made = true;
+    }
+    const T* base = samples_ + vol->linear(c[0], c[1], c[2]);
+    T lo = base[0];
+    T hi = base[0];
+    for (const std::int64_t o : st.points) {
+      const T v = base[o];
+      lo = v < lo ? v : lo;
+      hi = v > hi ? v : hi;
+    }
+    diamond_range r;
+    r.lo = static_cast<double>(lo);
+    r.hi = static_cast<double>(hi);
+    r.error = std::abs(static_cast<double>(base[0]) -
+                       0.5 * (static_cast<double>(base[st.points[0]]) +
+                              static_cast<double>(base[st.points[1]])));
+    for (const ipoint& o : st.children) {
+      const ipoint x{c[0] + o[0], c[1] + o[1], c[2] + o[2]};
+      if (st.child_scale == 1) {
+        merge(r, scale1_at(x));
+      } else if (const entry<T>* e = find(x, st.child_scale)) {
+        merge(r, decode(*e));
+      }
+    }
     return r;
   }
 
-  // ---- Scale-1 cube centres away from the data boundary: fixed stencils. --------------------
-  // The subtree of a scale-1 cube centre (itself, 6 face centres, 12 edge midpoints) has a
-  // shape that depends only on c mod 4, so its vertices and split errors are read through
-  // offset tables built once from the hierarchy itself, straight from the typed samples.
-  struct stencil {
-    std::vector<std::int64_t> points;                         // linear offsets
-    std::vector<std::array<std::int64_t, 3>> splits;          // centre, spine ends
-  };
+  std::vector<std::array<own_stencil, 64>> own_stencils_{32};
 
-  [[nodiscard]] bool interior(const ipoint& c) const noexcept {
+  // Nested range of a scale-1 diamond: a stencil read away from the data boundary, the
+  // definition (own range and descendants') near it.
+  [[nodiscard]] diamond_range scale1_at(const ipoint& c) const noexcept {
+    // Empty when the subtree lies wholly in the padding. Its reach per axis: 1 for an edge
+    // midpoint; for a face centre 2 along its odd axes and 1 along the even one; 2 for a cube
+    // centre. These nest: a child's reach plus its offset never exceeds its parent's.
+    const ipoint& dmax = hier->data_max();
+    const int odd = (c[0] & 1) + (c[1] & 1) + (c[2] & 1);
     for (std::size_t q = 0; q < 3; ++q) {
-      if (c[q] < 2 || c[q] + 2 > hier->data_max()[q]) return false;
+      const std::int32_t reach = odd == 1 ? 1 : (odd == 3 ? 2 : ((c[q] & 1) ? 2 : 1));
+      if (c[q] - reach >= dmax[q]) return {};
+    }
+    const stencil& st = stencils_[class_of(c)];
+    return interior(c, 2) ? read_stencil(st, c) : read_stencil_clamped(st, c);
+  }
+
+  // Near the data boundary the same stencil is read with clamped samples (padding and points
+  // beyond the grid take the nearest data value): a superset of the exact range and error, so
+  // still sound for culling and still nested, since every caller uses this same function.
+  [[nodiscard]] diamond_range read_stencil_clamped(const stencil& st, const ipoint& c) const noexcept {
+    const auto f = [&](const ipoint& o) { return vol->value(c[0] + o[0], c[1] + o[1], c[2] + o[2]); };
+    diamond_range r;
+    r.lo = r.hi = f({0, 0, 0});
+    for (const ipoint& o : st.rel_points) {
+      const double v = f(o);
+      r.lo = std::min(r.lo, v);
+      r.hi = std::max(r.hi, v);
+    }
+    for (const auto& sp : st.rel_splits) {
+      r.error = std::max(r.error, std::abs(f(sp[0]) - 0.5 * (f(sp[1]) + f(sp[2]))));
+    }
+    return r;
+  }
+
+  // ---- Scale-1 diamonds away from the data boundary: fixed stencils. -------------------------
+  // The subtree of a scale-1 diamond (a cube centre: itself, 6 face centres, 12 edge midpoints;
+  // a face centre: itself and 4 edge midpoints; an edge midpoint: itself) has a shape that
+  // depends only on c mod 4, so its vertices and split errors are read through offset tables
+  // built once from the hierarchy itself, straight from the typed samples.
+
+
+  static std::size_t class_of(const ipoint& c) noexcept {
+    return static_cast<std::size_t>((c[0] & 3) | ((c[1] & 3) << 2) | ((c[2] & 3) << 4));
+  }
+
+  // The stencil of the subtree of the diamond centred at c in `probe`: every vertex of every
+  // descendant's tetrahedra, and every descendant's split, as offsets in the volume's layout.
+  [[nodiscard]] stencil build_stencil(const hierarchy& probe, const ipoint& c) const {
+    const auto& dims = vol->dims();
+    const auto lin = [&](const ipoint& p) {
+      return (p[0] - c[0]) + dims[0] * ((p[1] - c[1]) + dims[1] * std::int64_t{p[2] - c[2]});
+    };
+    std::vector<diamond> sub{probe.make_diamond(c)};
+    std::vector<ipoint> seen{c};
+    for (std::size_t k = 0; k < sub.size(); ++k) {
+      std::array<ipoint, 8> ch{};
+      const int n = probe.children(sub[k], ch);
+      for (int i = 0; i < n; ++i) {
+        const ipoint& x = ch[static_cast<std::size_t>(i)];
+        if (std::find(seen.begin(), seen.end(), x) != seen.end()) continue;
+        seen.push_back(x);
+        sub.push_back(probe.make_diamond(x));
+      }
+    }
+    stencil st;
+    const auto rel = [&](const ipoint& p) { return ipoint{p[0] - c[0], p[1] - c[1], p[2] - c[2]}; };
+    for (const diamond& d : sub) {
+      st.rel_points.push_back(rel(d.centre));
+      st.rel_points.push_back(rel(d.spine[0]));
+      st.rel_points.push_back(rel(d.spine[1]));
+      for (int m = 0; m < d.ring_size; ++m) st.rel_points.push_back(rel(d.ring[static_cast<std::size_t>(m)]));
+      st.rel_splits.push_back({rel(d.centre), rel(d.spine[0]), rel(d.spine[1])});
+      st.points.push_back(lin(d.centre));
+      st.points.push_back(lin(d.spine[0]));
+      st.points.push_back(lin(d.spine[1]));
+      for (int m = 0; m < d.ring_size; ++m) st.points.push_back(lin(d.ring[static_cast<std::size_t>(m)]));
+      st.splits.push_back({lin(d.centre), lin(d.spine[0]), lin(d.spine[1])});
+    }
+    std::sort(st.points.begin(), st.points.end());
+    st.points.erase(std::unique(st.points.begin(), st.points.end()), st.points.end());
+    std::sort(st.splits.begin(), st.splits.end());
+    st.splits.erase(std::unique(st.splits.begin(), st.splits.end()), st.splits.end());
+    std::sort(st.rel_points.begin(), st.rel_points.end());
+    st.rel_points.erase(std::unique(st.rel_points.begin(), st.rel_points.end()), st.rel_points.end());
+    std::sort(st.rel_splits.begin(), st.rel_splits.end());
+    st.rel_splits.erase(std::unique(st.rel_splits.begin(), st.rel_splits.end()), st.rel_splits.end());
+    return st;
+  }
+
+  // Scale-1 diamonds: one stencil per c mod 4. Scale-2 edge midpoints (whose children are the
+  // scale-1 cube centres, the costliest stencils): one per c mod 8, so the build reads each
+  // subtree once instead of once per parent.
+  void make_stencils() {
+    const hierarchy probe({33, 33, 33});
+    for (std::int32_t cls = 0; cls < 64; ++cls) {
+      const ipoint c{8 + (cls & 3), 8 + ((cls >> 2) & 3), 8 + ((cls >> 4) & 3)};
+      if (((c[0] | c[1] | c[2]) & 1) == 0) continue;  // scale ≥ 2: stored, no stencil
+      stencils_[static_cast<std::size_t>(cls)] = build_stencil(probe, c);
+    }
+    for (std::int32_t cls = 0; cls < 512; ++cls) {
+      const ipoint c{16 + (cls & 7), 16 + ((cls >> 3) & 7), 16 + ((cls >> 6) & 7)};
+      if (((c[0] | c[1] | c[2]) & 1) != 0 || !probe.is_diamond(c)) continue;
+      if (probe.scale_of(c) != 2 || probe.make_diamond(c).type != 2) continue;
+      edge2_stencils_[static_cast<std::size_t>(cls)] = build_stencil(probe, c);
+    }
+  }
+
+  [[nodiscard]] bool interior(const ipoint& c, std::int32_t radius) const noexcept {
+    for (std::size_t q = 0; q < 3; ++q) {
+      if (c[q] < radius || c[q] + radius > hier->data_max()[q]) return false;
     }
     return true;
   }
 
-  void make_stencils() {
-    const hierarchy probe({17, 17, 17});
-    const auto& dims = vol->dims();
-    const auto lin = [&](const ipoint& p, const ipoint& c) {
-      return (p[0] - c[0]) + dims[0] * ((p[1] - c[1]) + dims[1] * std::int64_t{p[2] - c[2]});
-    };
-    for (int cls = 0; cls < 8; ++cls) {
-      const ipoint c{(cls & 1) ? 7 : 5, (cls & 2) ? 7 : 5, (cls & 4) ? 7 : 5};
-      std::vector<diamond> sub{probe.make_diamond(c)};
-      std::array<ipoint, 8> ch{};
-      const int n1 = probe.children(sub[0], ch);
-      for (int i = 0; i < n1; ++i) {
-        const diamond f = probe.make_diamond(ch[static_cast<std::size_t>(i)]);
-        sub.push_back(f);
-        std::array<ipoint, 8> gc{};
-        const int n2 = probe.children(f, gc);
-        for (int j = 0; j < n2; ++j) sub.push_back(probe.make_diamond(gc[static_cast<std::size_t>(j)]));
-      }
-      stencil& st = stencils_[static_cast<std::size_t>(cls)];
-      for (const diamond& d : sub) {
-        st.points.push_back(lin(d.centre, c));
-        st.points.push_back(lin(d.spine[0], c));
-        st.points.push_back(lin(d.spine[1], c));
-        for (int m = 0; m < d.ring_size; ++m) st.points.push_back(lin(d.ring[static_cast<std::size_t>(m)], c));
-        st.splits.push_back({lin(d.centre, c), lin(d.spine[0], c), lin(d.spine[1], c)});
-      }
-      std::sort(st.points.begin(), st.points.end());
-      st.points.erase(std::unique(st.points.begin(), st.points.end()), st.points.end());
-      std::sort(st.splits.begin(), st.splits.end());
-      st.splits.erase(std::unique(st.splits.begin(), st.splits.end()), st.splits.end());
-    }
+  [[nodiscard]] diamond_range from_stencil(const ipoint& c) const noexcept {
+    return read_stencil(stencils_[class_of(c)], c);
   }
 
-  [[nodiscard]] diamond_range from_stencil(const ipoint& c) const noexcept {
-    const int cls = ((c[0] & 3) == 3 ? 1 : 0) | ((c[1] & 3) == 3 ? 2 : 0) | ((c[2] & 3) == 3 ? 4 : 0);
-    const stencil& st = stencils_[static_cast<std::size_t>(cls)];
+  [[nodiscard]] diamond_range read_stencil(const stencil& st, const ipoint& c) const noexcept {
     const T* base = samples_ + vol->linear(c[0], c[1], c[2]);
     T lo = base[0];
     T hi = base[0];
@@ -320,7 +457,8 @@ class typed_range_data final : public range_data::impl {
     return r;
   }
 
-  std::array<stencil, 8> stencils_;
+  std::array<stencil, 64> stencils_;
+  std::array<stencil, 512> edge2_stencils_;
   const T* samples_ = nullptr;
   std::vector<level> levels_;
 };
@@ -339,6 +477,7 @@ range_data::range_data(range_data&&) noexcept = default;
 range_data& range_data::operator=(range_data&&) noexcept = default;
 
 diamond_range range_data::get(const diamond& d) const noexcept { return impl_->get(d); }
+diamond_range range_data::get(const ipoint& centre) const noexcept { return impl_->get_at(centre); }
 diamond_range range_data::own(const diamond& d) const noexcept { return impl_->own(d); }
 std::size_t range_data::byte_size() const noexcept { return impl_->byte_size(); }
 

@@ -88,7 +88,7 @@ refiner::refiner(const volume& vol, const hierarchy& hier, const range_data& ran
       ++stats_.visited;
       const diamond_range rr = ranges_.get(d);
       if (rr.straddles(isovalue_)) {
-        queue_->push({rr.error, d.depth, owner});
+        queue_->push({rr.error, d.depth, owner, centre});
       } else {
         ++stats_.culled;
       }
@@ -115,7 +115,7 @@ bool refiner::split_next_within(std::uint64_t max_triangles) { return split(max_
 bool refiner::split(std::uint64_t max_triangles) {
   if (queue_->empty()) return false;
   const ready next = queue_->top();
-  const diamond d = hier_.make_diamond(hier_.point(next.index));
+  const diamond d = hier_.make_diamond(next.centre);
   const std::size_t first = triangles_.size();
   const split_summary s = compute_split(hier_, vol_, isovalue_, d, triangles_);
   const std::uint64_t after = stats_.triangles + static_cast<std::uint64_t>(s.added_triangles) -
@@ -144,11 +144,10 @@ bool refiner::split(std::uint64_t max_triangles) {
     const auto count = static_cast<std::uint8_t>((state[ci] & parent_count_mask) + 1);
     state[ci] = static_cast<std::uint8_t>((state[ci] & ~parent_count_mask) | count);
     if (count != hier_.parent_count(c)) continue;
-    const diamond cd = hier_.make_diamond(c);
     ++stats_.visited;
-    const diamond_range r = ranges_.get(cd);
+    const diamond_range r = ranges_.get(c);
     if (r.straddles(isovalue_)) {
-      queue_->push({r.error, cd.depth, ci});
+      queue_->push({r.error, d.depth + 1, ci, c});
     } else {
       ++stats_.culled;
     }
@@ -201,6 +200,7 @@ class mesh_builder {
     if (inside) {
       mesh_.triangles.push_back(ids);
     } else {
+      clipped_any_ = true;
       clip(ids);
     }
   }
@@ -212,7 +212,9 @@ class mesh_builder {
     for (std::size_t i = 0; i < grid_.size(); ++i) {
       for (std::size_t q = 0; q < 3; ++q) mesh_.vertices[i][q] = org[q] + grid_[i][q] * sp[q];
     }
-    // Drop vertices that only clipped-away triangles used.
+    // Drop vertices that only clipped-away triangles used. Without clipping every vertex is
+    // used and ids are already in order of first use.
+    if (clipped_.empty() && !clipped_any_) return std::move(mesh_);
     std::vector<std::uint32_t> remap(grid_.size(), ~std::uint32_t{0});
     std::uint32_t n = 0;
     for (auto& t : mesh_.triangles) {
@@ -297,6 +299,7 @@ class mesh_builder {
   vec3 box_{};
   detail::flat_map keys_;
   std::map<vec3, std::uint32_t> clipped_;
+  bool clipped_any_ = false;
   std::vector<vec3> grid_;
   triangle_mesh mesh_;
 };

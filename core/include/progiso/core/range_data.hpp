@@ -54,6 +54,9 @@ class range_data {
 
   /// Nested range and error of diamond d. Cost O(1) for stored scales, ≤ 51 samples otherwise.
   [[nodiscard]] diamond_range get(const diamond& d) const noexcept;
+  /// The same for the diamond centred at `centre` (a diamond of the hierarchy), without
+  /// building the diamond when it is not needed.
+  [[nodiscard]] diamond_range get(const ipoint& centre) const noexcept;
   /// Own (not nested) range and split error of d, from its spine, ring and centre.
   [[nodiscard]] diamond_range own(const diamond& d) const noexcept;
   /// Bytes held.

@@ -105,6 +105,7 @@ class refiner {
     double error;
     int depth;
     std::uint64_t index;
+    ipoint centre;
   };
   struct queue;
 

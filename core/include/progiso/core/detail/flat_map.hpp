@@ -1,8 +1,13 @@
 // progiso/core/detail/flat_map.hpp — open-addressing hash map from 64-bit keys to 32-bit values.
 //
 // Used where extraction deduplicates surface vertices by edge key: linear probing in a
-// power-of-two table, no erase, one reserved key (~0). About 3× faster than
-// std::unordered_map for this load. Not thread-safe.
+// power-of-two table, no erase, one reserved key (~0). Not thread-safe.
+//
+// The hash is made for edge keys (three 21-bit doubled coordinates): keys in the same block of
+// 4 × 4 × 4 doubled coordinates land in one run of 64 slots, placed at random by a mix of the
+// block's coordinates. Triangles reach their vertices in a spatially coherent order, so nearby
+// vertices then share cache lines; with a plain mixing hash every first visit of a vertex was a
+// cache miss, which dominated extraction time.
 #pragma once
 
 #include <cstdint>
@@ -60,10 +65,13 @@ class flat_map {
   }
 
   static std::size_t hash(std::uint64_t k) noexcept {
-    k ^= k >> 33;
-    k *= 0xff51afd7ed558ccdULL;
-    k ^= k >> 33;
-    return static_cast<std::size_t>(k);
+    constexpr std::uint64_t low = 3 | (std::uint64_t{3} << 21) | (std::uint64_t{3} << 42);
+    const std::uint64_t local = (k & 3) | ((k >> 19) & 0xC) | ((k >> 38) & 0x30);
+    std::uint64_t b = k & ~low;
+    b ^= b >> 33;
+    b *= 0xff51afd7ed558ccdULL;
+    b ^= b >> 33;
+    return static_cast<std::size_t>((b << 6) | local);
   }
 
   void rehash(std::size_t capacity) {
