@@ -78,8 +78,9 @@ struct tet_surface {
 
 /// Number of triangles march_tet() would produce, from the colours alone.
 [[nodiscard]] inline int tet_triangle_count(unsigned black_mask) noexcept {
-  const int n = __builtin_popcount(black_mask & 0xFu);
-  return n == 0 || n == 4 ? 0 : (n == 2 ? 2 : 1);
+  // Indexed by the mask of black vertices: 0 or 4 black → 0, 2 black → 2, else 1.
+  static constexpr int count[16] = {0, 1, 1, 2, 1, 2, 2, 1, 1, 2, 2, 1, 2, 1, 1, 0};
+  return count[black_mask & 0xFu];
 }
 
 }  // namespace progiso
