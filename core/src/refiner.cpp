@@ -33,14 +33,21 @@ struct refiner::queue {
   }
   [[nodiscard]] bool empty() const noexcept { return head == items.size(); }
   [[nodiscard]] const ready& top() const noexcept {
-    return order == refine_order::breadth_first ? items[head] : items.front();
+    switch (order) {
+      case refine_order::breadth_first: return items[head];
+      case refine_order::depth_first: return items.back();
+      case refine_order::largest_error_first: break;
+    }
+    return items.front();
   }
   void push(const ready& r) {
     items.push_back(r);
     if (order == refine_order::largest_error_first) std::push_heap(items.begin(), items.end(), before);
   }
   void pop() {
-    if (order == refine_order::breadth_first) {
+    if (order == refine_order::depth_first) {
+      items.pop_back();
+    } else if (order == refine_order::breadth_first) {
       ++head;
       if (head == items.size()) {
         items.clear();
@@ -52,6 +59,15 @@ struct refiner::queue {
     }
   }
 };
+
+void refiner::triangle_store::append(const owned_triangle* t, std::size_t n) {
+  for (std::size_t i = 0; i < n; ++i, ++size_) {
+    if ((size_ & (chunk - 1)) == 0 && (size_ >> chunk_bits) == chunks_.size()) {
+      chunks_.push_back(std::make_unique_for_overwrite<owned_triangle[]>(chunk));
+    }
+    chunks_[size_ >> chunk_bits][size_ & (chunk - 1)] = t[i];
+  }
+}
 
 refiner::refiner(const volume& vol, const hierarchy& hier, const range_data& ranges,
                  double isovalue, refine_order order)
@@ -80,7 +96,8 @@ refiner::refiner(const volume& vol, const hierarchy& hier, const range_data& ran
       for (std::size_t i = 0; i < 4; ++i) f[i] = vol_.value(t[i][0], t[i][1], t[i][2]);
       const tet_surface s = march_tet(t, f, isovalue_);
       for (int k = 0; k < s.count; ++k) {
-        triangles_.push_back({owner, s.triangles[static_cast<std::size_t>(k)]});
+        const owned_triangle piece{owner, s.triangles[static_cast<std::size_t>(k)]};
+        triangles_.append(&piece, 1);
       }
     }
     if (has_diamond) {
@@ -117,13 +134,12 @@ bool refiner::split(std::uint64_t max_triangles) {
   const ready next = queue_->top();
   const diamond d = hier_.make_diamond(next.centre);
   const std::size_t first = triangles_.size();
-  const split_summary s = compute_split(hier_, vol_, isovalue_, d, triangles_);
+  scratch_.clear();
+  const split_summary s = compute_split(hier_, vol_, isovalue_, d, scratch_);
   const std::uint64_t after = stats_.triangles + static_cast<std::uint64_t>(s.added_triangles) -
                               static_cast<std::uint64_t>(s.removed_triangles);
-  if (after > max_triangles) {
-    triangles_.resize(first);
-    return false;
-  }
+  if (after > max_triangles) return false;
+  triangles_.append(scratch_.data(), scratch_.size());
   queue_->pop();
   std::uint8_t* state = state_.get();
   state[next.index] = static_cast<std::uint8_t>(state[next.index] | split_bit);

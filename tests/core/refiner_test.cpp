@@ -84,10 +84,14 @@ TEST(Refiner, same_split_set_gives_the_same_surface_whatever_the_order) {
   fixture f(make_gyroid_field({29, 33, 31}, 9.0));
   refiner a(f.v, f.h, f.ranges, 0.15, refine_order::breadth_first);
   refiner b(f.v, f.h, f.ranges, 0.15, refine_order::largest_error_first);
+  refiner c(f.v, f.h, f.ranges, 0.15, refine_order::depth_first);
   a.refine_full();
   b.refine_full();
+  c.refine_full();
   EXPECT_EQ(a.statistics().splits, b.statistics().splits);
+  EXPECT_EQ(a.statistics().splits, c.statistics().splits);
   EXPECT_TRUE(test::same_surface(a.extract(), b.extract()));
+  EXPECT_TRUE(test::same_surface(a.extract(), c.extract()));
 }
 
 TEST(Refiner, isovalue_outside_the_data_range_gives_an_empty_surface) {

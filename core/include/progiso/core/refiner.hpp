@@ -49,8 +49,10 @@ struct refine_statistics {
   std::array<std::uint64_t, split_configuration_count> configurations{};
 };
 
-/// Order in which ready diamonds are split.
-enum class refine_order { breadth_first, largest_error_first };
+/// Order in which ready diamonds are split. The split set reached by refining fully is the
+/// same in every order; depth first keeps the working set local (fastest full refinement),
+/// breadth first refines coarse to fine, largest error first serves quality and budgets.
+enum class refine_order { breadth_first, depth_first, largest_error_first };
 
 /// Sequential progressive refinement at one isovalue.
 class refiner {
@@ -118,7 +120,25 @@ class refiner {
   const range_data& ranges_;
   double isovalue_;
   std::unique_ptr<std::uint8_t, void (*)(void*)> state_;
-  std::vector<owned_triangle> triangles_;
+  // Record triangles in fixed chunks: growth never moves what is stored (no reallocation copy
+  // of hundreds of megabytes, and stable addresses for the concurrent engine later).
+  class triangle_store {
+   public:
+    static constexpr std::size_t chunk_bits = 16;
+    static constexpr std::size_t chunk = std::size_t{1} << chunk_bits;
+    [[nodiscard]] std::size_t size() const noexcept { return size_; }
+    void append(const owned_triangle* t, std::size_t n);
+    [[nodiscard]] const owned_triangle& operator[](std::size_t i) const noexcept {
+      return chunks_[i >> chunk_bits][i & (chunk - 1)];
+    }
+
+   private:
+    std::vector<std::unique_ptr<owned_triangle[]>> chunks_;
+    std::size_t size_ = 0;
+  };
+
+  triangle_store triangles_;
+  std::vector<owned_triangle> scratch_;
   std::vector<record> records_;
   std::unique_ptr<queue> queue_;
   refine_statistics stats_;
