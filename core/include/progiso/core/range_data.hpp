@@ -9,17 +9,18 @@
 // never visits it: extraction is output sensitive. Neither depends on the isovalue, so a new
 // isovalue reuses the same data.
 //
-// Diamonds whose region lies wholly in the padding beyond the data box get an empty own range
-// (their pieces of surface would all be clipped away); nesting still covers them when a child
-// reaches into the data.
+// Diamonds whose subtree lies wholly in the padding beyond the data box get an empty range
+// (their pieces of surface would all be clipped away).
 //
 // Storage: entries {lo, hi, error} in the volume's sample type (error as an unsigned integer of
 // the same width, rounded up, or as float for floating-point volumes) for every diamond of scale
-// h ≥ 2, in one dense array per scale clipped to the data box (plus the margin that a subtree
-// can reach). That is about 1/8 of the grid vertices, so the data takes about 3/8 of the
-// volume's own bytes (more, up to ~0.8×, for small volumes where the margin counts). Diamonds of
-// scale 1 (7/8 of all) are computed on demand: cube centres from a fixed stencil of samples
-// (about 60 reads plus 19 split errors), face centres and edge midpoints from at most 51.
+// h ≥ 2, in one dense array per scale clipped to the data box plus the margin a subtree can
+// reach. That is about 1/8 of the grid vertices: about 0.44× the volume's own bytes for large
+// volumes, up to ~0.86× for small ones where the margin counts. Diamonds of scale 1 (7/8 of
+// all) are computed on demand from fixed stencils of samples that depend only on the centre
+// mod 4 (about 60 reads for a cube centre, fewer for the others). Within 2 of the data
+// boundary the stencils read clamped samples, a superset of the exact range and error: still
+// sound for culling and still nested, because the build and every query use the same function.
 //
 // Thread safety: immutable after construction; concurrent get() calls are safe.
 #pragma once
