@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <bit>
+#include <string>
 
 #include <progiso/core/error.hpp>
 
@@ -28,7 +29,11 @@ ipoint axis(int q, std::int32_t len) noexcept {
 hierarchy::hierarchy(const index3& data_dims) {
   std::int64_t min_extent = data_dims[0] - 1;
   for (int q = 0; q < 3; ++q) {
-    if (data_dims[q] < 2) throw error("hierarchy: every dim must be at least 2");
+    if (data_dims[q] < 2) {
+      throw error("volume dims " + std::to_string(data_dims[0]) + "," +
+                  std::to_string(data_dims[1]) + "," + std::to_string(data_dims[2]) +
+                  ": 3D extraction needs at least 2 samples along every axis");
+    }
     if (data_dims[q] > (std::int64_t{1} << 15) + 1) {
       throw error("hierarchy: dims above 32769 per axis are not supported");
     }

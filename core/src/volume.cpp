@@ -48,8 +48,9 @@ volume::volume(index3 dims, sample_type type, std::vector<std::byte> samples,
                std::array<double, 3> spacing, std::array<double, 3> origin)
     : dims_(dims), type_(type), samples_(std::move(samples)), spacing_(spacing), origin_(origin) {
   for (int a = 0; a < 3; ++a) {
-    if (dims_[a] < 2) {
-      throw error("volume: every dim must be at least 2, found " + std::to_string(dims_[0]) + "," +
+    // x and y need two samples; z may be 1 (a 2D image is a volume one sample thick).
+    if (dims_[a] < (a == 2 ? 1 : 2)) {
+      throw error("volume: dims must be at least 2,2,1, found " + std::to_string(dims_[0]) + "," +
                   std::to_string(dims_[1]) + "," + std::to_string(dims_[2]));
     }
     if (dims_[a] > (std::int64_t{1} << 15) + 1) {

@@ -3,7 +3,9 @@
 // A volume owns its samples in their native type (u8 … f64, host byte order), with x varying
 // fastest, then y, then z, together with the grid spacing and origin that map a grid index to
 // physical coordinates (origin + index * spacing). Any dims ≥ 2 per axis are accepted; the
-// diamond hierarchy embeds them in the smallest covering hierarchy (see hierarchy.hpp).
+// diamond hierarchy embeds them in the smallest covering hierarchy (see hierarchy.hpp). A 2D
+// image is a volume one sample thick (dims w, h, 1: x = column, y = row); the 3D hierarchy
+// rejects those, the 2D one (hierarchy2d.hpp) takes them.
 //
 // value() reads one sample as double and clamps the index to the data box, which is how the
 // hierarchy's padding vertices outside the data get their values (the nearest data vertex).
@@ -39,8 +41,8 @@ using index3 = std::array<std::int64_t, 3>;
 /// A scalar field on a regular grid.
 class volume {
  public:
-  /// Takes ownership of `samples` (host byte order, x fastest). Throws progiso::error when a
-  /// dim is < 2, or when the byte count differs from dims × sample_size(type), or when a
+  /// Takes ownership of `samples` (host byte order, x fastest). Throws progiso::error when
+  /// dims[0] or dims[1] is < 2 or dims[2] < 1, or when the byte count differs from dims × sample_size(type), or when a
   /// spacing is not finite and positive.
   volume(index3 dims, sample_type type, std::vector<std::byte> samples,
          std::array<double, 3> spacing = {1.0, 1.0, 1.0},
