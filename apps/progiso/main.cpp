@@ -28,9 +28,14 @@
 #include <progiso/core/refiner.hpp>
 #include <progiso/core/volume_io.hpp>
 
+#include "cli_common.hpp"
+
+int run_contour(int argc, char** argv);
+
 namespace {
 
 using progiso::error;
+using namespace progiso::cli;
 
 constexpr const char* usage_text =
     "usage:\n"
@@ -39,6 +44,9 @@ constexpr const char* usage_text =
     "          [--spacing SX,SY,SZ] [--full | --error E | --max-triangles K | --time-ms T]\n"
     "          [--stats-json FILE]\n"
     "  progiso extract --demo -o OUT.ply [--iso W]\n"
+    "  progiso contour INPUT.pgm|INPUT.png -o OUT.obj|OUT.svg --iso W[,W2,...]\n"
+    "          [--full | --error E | --max-segments K | --time-ms T] [--frames DIR]\n"
+    "          [--stats-json FILE]\n"
     "\n"
     "INPUT is a .nrrd/.nhdr file, or a headerless raw file described by --dims and --type\n"
     "(x fastest, little-endian unless --big-endian). --demo uses a built-in 129^3\n"
@@ -61,37 +69,15 @@ struct arguments {
   std::optional<std::string> stats_json;
 };
 
-double parse_number(const std::string& flag, const std::string& text) {
-  std::size_t used = 0;
-  double v = 0.0;
-  try {
-    v = std::stod(text, &used);
-  } catch (const std::exception&) {
-    used = 0;
-  }
-  if (used != text.size() || text.empty()) {
-    throw error(flag + ": expected a number, found '" + text + "'");
-  }
-  if (!std::isfinite(v)) throw error(flag + ": expected a finite number, found '" + text + "'");
-  return v;
-}
-
-std::vector<std::string> split_commas(const std::string& flag, const std::string& text) {
-  std::vector<std::string> parts;
-  std::stringstream ss(text);
-  std::string p;
-  while (std::getline(ss, p, ',')) parts.push_back(p);
-  if (parts.size() != 3 || text.back() == ',') {
-    throw error(flag + ": expected three comma-separated values, found '" + text + "'");
-  }
-  return parts;
-}
-
 arguments parse(int argc, char** argv) {
   arguments a;
-  if (argc < 2) throw error(std::string("missing command (expected 'extract')\n") + usage_text);
+  if (argc < 2) {
+    throw error(std::string("missing command (expected 'extract' or 'contour')\n") + usage_text);
+  }
   const std::string command = argv[1];
-  if (command != "extract") throw error("unknown command '" + command + "' (expected 'extract')");
+  if (command != "extract") {
+    throw error("unknown command '" + command + "' (expected 'extract' or 'contour')");
+  }
   const auto value = [&](int& i, const std::string& flag) -> std::string {
     if (i + 1 >= argc) throw error(flag + ": missing value");
     return argv[++i];
@@ -186,51 +172,6 @@ arguments parse(int argc, char** argv) {
     }
   }
   return a;
-}
-
-void write_text_atomically(const std::filesystem::path& file, const std::string& text) {
-  const std::filesystem::path tmp = file.string() + ".tmp-progiso";
-  {
-    std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
-    if (!out) throw error(file.string() + ": cannot create file");
-    out << text;
-    out.flush();
-    if (!out) {
-      std::error_code ec;
-      std::filesystem::remove(tmp, ec);
-      throw error(file.string() + ": write failed");
-    }
-  }
-  std::error_code ec;
-  std::filesystem::rename(tmp, file, ec);
-  if (ec) {
-    std::filesystem::remove(tmp, ec);
-    throw error(file.string() + ": cannot write file");
-  }
-}
-
-std::string json_number(double v) {
-  if (!std::isfinite(v)) return "null";
-  char buf[64];
-  std::snprintf(buf, sizeof buf, "%.9g", v);
-  return buf;
-}
-
-std::string json_escape(const std::string& s) {
-  std::string o;
-  for (const char c : s) {
-    if (c == '"' || c == '\\') {
-      o += '\\';
-      o += c;
-    } else if (static_cast<unsigned char>(c) < 0x20) {
-      char buf[8];
-      std::snprintf(buf, sizeof buf, "\\u%04x", c);
-      o += buf;
-    } else {
-      o += c;
-    }
-  }
-  return o;
 }
 
 std::string stats_json(const arguments& a, const std::string& input, double iso,
@@ -355,6 +296,7 @@ int run(int argc, char** argv) {
 
 int main(int argc, char** argv) {
   try {
+    if (argc >= 2 && std::string(argv[1]) == "contour") return run_contour(argc, argv);
     return run(argc, argv);
   } catch (const progiso::error& e) {
     std::cerr << "progiso: error: " << e.what() << "\n";

@@ -193,3 +193,63 @@ TEST_F(Cli, nrrd_input_is_read_with_its_spacing) {
 
 }  // namespace
 }  // namespace progiso
+
+namespace progiso {
+namespace {
+
+std::string pgm_bytes(int w, int h) {
+  std::string s = "P5\n# test image\n" + std::to_string(w) + " " + std::to_string(h) + "\n255\n";
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x) s += static_cast<char>((x * 13 + y * 7) % 250);
+  return s;
+}
+
+TEST_F(Cli, contour_writes_svg_obj_frames_and_statistics) {
+  const fs::path in = write_file("img.pgm", pgm_bytes(40, 30));
+  const fs::path svg = dir_ / "c.svg";
+  const fs::path frames = dir_ / "frames";
+  const fs::path stats = dir_ / "c.json";
+  const run_result r = run("contour " + in.string() + " -o " + svg.string() + " --iso 60,120 " +
+                           "--frames " + frames.string() + " --stats-json " + stats.string());
+  ASSERT_EQ(r.status, 0) << r.err;
+  EXPECT_NE(slurp(svg).find("<svg"), std::string::npos);
+  std::size_t n = 0;
+  for (const auto& e : fs::directory_iterator(frames)) n += e.path().extension() == ".svg" ? 1 : 0;
+  EXPECT_GE(n, 3u);
+  const std::string json = slurp(stats);
+  for (const char* key : {"\"splits\"", "\"segments\"", "\"polylines\"", "\"cases\"", "\"EdgeFlip\"",
+                          "\"time_to_first_contour_ms\""}) {
+    EXPECT_NE(json.find(key), std::string::npos) << key;
+  }
+  const fs::path obj = dir_ / "c.obj";
+  ASSERT_EQ(run("contour " + in.string() + " -o " + obj.string() + " --iso 60 --error 5").status, 0);
+  const std::string text = slurp(obj);
+  EXPECT_NE(text.find("\nl "), std::string::npos);
+  EXPECT_NE(text.find(" 0\n"), std::string::npos);  // v x y 0
+}
+
+TEST_F(Cli, contour_bad_inputs_exit_2_with_one_clear_line_and_no_output) {
+  const fs::path good = write_file("img.pgm", pgm_bytes(20, 20));
+  const std::string g = good.string();
+  const auto bad = [&](const std::string& args, const std::string& needle) {
+    const run_result r = run("contour " + args + " -o " + (dir_ / "out.svg").string());
+    EXPECT_EQ(r.status, 2) << args;
+    EXPECT_NE(r.err.find(needle), std::string::npos) << "stderr: " << r.err;
+    EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << "stderr: " << r.err;
+    EXPECT_FALSE(fs::exists(dir_ / "out.svg"));
+  };
+  bad((dir_ / "missing.pgm").string() + " --iso 10", "missing.pgm");
+  bad(write_file("bad.pgm", "P2\n2 2\n255\n1 2 3 4\n").string() + " --iso 10", "bad.pgm");
+  bad(write_file("short.pgm", "P5\n20 20\n255\nabc").string() + " --iso 10", "short.pgm");
+  bad(write_file("x.tif", "II*").string() + " --iso 10", "x.tif");
+  bad(g + " --iso nan", "finite");
+  bad(g + " --iso 10,", "--iso");
+  bad(g, "--iso");
+  bad(g + " --iso 10 --full --max-segments 5", "at most one");
+  const run_result r = run("contour " + g + " --iso 10 -o " + (dir_ / "c.ply").string());
+  EXPECT_EQ(r.status, 2);
+  EXPECT_NE(r.err.find(".obj or .svg"), std::string::npos) << r.err;
+}
+
+}  // namespace
+}  // namespace progiso

@@ -1,0 +1,423 @@
+#include <progiso/core/contour_refiner.hpp>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdlib>
+#include <map>
+#include <string>
+
+#include <progiso/core/detail/flat_map.hpp>
+#include <progiso/core/error.hpp>
+
+namespace progiso {
+namespace {
+
+constexpr std::uint8_t split_bit = 0x80;
+constexpr std::uint8_t parent_count_mask = 0x07;
+constexpr std::uint64_t no_owner2 = ~std::uint64_t{0};
+
+}  // namespace
+
+struct contour_refiner::key_table {
+  detail::flat_map map{1024};
+};
+
+// Ready diamonds: a FIFO for breadth-first order, a binary heap for largest error first.
+struct contour_refiner::queue {
+  contour_order order;
+  std::vector<ready> items;
+  std::size_t head = 0;
+  static bool before(const ready& a, const ready& b) noexcept {
+    if (a.error != b.error) return a.error < b.error;
+    if (a.depth != b.depth) return a.depth > b.depth;
+    return a.index > b.index;
+  }
+  [[nodiscard]] bool empty() const noexcept { return head == items.size(); }
+  [[nodiscard]] const ready& top() const noexcept {
+    return order == contour_order::breadth_first ? items[head] : items.front();
+  }
+  void push(const ready& r) {
+    items.push_back(r);
+    if (order == contour_order::largest_error_first) {
+      std::push_heap(items.begin(), items.end(), before);
+    }
+  }
+  void pop() {
+    if (order == contour_order::breadth_first) {
+      if (++head == items.size()) {
+        items.clear();
+        head = 0;
+      }
+    } else {
+      std::pop_heap(items.begin(), items.end(), before);
+      items.pop_back();
+    }
+  }
+};
+
+contour_refiner::contour_refiner(const volume& image, const hierarchy2d& hier,
+                                 const range_data2d& ranges, double isovalue, contour_order order)
+    : image_(image),
+      hier_(hier),
+      ranges_(ranges),
+      isovalue_(isovalue),
+      state_(static_cast<std::uint8_t*>(std::calloc(hier.vertex_count(), 1)), &std::free),
+      keys_(std::make_unique<key_table>()),
+      record_of_(std::make_unique<key_table>()),
+      queue_(std::make_unique<queue>()) {
+  if (!std::isfinite(isovalue)) {
+    throw error("isovalue: expected a finite number, found " + std::to_string(isovalue));
+  }
+  if (!state_) throw std::bad_alloc();
+  origin_ = {image.origin()[0], image.origin()[1]};
+  spacing_ = {image.spacing()[0], image.spacing()[1]};
+  queue_->order = order;
+  records_.push_back({no_owner2, {0, 0}, 0, 0, 0.0});
+  std::array<std::array<ipoint2, 3>, 2> tris{};
+  for (std::uint64_t r = 0; r < hier_.root_count(); ++r) {
+    hier_.root_triangles(r, tris);
+    const ipoint2 centre = hier_.root_centre(r);
+    const bool has_diamond = hier_.root_size() >= 2;
+    const std::uint64_t owner = has_diamond ? hier_.index(centre) : no_owner2;
+    for (const auto& t : tris) {
+      std::array<double, 3> f{};
+      for (std::size_t i = 0; i < 3; ++i) f[i] = image_.value(t[i][0], t[i][1], 0);
+      std::array<std::uint64_t, 2> k{};
+      if (march_triangle(t, f, isovalue_, k)) {
+        segments_.push_back({owner, k});
+        add_vertex(k[0]);
+        add_vertex(k[1]);
+      }
+    }
+    if (has_diamond) {
+      ++stats_.visited;
+      const diamond_range rr = ranges_.get(centre);
+      if (rr.straddles(isovalue_)) {
+        queue_->push({rr.error, 0, owner, centre});
+      } else {
+        ++stats_.culled;
+      }
+    }
+  }
+  records_[0].count = static_cast<std::uint32_t>(segments_.size());
+  stats_.segments = segments_.size();
+  stats_.record_segments = segments_.size();
+}
+
+contour_refiner::~contour_refiner() = default;
+
+bool contour_refiner::done() const noexcept { return queue_->empty(); }
+double contour_refiner::next_error() const noexcept { return done() ? 0.0 : queue_->top().error; }
+int contour_refiner::next_depth() const noexcept { return done() ? -1 : queue_->top().depth; }
+
+bool contour_refiner::is_split(const ipoint2& c) const noexcept {
+  return hier_.in_grid(c) && (state_.get()[hier_.index(c)] & split_bit) != 0;
+}
+
+void contour_refiner::add_vertex(std::uint64_t key) {
+  const auto [id, inserted] =
+      keys_->map.try_emplace(key, static_cast<std::uint32_t>(positions_.size()));
+  if (!inserted) return;
+  const auto e = hier_.edge_ends(key);
+  positions_.push_back(interpolate2(e[0], image_.value(e[0][0], e[0][1], 0), e[1],
+                                    image_.value(e[1][0], e[1][1], 0), isovalue_));
+}
+
+bool contour_refiner::split_next(std::uint64_t max_segments) {
+  if (queue_->empty()) return false;
+  const ready next = queue_->top();
+  const diamond2 d = hier_.make_diamond(next.centre);
+  scratch_.clear();
+  const contour_split_summary s = compute_contour_split(hier_, image_, isovalue_, d, scratch_);
+  const std::uint64_t after = stats_.segments + static_cast<std::uint64_t>(s.added_segments) -
+                              static_cast<std::uint64_t>(s.removed_segments);
+  if (after > max_segments) return false;
+  queue_->pop();
+  const std::uint64_t first = segments_.size();
+  for (const owned_segment& seg : scratch_) {
+    segments_.push_back(seg);
+    add_vertex(seg.keys[0]);
+    add_vertex(seg.keys[1]);
+  }
+  std::uint8_t* state = state_.get();
+  state[next.index] = static_cast<std::uint8_t>(state[next.index] | split_bit);
+  record_of_->map.try_emplace(next.index, static_cast<std::uint32_t>(records_.size()));
+  records_.push_back({next.index, next.centre, first, static_cast<std::uint32_t>(scratch_.size()),
+                      next.error});
+  stats_.segments = after;
+  stats_.record_segments += scratch_.size();
+  ++stats_.splits;
+  ++stats_.cases[static_cast<std::size_t>(s.kind)];
+  for (int i = 0; i < s.op_count; ++i) {
+    ++stats_.primitives[static_cast<std::size_t>(s.ops[static_cast<std::size_t>(i)].kind)];
+  }
+  last_ = s;
+  std::array<ipoint2, 4> children{};
+  const int nc = hier_.children(d, children);
+  for (int i = 0; i < nc; ++i) {
+    const ipoint2& c = children[static_cast<std::size_t>(i)];
+    const std::uint64_t ci = hier_.index(c);
+    const auto count = static_cast<std::uint8_t>((state[ci] & parent_count_mask) + 1);
+    state[ci] = static_cast<std::uint8_t>((state[ci] & ~parent_count_mask) | count);
+    if (count != hier_.parent_count(c)) continue;
+    ++stats_.visited;
+    const diamond_range r = ranges_.get(c);
+    if (r.straddles(isovalue_)) {
+      queue_->push({r.error, d.depth + 1, ci, c});
+    } else {
+      ++stats_.culled;
+    }
+  }
+  return true;
+}
+
+void contour_refiner::refine_full() {
+  while (split_next()) {
+  }
+}
+
+void contour_refiner::refine_to_error(double max_error) {
+  while (!done() && next_error() > max_error) split_next();
+}
+
+void contour_refiner::refine_until(std::chrono::steady_clock::time_point deadline) {
+  while (!done() && std::chrono::steady_clock::now() < deadline) split_next();
+}
+
+// ---------------------------------------------------------------------------------------------
+// Extraction: live segments of the cut, clipped to the image, chained into polylines.
+
+const vec2& contour_refiner::position_of(std::uint64_t key) const noexcept {
+  const std::uint32_t* id = keys_->map.find(key);
+  PROGISO_ASSERT(id != nullptr);
+  return positions_[id != nullptr ? *id : 0];
+}
+
+template <class InCut>
+contour_set contour_refiner::build(InCut&& in_cut) const {
+  const double bx = static_cast<double>(hier_.data_max()[0]);
+  const double by = static_cast<double>(hier_.data_max()[1]);
+  contour_set out;
+  detail::flat_map ids(static_cast<std::size_t>(stats_.segments + 16));
+  std::map<vec2, std::uint32_t> clipped;
+  const auto key_id = [&](std::uint64_t key) {
+    const auto [id, inserted] = ids.try_emplace(key, static_cast<std::uint32_t>(out.vertices.size()));
+    if (inserted) out.vertices.push_back(position_of(key));
+    return id;
+  };
+  const auto point_id = [&](const vec2& p) {
+    const auto [it, inserted] = clipped.try_emplace(p, static_cast<std::uint32_t>(out.vertices.size()));
+    if (inserted) out.vertices.push_back(p);
+    return it->second;
+  };
+  std::vector<std::array<std::uint32_t, 2>> segs;
+  const std::uint8_t* state = state_.get();
+  for (const record& r : records_) {
+    if (!in_cut(r.diamond, r.centre, r.error, true)) continue;
+    for (std::uint64_t i = r.first; i < r.first + r.count; ++i) {
+      const owned_segment& s = segments_[i];
+      if (s.owner != no_owner2 && (state[s.owner] & split_bit) != 0 &&
+          in_cut(s.owner, ipoint2{}, 0.0, false)) {
+        continue;
+      }
+      const vec2 p = position_of(s.keys[0]);
+      const vec2 q = position_of(s.keys[1]);
+      if (p[0] <= bx && p[1] <= by && q[0] <= bx && q[1] <= by) {
+        segs.push_back({key_id(s.keys[0]), key_id(s.keys[1])});
+        continue;
+      }
+      // Clip against x ≤ bx and y ≤ by; crossings computed from the lexicographically ordered
+      // ends so that neighbours agree exactly. The direction of the segment is kept. When the
+      // inside end lies on the border line, what remains is that point: the segment is dropped.
+      vec2 a = p, b = q;
+      bool a_orig = true, b_orig = true, keep = true;
+      for (std::size_t axis = 0; axis < 2 && keep; ++axis) {
+        const double lim = axis == 0 ? bx : by;
+        const bool ain = a[axis] <= lim;
+        const bool bin = b[axis] <= lim;
+        if (ain && bin) continue;
+        if ((!ain && !bin) || (ain && a[axis] == lim) || (bin && b[axis] == lim)) {
+          keep = false;
+          break;
+        }
+        vec2 u = a, v = b;
+        if (v < u) std::swap(u, v);
+        const double t = (lim - u[axis]) / (v[axis] - u[axis]);
+        vec2 x{u[0] + t * (v[0] - u[0]), u[1] + t * (v[1] - u[1])};
+        x[axis] = lim;
+        if (!ain) {
+          a = x;
+          a_orig = false;
+        } else {
+          b = x;
+          b_orig = false;
+        }
+      }
+      if (!keep || a == b) continue;
+      const std::uint32_t ia = a_orig ? key_id(s.keys[0]) : point_id(a);
+      const std::uint32_t ib = b_orig ? key_id(s.keys[1]) : point_id(b);
+      if (ia != ib) segs.push_back({ia, ib});
+    }
+  }
+  // Chain: every vertex has at most one outgoing and one incoming segment.
+  const std::uint32_t none = ~std::uint32_t{0};
+  std::vector<std::uint32_t> next(out.vertices.size(), none);
+  std::vector<std::uint8_t> has_in(out.vertices.size(), 0);
+  for (const auto& s : segs) {
+    next[s[0]] = s[1];
+    has_in[s[1]] = 1;
+  }
+  std::vector<std::uint8_t> used(out.vertices.size(), 0);
+  const auto walk = [&](std::uint32_t start, bool closed) {
+    polyline pl;
+    pl.closed = closed;
+    pl.isovalue = isovalue_;
+    std::uint32_t v = start;
+    while (v != none && !used[v]) {
+      used[v] = 1;
+      pl.vertices.push_back(v);
+      v = next[v];
+    }
+    if (pl.vertices.size() >= 2) out.polylines.push_back(std::move(pl));
+  };
+  for (std::uint32_t v = 0; v < out.vertices.size(); ++v) {
+    if (!has_in[v] && next[v] != none) walk(v, false);
+  }
+  for (std::uint32_t v = 0; v < out.vertices.size(); ++v) {
+    if (!used[v] && next[v] != none) walk(v, true);
+  }
+  // Physical coordinates: origin + grid position × spacing, as for volumes.
+  for (vec2& p : out.vertices) {
+    p = {origin_[0] + p[0] * spacing_[0], origin_[1] + p[1] * spacing_[1]};
+  }
+  return out;
+}
+
+contour_set contour_refiner::extract() const {
+  return build([](std::uint64_t, const ipoint2&, double, bool) { return true; });
+}
+
+contour_set contour_refiner::extract_cut(double max_error) const {
+  // A split owner is in the cut when its own record's error exceeds max_error: records only,
+  // no image and no range data.
+  return build([&](std::uint64_t diamond, const ipoint2&, double err, bool is_record) {
+    if (diamond == no_owner2) return true;
+    if (is_record) return err > max_error;
+    const std::uint32_t* r = record_of_->map.find(diamond);
+    return r != nullptr && records_[*r].error > max_error;
+  });
+}
+
+contour_set contour_refiner::extract_region(double x0, double y0, double x1, double y1) const {
+  const auto stride = static_cast<std::uint64_t>(hier_.grid_max()[0]) + 1;
+  // The subtree of a diamond of scale h reaches 3h (square centre) or 2h (edge midpoint) per
+  // axis; these boxes nest from parent to child, so the selection is parent-closed.
+  return build([&](std::uint64_t diamond, const ipoint2&, double, bool) {
+    if (diamond == no_owner2) return true;
+    const ipoint2 c{static_cast<std::int32_t>(diamond % stride),
+                    static_cast<std::int32_t>(diamond / stride)};
+    const diamond2 d = hier_.make_diamond(c);
+    const double reach = (d.type == 0 ? 3.0 : 2.0) * d.scale;
+    return c[0] + reach >= x0 && c[0] - reach <= x1 && c[1] + reach >= y0 && c[1] - reach <= y1;
+  });
+}
+
+// ---------------------------------------------------------------------------------------------
+
+contour_result extract_contours(const volume& image, const std::vector<double>& isovalues,
+                                const contour_options& options) {
+  using clock = std::chrono::steady_clock;
+  const auto seconds = [](clock::duration d) { return std::chrono::duration<double>(d).count(); };
+  if (image.dims()[2] != 1) {
+    throw error("contour: expected a 2D image (depth 1), found depth " +
+                std::to_string(image.dims()[2]));
+  }
+  if (isovalues.empty()) throw error("--iso: expected at least one isovalue");
+  for (const double w : isovalues) {
+    if (!std::isfinite(w)) throw error("--iso: expected finite isovalues");
+  }
+  contour_result res;
+  const auto t0 = clock::now();
+  const hierarchy2d hier(image.dims()[0], image.dims()[1]);
+  const range_data2d ranges(image, hier);
+  const auto t1 = clock::now();
+  res.range_build_seconds = seconds(t1 - t0);
+  res.range_bytes = ranges.byte_size();
+  const contour_order order = options.mode == contour_mode::full
+                                  ? contour_order::breadth_first
+                                  : contour_order::largest_error_first;
+  std::vector<std::unique_ptr<contour_refiner>> refs;
+  for (const double w : isovalues) {
+    refs.push_back(std::make_unique<contour_refiner>(image, hier, ranges, w, order));
+  }
+  const auto gather = [&] {
+    contour_set all;
+    for (const auto& r : refs) {
+      contour_set c = r->extract();
+      const auto base = static_cast<std::uint32_t>(all.vertices.size());
+      all.vertices.insert(all.vertices.end(), c.vertices.begin(), c.vertices.end());
+      for (auto& p : c.polylines) {
+        for (auto& v : p.vertices) v += base;
+        all.polylines.push_back(std::move(p));
+      }
+    }
+    return all;
+  };
+  int stage = 0;
+  std::uint64_t splits = 0;
+  std::uint64_t next_frame = 1;
+  const auto frame = [&](bool last) {
+    if (!options.frame) return;
+    if (last || splits >= next_frame || stage == 0) {
+      options.frame(gather(), stage++);
+      while (next_frame <= splits) next_frame *= 2;
+    }
+  };
+  res.first_contour_seconds = seconds(clock::now() - t1);
+  frame(false);
+  const auto deadline = t1 + std::chrono::duration_cast<clock::duration>(options.time_budget);
+  const auto segments_now = [&] {
+    std::uint64_t n = 0;
+    for (const auto& r : refs) n += r->segment_count();
+    return n;
+  };
+  // The refiner whose next split has the largest error (round robin in breadth-first mode).
+  std::size_t rr = 0;
+  const auto pick = [&]() -> contour_refiner* {
+    contour_refiner* best = nullptr;
+    if (order == contour_order::breadth_first) {
+      for (std::size_t k = 0; k < refs.size(); ++k) {
+        contour_refiner* r = refs[(rr + k) % refs.size()].get();
+        if (!r->done()) {
+          rr = (rr + k + 1) % refs.size();
+          return r;
+        }
+      }
+      return nullptr;
+    }
+    for (const auto& r : refs) {
+      if (!r->done() && (best == nullptr || r->next_error() > best->next_error())) best = r.get();
+    }
+    return best;
+  };
+  while (contour_refiner* r = pick()) {
+    if (options.mode == contour_mode::error && !(r->next_error() > options.max_error)) break;
+    if (options.mode == contour_mode::time && clock::now() >= deadline) break;
+    if (options.mode == contour_mode::segments) {
+      const std::uint64_t others = segments_now() - r->segment_count();
+      if (others > options.max_segments || !r->split_next(options.max_segments - others)) break;
+    } else {
+      r->split_next();
+    }
+    ++splits;
+    frame(false);
+  }
+  res.refine_seconds = seconds(clock::now() - t1);
+  res.contours = gather();
+  frame(true);
+  for (const auto& r : refs) res.stats.push_back(r->statistics());
+  res.total_seconds = seconds(clock::now() - t0);
+  return res;
+}
+
+}  // namespace progiso

@@ -1,0 +1,252 @@
+// Progressive 2D contours: exact at full resolution (equal to the independent marching-triangles
+// reference on the finest mesh, directed segments included), valid at every cut, equal to the
+// marching-triangles contour of each cut's conforming mesh, traversable without the image, and
+// the one-shot modes with several isovalues.
+#include <progiso/core/contour_refiner.hpp>
+#include <progiso/core/contour_split.hpp>
+
+#include <cmath>
+#include <map>
+#include <memory>
+#include <random>
+
+#include <gtest/gtest.h>
+
+#include "support/contour_checks.hpp"
+#include "support/reference_mtri.hpp"
+#include "support/test_data.hpp"
+
+namespace progiso {
+namespace {
+
+volume make_image(std::int64_t w, std::int64_t h, double (*f)(double, double)) {
+  std::vector<std::byte> b(static_cast<std::size_t>(w * h) * sizeof(float));
+  auto* p = reinterpret_cast<float*>(b.data());
+  for (std::int64_t y = 0; y < h; ++y)
+    for (std::int64_t x = 0; x < w; ++x) {
+      p[x + w * y] = static_cast<float>(f(static_cast<double>(x), static_cast<double>(y)));
+    }
+  return volume({w, h, 1}, sample_type::f32, std::move(b));
+}
+
+double circle(double x, double y) { return std::hypot(x - 20.3, y - 17.6); }
+double waves(double x, double y) {
+  return std::sin(x * 0.21) * std::cos(y * 0.17) + 0.4 * std::sin((x + 2 * y) * 0.05);
+}
+double edge_cut(double x, double y) { return std::hypot(x - 44.0, y + 3.0); }
+
+struct fixture {
+  volume img;
+  hierarchy2d h;
+  range_data2d ranges;
+  explicit fixture(volume v) : img(std::move(v)), h(img.dims()[0], img.dims()[1]), ranges(img, h) {}
+};
+
+void expect_full_equals_reference(const volume& img, double w) {
+  const hierarchy2d h(img.dims()[0], img.dims()[1]);
+  const range_data2d ranges(img, h);
+  contour_refiner r(img, h, ranges, w, contour_order::breadth_first);
+  r.refine_full();
+  const contour_set mine = r.extract();
+  EXPECT_TRUE(test::same_segments(mine, test::reference_contours(img, w)));
+  EXPECT_TRUE(test::check_valid_contour(mine, test::image_box(img)));
+}
+
+TEST(ContourRefiner, full_resolution_equals_marching_triangles_on_analytic_images) {
+  expect_full_equals_reference(make_image(41, 36, circle), 9.5);      // one closed loop
+  expect_full_equals_reference(make_image(33, 33, circle), 12.25);    // 2^L + 1
+  expect_full_equals_reference(make_image(70, 45, waves), 0.1);       // many components
+  expect_full_equals_reference(make_image(50, 29, edge_cut), 20.0);   // open chains, padding
+}
+
+TEST(ContourRefiner, coordinates_are_physical_with_spacing_and_origin) {
+  const volume grid = make_image(37, 26, waves);
+  std::vector<std::byte> copy(grid.bytes(), grid.bytes() + grid.byte_size());
+  const volume img(grid.dims(), grid.type(), std::move(copy), {2.0, 0.5, 1.0}, {10.0, -3.0, 0.0});
+  expect_full_equals_reference(img, 0.1);
+}
+
+TEST(ContourRefiner, full_resolution_equals_marching_triangles_on_every_shared_image) {
+  const auto dir = test::shared_data_dir();
+  if (!dir) GTEST_SKIP() << "shared data not found (set PROGISO_DATA_DIR)";
+  for (const auto& info : test::shared_images()) {
+    const volume img = test::load_pgm(*dir / info.file);
+    for (const double w : info.isovalues) {
+      SCOPED_TRACE(std::string(info.name) + " at " + std::to_string(w));
+      expect_full_equals_reference(img, w);
+    }
+  }
+}
+
+TEST(ContourRefiner, random_cuts_are_valid_contours) {
+  std::mt19937 rng(5);
+  for (const auto& [img, w] : {std::pair{make_image(70, 45, waves), 0.1},
+                               std::pair{make_image(50, 29, edge_cut), 20.0}}) {
+    fixture f(img);
+    contour_refiner full(f.img, f.h, f.ranges, w);
+    full.refine_full();
+    const std::uint64_t all = full.segment_count();
+    for (int i = 0; i < 8; ++i) {
+      const auto k = std::uniform_int_distribution<std::uint64_t>(0, all)(rng);
+      contour_refiner r(f.img, f.h, f.ranges, w);
+      while (r.split_next(k)) {
+      }
+      EXPECT_TRUE(test::check_valid_contour(r.extract(), test::image_box(f.img))) << "budget " << k;
+      const double eps = std::uniform_real_distribution<double>(0.0, 0.5)(rng);
+      contour_refiner e(f.img, f.h, f.ranges, w);
+      e.refine_to_error(eps);
+      EXPECT_LE(e.next_error(), eps);
+      const contour_set sub = full.extract_cut(eps);
+      EXPECT_TRUE(test::check_valid_contour(sub, test::image_box(f.img)));
+      EXPECT_TRUE(test::same_segments(sub, e.extract())) << "cut by error " << eps;
+      const double x0 = std::uniform_real_distribution<double>(0.0, 40.0)(rng);
+      const double y0 = std::uniform_real_distribution<double>(0.0, 20.0)(rng);
+      EXPECT_TRUE(test::check_valid_contour(full.extract_region(x0, y0, x0 + 10, y0 + 8),
+                                            test::image_box(f.img)));
+    }
+  }
+}
+
+// Leaf triangles of the cut, from the bisection rule alone; marching triangles over them.
+TEST(ContourRefiner, a_cut_is_the_marching_triangles_contour_of_its_conforming_mesh) {
+  fixture f(make_image(33, 33, waves));
+  const double w = 0.1;
+  for (const std::uint64_t budget : {0ull, 40ull, 300ull, 900ull}) {
+    contour_refiner r(f.img, f.h, f.ranges, w);
+    while (r.split_next(budget)) {
+    }
+    std::vector<std::array<ipoint2, 3>> todo, leaves;
+    std::array<std::array<ipoint2, 3>, 2> roots{};
+    for (std::uint64_t i = 0; i < f.h.root_count(); ++i) {
+      f.h.root_triangles(i, roots);
+      todo.insert(todo.end(), roots.begin(), roots.end());
+    }
+    while (!todo.empty()) {
+      const auto t = todo.back();
+      todo.pop_back();
+      std::size_t a = 0, b = 1;
+      std::int64_t best = -1;
+      for (std::size_t i = 0; i < 3; ++i)
+        for (std::size_t j = i + 1; j < 3; ++j) {
+          const std::int64_t dx = t[i][0] - t[j][0], dy = t[i][1] - t[j][1];
+          if (dx * dx + dy * dy > best) {
+            best = dx * dx + dy * dy;
+            a = i;
+            b = j;
+          }
+        }
+      const bool integral = ((t[a][0] + t[b][0]) % 2 == 0) && ((t[a][1] + t[b][1]) % 2 == 0);
+      const ipoint2 m{(t[a][0] + t[b][0]) / 2, (t[a][1] + t[b][1]) / 2};
+      if (integral && r.is_split(m)) {
+        auto t1 = t, t2 = t;
+        t1[b] = m;
+        t2[a] = m;
+        todo.push_back(t1);
+        todo.push_back(t2);
+      } else {
+        leaves.push_back(t);
+      }
+    }
+    contour_set expected;
+    std::map<std::uint64_t, std::uint32_t> ids;
+    for (const auto& t : leaves) {
+      std::array<double, 3> fv{};
+      for (std::size_t i = 0; i < 3; ++i) fv[i] = f.img.value(t[i][0], t[i][1], 0);
+      std::array<std::uint64_t, 2> k{};
+      if (!march_triangle(t, fv, w, k)) continue;
+      polyline pl;
+      pl.isovalue = w;
+      for (const std::uint64_t key : k) {
+        auto [it, inserted] = ids.try_emplace(key, static_cast<std::uint32_t>(expected.vertices.size()));
+        if (inserted) {
+          const auto e = f.h.edge_ends(key);
+          expected.vertices.push_back(interpolate2(e[0], f.img.value(e[0][0], e[0][1], 0), e[1],
+                                                   f.img.value(e[1][0], e[1][1], 0), w));
+        }
+        pl.vertices.push_back(it->second);
+      }
+      expected.polylines.push_back(pl);
+    }
+    EXPECT_TRUE(test::same_segments(r.extract(), expected)) << "budget " << budget;
+  }
+}
+
+TEST(ContourRefiner, the_contour_hierarchy_is_traversed_without_the_image) {
+  auto img = std::make_unique<volume>(make_image(70, 45, waves));
+  const hierarchy2d h(70, 45);
+  auto ranges = std::make_unique<range_data2d>(*img, h);
+  contour_refiner r(*img, h, *ranges, 0.1);
+  r.refine_full();
+  const contour_set coarse = r.extract_cut(0.05);
+  const contour_set region = r.extract_region(10, 10, 30, 25);
+  const contour_set all = r.extract();
+  // Free the image and the range data: the records and the vertex table are enough (an access
+  // would be a use-after-free, which the sanitizer build reports).
+  ranges.reset();
+  img.reset();
+  EXPECT_TRUE(test::same_segments(r.extract_cut(0.05), coarse));
+  EXPECT_TRUE(test::same_segments(r.extract_region(10, 10, 30, 25), region));
+  EXPECT_TRUE(test::same_segments(r.extract(), all));
+  EXPECT_LT(coarse.segment_count(), all.segment_count());
+  EXPECT_LT(region.segment_count(), all.segment_count());
+  EXPECT_GT(region.segment_count(), coarse.segment_count() / 2);
+}
+
+TEST(ContourRefiner, several_isovalues_in_one_run_each_equal_their_own_contours) {
+  const volume img = make_image(64, 40, waves);
+  contour_options o;
+  const std::vector<double> ws{-0.3, 0.1, 0.5};
+  const contour_result res = extract_contours(img, ws, o);
+  ASSERT_EQ(res.stats.size(), 3u);
+  for (const double w : ws) {
+    contour_set only;
+    only.vertices = res.contours.vertices;
+    for (const auto& p : res.contours.polylines) {
+      if (p.isovalue == w) only.polylines.push_back(p);
+    }
+    EXPECT_TRUE(test::same_segments(only, test::reference_contours(img, w))) << w;
+  }
+}
+
+TEST(ContourRefiner, budgets_and_deadlines_are_respected) {
+  const volume img = make_image(64, 40, waves);
+  contour_options o;
+  o.mode = contour_mode::segments;
+  o.max_segments = 150;
+  const contour_result seg = extract_contours(img, {0.1, 0.5}, o);
+  std::uint64_t total = 0;
+  for (const auto& s : seg.stats) total += s.segments;
+  EXPECT_LE(total, 150u);
+  o.mode = contour_mode::time;
+  o.time_budget = std::chrono::duration<double>(0.0);
+  const contour_result zero = extract_contours(img, {0.1}, o);
+  EXPECT_EQ(zero.stats[0].splits, 0u);
+  o.mode = contour_mode::error;
+  o.max_error = 0.2;
+  int frames = 0;
+  o.frame = [&](const contour_set& c, int stage) {
+    EXPECT_EQ(stage, frames);
+    EXPECT_TRUE(test::check_valid_contour(c, test::image_box(img)));
+    ++frames;
+  };
+  const contour_result err = extract_contours(img, {0.1}, o);
+  EXPECT_GT(frames, 3);
+  EXPECT_GT(err.stats[0].splits, 0u);
+}
+
+TEST(ContourRefiner, untouched_regions_are_never_visited) {
+  // A small bump in a flat 1025 x 1025 image: only the diamonds around it are visited.
+  const std::int64_t n = 1025;
+  std::vector<std::byte> b(static_cast<std::size_t>(n * n));
+  for (std::int64_t y = 500; y < 510; ++y)
+    for (std::int64_t x = 300; x < 312; ++x) b[static_cast<std::size_t>(x + n * y)] = std::byte{200};
+  const volume img({n, n, 1}, sample_type::u8, std::move(b));
+  fixture f(img);
+  contour_refiner r(f.img, f.h, f.ranges, 100.0);
+  r.refine_full();
+  EXPECT_LT(r.statistics().visited * 1000, static_cast<std::uint64_t>(n * n));
+  EXPECT_EQ(r.extract().polylines.size(), 1u);
+}
+
+}  // namespace
+}  // namespace progiso

@@ -1,0 +1,204 @@
+// The paper's 2D cases (a)–(h) (Figure 3) and their boundary variants: for every colouring of the
+// five vertices of an interior diamond and the four of a boundary one, the split is classified as
+// the paper's text says, and executing its primitive sequence on the old segments yields exactly
+// the marching-triangles segments of the new triangles. Hand-built configurations pin the exact
+// sequence of each case.
+#include <progiso/core/contour_split.hpp>
+#include <progiso/core/error.hpp>
+
+#include <algorithm>
+#include <set>
+
+#include <gtest/gtest.h>
+
+namespace progiso {
+namespace {
+
+// A 3x3 image: one root square (N = 2) whose centre (1, 1) is a diamond with two triangles, and
+// whose border edge midpoints, e.g. (1, 0), are diamonds with one triangle.
+volume image3(const std::array<double, 9>& v) {
+  std::vector<std::byte> b(9 * sizeof(float));
+  auto* f = reinterpret_cast<float*>(b.data());
+  for (std::size_t i = 0; i < 9; ++i) f[i] = static_cast<float>(v[i]);
+  return volume({3, 3, 1}, sample_type::f32, std::move(b));
+}
+
+std::set<key_segment> undirected(const std::vector<key_segment>& s) {
+  return {s.begin(), s.end()};
+}
+
+key_segment und(std::uint64_t a, std::uint64_t b) { return a < b ? key_segment{a, b} : key_segment{b, a}; }
+
+// Old segments of the diamond's triangles, and the classification the paper's text gives.
+struct expectation {
+  std::vector<key_segment> old_segments;
+  contour_case kind;
+};
+
+expectation expect(const diamond2& d, const volume& img, double w) {
+  expectation x;
+  const auto f = [&](const ipoint2& p) { return img.value(p[0], p[1], 0); };
+  const auto black = [&](const ipoint2& p) { return f(p) > w; };
+  std::vector<ipoint2> sides;
+  for (std::size_t m = 0; m < 2; ++m) {
+    if ((d.ring_in_grid >> m) & 1u) sides.push_back(d.ring[m]);
+  }
+  for (const ipoint2& s : sides) {
+    std::array<std::uint64_t, 2> k{};
+    if (march_triangle({d.spine[0], d.spine[1], s}, {f(d.spine[0]), f(d.spine[1]), f(s)}, w, k)) {
+      x.old_segments.push_back(und(k[0], k[1]));
+    }
+  }
+  const bool c = black(d.spine[0]), dd = black(d.spine[1]), e = black(d.centre);
+  const bool a = black(sides[0]);
+  const bool b = sides.size() == 2 ? black(sides[1]) : a;
+  const bool one = sides.size() == 1;
+  if (c != dd) {
+    // §3.1: a = b → (a) if also = e, else (b); a ≠ b → (c). One triangle: (a) or (b).
+    x.kind = (a == b) ? (a == e ? contour_case::a : contour_case::b) : contour_case::c;
+  } else if (c == e) {
+    x.kind = (a == b) ? (a == c ? contour_case::none : contour_case::d) : contour_case::e;
+    if (one) x.kind = a == c ? contour_case::none : contour_case::d;
+  } else {
+    x.kind = (a == b) ? (a == c ? contour_case::g : contour_case::h) : contour_case::f;
+    if (one) x.kind = a == c ? contour_case::g : contour_case::h;
+  }
+  return x;
+}
+
+void check_all_colourings(const ipoint2& centre, const std::vector<std::size_t>& pixel_of_vertex) {
+  // pixel_of_vertex: c, d, e, A[, B] as row-major pixel indices in the 3x3 image.
+  const hierarchy2d h(3, 3);
+  const diamond2 d = h.make_diamond(centre);
+  const std::size_t n = pixel_of_vertex.size();
+  std::array<int, contour_case_count> seen{};
+  for (unsigned mask = 0; mask < (1u << n); ++mask) {
+    std::array<double, 9> px{};
+    for (std::size_t i = 0; i < n; ++i) px[pixel_of_vertex[i]] = (mask >> i) & 1u ? 1.0 : 0.0;
+    const volume img = image3(px);
+    const expectation x = expect(d, img, 0.5);
+    std::vector<owned_segment> out;
+    const contour_split_summary s = compute_contour_split(h, img, 0.5, d, out);
+    EXPECT_EQ(s.kind, x.kind) << "mask " << mask;
+    EXPECT_EQ(s.boundary, n == 4);
+    EXPECT_EQ(s.removed_segments, static_cast<int>(x.old_segments.size()));
+    std::vector<key_segment> segs = x.old_segments;
+    apply_contour_ops(segs, s.ops.data(), s.op_count);
+    std::vector<key_segment> fresh;
+    for (const auto& o : out) fresh.push_back(und(o.keys[0], o.keys[1]));
+    EXPECT_EQ(undirected(segs), undirected(fresh)) << "mask " << mask << " case " << to_string(s.kind);
+    EXPECT_EQ(segs.size(), fresh.size()) << "mask " << mask;
+    ++seen[static_cast<std::size_t>(s.kind)];
+  }
+  for (std::size_t k = 0; k < contour_case_count; ++k) {
+    if (n == 5) {
+      EXPECT_GT(seen[k], 0) << "case " << to_string(static_cast<contour_case>(k));
+    }
+  }
+}
+
+TEST(ContourSplit, every_colouring_of_an_interior_diamond_is_classified_and_its_primitives_are_exact) {
+  const hierarchy2d h(3, 3);
+  const diamond2 d = h.make_diamond({1, 1});
+  ASSERT_EQ(d.ring_in_grid, 3);
+  const auto pix = [](const ipoint2& p) { return static_cast<std::size_t>(p[0] + 3 * p[1]); };
+  check_all_colourings({1, 1}, {pix(d.spine[0]), pix(d.spine[1]), pix(d.centre), pix(d.ring[0]),
+                                pix(d.ring[1])});
+}
+
+TEST(ContourSplit, every_colouring_of_a_boundary_diamond_is_classified_and_its_primitives_are_exact) {
+  const hierarchy2d h(3, 3);
+  for (const ipoint2 c : {ipoint2{1, 0}, ipoint2{0, 1}, ipoint2{2, 1}, ipoint2{1, 2}}) {
+    const diamond2 d = h.make_diamond(c);
+    ASSERT_EQ(__builtin_popcount(d.ring_in_grid), 1);
+    const ipoint2 apex = (d.ring_in_grid & 1u) ? d.ring[0] : d.ring[1];
+    const auto pix = [](const ipoint2& p) { return static_cast<std::size_t>(p[0] + 3 * p[1]); };
+    check_all_colourings(c, {pix(d.spine[0]), pix(d.spine[1]), pix(d.centre), pix(apex)});
+  }
+}
+
+// Exact sequences, by case, on the interior diamond (two triangles) and a boundary one.
+std::vector<contour_primitive> kinds(const contour_split_summary& s) {
+  std::vector<contour_primitive> k;
+  for (int i = 0; i < s.op_count; ++i) k.push_back(s.ops[static_cast<std::size_t>(i)].kind);
+  return k;
+}
+
+contour_split_summary split_with(const ipoint2& centre, double c, double d, double e, double a,
+                                 double b) {
+  const hierarchy2d h(3, 3);
+  const diamond2 dm = h.make_diamond(centre);
+  std::array<double, 9> px{};
+  const auto set = [&](const ipoint2& p, double v) { px[static_cast<std::size_t>(p[0] + 3 * p[1])] = v; };
+  set(dm.spine[0], c);
+  set(dm.spine[1], d);
+  set(dm.centre, e);
+  if (dm.ring_in_grid & 1u) set(dm.ring[0], a);
+  if (dm.ring_in_grid & 2u) set(dm.ring[1], b);
+  std::vector<owned_segment> out;
+  return compute_contour_split(h, image3(px), 0.5, dm, out);
+}
+
+TEST(ContourSplit, each_case_uses_the_primitives_listed_for_it) {
+  using P = contour_primitive;
+  const ipoint2 in{1, 1};
+  struct row {
+    double c, d, e, a, b;
+    contour_case kind;
+    std::vector<P> ops;
+  };
+  const std::vector<row> rows{
+      {1, 0, 1, 1, 1, contour_case::a, {P::vertex_move}},
+      {1, 0, 1, 0, 0, contour_case::b, {P::vertex_move, P::vertex_split, P::vertex_split}},
+      {1, 0, 1, 1, 0, contour_case::c, {P::vertex_move, P::vertex_split}},
+      {1, 1, 1, 0, 0, contour_case::d, {P::vertex_split, P::vertex_split}},
+      {1, 1, 1, 0, 1, contour_case::e, {P::vertex_split}},
+      {1, 1, 0, 0, 1, contour_case::f, {P::vertex_split, P::vertex_split, P::vertex_split}},
+      {1, 1, 0, 1, 1, contour_case::g, {P::new_loop}},
+      {1, 1, 0, 0, 0, contour_case::h, {P::edge_flip, P::vertex_split, P::vertex_split}},
+      {1, 1, 1, 1, 1, contour_case::none, {}},
+  };
+  for (const row& r : rows) {
+    const contour_split_summary s = split_with(in, r.c, r.d, r.e, r.a, r.b);
+    EXPECT_EQ(s.kind, r.kind) << to_string(r.kind);
+    EXPECT_EQ(kinds(s), r.ops) << to_string(r.kind);
+  }
+  // Boundary variants: (1, 0) has its triangle on the side of ring vertex (1, 1).
+  const ipoint2 bd{1, 0};
+  const std::vector<row> boundary{
+      {1, 0, 0, 0, 0, contour_case::a, {P::vertex_move}},
+      {1, 0, 1, 0, 0, contour_case::b, {P::vertex_move, P::vertex_split}},
+      {1, 1, 1, 0, 0, contour_case::d, {P::vertex_split}},
+      {1, 1, 0, 1, 1, contour_case::g, {P::new_edge, P::vertex_split}},
+      {1, 1, 0, 0, 0, contour_case::h, {P::vertex_split, P::vertex_open}},
+  };
+  for (const row& r : boundary) {
+    const contour_split_summary s = split_with(bd, r.c, r.d, r.e, r.a, r.b);
+    EXPECT_TRUE(s.boundary);
+    EXPECT_EQ(s.kind, r.kind) << "boundary " << to_string(r.kind);
+    EXPECT_EQ(kinds(s), r.ops) << "boundary " << to_string(r.kind);
+  }
+}
+
+TEST(ContourSplit, primitives_refuse_segments_that_are_not_there) {
+  std::vector<key_segment> segs{{1, 2}};
+  const contour_op flip{contour_primitive::edge_flip, {1, 2, 3, 4}};
+  EXPECT_THROW(apply_contour_ops(segs, &flip, 1), error);
+  const contour_op move{contour_primitive::vertex_move, {7, 8, no_key, no_key}};
+  EXPECT_THROW(apply_contour_ops(segs, &move, 1), error);
+}
+
+TEST(ContourSplit, segments_keep_the_larger_values_on_their_left) {
+  // Triangle with one black vertex at the origin corner.
+  const std::array<ipoint2, 3> t{ipoint2{0, 0}, ipoint2{2, 0}, ipoint2{0, 2}};
+  std::array<std::uint64_t, 2> k{};
+  ASSERT_TRUE(march_triangle(t, {1.0, 0.0, 0.0}, 0.5, k));
+  const ipoint2 p = edge_key2_point(k[0]);
+  const ipoint2 q = edge_key2_point(k[1]);
+  // Black vertex (0,0) doubled: cross(q - p, 0 - p) > 0.
+  const std::int64_t cross = std::int64_t{q[0] - p[0]} * (0 - p[1]) - std::int64_t{q[1] - p[1]} * (0 - p[0]);
+  EXPECT_GT(cross, 0);
+}
+
+}  // namespace
+}  // namespace progiso
