@@ -11,6 +11,7 @@
 #include <system_error>
 #include <vector>
 
+#include <progiso/core/detail/file_output.hpp>
 #include <progiso/core/error.hpp>
 
 namespace progiso::cli {
@@ -43,25 +44,11 @@ inline std::vector<std::string> split_commas(const std::string& flag, const std:
   return parts;
 }
 
+/// Writes `text` to `file` all or nothing (see detail::atomic_output).
 inline void write_text_atomically(const std::filesystem::path& file, const std::string& text) {
-  const std::filesystem::path tmp = file.string() + ".tmp-progiso";
-  {
-    std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
-    if (!out) throw error(file.string() + ": cannot create file");
-    out << text;
-    out.flush();
-    if (!out) {
-      std::error_code ec;
-      std::filesystem::remove(tmp, ec);
-      throw error(file.string() + ": write failed");
-    }
-  }
-  std::error_code ec;
-  std::filesystem::rename(tmp, file, ec);
-  if (ec) {
-    std::filesystem::remove(tmp, ec);
-    throw error(file.string() + ": cannot write file");
-  }
+  progiso::detail::atomic_output out(file);
+  out.write(text);
+  out.commit();
 }
 
 inline std::string json_number(double v) {

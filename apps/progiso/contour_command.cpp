@@ -39,12 +39,6 @@ struct contour_arguments {
   std::optional<std::string> stats_json;
 };
 
-std::string lower_extension(const std::string& file) {
-  std::string ext = fs::path(file).extension().string();
-  for (auto& ch : ext) ch = static_cast<char>(std::tolower(static_cast<unsigned char>(ch)));
-  return ext;
-}
-
 contour_arguments parse_contour(int argc, char** argv) {
   contour_arguments a;
   const auto value = [&](int& i, const std::string& flag) -> std::string {
@@ -96,7 +90,7 @@ contour_arguments parse_contour(int argc, char** argv) {
   if (!a.input) throw error("missing INPUT.pgm|INPUT.png");
   if (!a.output) throw error("missing -o OUT.obj|OUT.svg");
   if (a.isovalues.empty()) throw error("missing --iso W[,W2,...]");
-  const std::string ext = lower_extension(*a.output);
+  const std::string ext = progiso::detail::lower_extension(*a.output);
   if (ext != ".obj" && ext != ".svg") {
     throw error(*a.output + ": unknown contour format (expected a .obj or .svg file name)");
   }

@@ -165,8 +165,7 @@ arguments parse(int argc, char** argv) {
   }
   if (a.big_endian && !a.dims) throw error("--big-endian applies to raw input with --dims/--type");
   {
-    std::string ext = std::filesystem::path(*a.output).extension().string();
-    for (auto& ch : ext) ch = static_cast<char>(std::tolower(static_cast<unsigned char>(ch)));
+    const std::string ext = progiso::detail::lower_extension(*a.output);
     if (ext != ".ply" && ext != ".obj") {
       throw error(*a.output + ": unknown mesh format (expected a .ply or .obj file name)");
     }

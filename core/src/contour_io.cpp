@@ -22,6 +22,7 @@
 #include <vector>
 
 #include <progiso/core/assert.hpp>
+#include <progiso/core/detail/file_output.hpp>
 #include <progiso/core/error.hpp>
 
 namespace progiso {
@@ -29,17 +30,8 @@ namespace {
 
 namespace fs = std::filesystem;
 
-std::string errno_text(int code) {
-  return std::error_code(code, std::generic_category()).message();
-}
-
-std::string lower_extension(const fs::path& file) {
-  std::string ext = file.extension().string();
-  std::transform(ext.begin(), ext.end(), ext.begin(), [](char c) {
-    return static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
-  });
-  return ext;
-}
+using detail::errno_text;
+using detail::lower_extension;
 
 /// Shortest decimal that reads back to the same value (integers as integers).
 template <class T>
@@ -49,58 +41,12 @@ std::string_view format_number(T value, std::array<char, 40>& buffer) {
   return {buffer.data(), static_cast<std::size_t>(r.ptr - buffer.data())};
 }
 
-// =============================================================================================
-// All-or-nothing text output: a uniquely named temporary beside the target, written through a
-// large buffer and renamed onto the target by commit(). Until commit() succeeds the destructor
-// removes the temporary, so an exception anywhere on the way leaves nothing behind.
-
+// All-or-nothing text output (detail::atomic_output) with stream-style formatting.
 class atomic_text_file {
  public:
-  explicit atomic_text_file(const fs::path& target) : target_(target) {
-    const fs::path dir = target.parent_path();
-    std::random_device entropy;
-    std::mt19937_64 rng((std::uint64_t{entropy()} << 32) ^ entropy());
-    constexpr std::string_view letters = "abcdefghijklmnopqrstuvwxyz0123456789";
-    std::uniform_int_distribution<std::size_t> pick(0, letters.size() - 1);
-    // Another writer would have to draw the same one of 36^6 suffixes for the same target at
-    // the same moment; a few retries make that irrelevant.
-    for (int attempt = 0; attempt < 64 && file_ == nullptr; ++attempt) {
-      std::string name = target.filename().string() + ".tmp-";
-      for (int i = 0; i < 6; ++i) name += letters[pick(rng)];
-      temp_ = dir / name;
-      // "x" (C11): exclusive creation, EEXIST rather than taking over someone else's file.
-      file_ = std::fopen(temp_.string().c_str(), "wbx");
-      if (file_ == nullptr && errno != EEXIST) {
-        const int code = errno;
-        throw error(target_.string() + ": cannot create the file in \"" +
-                    (dir.empty() ? std::string(".") : dir.string()) + "\" (" + errno_text(code) +
-                    ")");
-      }
-    }
-    if (file_ == nullptr) {
-      throw error(target_.string() + ": cannot find an unused temporary file name");
-    }
-    buffer_.reserve(capacity);
-  }
-
-  atomic_text_file(const atomic_text_file&) = delete;
-  atomic_text_file& operator=(const atomic_text_file&) = delete;
-
-  ~atomic_text_file() {
-    if (file_ != nullptr) std::fclose(file_);
-    if (!committed_) {
-      std::error_code ignored;
-      fs::remove(temp_, ignored);
-    }
-  }
-
+  explicit atomic_text_file(const fs::path& target) : out_(target) {}
   atomic_text_file& operator<<(std::string_view text) {
-    if (buffer_.size() + text.size() > capacity) drain();
-    if (text.size() > capacity) {
-      put(text.data(), text.size());
-    } else {
-      buffer_.append(text);
-    }
+    out_.write(text);
     return *this;
   }
   atomic_text_file& operator<<(char c) { return *this << std::string_view(&c, 1); }
@@ -112,44 +58,10 @@ class atomic_text_file {
     std::array<char, 40> b;
     return *this << format_number(v, b);
   }
-
-  /// Writes what is buffered, flushes, checks and closes the temporary, then renames it onto
-  /// the target.
-  void commit() {
-    drain();
-    if (std::fflush(file_) != 0 || std::ferror(file_) != 0) fail("cannot write", errno);
-    std::FILE* f = file_;
-    file_ = nullptr;
-    if (std::fclose(f) != 0) fail("cannot close", errno);
-    std::error_code ec;
-    fs::rename(temp_, target_, ec);
-    if (ec) {
-      throw error(target_.string() + ": cannot move the finished temporary file onto it (" +
-                  ec.message() + ")");
-    }
-    committed_ = true;
-  }
+  void commit() { out_.commit(); }
 
  private:
-  static constexpr std::size_t capacity = std::size_t{1} << 16;
-
-  void drain() {
-    put(buffer_.data(), buffer_.size());
-    buffer_.clear();
-  }
-  void put(const char* data, std::size_t size) {
-    if (size > 0 && std::fwrite(data, 1, size, file_) != size) fail("cannot write", errno);
-  }
-  [[noreturn]] void fail(const char* what, int code) const {
-    throw error(target_.string() + ": " + what + " (" +
-                (code != 0 ? errno_text(code) : std::string("I/O error")) + ")");
-  }
-
-  fs::path target_;
-  fs::path temp_;
-  std::FILE* file_ = nullptr;
-  std::string buffer_;
-  bool committed_ = false;
+  detail::atomic_output out_;
 };
 
 void check_preconditions(const contour_set& contours) {

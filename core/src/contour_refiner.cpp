@@ -7,6 +7,7 @@
 #include <string>
 
 #include <progiso/core/detail/flat_map.hpp>
+#include <progiso/core/detail/ready_queue.hpp>
 #include <progiso/core/error.hpp>
 
 namespace progiso {
@@ -22,37 +23,8 @@ struct contour_refiner::key_table {
   detail::flat_map map{1024};
 };
 
-// Ready diamonds: a FIFO for breadth-first order, a binary heap for largest error first.
-struct contour_refiner::queue {
-  contour_order order;
-  std::vector<ready> items;
-  std::size_t head = 0;
-  static bool before(const ready& a, const ready& b) noexcept {
-    if (a.error != b.error) return a.error < b.error;
-    if (a.depth != b.depth) return a.depth > b.depth;
-    return a.index > b.index;
-  }
-  [[nodiscard]] bool empty() const noexcept { return head == items.size(); }
-  [[nodiscard]] const ready& top() const noexcept {
-    return order == contour_order::breadth_first ? items[head] : items.front();
-  }
-  void push(const ready& r) {
-    items.push_back(r);
-    if (order == contour_order::largest_error_first) {
-      std::push_heap(items.begin(), items.end(), before);
-    }
-  }
-  void pop() {
-    if (order == contour_order::breadth_first) {
-      if (++head == items.size()) {
-        items.clear();
-        head = 0;
-      }
-    } else {
-      std::pop_heap(items.begin(), items.end(), before);
-      items.pop_back();
-    }
-  }
+struct contour_refiner::queue : detail::ready_queue<contour_refiner::ready> {
+  using detail::ready_queue<contour_refiner::ready>::ready_queue;
 };
 
 contour_refiner::contour_refiner(const volume& image, const hierarchy2d& hier,
@@ -64,14 +36,15 @@ contour_refiner::contour_refiner(const volume& image, const hierarchy2d& hier,
       state_(static_cast<std::uint8_t*>(std::calloc(hier.vertex_count(), 1)), &std::free),
       keys_(std::make_unique<key_table>()),
       record_of_(std::make_unique<key_table>()),
-      queue_(std::make_unique<queue>()) {
+      queue_(std::make_unique<queue>(order == contour_order::breadth_first
+                                         ? detail::queue_discipline::fifo
+                                         : detail::queue_discipline::largest_error)) {
   if (!std::isfinite(isovalue)) {
     throw error("isovalue: expected a finite number, found " + std::to_string(isovalue));
   }
   if (!state_) throw std::bad_alloc();
   origin_ = {image.origin()[0], image.origin()[1]};
   spacing_ = {image.spacing()[0], image.spacing()[1]};
-  queue_->order = order;
   records_.push_back({no_owner2, {0, 0}, 0, 0, 0.0});
   std::array<std::array<ipoint2, 3>, 2> tris{};
   for (std::uint64_t r = 0; r < hier_.root_count(); ++r) {

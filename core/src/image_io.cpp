@@ -17,6 +17,7 @@
 #include <utility>
 #include <vector>
 
+#include <progiso/core/detail/file_output.hpp>
 #include <progiso/core/error.hpp>
 
 namespace progiso {
@@ -24,17 +25,8 @@ namespace {
 
 namespace fs = std::filesystem;
 
-std::string errno_text(int code) {
-  return std::error_code(code, std::generic_category()).message();
-}
-
-std::string lower_extension(const fs::path& file) {
-  std::string ext = file.extension().string();
-  std::transform(ext.begin(), ext.end(), ext.begin(), [](char c) {
-    return static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
-  });
-  return ext;
-}
+using detail::errno_text;
+using detail::lower_extension;
 
 struct file_closer {
   void operator()(std::FILE* f) const noexcept { std::fclose(f); }

@@ -1,5 +1,7 @@
 #include <progiso/core/range_data.hpp>
 
+#include <progiso/core/detail/range_entry.hpp>
+
 #include <algorithm>
 #include <cmath>
 #include <limits>
@@ -40,58 +42,17 @@ struct range_data::impl {
   }
 
   static void merge(diamond_range& into, const diamond_range& r) noexcept {
-    if (r.empty()) {
-      into.error = std::max(into.error, r.error);
-      return;
-    }
-    if (into.empty()) {
-      const double e = std::max(into.error, r.error);
-      into = r;
-      into.error = e;
-      return;
-    }
-    into.lo = std::min(into.lo, r.lo);
-    into.hi = std::max(into.hi, r.hi);
-    into.error = std::max(into.error, r.error);
+    detail::merge(into, r);
   }
 };
 
 namespace {
 
+using detail::decode;
+using detail::error_type;
+using detail::quantize_error;
 template <class T>
-struct error_type_of {
-  using type = std::make_unsigned_t<T>;
-};
-template <>
-struct error_type_of<float> {
-  using type = float;
-};
-template <>
-struct error_type_of<double> {
-  using type = float;
-};
-template <class T>
-using error_type = typename error_type_of<T>::type;
-
-template <class T>
-struct entry {
-  T lo;
-  T hi;
-  error_type<T> error;
-};
-
-template <class E>
-E quantize_error(double e) noexcept {
-  if constexpr (std::is_floating_point_v<E>) {
-    auto f = static_cast<float>(e);
-    if (static_cast<double>(f) < e) f = std::nextafter(f, std::numeric_limits<float>::infinity());
-    return f;
-  } else {
-    const double c = std::ceil(e);
-    if (c >= static_cast<double>(std::numeric_limits<E>::max())) return std::numeric_limits<E>::max();
-    return static_cast<E>(c);
-  }
-}
+using entry = detail::range_entry<T>;
 
 // One dense array of entries per scale, clipped to the part of the grid whose diamonds have a
 // descendant reaching into the data box. Per axis, the vertices of the subtree of a diamond of
@@ -161,17 +122,8 @@ class typed_range_data final : public range_data::impl {
     std::vector<entry<T>> entries;
   };
 
-  static entry<T> empty_entry() noexcept {
-    return {std::numeric_limits<T>::max(), std::numeric_limits<T>::lowest(), error_type<T>{}};
-  }
+  static entry<T> empty_entry() noexcept { return detail::empty_entry<T>(); }
 
-  static diamond_range decode(const entry<T>& e) noexcept {
-    diamond_range r;
-    r.lo = static_cast<double>(e.lo);
-    r.hi = static_cast<double>(e.hi);
-    r.error = static_cast<double>(e.error);
-    return r;
-  }
 
   [[nodiscard]] std::size_t slot(const ipoint& c, std::int32_t h, const level*& lv) const noexcept {
     lv = &levels_[static_cast<std::size_t>(std::countr_zero(static_cast<std::uint32_t>(h)))];

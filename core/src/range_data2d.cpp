@@ -1,5 +1,7 @@
 #include <progiso/core/range_data2d.hpp>
 
+#include <progiso/core/detail/range_entry.hpp>
+
 #include <algorithm>
 #include <bit>
 #include <cmath>
@@ -46,60 +48,17 @@ struct range_data2d::impl {
   }
 
   static void merge(diamond_range& into, const diamond_range& r) noexcept {
-    into.error = std::max(into.error, r.error);
-    if (r.empty()) return;
-    if (into.empty()) {
-      into.lo = r.lo;
-      into.hi = r.hi;
-      return;
-    }
-    into.lo = std::min(into.lo, r.lo);
-    into.hi = std::max(into.hi, r.hi);
+    detail::merge(into, r);
   }
 };
 
 namespace {
 
+using detail::decode;
+using detail::error_type;
+using detail::quantize_error;
 template <class T>
-struct error_type_of {
-  using type = std::make_unsigned_t<T>;
-};
-template <>
-struct error_type_of<float> {
-  using type = float;
-};
-template <>
-struct error_type_of<double> {
-  using type = float;
-};
-template <class T>
-using error_type = typename error_type_of<T>::type;
-
-template <class T>
-struct entry {
-  T lo;
-  T hi;
-  error_type<T> error;
-};
-
-// Rounds up, so that a stored error is never below the true one (nesting and culling stay sound).
-template <class E>
-E quantize_error(double e) noexcept {
-  if constexpr (std::is_floating_point_v<E>) {
-    if (e >= static_cast<double>(std::numeric_limits<float>::max())) {
-      return std::numeric_limits<float>::infinity();
-    }
-    auto f = static_cast<float>(e);
-    if (static_cast<double>(f) < e) f = std::nextafter(f, std::numeric_limits<float>::infinity());
-    return f;
-  } else {
-    const double c = std::ceil(e);
-    if (c >= static_cast<double>(std::numeric_limits<E>::max())) {
-      return std::numeric_limits<E>::max();
-    }
-    return static_cast<E>(c);
-  }
-}
+using entry = detail::range_entry<T>;
 
 // One array per stored scale h = 2^k holding the centres of that scale only: with i = c / h,
 // the rows i_y odd hold every i_x, the rows i_y even only odd i_x (the others are coarser
@@ -199,17 +158,8 @@ class typed_range_data2d final : public range_data2d::impl {
     std::vector<entry<T>> entries;
   };
 
-  static entry<T> empty_entry() noexcept {
-    return {std::numeric_limits<T>::max(), std::numeric_limits<T>::lowest(), error_type<T>{}};
-  }
+  static entry<T> empty_entry() noexcept { return detail::empty_entry<T>(); }
 
-  static diamond_range decode(const entry<T>& e) noexcept {
-    diamond_range r;
-    r.lo = static_cast<double>(e.lo);
-    r.hi = static_cast<double>(e.hi);
-    r.error = static_cast<double>(e.error);
-    return r;
-  }
 
   static entry<T> encode(const diamond_range& r) noexcept {
     entry<T> e = empty_entry();

@@ -7,6 +7,7 @@
 #include <string>
 
 #include <progiso/core/detail/flat_map.hpp>
+#include <progiso/core/detail/ready_queue.hpp>
 #include <progiso/core/error.hpp>
 #include <progiso/core/marching.hpp>
 
@@ -19,45 +20,21 @@ constexpr std::uint8_t parent_count_mask = 0x07;
 
 }  // namespace
 
-// Ready diamonds: a FIFO for breadth-first order, a binary heap for largest error first.
-struct refiner::queue {
-  refine_order order;
-  std::vector<ready> items;
-  std::size_t head = 0;
+namespace {
 
-  static bool before(const ready& a, const ready& b) noexcept {
-    // Heap comparator: true when a ranks below b.
-    if (a.error != b.error) return a.error < b.error;
-    if (a.depth != b.depth) return a.depth > b.depth;
-    return a.index > b.index;
+detail::queue_discipline discipline_of(refine_order order) noexcept {
+  switch (order) {
+    case refine_order::breadth_first: return detail::queue_discipline::fifo;
+    case refine_order::depth_first: return detail::queue_discipline::lifo;
+    case refine_order::largest_error_first: break;
   }
-  [[nodiscard]] bool empty() const noexcept { return head == items.size(); }
-  [[nodiscard]] const ready& top() const noexcept {
-    switch (order) {
-      case refine_order::breadth_first: return items[head];
-      case refine_order::depth_first: return items.back();
-      case refine_order::largest_error_first: break;
-    }
-    return items.front();
-  }
-  void push(const ready& r) {
-    items.push_back(r);
-    if (order == refine_order::largest_error_first) std::push_heap(items.begin(), items.end(), before);
-  }
-  void pop() {
-    if (order == refine_order::depth_first) {
-      items.pop_back();
-    } else if (order == refine_order::breadth_first) {
-      ++head;
-      if (head == items.size()) {
-        items.clear();
-        head = 0;
-      }
-    } else {
-      std::pop_heap(items.begin(), items.end(), before);
-      items.pop_back();
-    }
-  }
+  return detail::queue_discipline::largest_error;
+}
+
+}  // namespace
+
+struct refiner::queue : detail::ready_queue<refiner::ready> {
+  using detail::ready_queue<refiner::ready>::ready_queue;
 };
 
 void refiner::triangle_store::append(const owned_triangle* t, std::size_t n) {
@@ -76,12 +53,11 @@ refiner::refiner(const volume& vol, const hierarchy& hier, const range_data& ran
       ranges_(ranges),
       isovalue_(isovalue),
       state_(static_cast<std::uint8_t*>(std::calloc(hier.vertex_count(), 1)), &std::free),
-      queue_(std::make_unique<queue>()) {
+      queue_(std::make_unique<queue>(discipline_of(order))) {
   if (!std::isfinite(isovalue)) {
     throw error("isovalue: expected a finite number, found " + std::to_string(isovalue));
   }
   if (!state_) throw std::bad_alloc();
-  queue_->order = order;
   // Root record: the surface in the root tetrahedra, owned by the root diamonds.
   records_.push_back({no_owner, 0, 0, 0.0});
   std::array<std::array<ipoint, 4>, 6> tets{};

@@ -19,6 +19,7 @@
 
 #include <teem/nrrd.h>
 
+#include <progiso/core/detail/file_output.hpp>
 #include <progiso/core/error.hpp>
 
 namespace progiso {
@@ -30,13 +31,7 @@ std::string dims_text(const index3& dims) {
   return std::to_string(dims[0]) + "," + std::to_string(dims[1]) + "," + std::to_string(dims[2]);
 }
 
-std::string lower_extension(const fs::path& file) {
-  std::string ext = file.extension().string();
-  std::transform(ext.begin(), ext.end(), ext.begin(), [](char c) {
-    return static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
-  });
-  return ext;
-}
+using detail::lower_extension;
 
 /// Throws unless `file` names an existing regular file; returns its size in bytes.
 std::uintmax_t require_regular_file(const fs::path& file) {

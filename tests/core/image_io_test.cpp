@@ -5,6 +5,8 @@
 #include <progiso/core/image_io.hpp>
 
 #include <gtest/gtest.h>
+
+#include "support/scratch_dir.hpp"
 #include <png.h>
 #include <zlib.h>
 
@@ -30,27 +32,9 @@ namespace fs = std::filesystem;
 using progiso::sample_type;
 using progiso::volume;
 
-// A fresh directory under the system temporary directory, removed with everything in it.
-class scratch_dir {
+class scratch_dir : public progiso::test::scratch_dir {
  public:
-  scratch_dir() {
-    std::random_device entropy;
-    for (;;) {
-      path_ = fs::temp_directory_path() /
-              ("progiso-image-io-test-" + std::to_string(entropy()) + std::to_string(entropy()));
-      if (fs::create_directory(path_)) break;
-    }
-  }
-  scratch_dir(const scratch_dir&) = delete;
-  scratch_dir& operator=(const scratch_dir&) = delete;
-  ~scratch_dir() {
-    std::error_code ignored;
-    fs::remove_all(path_, ignored);
-  }
-  [[nodiscard]] fs::path operator/(const std::string& name) const { return path_ / name; }
-
- private:
-  fs::path path_;
+  scratch_dir() : progiso::test::scratch_dir("progiso-image-io-test-") {}
 };
 
 void write_bytes(const fs::path& file, const std::string& bytes) {

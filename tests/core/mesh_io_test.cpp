@@ -4,6 +4,8 @@
 
 #include <gtest/gtest.h>
 
+#include "support/scratch_dir.hpp"
+
 #include <algorithm>
 #include <array>
 #include <cstdint>
@@ -24,37 +26,9 @@ namespace {
 namespace fs = std::filesystem;
 using progiso::triangle_mesh;
 
-// A fresh directory under the system temporary directory, removed with everything in it.
-class scratch_dir {
+class scratch_dir : public progiso::test::scratch_dir {
  public:
-  scratch_dir() {
-    std::random_device entropy;
-    for (;;) {
-      path_ = fs::temp_directory_path() /
-              ("progiso-mesh-io-test-" + std::to_string(entropy()) + std::to_string(entropy()));
-      if (fs::create_directory(path_)) break;
-    }
-  }
-  scratch_dir(const scratch_dir&) = delete;
-  scratch_dir& operator=(const scratch_dir&) = delete;
-  ~scratch_dir() {
-    std::error_code ignored;
-    fs::remove_all(path_, ignored);
-  }
-  [[nodiscard]] const fs::path& path() const { return path_; }
-  [[nodiscard]] fs::path operator/(const std::string& name) const { return path_ / name; }
-
-  /// Names of the entries directly inside, sorted.
-  [[nodiscard]] std::vector<std::string> entries() const {
-    std::vector<std::string> names;
-    for (const auto& e : fs::directory_iterator(path_))
-      names.push_back(e.path().filename().string());
-    std::sort(names.begin(), names.end());
-    return names;
-  }
-
- private:
-  fs::path path_;
+  scratch_dir() : progiso::test::scratch_dir("progiso-mesh-io-test-") {}
 };
 
 std::string file_text(const fs::path& file) {

@@ -4,6 +4,8 @@
 #include <progiso/core/volume_io.hpp>
 
 #include <gtest/gtest.h>
+
+#include "support/scratch_dir.hpp"
 #include <zlib.h>
 
 #include <algorithm>
@@ -41,27 +43,9 @@ using progiso::index3;
 using progiso::raw_layout;
 using progiso::sample_type;
 
-// A fresh directory under the system temporary directory, removed with everything in it.
-class scratch_dir {
+class scratch_dir : public progiso::test::scratch_dir {
  public:
-  scratch_dir() {
-    std::random_device entropy;
-    for (;;) {
-      path_ = fs::temp_directory_path() /
-              ("progiso-volume-io-test-" + std::to_string(entropy()) + std::to_string(entropy()));
-      if (fs::create_directory(path_)) break;
-    }
-  }
-  scratch_dir(const scratch_dir&) = delete;
-  scratch_dir& operator=(const scratch_dir&) = delete;
-  ~scratch_dir() {
-    std::error_code ignored;
-    fs::remove_all(path_, ignored);
-  }
-  [[nodiscard]] fs::path operator/(const std::string& name) const { return path_ / name; }
-
- private:
-  fs::path path_;
+  scratch_dir() : progiso::test::scratch_dir("progiso-volume-io-test-") {}
 };
 
 void write_bytes(const fs::path& file, const void* data, std::size_t size) {

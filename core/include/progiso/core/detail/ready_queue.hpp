@@ -1,0 +1,68 @@
+// progiso/core/detail/ready_queue.hpp — the queue of diamonds ready to split, shared by the 3D
+// refiner and the 2D contour refiner.
+//
+// Three disciplines over one vector: first in first out (breadth first: coarse to fine), last in
+// first out (depth first: the working set stays local), and a binary max-heap on (error, then
+// coarser depth, then index) for quality-, budget- and time-driven refinement. Item needs
+// members `error`, `depth` and `index`. Not thread-safe.
+#pragma once
+
+#include <algorithm>
+#include <cstddef>
+#include <vector>
+
+namespace progiso::detail {
+
+enum class queue_discipline { fifo, lifo, largest_error };
+
+template <class Item>
+class ready_queue {
+ public:
+  explicit ready_queue(queue_discipline d = queue_discipline::largest_error) : discipline_(d) {}
+
+  [[nodiscard]] bool empty() const noexcept { return head_ == items_.size(); }
+  [[nodiscard]] const Item& top() const noexcept {
+    switch (discipline_) {
+      case queue_discipline::fifo: return items_[head_];
+      case queue_discipline::lifo: return items_.back();
+      case queue_discipline::largest_error: break;
+    }
+    return items_.front();
+  }
+  void push(const Item& item) {
+    items_.push_back(item);
+    if (discipline_ == queue_discipline::largest_error) {
+      std::push_heap(items_.begin(), items_.end(), ranks_below);
+    }
+  }
+  void pop() {
+    switch (discipline_) {
+      case queue_discipline::fifo:
+        if (++head_ == items_.size()) {
+          items_.clear();
+          head_ = 0;
+        }
+        return;
+      case queue_discipline::lifo:
+        items_.pop_back();
+        return;
+      case queue_discipline::largest_error:
+        std::pop_heap(items_.begin(), items_.end(), ranks_below);
+        items_.pop_back();
+        return;
+    }
+  }
+
+ private:
+  static bool ranks_below(const Item& a, const Item& b) noexcept {
+    if (a.error != b.error) return a.error < b.error;
+    if (a.depth != b.depth) return a.depth > b.depth;
+    return a.index > b.index;
+  }
+
+  queue_discipline discipline_;
+  std::vector<Item> items_;
+  std::size_t head_ = 0;
+};
+
+}  // namespace progiso::detail
