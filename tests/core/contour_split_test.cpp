@@ -9,6 +9,9 @@
 #include <algorithm>
 #include <set>
 
+#include <progiso/core/contour_refiner.hpp>
+#include <progiso/core/range_data2d.hpp>
+
 #include <gtest/gtest.h>
 
 namespace progiso {
@@ -177,6 +180,63 @@ TEST(ContourSplit, each_case_uses_the_primitives_listed_for_it) {
     EXPECT_TRUE(s.boundary);
     EXPECT_EQ(s.kind, r.kind) << "boundary " << to_string(r.kind);
     EXPECT_EQ(kinds(s), r.ops) << "boundary " << to_string(r.kind);
+  }
+}
+
+// The contour after the split, as the refiner extracts it: the root of a 3x3 image is the
+// interior diamond (1, 1), so one split gives exactly the four new triangles.
+struct shape {
+  std::size_t polylines;
+  std::size_t closed;
+  std::vector<std::size_t> sizes;  // vertices per polyline, sorted
+};
+
+shape contour_after_root_split(double c, double d, double e, double a, double b) {
+  const hierarchy2d h(3, 3);
+  const diamond2 dm = h.make_diamond({1, 1});
+  std::array<double, 9> px{};
+  const auto set = [&](const ipoint2& p, double v) { px[static_cast<std::size_t>(p[0] + 3 * p[1])] = v; };
+  set(dm.spine[0], c);
+  set(dm.spine[1], d);
+  set(dm.centre, e);
+  set(dm.ring[0], a);
+  set(dm.ring[1], b);
+  const volume img = image3(px);
+  const range_data2d ranges(img, h);
+  contour_refiner r(img, h, ranges, 0.5);
+  if (!r.done()) r.split_next();
+  const contour_set cs = r.extract();
+  shape s{cs.polylines.size(), 0, {}};
+  for (const auto& p : cs.polylines) {
+    s.closed += p.closed ? 1 : 0;
+    s.sizes.push_back(p.vertices.size());
+  }
+  std::sort(s.sizes.begin(), s.sizes.end());
+  return s;
+}
+
+TEST(ContourSplit, each_case_gives_the_polylines_of_figure_3) {
+  struct row {
+    double c, d, e, a, b;
+    const char* name;
+    std::size_t polylines, closed;
+    std::vector<std::size_t> sizes;
+  };
+  const std::vector<row> rows{
+      {1, 0, 1, 1, 1, "a: the spine vertex moves", 1, 0, {3}},
+      {1, 0, 1, 0, 0, "b: chain CA-EA-ED-EB-CB", 1, 0, {5}},
+      {1, 0, 1, 1, 0, "c: chain DA-ED-EB-CB", 1, 0, {4}},
+      {1, 1, 1, 0, 0, "d: two chains CX-EX-DX", 2, 0, {3, 3}},
+      {1, 1, 1, 0, 1, "e: one chain CA-EA-DA", 1, 0, {3}},
+      {1, 1, 0, 0, 1, "f: chain CA-CE-BE-DE-DA", 1, 0, {5}},
+      {1, 1, 0, 1, 1, "g: a new closed loop CE-AE-DE-BE", 1, 1, {4}},
+      {1, 1, 0, 0, 0, "h: chains CA-CE-CB and DA-DE-DB", 2, 0, {3, 3}},
+  };
+  for (const row& r : rows) {
+    const shape got = contour_after_root_split(r.c, r.d, r.e, r.a, r.b);
+    EXPECT_EQ(got.polylines, r.polylines) << r.name;
+    EXPECT_EQ(got.closed, r.closed) << r.name;
+    EXPECT_EQ(got.sizes, r.sizes) << r.name;
   }
 }
 
