@@ -19,10 +19,6 @@ constexpr std::uint64_t no_owner2 = ~std::uint64_t{0};
 
 }  // namespace
 
-struct contour_refiner::key_table {
-  detail::flat_map map{1024};
-};
-
 struct contour_refiner::queue : detail::ready_queue<contour_refiner::ready> {
   using detail::ready_queue<contour_refiner::ready>::ready_queue;
 };
@@ -34,15 +30,14 @@ contour_refiner::contour_refiner(const volume& image, const hierarchy2d& hier,
       ranges_(ranges),
       isovalue_(isovalue),
       state_(static_cast<std::uint8_t*>(std::calloc(hier.vertex_count(), 1)), &std::free),
-      keys_(std::make_unique<key_table>()),
-      record_of_(std::make_unique<key_table>()),
+      record_of_(static_cast<std::uint32_t*>(std::calloc(hier.vertex_count(), 4)), &std::free),
       queue_(std::make_unique<queue>(order == contour_order::breadth_first
                                          ? detail::queue_discipline::fifo
                                          : detail::queue_discipline::largest_error)) {
   if (!std::isfinite(isovalue)) {
     throw error("isovalue: expected a finite number, found " + std::to_string(isovalue));
   }
-  if (!state_) throw std::bad_alloc();
+  if (!state_ || !record_of_) throw std::bad_alloc();
   origin_ = {image.origin()[0], image.origin()[1]};
   spacing_ = {image.spacing()[0], image.spacing()[1]};
   records_.push_back({no_owner2, {0, 0}, 0, 0, 0.0});
@@ -57,9 +52,7 @@ contour_refiner::contour_refiner(const volume& image, const hierarchy2d& hier,
       for (std::size_t i = 0; i < 3; ++i) f[i] = image_.value(t[i][0], t[i][1], 0);
       std::array<std::uint64_t, 2> k{};
       if (march_triangle(t, f, isovalue_, k)) {
-        segments_.push_back({owner, k});
-        add_vertex(k[0]);
-        add_vertex(k[1]);
+        segments_.push_back({{owner, k}, {place(k[0]), place(k[1])}});
       }
     }
     if (has_diamond) {
@@ -87,13 +80,10 @@ bool contour_refiner::is_split(const ipoint2& c) const noexcept {
   return hier_.in_grid(c) && (state_.get()[hier_.index(c)] & split_bit) != 0;
 }
 
-void contour_refiner::add_vertex(std::uint64_t key) {
-  const auto [id, inserted] =
-      keys_->map.try_emplace(key, static_cast<std::uint32_t>(positions_.size()));
-  if (!inserted) return;
+vec2 contour_refiner::place(std::uint64_t key) const noexcept {
   const auto e = hier_.edge_ends(key);
-  positions_.push_back(interpolate2(e[0], image_.value(e[0][0], e[0][1], 0), e[1],
-                                    image_.value(e[1][0], e[1][1], 0), isovalue_));
+  return interpolate2(e[0], image_.value(e[0][0], e[0][1], 0), e[1],
+                      image_.value(e[1][0], e[1][1], 0), isovalue_);
 }
 
 bool contour_refiner::split_next(std::uint64_t max_segments) {
@@ -108,13 +98,11 @@ bool contour_refiner::split_next(std::uint64_t max_segments) {
   queue_->pop();
   const std::uint64_t first = segments_.size();
   for (const owned_segment& seg : scratch_) {
-    segments_.push_back(seg);
-    add_vertex(seg.keys[0]);
-    add_vertex(seg.keys[1]);
+    segments_.push_back({seg, {place(seg.keys[0]), place(seg.keys[1])}});
   }
   std::uint8_t* state = state_.get();
   state[next.index] = static_cast<std::uint8_t>(state[next.index] | split_bit);
-  record_of_->map.try_emplace(next.index, static_cast<std::uint32_t>(records_.size()));
+  record_of_.get()[next.index] = static_cast<std::uint32_t>(records_.size());
   records_.push_back({next.index, next.centre, first, static_cast<std::uint32_t>(scratch_.size()),
                       next.error});
   stats_.segments = after;
@@ -160,12 +148,6 @@ void contour_refiner::refine_until(std::chrono::steady_clock::time_point deadlin
 // ---------------------------------------------------------------------------------------------
 // Extraction: live segments of the cut, clipped to the image, chained into polylines.
 
-const vec2& contour_refiner::position_of(std::uint64_t key) const noexcept {
-  const std::uint32_t* id = keys_->map.find(key);
-  PROGISO_ASSERT(id != nullptr);
-  return positions_[id != nullptr ? *id : 0];
-}
-
 template <class InCut>
 contour_set contour_refiner::build(InCut&& in_cut) const {
   const double bx = static_cast<double>(hier_.data_max()[0]);
@@ -173,9 +155,9 @@ contour_set contour_refiner::build(InCut&& in_cut) const {
   contour_set out;
   detail::flat_map ids(static_cast<std::size_t>(stats_.segments + 16));
   std::map<vec2, std::uint32_t> clipped;
-  const auto key_id = [&](std::uint64_t key) {
+  const auto key_id = [&](std::uint64_t key, const vec2& p) {
     const auto [id, inserted] = ids.try_emplace(key, static_cast<std::uint32_t>(out.vertices.size()));
-    if (inserted) out.vertices.push_back(position_of(key));
+    if (inserted) out.vertices.push_back(p);
     return id;
   };
   const auto point_id = [&](const vec2& p) {
@@ -188,15 +170,15 @@ contour_set contour_refiner::build(InCut&& in_cut) const {
   for (const record& r : records_) {
     if (!in_cut(r.diamond, r.centre, r.error, true)) continue;
     for (std::uint64_t i = r.first; i < r.first + r.count; ++i) {
-      const owned_segment& s = segments_[i];
+      const owned_segment& s = segments_[i].seg;
       if (s.owner != no_owner2 && (state[s.owner] & split_bit) != 0 &&
           in_cut(s.owner, ipoint2{}, 0.0, false)) {
         continue;
       }
-      const vec2 p = position_of(s.keys[0]);
-      const vec2 q = position_of(s.keys[1]);
+      const vec2 p = segments_[i].pos[0];
+      const vec2 q = segments_[i].pos[1];
       if (p[0] <= bx && p[1] <= by && q[0] <= bx && q[1] <= by) {
-        segs.push_back({key_id(s.keys[0]), key_id(s.keys[1])});
+        segs.push_back({key_id(s.keys[0], p), key_id(s.keys[1], q)});
         continue;
       }
       // Clip against x ≤ bx and y ≤ by; crossings computed from the lexicographically ordered
@@ -227,8 +209,8 @@ contour_set contour_refiner::build(InCut&& in_cut) const {
         }
       }
       if (!keep || a == b) continue;
-      const std::uint32_t ia = a_orig ? key_id(s.keys[0]) : point_id(a);
-      const std::uint32_t ib = b_orig ? key_id(s.keys[1]) : point_id(b);
+      const std::uint32_t ia = a_orig ? key_id(s.keys[0], p) : point_id(a);
+      const std::uint32_t ib = b_orig ? key_id(s.keys[1], q) : point_id(b);
       if (ia != ib) segs.push_back({ia, ib});
     }
   }
@@ -276,8 +258,7 @@ contour_set contour_refiner::extract_cut(double max_error) const {
   return build([&](std::uint64_t diamond, const ipoint2&, double err, bool is_record) {
     if (diamond == no_owner2) return true;
     if (is_record) return err > max_error;
-    const std::uint32_t* r = record_of_->map.find(diamond);
-    return r != nullptr && records_[*r].error > max_error;
+    return records_[record_of_.get()[diamond]].error > max_error;
   });
 }
 

@@ -98,8 +98,15 @@ int hierarchy2d::parents(const diamond2& d, std::array<ipoint2, 2>& out) const n
 }
 
 int hierarchy2d::parent_count(const ipoint2& c) const noexcept {
-  std::array<ipoint2, 2> unused{};
-  return parents(make_diamond(c), unused);
+  const std::int32_t h = scale_of(c);
+  const int lg = log2_of(h);
+  const bool odd_x = ((c[0] >> lg) & 1) != 0;
+  const bool odd_y = ((c[1] >> lg) & 1) != 0;
+  // A square centre's parents are two corners of its own square (none for a root).
+  if (odd_x && odd_y) return h == root_ / 2 ? 0 : 2;
+  // An edge midpoint's parents are the square centres on either side of its edge.
+  const std::size_t j = odd_x ? 1 : 0;
+  return (c[j] - h >= 0 ? 1 : 0) + (c[j] + h <= grid_max_[j] ? 1 : 0);
 }
 
 int hierarchy2d::children(const diamond2& d, std::array<ipoint2, 4>& out) const noexcept {

@@ -96,8 +96,12 @@ class contour_refiner {
   };
   struct queue;
 
-  void add_vertex(std::uint64_t key);
-  [[nodiscard]] const vec2& position_of(std::uint64_t key) const noexcept;
+  // A recorded segment with its two end positions, placed when the record is published.
+  struct placed_segment {
+    owned_segment seg;
+    std::array<vec2, 2> pos;
+  };
+  [[nodiscard]] vec2 place(std::uint64_t key) const noexcept;
   template <class InCut>
   contour_set build(InCut&& in_cut) const;
 
@@ -108,13 +112,11 @@ class contour_refiner {
   std::array<double, 2> origin_{};   // copied so that extraction never reads the image
   std::array<double, 2> spacing_{};
   std::unique_ptr<std::uint8_t, void (*)(void*)> state_;
-  std::vector<owned_segment> segments_;
+  std::vector<placed_segment> segments_;
   std::vector<owned_segment> scratch_;
   std::vector<record> records_;
-  std::vector<vec2> positions_;  // by vertex id
-  struct key_table;
-  std::unique_ptr<key_table> keys_;
-  std::unique_ptr<key_table> record_of_;  // split diamond's grid index → its record
+  // Record of each split diamond, by grid index (calloc: untouched pages cost nothing).
+  std::unique_ptr<std::uint32_t, void (*)(void*)> record_of_;
   std::unique_ptr<queue> queue_;
   contour_statistics stats_;
   contour_split_summary last_;
