@@ -154,6 +154,22 @@ TEST(ContourRefiner, a_cut_is_the_marching_triangles_contour_of_its_conforming_m
       for (std::size_t i = 0; i < 3; ++i) fv[i] = f.img.value(t[i][0], t[i][1], 0);
       std::array<std::uint64_t, 2> k{};
       if (!march_triangle(t, fv, w, k)) continue;
+      // The larger values lie on the segment's left: every black vertex of the leaf triangle
+      // is strictly left of the placed segment (positions at least 1/4096 of an edge apart).
+      {
+        std::array<vec2, 2> pq{};
+        for (std::size_t j = 0; j < 2; ++j) {
+          const auto e = f.h.edge_ends(k[j]);
+          pq[j] = interpolate2(e[0], f.img.value(e[0][0], e[0][1], 0), e[1],
+                               f.img.value(e[1][0], e[1][1], 0), w);
+        }
+        for (std::size_t i = 0; i < 3; ++i) {
+          if (!(fv[i] > w)) continue;
+          const double cross = (pq[1][0] - pq[0][0]) * (t[i][1] - pq[0][1]) -
+                               (pq[1][1] - pq[0][1]) * (t[i][0] - pq[0][0]);
+          EXPECT_GT(cross, 0.0) << "black vertex right of its segment";
+        }
+      }
       polyline pl;
       pl.isovalue = w;
       for (const std::uint64_t key : k) {
