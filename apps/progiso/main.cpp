@@ -53,7 +53,10 @@ constexpr const char* usage_text =
     "Marschner-Lobb volume (isovalue 0.5 unless --iso is given).\n"
     "Modes: --full (default) refines everywhere the surface can be; --error E stops when\n"
     "every remaining split error is <= E; --max-triangles K keeps at most K triangles;\n"
-    "--time-ms T refines for T milliseconds and returns the last consistent surface.\n";
+    "--time-ms T refines for T milliseconds and returns the last consistent surface.\n"
+    "contour: INPUT is a binary PGM (8/16 bit) or a grayscale PNG; several isovalues are\n"
+    "comma-separated; OBJ gets 'v x y 0' and 'l ...' polylines, SVG draws them over the image;\n"
+    "--frames DIR writes one SVG per refinement stage.\n";
 
 struct arguments {
   std::optional<std::string> input;
@@ -72,7 +75,7 @@ struct arguments {
 arguments parse(int argc, char** argv) {
   arguments a;
   if (argc < 2) {
-    throw error(std::string("missing command (expected 'extract' or 'contour')\n") + usage_text);
+    throw error("missing command (expected 'extract' or 'contour'; see progiso --help)");
   }
   const std::string command = argv[1];
   if (command != "extract") {
@@ -295,7 +298,14 @@ int run(int argc, char** argv) {
 
 int main(int argc, char** argv) {
   try {
-    if (argc >= 2 && std::string(argv[1]) == "contour") return run_contour(argc, argv);
+    const std::string first = argc >= 2 ? argv[1] : "";
+    const bool help = first == "-h" || first == "--help" ||
+                      (argc >= 3 && (std::string(argv[2]) == "-h" || std::string(argv[2]) == "--help"));
+    if (help) {
+      std::cout << usage_text;
+      return 0;
+    }
+    if (first == "contour") return run_contour(argc, argv);
     return run(argc, argv);
   } catch (const progiso::error& e) {
     std::cerr << "progiso: error: " << e.what() << "\n";
