@@ -70,7 +70,15 @@ void bump(split_summary& s, primitive p, int n = 1) noexcept {
 split_summary compute_split(const hierarchy& hier, const volume& vol, double w, const diamond& d,
                             std::vector<owned_triangle>& out) {
   split_summary s;
-  const auto value = [&](const ipoint& p) { return vol.value(p[0], p[1], p[2]); };
+  // Inside the data box (the usual case) samples are read without clamping.
+  const ipoint& dm = hier.data_max();
+  const std::int32_t h = d.scale;
+  const bool inside = d.centre[0] - h >= 0 && d.centre[1] - h >= 0 && d.centre[2] - h >= 0 &&
+                      d.centre[0] + h <= dm[0] && d.centre[1] + h <= dm[1] &&
+                      d.centre[2] + h <= dm[2];
+  const auto value = [&](const ipoint& p) {
+    return inside ? vol.at(vol.linear(p[0], p[1], p[2])) : vol.value(p[0], p[1], p[2]);
+  };
   const ipoint& c = d.spine[0];
   const ipoint& dd = d.spine[1];
   const ipoint& e = d.centre;
@@ -90,7 +98,7 @@ split_summary compute_split(const hierarchy& hier, const volume& vol, double w, 
     }
   }
   const auto tet_exists = [&](int m) {
-    const int m1 = (m + 1) % n;
+    const int m1 = (m + 1 == n ? 0 : m + 1);
     return ((d.ring_in_grid >> m) & 1u) && ((d.ring_in_grid >> m1) & 1u);
   };
 
@@ -100,7 +108,7 @@ split_summary compute_split(const hierarchy& hier, const volume& vol, double w, 
   for (int m = 0; m < n; ++m) {
     if (!tet_exists(m)) continue;
     const auto um = static_cast<std::size_t>(m);
-    const auto um1 = static_cast<std::size_t>((m + 1) % n);
+    const auto um1 = static_cast<std::size_t>((m + 1 == n ? 0 : m + 1));
     const ipoint& a = d.ring[um];
     const ipoint& b = d.ring[um1];
     ++s.tets;
@@ -141,11 +149,11 @@ split_summary compute_split(const hierarchy& hier, const volume& vol, double w, 
   }
 
   // ---- Primitives around the spine. --------------------------------------------------------
-  const auto facet_interior = [&](int m) { return tet_exists(m) && tet_exists((m + n - 1) % n); };
+  const auto facet_interior = [&](int m) { return tet_exists(m) && tet_exists((m == 0 ? n - 1 : m - 1)); };
   const auto ring_splits = [&](bool want_colour_ne_e) {
     for (int m = 0; m < n; ++m) {
       if (!((d.ring_in_grid >> m) & 1u)) continue;
-      if (!tet_exists(m) && !tet_exists((m + n - 1) % n)) continue;
+      if (!tet_exists(m) && !tet_exists((m == 0 ? n - 1 : m - 1))) continue;
       if ((br[static_cast<std::size_t>(m)] != be) != want_colour_ne_e) continue;
       bump(s, facet_interior(m) ? primitive::vertex_split : primitive::vertex_open);
     }
@@ -171,7 +179,7 @@ split_summary compute_split(const hierarchy& hier, const volume& vol, double w, 
     for (int m = 0; m < n; ++m) {
       const auto um = static_cast<std::size_t>(m);
       if (!((d.ring_in_grid >> m) & 1u) || br[um] == bc) continue;
-      const int prev = (m + n - 1) % n;
+      const int prev = (m == 0 ? n - 1 : m - 1);
       const bool continues = tet_exists(prev) && br[static_cast<std::size_t>(prev)] != bc;
       if (!continues) ++components;
     }
