@@ -144,7 +144,10 @@ void all_inputs(benchmark::internal::Benchmark* b) {
 }
 
 BENCHMARK(BM_contour_plain_mtri)->Apply(all_inputs)->Unit(benchmark::kMillisecond)->MinTime(0.2);
-BENCHMARK(BM_contour_progressive_full)->Apply(all_inputs)->Unit(benchmark::kMillisecond)->MinTime(0.2);
+BENCHMARK(BM_contour_progressive_full)
+    ->Apply(all_inputs)
+    ->Unit(benchmark::kMillisecond)
+    ->MinTime(0.2);
 BENCHMARK(BM_contour_time_to_first)->Apply(all_inputs)->Unit(benchmark::kMicrosecond);
 BENCHMARK(BM_contour_range_build)->Apply(all_inputs)->Unit(benchmark::kMillisecond)->MinTime(0.2);
 

@@ -48,14 +48,23 @@ const std::vector<input>& inputs() {
     const auto add = [&](std::string n, std::unique_ptr<volume> vol, double w) {
       if (vol) v.push_back({std::move(n), std::move(vol), w});
     };
-    add("bucky", load_raw("bucky_32x32x32_uint8.raw", {32, 32, 32}, sample_type::u8, {1, 1, 1}), 51);
-    add("nucleon", load_raw("nucleon_41x41x41_uint8.raw", {41, 41, 41}, sample_type::u8, {1, 1, 1}), 60);
-    add("neghip", load_raw("neghip_66x66x66_uint8.raw", {66, 66, 66}, sample_type::u8, {1, 1, 1}), 30);
-    add("hipip", load_raw("hipip_68x68x68_uint8.raw", {68, 68, 68}, sample_type::u8, {1, 1, 1}), 128);
-    add("headsq", load_raw("headsq_64x64x93_int16le.raw", {64, 64, 93}, sample_type::i16, {3.2, 3.2, 1.5}), 500);
-    add("brainsmall", load_raw("brainsmall_128x128x84_uint8.raw", {128, 128, 84}, sample_type::u8, {1, 1, 1}), 50);
+    add("bucky", load_raw("bucky_32x32x32_uint8.raw", {32, 32, 32}, sample_type::u8, {1, 1, 1}),
+        51);
+    add("nucleon", load_raw("nucleon_41x41x41_uint8.raw", {41, 41, 41}, sample_type::u8, {1, 1, 1}),
+        60);
+    add("neghip", load_raw("neghip_66x66x66_uint8.raw", {66, 66, 66}, sample_type::u8, {1, 1, 1}),
+        30);
+    add("hipip", load_raw("hipip_68x68x68_uint8.raw", {68, 68, 68}, sample_type::u8, {1, 1, 1}),
+        128);
+    add("headsq",
+        load_raw("headsq_64x64x93_int16le.raw", {64, 64, 93}, sample_type::i16, {3.2, 3.2, 1.5}),
+        500);
+    add("brainsmall",
+        load_raw("brainsmall_128x128x84_uint8.raw", {128, 128, 84}, sample_type::u8, {1, 1, 1}),
+        50);
     add("ml257", std::make_unique<volume>(make_marschner_lobb({257, 257, 257})), 0.5);
-    add("sphere257", std::make_unique<volume>(make_sphere_field({257, 257, 257}, {128.3, 127.6, 128.9})), 100.0);
+    add("sphere257",
+        std::make_unique<volume>(make_sphere_field({257, 257, 257}, {128.3, 127.6, 128.9})), 100.0);
     return v;
   }();
   return all;
@@ -156,8 +165,14 @@ void all_inputs(benchmark::internal::Benchmark* b) {
 }
 
 BENCHMARK(BM_extract_plain_mt)->Apply(all_inputs)->Unit(benchmark::kMillisecond)->MinTime(0.2);
-BENCHMARK(BM_extract_progressive_full)->Apply(all_inputs)->Unit(benchmark::kMillisecond)->MinTime(0.2);
-BENCHMARK(BM_extract_progressive_full_dfs)->Apply(all_inputs)->Unit(benchmark::kMillisecond)->MinTime(0.2);
+BENCHMARK(BM_extract_progressive_full)
+    ->Apply(all_inputs)
+    ->Unit(benchmark::kMillisecond)
+    ->MinTime(0.2);
+BENCHMARK(BM_extract_progressive_full_dfs)
+    ->Apply(all_inputs)
+    ->Unit(benchmark::kMillisecond)
+    ->MinTime(0.2);
 BENCHMARK(BM_range_build)->Apply(all_inputs)->Unit(benchmark::kMillisecond)->MinTime(0.2);
 BENCHMARK(BM_time_to_first_surface)->Apply(all_inputs)->Unit(benchmark::kMicrosecond);
 

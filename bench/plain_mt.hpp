@@ -17,7 +17,8 @@ triangle_mesh plain_marching_tetrahedra(const volume& v, const T* s, double w) {
   triangle_mesh mesh;
   detail::flat_map ids(1 << 16);
   const auto id_of = [&](std::uint64_t key) {
-    const auto [id, inserted] = ids.try_emplace(key, static_cast<std::uint32_t>(mesh.vertices.size()));
+    const auto [id, inserted] =
+        ids.try_emplace(key, static_cast<std::uint32_t>(mesh.vertices.size()));
     if (inserted) {
       const ipoint m = edge_key_point(key);
       // Ends of a finest edge from its doubled midpoint (the all-even/all-odd diagonal rule).
@@ -41,7 +42,8 @@ triangle_mesh plain_marching_tetrahedra(const volume& v, const T* s, double w) {
     }
     return id;
   };
-  static constexpr int perms[6][3] = {{0, 1, 2}, {0, 2, 1}, {1, 0, 2}, {1, 2, 0}, {2, 0, 1}, {2, 1, 0}};
+  static constexpr int perms[6][3] = {{0, 1, 2}, {0, 2, 1}, {1, 0, 2},
+                                      {1, 2, 0}, {2, 0, 1}, {2, 1, 0}};
   const std::int64_t sx = 1, sy = d[0], sz = d[0] * d[1];
   for (std::int32_t z = 0; z + 1 < d[2]; ++z) {
     for (std::int32_t y = 0; y + 1 < d[1]; ++y) {

@@ -17,7 +17,8 @@ contour_set plain_marching_triangles(const volume& img, const T* s, double w) {
   detail::flat_map ids(1 << 12);
   std::vector<std::array<std::uint32_t, 2>> segs;
   const auto id_of = [&](std::uint64_t key) {
-    const auto [id, inserted] = ids.try_emplace(key, static_cast<std::uint32_t>(out.vertices.size()));
+    const auto [id, inserted] =
+        ids.try_emplace(key, static_cast<std::uint32_t>(out.vertices.size()));
     if (inserted) {
       const ipoint2 m = edge_key2_point(key);
       ipoint2 a{}, b{};
@@ -41,9 +42,10 @@ contour_set plain_marching_triangles(const volume& img, const T* s, double w) {
     const T* row = s + nx * y;
     for (std::int32_t x = 0; x + 1 < nx; ++x) {
       const double f00 = static_cast<double>(row[x]), f10 = static_cast<double>(row[x + 1]);
-      const double f01 = static_cast<double>(row[x + nx]), f11 = static_cast<double>(row[x + nx + 1]);
-      const unsigned mask = (f00 > w ? 1u : 0u) | (f10 > w ? 2u : 0u) | (f01 > w ? 4u : 0u) |
-                            (f11 > w ? 8u : 0u);
+      const double f01 = static_cast<double>(row[x + nx]),
+                   f11 = static_cast<double>(row[x + nx + 1]);
+      const unsigned mask =
+          (f00 > w ? 1u : 0u) | (f10 > w ? 2u : 0u) | (f01 > w ? 4u : 0u) | (f11 > w ? 8u : 0u);
       if (mask == 0 || mask == 15) continue;
       const ipoint2 e{(x & 1) ? x + 1 : x, (y & 1) ? y + 1 : y};
       const ipoint2 o{(x & 1) ? x : x + 1, (y & 1) ? y : y + 1};

@@ -75,7 +75,6 @@ inline std::string json_escape(const std::string& s) {
   return o;
 }
 
-
 /// Splits "a,b,c" into any number (≥ 1) of non-empty parts.
 inline std::vector<std::string> split_list(const std::string& flag, const std::string& text) {
   std::vector<std::string> parts;

@@ -50,7 +50,8 @@ contour_arguments parse_contour(int argc, char** argv) {
     if (f == "-o" || f == "--output") {
       a.output = value(i, f);
     } else if (f == "--iso") {
-      for (const auto& part : split_list(f, value(i, f))) a.isovalues.push_back(parse_number(f, part));
+      for (const auto& part : split_list(f, value(i, f)))
+        a.isovalues.push_back(parse_number(f, part));
     } else if (f == "--full") {
       a.options.mode = progiso::contour_mode::full;
       ++a.modes;

@@ -211,8 +211,7 @@ std::string stats_json(const arguments& a, const std::string& input, double iso,
   }
   o << "},\n  \"configurations\": {";
   for (std::size_t i = 0; i < progiso::split_configuration_count; ++i) {
-    o << (i ? ", " : "") << '"'
-      << progiso::to_string(static_cast<progiso::split_configuration>(i))
+    o << (i ? ", " : "") << '"' << progiso::to_string(static_cast<progiso::split_configuration>(i))
       << "\": " << r.stats.configurations[i];
   }
   o << "}\n}\n";
@@ -232,9 +231,8 @@ class progress_bar {
     const int width = 30;
     const int fill = static_cast<int>(frac * width);
     std::fprintf(stderr, "\r[%.*s%.*s] level %d/%d  %llu splits  %llu triangles ", fill,
-                 "##############################", width - fill,
-                 "..............................", p.depth, p.max_depth,
-                 static_cast<unsigned long long>(p.splits),
+                 "##############################", width - fill, "..............................",
+                 p.depth, p.max_depth, static_cast<unsigned long long>(p.splits),
                  static_cast<unsigned long long>(p.triangles));
     shown_ = true;
   }
@@ -299,8 +297,9 @@ int run(int argc, char** argv) {
 int main(int argc, char** argv) {
   try {
     const std::string first = argc >= 2 ? argv[1] : "";
-    const bool help = first == "-h" || first == "--help" ||
-                      (argc >= 3 && (std::string(argv[2]) == "-h" || std::string(argv[2]) == "--help"));
+    const bool help =
+        first == "-h" || first == "--help" ||
+        (argc >= 3 && (std::string(argv[2]) == "-h" || std::string(argv[2]) == "--help"));
     if (help) {
       std::cout << usage_text;
       return 0;

@@ -103,8 +103,8 @@ bool contour_refiner::split_next(std::uint64_t max_segments) {
   std::uint8_t* state = state_.get();
   state[next.index] = static_cast<std::uint8_t>(state[next.index] | split_bit);
   record_of_.get()[next.index] = static_cast<std::uint32_t>(records_.size());
-  records_.push_back({next.index, next.centre, first, static_cast<std::uint32_t>(scratch_.size()),
-                      next.error});
+  records_.push_back(
+      {next.index, next.centre, first, static_cast<std::uint32_t>(scratch_.size()), next.error});
   stats_.segments = after;
   stats_.record_segments += scratch_.size();
   ++stats_.splits;
@@ -156,12 +156,14 @@ contour_set contour_refiner::build(InCut&& in_cut) const {
   detail::flat_map ids(static_cast<std::size_t>(stats_.segments + 16));
   std::map<vec2, std::uint32_t> clipped;
   const auto key_id = [&](std::uint64_t key, const vec2& p) {
-    const auto [id, inserted] = ids.try_emplace(key, static_cast<std::uint32_t>(out.vertices.size()));
+    const auto [id, inserted] =
+        ids.try_emplace(key, static_cast<std::uint32_t>(out.vertices.size()));
     if (inserted) out.vertices.push_back(p);
     return id;
   };
   const auto point_id = [&](const vec2& p) {
-    const auto [it, inserted] = clipped.try_emplace(p, static_cast<std::uint32_t>(out.vertices.size()));
+    const auto [it, inserted] =
+        clipped.try_emplace(p, static_cast<std::uint32_t>(out.vertices.size()));
     if (inserted) out.vertices.push_back(p);
     return it->second;
   };

@@ -87,9 +87,8 @@ struct op_list {
 
 }  // namespace
 
-contour_split_summary compute_contour_split(const hierarchy2d& hier, const volume& image,
-                                            double w, const diamond2& d,
-                                            std::vector<owned_segment>& out) {
+contour_split_summary compute_contour_split(const hierarchy2d& hier, const volume& image, double w,
+                                            const diamond2& d, std::vector<owned_segment>& out) {
   contour_split_summary s;
   const auto value = [&](const ipoint2& p) { return image.value(p[0], p[1], 0); };
   const ipoint2& c = d.spine[0];
@@ -118,10 +117,10 @@ contour_split_summary compute_contour_split(const hierarchy2d& hier, const volum
     std::array<std::uint64_t, 2> k{};
     if (march_triangle({c, dd, x.p}, {fc, fd, x.f}, w, k)) ++s.removed_segments;
     for (int half = 0; half < 2; ++half) {
-      const std::array<ipoint2, 3> t = half == 0 ? std::array<ipoint2, 3>{c, e, x.p}
-                                                 : std::array<ipoint2, 3>{e, dd, x.p};
-      const std::array<double, 3> f = half == 0 ? std::array<double, 3>{fc, fe, x.f}
-                                                : std::array<double, 3>{fe, fd, x.f};
+      const std::array<ipoint2, 3> t =
+          half == 0 ? std::array<ipoint2, 3>{c, e, x.p} : std::array<ipoint2, 3>{e, dd, x.p};
+      const std::array<double, 3> f =
+          half == 0 ? std::array<double, 3>{fc, fe, x.f} : std::array<double, 3>{fe, fd, x.f};
       if (march_triangle(t, f, w, k)) {
         out.push_back({owner_of(hier, t), k});
         ++s.added_segments;

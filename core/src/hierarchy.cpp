@@ -125,8 +125,8 @@ diamond hierarchy::make_diamond(const ipoint& c) const noexcept {
       const int j = odd_axes[1];
       const int k = even_axes[0];
       const ipoint ek = axis(k, h);
-      ipoint q = add(axis(i, hs[static_cast<std::size_t>(i)]),
-                     axis(j, -hs[static_cast<std::size_t>(j)]));
+      ipoint q =
+          add(axis(i, hs[static_cast<std::size_t>(i)]), axis(j, -hs[static_cast<std::size_t>(j)]));
       d.ring_size = 4;
       d.ring[0] = add(c, ek);
       d.ring[1] = add(c, q);
@@ -213,7 +213,8 @@ int hierarchy::children(const diamond& d, std::array<ipoint, 8>& out) const noex
   return n;
 }
 
-void hierarchy::root_tets(std::uint64_t r, std::array<std::array<ipoint, 4>, 6>& out) const noexcept {
+void hierarchy::root_tets(std::uint64_t r,
+                          std::array<std::array<ipoint, 4>, 6>& out) const noexcept {
   const auto cx = static_cast<std::uint64_t>(cubes_[0]);
   const auto cy = static_cast<std::uint64_t>(cubes_[1]);
   const ipoint m{static_cast<std::int32_t>(r % cx) * root_,

@@ -82,8 +82,8 @@ diamond2 hierarchy2d::make_diamond(const ipoint2& c) const noexcept {
     d.ring[0][j] += h;
     d.ring[1][j] -= h;
   }
-  d.ring_in_grid = static_cast<std::uint8_t>((in_grid(d.ring[0]) ? 1u : 0u) |
-                                             (in_grid(d.ring[1]) ? 2u : 0u));
+  d.ring_in_grid =
+      static_cast<std::uint8_t>((in_grid(d.ring[0]) ? 1u : 0u) | (in_grid(d.ring[1]) ? 2u : 0u));
   return d;
 }
 

@@ -34,8 +34,8 @@ void orient(std::array<std::uint64_t, 3>& tri, const ipoint& black, const ipoint
   const std::int64_t n0 = u1 * v2 - u2 * v1;
   const std::int64_t n1 = u2 * v0 - u0 * v2;
   const std::int64_t n2 = u0 * v1 - u1 * v0;
-  const std::int64_t dot = n0 * (white[0] - black[0]) + n1 * (white[1] - black[1]) +
-                           n2 * (white[2] - black[2]);
+  const std::int64_t dot =
+      n0 * (white[0] - black[0]) + n1 * (white[1] - black[1]) + n2 * (white[2] - black[2]);
   if (dot < 0) std::swap(tri[1], tri[2]);
 }
 

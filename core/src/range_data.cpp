@@ -18,7 +18,9 @@ struct range_data::impl {
   const volume* vol = nullptr;
   const hierarchy* hier = nullptr;
 
-  [[nodiscard]] double value(const ipoint& p) const noexcept { return vol->value(p[0], p[1], p[2]); }
+  [[nodiscard]] double value(const ipoint& p) const noexcept {
+    return vol->value(p[0], p[1], p[2]);
+  }
 
   // Own range: spine, ring (grid vertices only) and centre; empty when wholly in the padding.
   [[nodiscard]] diamond_range own(const diamond& d) const noexcept {
@@ -64,9 +66,9 @@ template <class T>
 class typed_range_data final : public range_data::impl {
   // Offsets of the samples and splits of a subtree of fixed shape (see make_stencils()).
   struct stencil {
-    std::vector<std::int64_t> points;                         // linear offsets
-    std::vector<std::array<std::int64_t, 3>> splits;          // centre, spine ends
-    std::vector<ipoint> rel_points;                           // the same as grid offsets
+    std::vector<std::int64_t> points;                 // linear offsets
+    std::vector<std::array<std::int64_t, 3>> splits;  // centre, spine ends
+    std::vector<ipoint> rel_points;                   // the same as grid offsets
     std::vector<std::array<ipoint, 3>> rel_splits;
   };
 
@@ -124,7 +126,6 @@ class typed_range_data final : public range_data::impl {
 
   static entry<T> empty_entry() noexcept { return detail::empty_entry<T>(); }
 
-
   [[nodiscard]] std::size_t slot(const ipoint& c, std::int32_t h, const level*& lv) const noexcept {
     lv = &levels_[static_cast<std::size_t>(std::countr_zero(static_cast<std::uint32_t>(h)))];
     const ipoint i{c[0] / h, c[1] / h, c[2] / h};
@@ -181,9 +182,10 @@ class typed_range_data final : public range_data::impl {
                 // Its subtree reaches 3 per axis; beyond that it is wholly in the padding.
                 const ipoint& dm = h.data_max();
                 const bool outside = c[0] - 3 >= dm[0] || c[1] - 3 >= dm[1] || c[2] - 3 >= dm[2];
-                store(c, hh, outside           ? diamond_range{}
-                             : interior(c, 3) ? read_stencil(st, c)
-                                              : read_stencil_clamped(st, c));
+                store(c, hh,
+                      outside          ? diamond_range{}
+                      : interior(c, 3) ? read_stencil(st, c)
+                                       : read_stencil_clamped(st, c));
                 continue;
               }
               if (hh >= 2 && interior(c, hh)) {
@@ -232,7 +234,8 @@ class typed_range_data final : public range_data::impl {
         return (p[0] - c[0]) + dims[0] * ((p[1] - c[1]) + dims[1] * std::int64_t{p[2] - c[2]});
       };
       st.points = {lin(d.spine[0]), lin(d.spine[1])};
-      for (int m = 0; m < d.ring_size; ++m) st.points.push_back(lin(d.ring[static_cast<std::size_t>(m)]));
+      for (int m = 0; m < d.ring_size; ++m)
+        st.points.push_back(lin(d.ring[static_cast<std::size_t>(m)]));
       std::array<ipoint, 8> ch{};
       const int n = hier->children(d, ch);
       for (int i = 0; i < n; ++i) {
@@ -253,9 +256,9 @@ class typed_range_data final : public range_data::impl {
     diamond_range r;
     r.lo = static_cast<double>(lo);
     r.hi = static_cast<double>(hi);
-    r.error = std::abs(static_cast<double>(base[0]) -
-                       0.5 * (static_cast<double>(base[st.points[0]]) +
-                              static_cast<double>(base[st.points[1]])));
+    r.error =
+        std::abs(static_cast<double>(base[0]) - 0.5 * (static_cast<double>(base[st.points[0]]) +
+                                                       static_cast<double>(base[st.points[1]])));
     for (const ipoint& o : st.children) {
       const ipoint x{c[0] + o[0], c[1] + o[1], c[2] + o[2]};
       if (st.child_scale == 1) {
@@ -288,8 +291,11 @@ class typed_range_data final : public range_data::impl {
   // Near the data boundary the same stencil is read with clamped samples (padding and points
   // beyond the grid take the nearest data value): a superset of the exact range and error, so
   // still sound for culling and still nested, since every caller uses this same function.
-  [[nodiscard]] diamond_range read_stencil_clamped(const stencil& st, const ipoint& c) const noexcept {
-    const auto f = [&](const ipoint& o) { return vol->value(c[0] + o[0], c[1] + o[1], c[2] + o[2]); };
+  [[nodiscard]] diamond_range read_stencil_clamped(const stencil& st,
+                                                   const ipoint& c) const noexcept {
+    const auto f = [&](const ipoint& o) {
+      return vol->value(c[0] + o[0], c[1] + o[1], c[2] + o[2]);
+    };
     diamond_range r;
     r.lo = r.hi = f({0, 0, 0});
     for (const ipoint& o : st.rel_points) {
@@ -308,7 +314,6 @@ class typed_range_data final : public range_data::impl {
   // a face centre: itself and 4 edge midpoints; an edge midpoint: itself) has a shape that
   // depends only on c mod 4, so its vertices and split errors are read through offset tables
   // built once from the hierarchy itself, straight from the typed samples.
-
 
   static std::size_t class_of(const ipoint& c) noexcept {
     return static_cast<std::size_t>((c[0] & 3) | ((c[1] & 3) << 2) | ((c[2] & 3) << 4));
@@ -339,12 +344,14 @@ class typed_range_data final : public range_data::impl {
       st.rel_points.push_back(rel(d.centre));
       st.rel_points.push_back(rel(d.spine[0]));
       st.rel_points.push_back(rel(d.spine[1]));
-      for (int m = 0; m < d.ring_size; ++m) st.rel_points.push_back(rel(d.ring[static_cast<std::size_t>(m)]));
+      for (int m = 0; m < d.ring_size; ++m)
+        st.rel_points.push_back(rel(d.ring[static_cast<std::size_t>(m)]));
       st.rel_splits.push_back({rel(d.centre), rel(d.spine[0]), rel(d.spine[1])});
       st.points.push_back(lin(d.centre));
       st.points.push_back(lin(d.spine[0]));
       st.points.push_back(lin(d.spine[1]));
-      for (int m = 0; m < d.ring_size; ++m) st.points.push_back(lin(d.ring[static_cast<std::size_t>(m)]));
+      for (int m = 0; m < d.ring_size; ++m)
+        st.points.push_back(lin(d.ring[static_cast<std::size_t>(m)]));
       st.splits.push_back({lin(d.centre), lin(d.spine[0]), lin(d.spine[1])});
     }
     std::sort(st.points.begin(), st.points.end());
@@ -352,9 +359,11 @@ class typed_range_data final : public range_data::impl {
     std::sort(st.splits.begin(), st.splits.end());
     st.splits.erase(std::unique(st.splits.begin(), st.splits.end()), st.splits.end());
     std::sort(st.rel_points.begin(), st.rel_points.end());
-    st.rel_points.erase(std::unique(st.rel_points.begin(), st.rel_points.end()), st.rel_points.end());
+    st.rel_points.erase(std::unique(st.rel_points.begin(), st.rel_points.end()),
+                        st.rel_points.end());
     std::sort(st.rel_splits.begin(), st.rel_splits.end());
-    st.rel_splits.erase(std::unique(st.rel_splits.begin(), st.rel_splits.end()), st.rel_splits.end());
+    st.rel_splits.erase(std::unique(st.rel_splits.begin(), st.rel_splits.end()),
+                        st.rel_splits.end());
     return st;
   }
 
@@ -398,8 +407,9 @@ class typed_range_data final : public range_data::impl {
     }
     double err = 0.0;
     for (const auto& s : st.splits) {
-      const double e = std::abs(static_cast<double>(base[s[0]]) -
-                                0.5 * (static_cast<double>(base[s[1]]) + static_cast<double>(base[s[2]])));
+      const double e =
+          std::abs(static_cast<double>(base[s[0]]) -
+                   0.5 * (static_cast<double>(base[s[1]]) + static_cast<double>(base[s[2]])));
       err = e > err ? e : err;
     }
     diamond_range r;

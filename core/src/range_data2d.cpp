@@ -160,7 +160,6 @@ class typed_range_data2d final : public range_data2d::impl {
 
   static entry<T> empty_entry() noexcept { return detail::empty_entry<T>(); }
 
-
   static entry<T> encode(const diamond_range& r) noexcept {
     entry<T> e = empty_entry();
     if (!r.empty()) {

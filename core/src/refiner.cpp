@@ -24,9 +24,12 @@ namespace {
 
 detail::queue_discipline discipline_of(refine_order order) noexcept {
   switch (order) {
-    case refine_order::breadth_first: return detail::queue_discipline::fifo;
-    case refine_order::depth_first: return detail::queue_discipline::lifo;
-    case refine_order::largest_error_first: break;
+    case refine_order::breadth_first:
+      return detail::queue_discipline::fifo;
+    case refine_order::depth_first:
+      return detail::queue_discipline::lifo;
+    case refine_order::largest_error_first:
+      break;
   }
   return detail::queue_discipline::largest_error;
 }
@@ -119,7 +122,8 @@ bool refiner::split(std::uint64_t max_triangles) {
   queue_->pop();
   std::uint8_t* state = state_.get();
   state[next.index] = static_cast<std::uint8_t>(state[next.index] | split_bit);
-  records_.push_back({next.index, first, static_cast<std::uint32_t>(s.added_triangles), next.error});
+  records_.push_back(
+      {next.index, first, static_cast<std::uint32_t>(s.added_triangles), next.error});
   stats_.triangles = after;
   stats_.record_triangles += static_cast<std::uint64_t>(s.added_triangles);
   ++stats_.splits;
@@ -340,7 +344,8 @@ extract_result extract_isosurface(const volume& vol, double isovalue,
     throw error("--iso: expected a finite isovalue, found " + std::to_string(isovalue));
   }
   if (options.mode == extract_mode::error && !(options.max_error >= 0.0)) {
-    throw error("--error: expected a non-negative error, found " + std::to_string(options.max_error));
+    throw error("--error: expected a non-negative error, found " +
+                std::to_string(options.max_error));
   }
   if (options.mode == extract_mode::time && !(options.time_budget.count() >= 0.0)) {
     throw error("--time-ms: expected a non-negative time budget");
@@ -362,8 +367,7 @@ extract_result extract_isosurface(const volume& vol, double isovalue,
     const triangle_mesh first = ref.extract();
     res.first_surface_seconds = seconds(clock::now() - t1);
   }
-  const auto deadline =
-      t1 + std::chrono::duration_cast<clock::duration>(options.time_budget);
+  const auto deadline = t1 + std::chrono::duration_cast<clock::duration>(options.time_budget);
   extract_progress prog;
   prog.max_depth = hier.max_depth();
   std::uint64_t since = 0;

@@ -11,15 +11,15 @@ std::string_view to_string(tet_case c) noexcept {
 }
 
 std::string_view to_string(primitive p) noexcept {
-  static constexpr std::string_view names[] = {"VertexMove",    "VertexSplit",  "VertexOpen",
-                                               "EdgeFlip",      "NewLoop",      "NewSurf",
-                                               "CylinderFlip",  "ConnectivityChange"};
+  static constexpr std::string_view names[] = {"VertexMove",   "VertexSplit",       "VertexOpen",
+                                               "EdgeFlip",     "NewLoop",           "NewSurf",
+                                               "CylinderFlip", "ConnectivityChange"};
   return names[static_cast<std::size_t>(p)];
 }
 
 std::string_view to_string(split_configuration c) noexcept {
-  static constexpr std::string_view names[] = {"spine_crossed",   "no_new_crossing",
-                                               "empty_region",    "cylinder",
+  static constexpr std::string_view names[] = {"spine_crossed",    "no_new_crossing",
+                                               "empty_region",     "cylinder",
                                                "single_component", "multiple_components"};
   return names[static_cast<std::size_t>(c)];
 }
@@ -112,7 +112,8 @@ split_summary compute_split(const hierarchy& hier, const volume& vol, double w, 
     const ipoint& a = d.ring[um];
     const ipoint& b = d.ring[um1];
     ++s.tets;
-    const unsigned mask = (bc ? 1u : 0u) | (bd ? 2u : 0u) | (br[um] ? 4u : 0u) | (br[um1] ? 8u : 0u);
+    const unsigned mask =
+        (bc ? 1u : 0u) | (bd ? 2u : 0u) | (br[um] ? 4u : 0u) | (br[um1] ? 8u : 0u);
     s.removed_triangles += tet_triangle_count(mask);
     tet_case tc;
     if (bc != bd) {
@@ -134,8 +135,8 @@ split_summary compute_split(const hierarchy& hier, const volume& vol, double w, 
     }
     ++s.cases[static_cast<std::size_t>(tc)];
     for (int half = 0; half < 2; ++half) {
-      const std::array<ipoint, 4> t = half == 0 ? std::array<ipoint, 4>{c, e, a, b}
-                                                : std::array<ipoint, 4>{e, dd, a, b};
+      const std::array<ipoint, 4> t =
+          half == 0 ? std::array<ipoint, 4>{c, e, a, b} : std::array<ipoint, 4>{e, dd, a, b};
       const std::array<double, 4> f = half == 0 ? std::array<double, 4>{fc, fe, fr[um], fr[um1]}
                                                 : std::array<double, 4>{fe, fd, fr[um], fr[um1]};
       const tet_surface ts = march_tet(t, f, w);
@@ -149,7 +150,9 @@ split_summary compute_split(const hierarchy& hier, const volume& vol, double w, 
   }
 
   // ---- Primitives around the spine. --------------------------------------------------------
-  const auto facet_interior = [&](int m) { return tet_exists(m) && tet_exists((m == 0 ? n - 1 : m - 1)); };
+  const auto facet_interior = [&](int m) {
+    return tet_exists(m) && tet_exists((m == 0 ? n - 1 : m - 1));
+  };
   const auto ring_splits = [&](bool want_colour_ne_e) {
     for (int m = 0; m < n; ++m) {
       if (!((d.ring_in_grid >> m) & 1u)) continue;

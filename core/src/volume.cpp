@@ -11,27 +11,39 @@ namespace progiso {
 std::size_t sample_size(sample_type type) noexcept {
   switch (type) {
     case sample_type::u8:
-    case sample_type::i8: return 1;
+    case sample_type::i8:
+      return 1;
     case sample_type::u16:
-    case sample_type::i16: return 2;
+    case sample_type::i16:
+      return 2;
     case sample_type::u32:
     case sample_type::i32:
-    case sample_type::f32: return 4;
-    case sample_type::f64: return 8;
+    case sample_type::f32:
+      return 4;
+    case sample_type::f64:
+      return 8;
   }
   return 1;
 }
 
 std::string_view to_string(sample_type type) noexcept {
   switch (type) {
-    case sample_type::u8: return "u8";
-    case sample_type::i8: return "i8";
-    case sample_type::u16: return "u16";
-    case sample_type::i16: return "i16";
-    case sample_type::u32: return "u32";
-    case sample_type::i32: return "i32";
-    case sample_type::f32: return "f32";
-    case sample_type::f64: return "f64";
+    case sample_type::u8:
+      return "u8";
+    case sample_type::i8:
+      return "i8";
+    case sample_type::u16:
+      return "u16";
+    case sample_type::i16:
+      return "i16";
+    case sample_type::u32:
+      return "u32";
+    case sample_type::i32:
+      return "i32";
+    case sample_type::f32:
+      return "f32";
+    case sample_type::f64:
+      return "f64";
   }
   return "?";
 }

@@ -39,8 +39,8 @@ class Cli : public ::testing::Test {
   run_result run(const std::string& args) const {
     const fs::path out = dir_ / "stdout.txt";
     const fs::path err = dir_ / "stderr.txt";
-    const std::string cmd = std::string(PROGISO_CLI) + " " + args + " >" + out.string() + " 2>" +
-                            err.string();
+    const std::string cmd =
+        std::string(PROGISO_CLI) + " " + args + " >" + out.string() + " 2>" + err.string();
     const int raw = std::system(cmd.c_str());
     run_result r;
     r.status = WIFEXITED(raw) ? WEXITSTATUS(raw) : -1;
@@ -109,10 +109,9 @@ TEST_F(Cli, raw_volume_with_spacing_gives_physical_coordinates_in_obj) {
   const auto data = test::shared_data_dir();
   if (!data) GTEST_SKIP() << "shared data not found";
   const fs::path out = dir_ / "head.obj";
-  const run_result r =
-      run("extract " + (*data / "headsq_64x64x93_int16le.raw").string() +
-          " --dims 64,64,93 --type i16 --spacing 3.2,3.2,1.5 --iso 500 --error 200 -o " +
-          out.string());
+  const run_result r = run(
+      "extract " + (*data / "headsq_64x64x93_int16le.raw").string() +
+      " --dims 64,64,93 --type i16 --spacing 3.2,3.2,1.5 --iso 500 --error 200 -o " + out.string());
   ASSERT_EQ(r.status, 0) << r.err;
   std::ifstream in(out);
   std::string tag;
@@ -137,8 +136,8 @@ TEST_F(Cli, raw_volume_with_spacing_gives_physical_coordinates_in_obj) {
 TEST_F(Cli, isovalue_outside_the_data_range_writes_an_empty_mesh_and_says_so) {
   const fs::path in = write_file("c.raw", cube_bytes(8));
   const fs::path out = dir_ / "empty.ply";
-  const run_result r = run("extract " + in.string() + " --dims 8,8,8 --type u8 --iso 250 -o " +
-                           out.string());
+  const run_result r =
+      run("extract " + in.string() + " --dims 8,8,8 --type u8 --iso 250 -o " + out.string());
   EXPECT_EQ(r.status, 0) << r.err;
   EXPECT_NE(r.err.find("outside the data range"), std::string::npos) << r.err;
   EXPECT_TRUE(read_ply(out).empty());
@@ -156,24 +155,28 @@ TEST_F(Cli, bad_inputs_exit_2_with_one_clear_line_and_no_output) {
   expect_bad_input("extract " + g + " --dims 8,8 --type u8 --iso 1", "three");
   expect_bad_input("extract " + g + " --iso 1", "unknown volume format");
   expect_bad_input("extract " + g + " --dims 8,8,8 --type u8", "--iso");
-  expect_bad_input("extract " + g + " --dims 8,8,8 --type u8 --iso 1 --full --error 2", "at most one");
+  expect_bad_input("extract " + g + " --dims 8,8,8 --type u8 --iso 1 --full --error 2",
+                   "at most one");
   expect_bad_input("extract " + g + " --dims 8,8,8 --type u8 --iso 1 --bogus", "--bogus");
   const fs::path bad_header = write_file("bad.nrrd", "NRRD0004\ntype: banana\ndimension: 3\n\n");
   expect_bad_input("extract " + bad_header.string() + " --iso 1", "bad.nrrd");
   const fs::path two_d = write_file("flat.nrrd",
                                     "NRRD0004\ntype: uchar\ndimension: 2\nsizes: 2 2\n"
-                                    "encoding: raw\n\n" + std::string(4, '\1'));
+                                    "encoding: raw\n\n" +
+                                        std::string(4, '\1'));
   expect_bad_input("extract " + two_d.string() + " --iso 1", "flat.nrrd");
-  const run_result r = run("extract " + g + " --dims 8,8,8 --type u8 --iso 1 -o " +
-                           (dir_ / "out.stl").string());
+  const run_result r =
+      run("extract " + g + " --dims 8,8,8 --type u8 --iso 1 -o " + (dir_ / "out.stl").string());
   EXPECT_EQ(r.status, 2);
   EXPECT_NE(r.err.find(".ply or .obj"), std::string::npos) << r.err;
 }
 
 TEST_F(Cli, nrrd_input_is_read_with_its_spacing) {
   std::string payload = cube_bytes(9);
-  const fs::path in = write_file("v.nrrd", "NRRD0004\ntype: uchar\ndimension: 3\nsizes: 9 9 9\n"
-                                           "spacings: 2 2 2\nencoding: raw\n\n" + payload);
+  const fs::path in = write_file("v.nrrd",
+                                 "NRRD0004\ntype: uchar\ndimension: 3\nsizes: 9 9 9\n"
+                                 "spacings: 2 2 2\nencoding: raw\n\n" +
+                                     payload);
   const fs::path out = dir_ / "v.obj";
   const run_result r = run("extract " + in.string() + " --iso 100 -o " + out.string());
   ASSERT_EQ(r.status, 0) << r.err;
@@ -217,12 +220,13 @@ TEST_F(Cli, contour_writes_svg_obj_frames_and_statistics) {
   for (const auto& e : fs::directory_iterator(frames)) n += e.path().extension() == ".svg" ? 1 : 0;
   EXPECT_GE(n, 3u);
   const std::string json = slurp(stats);
-  for (const char* key : {"\"splits\"", "\"segments\"", "\"polylines\"", "\"cases\"", "\"EdgeFlip\"",
-                          "\"time_to_first_contour_ms\""}) {
+  for (const char* key : {"\"splits\"", "\"segments\"", "\"polylines\"", "\"cases\"",
+                          "\"EdgeFlip\"", "\"time_to_first_contour_ms\""}) {
     EXPECT_NE(json.find(key), std::string::npos) << key;
   }
   const fs::path obj = dir_ / "c.obj";
-  ASSERT_EQ(run("contour " + in.string() + " -o " + obj.string() + " --iso 60 --error 5").status, 0);
+  ASSERT_EQ(run("contour " + in.string() + " -o " + obj.string() + " --iso 60 --error 5").status,
+            0);
   const std::string text = slurp(obj);
   EXPECT_NE(text.find("\nl "), std::string::npos);
   EXPECT_NE(text.find(" 0\n"), std::string::npos);  // v x y 0

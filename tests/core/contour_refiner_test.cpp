@@ -53,10 +53,10 @@ void expect_full_equals_reference(const volume& img, double w) {
 }
 
 TEST(ContourRefiner, full_resolution_equals_marching_triangles_on_analytic_images) {
-  expect_full_equals_reference(make_image(41, 36, circle), 9.5);      // one closed loop
-  expect_full_equals_reference(make_image(33, 33, circle), 12.25);    // 2^L + 1
-  expect_full_equals_reference(make_image(70, 45, waves), 0.1);       // many components
-  expect_full_equals_reference(make_image(50, 29, edge_cut), 20.0);   // open chains, padding
+  expect_full_equals_reference(make_image(41, 36, circle), 9.5);     // one closed loop
+  expect_full_equals_reference(make_image(33, 33, circle), 12.25);   // 2^L + 1
+  expect_full_equals_reference(make_image(70, 45, waves), 0.1);      // many components
+  expect_full_equals_reference(make_image(50, 29, edge_cut), 20.0);  // open chains, padding
 }
 
 TEST(ContourRefiner, coordinates_are_physical_with_spacing_and_origin) {
@@ -80,8 +80,8 @@ TEST(ContourRefiner, full_resolution_equals_marching_triangles_on_every_shared_i
 
 TEST(ContourRefiner, random_cuts_are_valid_contours) {
   std::mt19937 rng(5);
-  for (const auto& [img, w] : {std::pair{make_image(70, 45, waves), 0.1},
-                               std::pair{make_image(50, 29, edge_cut), 20.0}}) {
+  for (const auto& [img, w] :
+       {std::pair{make_image(70, 45, waves), 0.1}, std::pair{make_image(50, 29, edge_cut), 20.0}}) {
     fixture f(img);
     contour_refiner full(f.img, f.h, f.ranges, w);
     full.refine_full();
@@ -173,7 +173,8 @@ TEST(ContourRefiner, a_cut_is_the_marching_triangles_contour_of_its_conforming_m
       polyline pl;
       pl.isovalue = w;
       for (const std::uint64_t key : k) {
-        auto [it, inserted] = ids.try_emplace(key, static_cast<std::uint32_t>(expected.vertices.size()));
+        auto [it, inserted] =
+            ids.try_emplace(key, static_cast<std::uint32_t>(expected.vertices.size()));
         if (inserted) {
           const auto e = f.h.edge_ends(key);
           expected.vertices.push_back(interpolate2(e[0], f.img.value(e[0][0], e[0][1], 0), e[1],
@@ -255,7 +256,8 @@ TEST(ContourRefiner, untouched_regions_are_never_visited) {
   const std::int64_t n = 1025;
   std::vector<std::byte> b(static_cast<std::size_t>(n * n));
   for (std::int64_t y = 500; y < 510; ++y)
-    for (std::int64_t x = 300; x < 312; ++x) b[static_cast<std::size_t>(x + n * y)] = std::byte{200};
+    for (std::int64_t x = 300; x < 312; ++x)
+      b[static_cast<std::size_t>(x + n * y)] = std::byte{200};
   const volume img({n, n, 1}, sample_type::u8, std::move(b));
   fixture f(img);
   contour_refiner r(f.img, f.h, f.ranges, 100.0);

@@ -26,11 +26,11 @@ volume image3(const std::array<double, 9>& v) {
   return volume({3, 3, 1}, sample_type::f32, std::move(b));
 }
 
-std::set<key_segment> undirected(const std::vector<key_segment>& s) {
-  return {s.begin(), s.end()};
-}
+std::set<key_segment> undirected(const std::vector<key_segment>& s) { return {s.begin(), s.end()}; }
 
-key_segment und(std::uint64_t a, std::uint64_t b) { return a < b ? key_segment{a, b} : key_segment{b, a}; }
+key_segment und(std::uint64_t a, std::uint64_t b) {
+  return a < b ? key_segment{a, b} : key_segment{b, a};
+}
 
 // Old segments of the diamond's triangles, and the classification the paper's text gives.
 struct expectation {
@@ -89,7 +89,8 @@ void check_all_colourings(const ipoint2& centre, const std::vector<std::size_t>&
     apply_contour_ops(segs, s.ops.data(), s.op_count);
     std::vector<key_segment> fresh;
     for (const auto& o : out) fresh.push_back(und(o.keys[0], o.keys[1]));
-    EXPECT_EQ(undirected(segs), undirected(fresh)) << "mask " << mask << " case " << to_string(s.kind);
+    EXPECT_EQ(undirected(segs), undirected(fresh))
+        << "mask " << mask << " case " << to_string(s.kind);
     EXPECT_EQ(segs.size(), fresh.size()) << "mask " << mask;
     ++seen[static_cast<std::size_t>(s.kind)];
   }
@@ -100,16 +101,18 @@ void check_all_colourings(const ipoint2& centre, const std::vector<std::size_t>&
   }
 }
 
-TEST(ContourSplit, every_colouring_of_an_interior_diamond_is_classified_and_its_primitives_are_exact) {
+TEST(ContourSplit,
+     every_colouring_of_an_interior_diamond_is_classified_and_its_primitives_are_exact) {
   const hierarchy2d h(3, 3);
   const diamond2 d = h.make_diamond({1, 1});
   ASSERT_EQ(d.ring_in_grid, 3);
   const auto pix = [](const ipoint2& p) { return static_cast<std::size_t>(p[0] + 3 * p[1]); };
-  check_all_colourings({1, 1}, {pix(d.spine[0]), pix(d.spine[1]), pix(d.centre), pix(d.ring[0]),
-                                pix(d.ring[1])});
+  check_all_colourings(
+      {1, 1}, {pix(d.spine[0]), pix(d.spine[1]), pix(d.centre), pix(d.ring[0]), pix(d.ring[1])});
 }
 
-TEST(ContourSplit, every_colouring_of_a_boundary_diamond_is_classified_and_its_primitives_are_exact) {
+TEST(ContourSplit,
+     every_colouring_of_a_boundary_diamond_is_classified_and_its_primitives_are_exact) {
   const hierarchy2d h(3, 3);
   for (const ipoint2 c : {ipoint2{1, 0}, ipoint2{0, 1}, ipoint2{2, 1}, ipoint2{1, 2}}) {
     const diamond2 d = h.make_diamond(c);
@@ -132,7 +135,9 @@ contour_split_summary split_with(const ipoint2& centre, double c, double d, doub
   const hierarchy2d h(3, 3);
   const diamond2 dm = h.make_diamond(centre);
   std::array<double, 9> px{};
-  const auto set = [&](const ipoint2& p, double v) { px[static_cast<std::size_t>(p[0] + 3 * p[1])] = v; };
+  const auto set = [&](const ipoint2& p, double v) {
+    px[static_cast<std::size_t>(p[0] + 3 * p[1])] = v;
+  };
   set(dm.spine[0], c);
   set(dm.spine[1], d);
   set(dm.centre, e);
@@ -195,7 +200,9 @@ shape contour_after_root_split(double c, double d, double e, double a, double b)
   const hierarchy2d h(3, 3);
   const diamond2 dm = h.make_diamond({1, 1});
   std::array<double, 9> px{};
-  const auto set = [&](const ipoint2& p, double v) { px[static_cast<std::size_t>(p[0] + 3 * p[1])] = v; };
+  const auto set = [&](const ipoint2& p, double v) {
+    px[static_cast<std::size_t>(p[0] + 3 * p[1])] = v;
+  };
   set(dm.spine[0], c);
   set(dm.spine[1], d);
   set(dm.centre, e);
@@ -256,7 +263,8 @@ TEST(ContourSplit, segments_keep_the_larger_values_on_their_left) {
   const ipoint2 p = edge_key2_point(k[0]);
   const ipoint2 q = edge_key2_point(k[1]);
   // Black vertex (0,0) doubled: cross(q - p, 0 - p) > 0.
-  const std::int64_t cross = std::int64_t{q[0] - p[0]} * (0 - p[1]) - std::int64_t{q[1] - p[1]} * (0 - p[0]);
+  const std::int64_t cross =
+      std::int64_t{q[0] - p[0]} * (0 - p[1]) - std::int64_t{q[1] - p[1]} * (0 - p[0]);
   EXPECT_GT(cross, 0);
 }
 

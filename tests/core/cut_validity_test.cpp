@@ -91,7 +91,8 @@ std::vector<std::array<ipoint, 4>> leaf_tets(const hierarchy& h, const refiner& 
     for (std::size_t i = 0; i < 4; ++i)
       for (std::size_t j = i + 1; j < 4; ++j) {
         std::int64_t l = 0;
-        for (std::size_t q = 0; q < 3; ++q) l += std::int64_t{t[i][q] - t[j][q]} * (t[i][q] - t[j][q]);
+        for (std::size_t q = 0; q < 3; ++q)
+          l += std::int64_t{t[i][q] - t[j][q]} * (t[i][q] - t[j][q]);
         if (l > best) {
           best = l;
           a = i;
@@ -153,7 +154,8 @@ TEST(CutValidity, cut_surface_is_marching_tetrahedra_of_its_conforming_mesh) {
         std::array<std::uint32_t, 3> tri{};
         for (std::size_t j = 0; j < 3; ++j) {
           const std::uint64_t key = s.triangles[static_cast<std::size_t>(k)][j];
-          auto [it, inserted] = ids.try_emplace(key, static_cast<std::uint32_t>(expected.vertices.size()));
+          auto [it, inserted] =
+              ids.try_emplace(key, static_cast<std::uint32_t>(expected.vertices.size()));
           if (inserted) {
             const auto e = h.edge_ends(key);
             expected.vertices.push_back(interpolate(e[0], v.value(e[0][0], e[0][1], e[0][2]), e[1],

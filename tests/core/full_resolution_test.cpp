@@ -71,7 +71,8 @@ TEST(FullResolution, integer_samples_equal_to_the_isovalue_equal_reference) {
 
 TEST(FullResolution, every_shared_volume_at_its_suggested_isovalues_equals_reference) {
   const auto dir = test::shared_data_dir();
-  if (!dir) GTEST_SKIP() << "shared data not found (set PROGISO_DATA_DIR); analytic tests still ran";
+  if (!dir)
+    GTEST_SKIP() << "shared data not found (set PROGISO_DATA_DIR); analytic tests still ran";
   for (const auto& info : test::shared_volumes()) {
     const volume v = test::load_shared_volume(info, *dir);
     for (const double w : info.isovalues) {

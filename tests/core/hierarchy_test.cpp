@@ -114,8 +114,8 @@ void check_against_brute_force(const index3& dims) {
     for (std::int32_t y = 0; y <= h.grid_max()[1]; ++y)
       for (std::int32_t x = 0; x <= h.grid_max()[0]; ++x) {
         const ipoint p{x, y, z};
-        const bool corner = x % h.root_size() == 0 && y % h.root_size() == 0 &&
-                            z % h.root_size() == 0;
+        const bool corner =
+            x % h.root_size() == 0 && y % h.root_size() == 0 && z % h.root_size() == 0;
         EXPECT_EQ(h.is_diamond(p), !corner);
         EXPECT_EQ(bf.diamond_tets.count(p) == 1, !corner);
         centres += corner ? 0 : 1;
@@ -192,8 +192,12 @@ void check_against_brute_force(const index3& dims) {
   }
 }
 
-TEST(Hierarchy, single_cube_level_2_matches_brute_force_bisection) { check_against_brute_force({5, 5, 5}); }
-TEST(Hierarchy, single_cube_level_3_matches_brute_force_bisection) { check_against_brute_force({9, 9, 9}); }
+TEST(Hierarchy, single_cube_level_2_matches_brute_force_bisection) {
+  check_against_brute_force({5, 5, 5});
+}
+TEST(Hierarchy, single_cube_level_3_matches_brute_force_bisection) {
+  check_against_brute_force({9, 9, 9});
+}
 TEST(Hierarchy, forest_of_reflected_cubes_matches_brute_force_bisection) {
   check_against_brute_force({9, 5, 5});
   check_against_brute_force({6, 7, 5});

@@ -6,9 +6,9 @@
 
 #include <gtest/gtest.h>
 
-#include "support/scratch_dir.hpp"
 #include <png.h>
 #include <zlib.h>
+#include "support/scratch_dir.hpp"
 
 #include <algorithm>
 #include <csetjmp>

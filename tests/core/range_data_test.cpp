@@ -69,7 +69,10 @@ void check_all_diamonds(const volume& v) {
         const int n = h.children(d, ch);
         for (int i = 0; i < n; ++i) {
           const diamond_range cr = rd.get(h.make_diamond(ch[static_cast<std::size_t>(i)]));
-          EXPECT_LE(cr.error, r.error) << "child " << ch[static_cast<std::size_t>(i)][0] << "," << ch[static_cast<std::size_t>(i)][1] << "," << ch[static_cast<std::size_t>(i)][2] << " of " << x << "," << y << "," << z << " scale " << d.scale << " type " << d.type;
+          EXPECT_LE(cr.error, r.error)
+              << "child " << ch[static_cast<std::size_t>(i)][0] << ","
+              << ch[static_cast<std::size_t>(i)][1] << "," << ch[static_cast<std::size_t>(i)][2]
+              << " of " << x << "," << y << "," << z << " scale " << d.scale << " type " << d.type;
           if (!cr.empty()) {
             EXPECT_LE(r.lo, cr.lo);
             EXPECT_GE(r.hi, cr.hi);

@@ -33,7 +33,9 @@ TEST(Refiner, first_surface_needs_no_split_and_is_the_root_tetrahedra_surface) {
   EXPECT_TRUE(r.extract().empty());
   ASSERT_TRUE(r.split_next());
   EXPECT_GT(r.triangle_count(), 0u);
-  EXPECT_EQ(r.statistics().configurations[static_cast<std::size_t>(split_configuration::empty_region)], 1u);
+  EXPECT_EQ(
+      r.statistics().configurations[static_cast<std::size_t>(split_configuration::empty_region)],
+      1u);
   EXPECT_EQ(r.statistics().primitives[static_cast<std::size_t>(primitive::new_loop)], 1u);
   EXPECT_TRUE(test::check_valid_cut(r.extract(), box[0], box[1]));
   EXPECT_TRUE(test::watertight(r.extract()));

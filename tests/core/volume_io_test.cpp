@@ -5,8 +5,8 @@
 
 #include <gtest/gtest.h>
 
-#include "support/scratch_dir.hpp"
 #include <zlib.h>
+#include "support/scratch_dir.hpp"
 
 #include <algorithm>
 #include <array>

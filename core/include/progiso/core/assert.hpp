@@ -11,12 +11,12 @@
 #include <cstdlib>
 
 #if defined(PROGISO_ENABLE_ASSERTS)
-#define PROGISO_ASSERT(cond)                                                               \
-  do {                                                                                     \
-    if (!(cond)) {                                                                         \
+#define PROGISO_ASSERT(cond)                                                                    \
+  do {                                                                                          \
+    if (!(cond)) {                                                                              \
       std::fprintf(stderr, "%s:%d: progiso assertion failed: %s\n", __FILE__, __LINE__, #cond); \
-      std::abort();                                                                        \
-    }                                                                                      \
+      std::abort();                                                                             \
+    }                                                                                           \
   } while (false)
 #else
 #define PROGISO_ASSERT(cond) \

@@ -109,7 +109,7 @@ class contour_refiner {
   const hierarchy2d& hier_;
   const range_data2d& ranges_;
   double isovalue_;
-  std::array<double, 2> origin_{};   // copied so that extraction never reads the image
+  std::array<double, 2> origin_{};  // copied so that extraction never reads the image
   std::array<double, 2> spacing_{};
   std::unique_ptr<std::uint8_t, void (*)(void*)> state_;
   std::vector<placed_segment> segments_;

@@ -34,13 +34,13 @@ namespace progiso {
 /// What the centre of a diamond determines.
 struct diamond {
   ipoint centre{};
-  std::int32_t scale = 0;             ///< h
-  int type = 0;                       ///< 0 cube centre, 1 face centre, 2 edge midpoint
-  int depth = 0;                      ///< 0 for roots; parents have depth - 1
-  std::array<ipoint, 2> spine{};      ///< c - h s, c + h s
-  int ring_size = 0;                  ///< 6, 4 or 8 (before clipping to the grid)
-  std::array<ipoint, 8> ring;         ///< cyclic; entries past ring_size are unspecified
-  std::uint8_t ring_in_grid = 0;      ///< bit m set when ring[m] is a grid vertex
+  std::int32_t scale = 0;         ///< h
+  int type = 0;                   ///< 0 cube centre, 1 face centre, 2 edge midpoint
+  int depth = 0;                  ///< 0 for roots; parents have depth - 1
+  std::array<ipoint, 2> spine{};  ///< c - h s, c + h s
+  int ring_size = 0;              ///< 6, 4 or 8 (before clipping to the grid)
+  std::array<ipoint, 8> ring;     ///< cyclic; entries past ring_size are unspecified
+  std::uint8_t ring_in_grid = 0;  ///< bit m set when ring[m] is a grid vertex
 };
 
 /// The forest of root cubes covering a volume's grid, and diamond arithmetic on it.
@@ -49,9 +49,9 @@ class hierarchy {
   /// Hierarchy for a volume with the given dims (each ≥ 2).
   explicit hierarchy(const index3& data_dims);
 
-  [[nodiscard]] int levels() const noexcept { return levels_; }              ///< L
-  [[nodiscard]] std::int32_t root_size() const noexcept { return root_; }    ///< N = 2^L
-  [[nodiscard]] const ipoint& cubes() const noexcept { return cubes_; }      ///< root cubes per axis
+  [[nodiscard]] int levels() const noexcept { return levels_; }            ///< L
+  [[nodiscard]] std::int32_t root_size() const noexcept { return root_; }  ///< N = 2^L
+  [[nodiscard]] const ipoint& cubes() const noexcept { return cubes_; }    ///< root cubes per axis
   [[nodiscard]] const ipoint& grid_max() const noexcept { return grid_max_; }  ///< cubes * N
   [[nodiscard]] const ipoint& data_max() const noexcept { return data_max_; }  ///< dims - 1
   [[nodiscard]] std::uint64_t vertex_count() const noexcept { return vertex_count_; }
@@ -64,8 +64,7 @@ class hierarchy {
   }
   /// Linear index of a grid vertex, x fastest.
   [[nodiscard]] std::uint64_t index(const ipoint& p) const noexcept {
-    return static_cast<std::uint64_t>(p[0]) +
-           stride_y_ * static_cast<std::uint64_t>(p[1]) +
+    return static_cast<std::uint64_t>(p[0]) + stride_y_ * static_cast<std::uint64_t>(p[1]) +
            stride_z_ * static_cast<std::uint64_t>(p[2]);
   }
   [[nodiscard]] ipoint point(std::uint64_t index) const noexcept;

@@ -50,7 +50,7 @@ using ipoint2 = std::array<std::int32_t, 2>;
 struct diamond2 {
   ipoint2 centre{};
   std::int32_t scale = 0;
-  int type = 0;                    ///< 0 square centre, 1 edge midpoint
+  int type = 0;  ///< 0 square centre, 1 edge midpoint
   int depth = 0;
   std::array<ipoint2, 2> spine{};  ///< c − h s, c + h s
   std::array<ipoint2, 2> ring{};   ///< apex of each triangle

@@ -159,8 +159,8 @@ struct extract_progress {
 
 struct extract_options {
   extract_mode mode = extract_mode::full;
-  double max_error = 0.0;                   ///< extract_mode::error
-  std::uint64_t max_triangles = 0;          ///< extract_mode::triangles
+  double max_error = 0.0;                          ///< extract_mode::error
+  std::uint64_t max_triangles = 0;                 ///< extract_mode::triangles
   std::chrono::duration<double> time_budget{0.0};  ///< extract_mode::time, from refinement start
   /// Called about every 4096 splits.
   std::function<void(const extract_progress&)> progress;

@@ -55,12 +55,12 @@ inline constexpr std::size_t primitive_count = 8;
 
 /// The global configuration of a split around its spine (paper §4.3–4.5).
 enum class split_configuration : std::uint8_t {
-  spine_crossed,        ///< c ≠ d (§4.3)
-  no_new_crossing,      ///< c = d = e (§4.4)
-  empty_region,         ///< c = d ≠ e, all 3a
-  cylinder,             ///< c = d ≠ e, all 4a
-  single_component,     ///< c = d ≠ e, one {5a 4a^h 5'a 3a^l}
-  multiple_components   ///< c = d ≠ e, several
+  spine_crossed,       ///< c ≠ d (§4.3)
+  no_new_crossing,     ///< c = d = e (§4.4)
+  empty_region,        ///< c = d ≠ e, all 3a
+  cylinder,            ///< c = d ≠ e, all 4a
+  single_component,    ///< c = d ≠ e, one {5a 4a^h 5'a 3a^l}
+  multiple_components  ///< c = d ≠ e, several
 };
 inline constexpr std::size_t split_configuration_count = 6;
 [[nodiscard]] std::string_view to_string(split_configuration c) noexcept;
@@ -77,9 +77,9 @@ struct owned_triangle {
 
 /// Classification of one split.
 struct split_summary {
-  int tets = 0;                 ///< tetrahedra of the diamond inside the grid
-  int removed_triangles = 0;    ///< surface triangles in those tetrahedra before the split
-  int added_triangles = 0;      ///< in the 2 * tets children
+  int tets = 0;               ///< tetrahedra of the diamond inside the grid
+  int removed_triangles = 0;  ///< surface triangles in those tetrahedra before the split
+  int added_triangles = 0;    ///< in the 2 * tets children
   split_configuration configuration = split_configuration::no_new_crossing;
   std::array<std::uint8_t, tet_case_count> cases{};
   std::array<std::uint16_t, primitive_count> primitives{};

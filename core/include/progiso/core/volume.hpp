@@ -42,8 +42,8 @@ using index3 = std::array<std::int64_t, 3>;
 class volume {
  public:
   /// Takes ownership of `samples` (host byte order, x fastest). Throws progiso::error when
-  /// dims[0] or dims[1] is < 2 or dims[2] < 1, or when the byte count differs from dims × sample_size(type), or when a
-  /// spacing is not finite and positive.
+  /// dims[0] or dims[1] is < 2 or dims[2] < 1, or when the byte count differs from dims ×
+  /// sample_size(type), or when a spacing is not finite and positive.
   volume(index3 dims, sample_type type, std::vector<std::byte> samples,
          std::array<double, 3> spacing = {1.0, 1.0, 1.0},
          std::array<double, 3> origin = {0.0, 0.0, 0.0});
@@ -92,14 +92,22 @@ class volume {
 inline double volume::at(std::size_t i) const noexcept {
   const std::byte* p = samples_.data();
   switch (type_) {
-    case sample_type::u8: return static_cast<double>(reinterpret_cast<const std::uint8_t*>(p)[i]);
-    case sample_type::i8: return static_cast<double>(reinterpret_cast<const std::int8_t*>(p)[i]);
-    case sample_type::u16: return static_cast<double>(reinterpret_cast<const std::uint16_t*>(p)[i]);
-    case sample_type::i16: return static_cast<double>(reinterpret_cast<const std::int16_t*>(p)[i]);
-    case sample_type::u32: return static_cast<double>(reinterpret_cast<const std::uint32_t*>(p)[i]);
-    case sample_type::i32: return static_cast<double>(reinterpret_cast<const std::int32_t*>(p)[i]);
-    case sample_type::f32: return static_cast<double>(reinterpret_cast<const float*>(p)[i]);
-    case sample_type::f64: return reinterpret_cast<const double*>(p)[i];
+    case sample_type::u8:
+      return static_cast<double>(reinterpret_cast<const std::uint8_t*>(p)[i]);
+    case sample_type::i8:
+      return static_cast<double>(reinterpret_cast<const std::int8_t*>(p)[i]);
+    case sample_type::u16:
+      return static_cast<double>(reinterpret_cast<const std::uint16_t*>(p)[i]);
+    case sample_type::i16:
+      return static_cast<double>(reinterpret_cast<const std::int16_t*>(p)[i]);
+    case sample_type::u32:
+      return static_cast<double>(reinterpret_cast<const std::uint32_t*>(p)[i]);
+    case sample_type::i32:
+      return static_cast<double>(reinterpret_cast<const std::int32_t*>(p)[i]);
+    case sample_type::f32:
+      return static_cast<double>(reinterpret_cast<const float*>(p)[i]);
+    case sample_type::f64:
+      return reinterpret_cast<const double*>(p)[i];
   }
   return 0.0;
 }
@@ -108,14 +116,22 @@ template <class F>
 decltype(auto) volume::visit_samples(F&& f) const {
   const std::byte* p = samples_.data();
   switch (type_) {
-    case sample_type::u8: return f(reinterpret_cast<const std::uint8_t*>(p));
-    case sample_type::i8: return f(reinterpret_cast<const std::int8_t*>(p));
-    case sample_type::u16: return f(reinterpret_cast<const std::uint16_t*>(p));
-    case sample_type::i16: return f(reinterpret_cast<const std::int16_t*>(p));
-    case sample_type::u32: return f(reinterpret_cast<const std::uint32_t*>(p));
-    case sample_type::i32: return f(reinterpret_cast<const std::int32_t*>(p));
-    case sample_type::f32: return f(reinterpret_cast<const float*>(p));
-    case sample_type::f64: break;
+    case sample_type::u8:
+      return f(reinterpret_cast<const std::uint8_t*>(p));
+    case sample_type::i8:
+      return f(reinterpret_cast<const std::int8_t*>(p));
+    case sample_type::u16:
+      return f(reinterpret_cast<const std::uint16_t*>(p));
+    case sample_type::i16:
+      return f(reinterpret_cast<const std::int16_t*>(p));
+    case sample_type::u32:
+      return f(reinterpret_cast<const std::uint32_t*>(p));
+    case sample_type::i32:
+      return f(reinterpret_cast<const std::int32_t*>(p));
+    case sample_type::f32:
+      return f(reinterpret_cast<const float*>(p));
+    case sample_type::f64:
+      break;
   }
   return f(reinterpret_cast<const double*>(p));
 }

@@ -23,9 +23,12 @@ class ready_queue {
   [[nodiscard]] bool empty() const noexcept { return head_ == items_.size(); }
   [[nodiscard]] const Item& top() const noexcept {
     switch (discipline_) {
-      case queue_discipline::fifo: return items_[head_];
-      case queue_discipline::lifo: return items_.back();
-      case queue_discipline::largest_error: break;
+      case queue_discipline::fifo:
+        return items_[head_];
+      case queue_discipline::lifo:
+        return items_.back();
+      case queue_discipline::largest_error:
+        break;
     }
     return items_.front();
   }
