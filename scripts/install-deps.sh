@@ -2,7 +2,7 @@
 # Installs progiso's build and test dependencies from Debian 12's packages (run as root, or
 # with sudo available). Packages already present are not fetched again.
 set -euo pipefail
-packages=(cmake ninja-build g++ pkg-config libgtest-dev libgmock-dev libbenchmark-dev
+packages=(cmake ninja-build g++ clang-format pkg-config libgtest-dev libgmock-dev libbenchmark-dev
           libteem-dev zlib1g-dev libpng-dev libcgal-dev libgmp-dev libmpfr-dev libboost-dev)
 missing=()
 for p in "${packages[@]}"; do
