@@ -28,7 +28,7 @@ ipoint axis(int q, std::int32_t len) noexcept {
 
 hierarchy::hierarchy(const index3& data_dims) {
   std::int64_t min_extent = data_dims[0] - 1;
-  for (int q = 0; q < 3; ++q) {
+  for (std::size_t q = 0; q < 3; ++q) {
     if (data_dims[q] < 2) {
       throw error("volume dims " + std::to_string(data_dims[0]) + "," +
                   std::to_string(data_dims[1]) + "," + std::to_string(data_dims[2]) +

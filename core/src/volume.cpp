@@ -59,7 +59,7 @@ std::optional<sample_type> parse_sample_type(std::string_view name) noexcept {
 volume::volume(index3 dims, sample_type type, std::vector<std::byte> samples,
                std::array<double, 3> spacing, std::array<double, 3> origin)
     : dims_(dims), type_(type), samples_(std::move(samples)), spacing_(spacing), origin_(origin) {
-  for (int a = 0; a < 3; ++a) {
+  for (std::size_t a = 0; a < 3; ++a) {
     // x and y need two samples; z may be 1 (a 2D image is a volume one sample thick).
     if (dims_[a] < (a == 2 ? 1 : 2)) {
       throw error("volume: dims must be at least 2,2,1, found " + std::to_string(dims_[0]) + "," +
