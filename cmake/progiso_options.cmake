@@ -1,7 +1,7 @@
 # Warning flags and sanitizer switches shared by every progiso target.
 add_library(progiso_warnings INTERFACE)
 target_compile_options(progiso_warnings INTERFACE
-  -Wall -Wextra -Wpedantic -Wshadow -Wconversion -Wnon-virtual-dtor
+  -Wall -Wextra -Wpedantic -Wshadow -Wconversion -Wsign-conversion -Wnon-virtual-dtor
   -Wold-style-cast -Woverloaded-virtual -Wnull-dereference -Wdouble-promotion
   $<$<BOOL:${PROGISO_WERROR}>:-Werror>)
 

@@ -3,7 +3,8 @@
 # with sudo available). Packages already present are not fetched again.
 set -euo pipefail
 packages=(cmake ninja-build g++ clang-format pkg-config libgtest-dev libgmock-dev libbenchmark-dev
-          libteem-dev zlib1g-dev libpng-dev libcgal-dev libgmp-dev libmpfr-dev libboost-dev)
+          libteem-dev zlib1g-dev libpng-dev libcgal-dev libgmp-dev libmpfr-dev libboost-dev
+          libtbb-dev)
 missing=()
 for p in "${packages[@]}"; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
