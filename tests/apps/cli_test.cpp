@@ -217,7 +217,8 @@ TEST_F(Cli, contour_writes_svg_obj_frames_and_statistics) {
   ASSERT_EQ(r.status, 0) << r.err;
   EXPECT_NE(slurp(svg).find("<svg"), std::string::npos);
   std::size_t n = 0;
-  for (const auto& e : fs::directory_iterator(frames)) n += e.path().extension() == ".svg" ? 1u : 0u;
+  for (const auto& e : fs::directory_iterator(frames))
+    n += e.path().extension() == ".svg" ? 1u : 0u;
   EXPECT_GE(n, 3u);
   const std::string json = slurp(stats);
   for (const char* key : {"\"splits\"", "\"segments\"", "\"polylines\"", "\"cases\"",

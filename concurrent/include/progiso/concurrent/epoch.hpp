@@ -77,9 +77,9 @@
 #include <utility>
 #include <vector>
 
-#include <progiso/core/assert.hpp>
 #include <progiso/concurrent/detail/epoch_record.hpp>
 #include <progiso/concurrent/detail/memory_order.hpp>
+#include <progiso/core/assert.hpp>
 
 namespace progiso {
 
