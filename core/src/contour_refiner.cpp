@@ -29,15 +29,14 @@ contour_refiner::contour_refiner(const volume& image, const hierarchy2d& hier,
       hier_(hier),
       ranges_(ranges),
       isovalue_(isovalue),
-      state_(static_cast<std::uint8_t*>(std::calloc(hier.vertex_count(), 1)), &std::free),
-      record_of_(static_cast<std::uint32_t*>(std::calloc(hier.vertex_count(), 4)), &std::free),
+      state_(hier.vertex_count()),
+      record_of_(hier.vertex_count()),
       queue_(std::make_unique<queue>(order == contour_order::breadth_first
                                          ? detail::queue_discipline::fifo
                                          : detail::queue_discipline::largest_error)) {
   if (!std::isfinite(isovalue)) {
     throw error("isovalue: expected a finite number, found " + std::to_string(isovalue));
   }
-  if (!state_ || !record_of_) throw std::bad_alloc();
   origin_ = {image.origin()[0], image.origin()[1]};
   spacing_ = {image.spacing()[0], image.spacing()[1]};
   records_.push_back({no_owner2, {0, 0}, 0, 0, 0.0});

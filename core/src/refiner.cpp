@@ -14,7 +14,7 @@
 namespace progiso {
 namespace {
 
-// Per-diamond state, one byte per grid vertex (lazily zeroed by calloc).
+// Per-diamond state, one byte per grid vertex (zeroed lazily, page by page).
 constexpr std::uint8_t split_bit = 0x80;
 constexpr std::uint8_t parent_count_mask = 0x07;
 
@@ -55,12 +55,11 @@ refiner::refiner(const volume& vol, const hierarchy& hier, const range_data& ran
       hier_(hier),
       ranges_(ranges),
       isovalue_(isovalue),
-      state_(static_cast<std::uint8_t*>(std::calloc(hier.vertex_count(), 1)), &std::free),
+      state_(hier.vertex_count()),
       queue_(std::make_unique<queue>(discipline_of(order))) {
   if (!std::isfinite(isovalue)) {
     throw error("isovalue: expected a finite number, found " + std::to_string(isovalue));
   }
-  if (!state_) throw std::bad_alloc();
   // Root record: the surface in the root tetrahedra, owned by the root diamonds.
   records_.push_back({no_owner, 0, 0, 0.0});
   std::array<std::array<ipoint, 4>, 6> tets{};

@@ -29,6 +29,7 @@
 #include <memory>
 #include <vector>
 
+#include <progiso/core/detail/zeroed_array.hpp>
 #include <progiso/core/hierarchy.hpp>
 #include <progiso/core/mesh.hpp>
 #include <progiso/core/range_data.hpp>
@@ -119,7 +120,7 @@ class refiner {
   const hierarchy& hier_;
   const range_data& ranges_;
   double isovalue_;
-  std::unique_ptr<std::uint8_t, void (*)(void*)> state_;
+  detail::zeroed_array<std::uint8_t> state_;  // per grid vertex: split flag, split parents
   // Record triangles in fixed chunks: growth never moves what is stored (no reallocation copy
   // of hundreds of megabytes, and stable addresses for the concurrent engine later).
   class triangle_store {

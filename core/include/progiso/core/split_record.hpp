@@ -70,9 +70,11 @@ inline constexpr std::uint64_t no_owner = ~std::uint64_t{0};
 
 /// A surface triangle (three edge keys, oriented) in a tetrahedron owned by diamond `owner`
 /// (grid index of its centre). It is part of every cut in which the owner is not split.
+/// Trivial on purpose: the refiner allocates record storage in large chunks without
+/// initialising it.
 struct owned_triangle {
-  std::uint64_t owner = no_owner;
-  std::array<std::uint64_t, 3> keys{};
+  std::uint64_t owner;
+  std::array<std::uint64_t, 3> keys;
 };
 
 /// Classification of one split.
