@@ -75,6 +75,12 @@ inline std::string json_escape(const std::string& s) {
   return o;
 }
 
+/// The value after option argv[i] (advancing i), or a one-line error naming the option.
+inline std::string next_value(int argc, char** argv, int& i, const std::string& flag) {
+  if (i + 1 >= argc) throw error(flag + ": missing value");
+  return argv[++i];
+}
+
 /// Splits "a,b,c" into any number (≥ 1) of non-empty parts.
 inline std::vector<std::string> split_list(const std::string& flag, const std::string& text) {
   std::vector<std::string> parts;

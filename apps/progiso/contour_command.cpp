@@ -41,9 +41,8 @@ struct contour_arguments {
 
 contour_arguments parse_contour(int argc, char** argv) {
   contour_arguments a;
-  const auto value = [&](int& i, const std::string& flag) -> std::string {
-    if (i + 1 >= argc) throw error(flag + ": missing value");
-    return argv[++i];
+  const auto value = [&](int& i, const std::string& flag) {
+    return next_value(argc, argv, i, flag);
   };
   for (int i = 2; i < argc; ++i) {
     const std::string f = argv[i];

@@ -81,9 +81,8 @@ arguments parse(int argc, char** argv) {
   if (command != "extract") {
     throw error("unknown command '" + command + "' (expected 'extract' or 'contour')");
   }
-  const auto value = [&](int& i, const std::string& flag) -> std::string {
-    if (i + 1 >= argc) throw error(flag + ": missing value");
-    return argv[++i];
+  const auto value = [&](int& i, const std::string& flag) {
+    return next_value(argc, argv, i, flag);
   };
   for (int i = 2; i < argc; ++i) {
     const std::string f = argv[i];

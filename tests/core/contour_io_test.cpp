@@ -6,6 +6,7 @@
 
 #include <gtest/gtest.h>
 
+#include "support/io_test_helpers.hpp"
 #include "support/scratch_dir.hpp"
 
 #include <algorithm>
@@ -44,30 +45,16 @@ std::string file_text(const fs::path& file) {
   return text;
 }
 
-void write_text(const fs::path& file, const std::string& text) {
-  std::ofstream out(file, std::ios::binary | std::ios::trunc);
-  out << text;
-  ASSERT_TRUE(out.good()) << file;
+void write_text(const fs::path& file, const std::string& bytes) {
+  progiso::test::write_file(file, bytes);
 }
 
-/// The message of the progiso::error that `f` throws; checks that it is one line naming `file`.
 template <class F>
 std::string error_message(const fs::path& file, F&& f) {
-  try {
-    f();
-  } catch (const progiso::error& e) {
-    const std::string message = e.what();
-    EXPECT_EQ(message.rfind(file.string() + ":", 0), 0u) << message;
-    EXPECT_EQ(message.find('\n'), std::string::npos) << message;
-    return message;
-  }
-  ADD_FAILURE() << "expected progiso::error for " << file;
-  return {};
+  return progiso::test::error_message_naming(file, std::forward<F>(f), ":");
 }
 
-bool contains(const std::string& haystack, const std::string& needle) {
-  return haystack.find(needle) != std::string::npos;
-}
+using progiso::test::contains;
 
 std::size_t count(const std::string& haystack, const std::string& needle) {
   std::size_t n = 0;

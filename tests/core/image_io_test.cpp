@@ -8,6 +8,7 @@
 
 #include <png.h>
 #include <zlib.h>
+#include "support/io_test_helpers.hpp"
 #include "support/scratch_dir.hpp"
 
 #include <algorithm>
@@ -38,29 +39,15 @@ class scratch_dir : public progiso::test::scratch_dir {
 };
 
 void write_bytes(const fs::path& file, const std::string& bytes) {
-  std::ofstream out(file, std::ios::binary | std::ios::trunc);
-  out << bytes;
-  ASSERT_TRUE(out.good()) << file;
+  progiso::test::write_file(file, bytes);
 }
 
-/// The message of the progiso::error that `f` throws; checks that it is one line naming `file`.
 template <class F>
 std::string error_message(const fs::path& file, F&& f) {
-  try {
-    f();
-  } catch (const progiso::error& e) {
-    const std::string message = e.what();
-    EXPECT_EQ(message.rfind(file.string() + ": ", 0), 0u) << message;
-    EXPECT_EQ(message.find('\n'), std::string::npos) << message;
-    return message;
-  }
-  ADD_FAILURE() << "expected progiso::error for " << file;
-  return {};
+  return progiso::test::error_message_naming(file, std::forward<F>(f));
 }
 
-bool contains(const std::string& haystack, const std::string& needle) {
-  return haystack.find(needle) != std::string::npos;
-}
+using progiso::test::contains;
 
 /// The samples of a one-sample-thick volume, row by row, as doubles.
 std::vector<double> samples_of(const volume& v) {

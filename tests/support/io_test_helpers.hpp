@@ -1,0 +1,42 @@
+// tests/support/io_test_helpers.hpp — small helpers shared by the reader and writer tests.
+#pragma once
+
+#include <filesystem>
+#include <fstream>
+#include <string>
+
+#include <gtest/gtest.h>
+
+#include <progiso/core/error.hpp>
+
+namespace progiso::test {
+
+/// Writes `bytes` to `file` (binary, truncating); fails the test when that does not work.
+inline void write_file(const std::filesystem::path& file, const std::string& bytes) {
+  std::ofstream out(file, std::ios::binary | std::ios::trunc);
+  out << bytes;
+  ASSERT_TRUE(out.good()) << file;
+}
+
+/// The message of the progiso::error that `f` throws; checks that it is one line starting with
+/// the file name followed by `after` (": ", or ":" where a line number follows).
+template <class F>
+std::string error_message_naming(const std::filesystem::path& file, F&& f,
+                                 const std::string& after = ": ") {
+  try {
+    f();
+  } catch (const progiso::error& e) {
+    const std::string message = e.what();
+    EXPECT_EQ(message.rfind(file.string() + after, 0), 0u) << message;
+    EXPECT_EQ(message.find('\n'), std::string::npos) << message;
+    return message;
+  }
+  ADD_FAILURE() << "expected progiso::error for " << file;
+  return {};
+}
+
+inline bool contains(const std::string& haystack, const std::string& needle) {
+  return haystack.find(needle) != std::string::npos;
+}
+
+}  // namespace progiso::test
