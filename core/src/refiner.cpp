@@ -6,7 +6,7 @@
 #include <map>
 #include <string>
 
-#include <progiso/core/detail/flat_map.hpp>
+#include <progiso/core/detail/mesh_builder.hpp>
 #include <progiso/core/detail/ready_queue.hpp>
 #include <progiso/core/error.hpp>
 #include <progiso/core/marching.hpp>
@@ -62,28 +62,16 @@ refiner::refiner(const volume& vol, const hierarchy& hier, const range_data& ran
   }
   // Root record: the surface in the root tetrahedra, owned by the root diamonds.
   records_.push_back({no_owner, 0, 0, 0.0});
-  std::array<std::array<ipoint, 4>, 6> tets{};
   for (std::uint64_t r = 0; r < hier_.root_count(); ++r) {
-    hier_.root_tets(r, tets);
-    ipoint centre{};
-    for (std::size_t q = 0; q < 3; ++q) centre[q] = (tets[0][0][q] + tets[0][3][q]) / 2;
-    const bool has_diamond = hier_.root_size() >= 2;
-    const std::uint64_t owner = has_diamond ? hier_.index(centre) : no_owner;
-    for (const auto& t : tets) {
-      std::array<double, 4> f{};
-      for (std::size_t i = 0; i < 4; ++i) f[i] = vol_.value(t[i][0], t[i][1], t[i][2]);
-      const tet_surface s = march_tet(t, f, isovalue_);
-      for (int k = 0; k < s.count; ++k) {
-        const owned_triangle piece{owner, s.triangles[static_cast<std::size_t>(k)]};
-        triangles_.append(&piece, 1);
-      }
-    }
-    if (has_diamond) {
-      const diamond d = hier_.make_diamond(centre);
+    scratch_.clear();
+    const std::optional<ipoint> centre = compute_root(hier_, vol_, isovalue_, r, scratch_);
+    triangles_.append(scratch_.data(), scratch_.size());
+    if (centre) {
+      const diamond d = hier_.make_diamond(*centre);
       ++stats_.visited;
       const diamond_range rr = ranges_.get(d);
       if (rr.straddles(isovalue_)) {
-        queue_->push({rr.error, d.depth, owner, centre});
+        queue_->push({rr.error, d.depth, hier_.index(*centre), *centre});
       } else {
         ++stats_.culled;
       }
@@ -168,142 +156,20 @@ void refiner::refine_until(std::chrono::steady_clock::time_point deadline) {
   while (!done() && std::chrono::steady_clock::now() < deadline) split_next();
 }
 
-// ---------------------------------------------------------------------------------------------
-// Extraction: deduplicate surface vertices by edge key, place them on their edges, clip pieces
-// that reach past the data box (only coarse tetrahedra of padded hierarchies do), and map to
-// physical coordinates.
-
-namespace {
-
-class mesh_builder {
- public:
-  mesh_builder(const hierarchy& hier, const volume& vol, double w, std::size_t expected)
-      : hier_(hier), vol_(vol), w_(w), keys_(expected) {
-    for (std::size_t q = 0; q < 3; ++q) box_[q] = static_cast<double>(hier.data_max()[q]);
-    grid_.reserve(expected);
-    mesh_.triangles.reserve(expected * 2);
-  }
-
-  void add(const std::array<std::uint64_t, 3>& keys) {
-    std::array<std::uint32_t, 3> ids{};
-    bool inside = true;
-    for (std::size_t i = 0; i < 3; ++i) {
-      ids[i] = vertex(keys[i]);
-      const vec3& p = grid_[ids[i]];
-      inside = inside && p[0] <= box_[0] && p[1] <= box_[1] && p[2] <= box_[2];
-    }
-    if (inside) {
-      mesh_.triangles.push_back(ids);
+void refiner::refine_set(const std::function<bool(std::uint64_t)>& in_set) {
+  while (!queue_->empty()) {
+    if (in_set(queue_->top().index)) {
+      split_next();
     } else {
-      clipped_any_ = true;
-      clip(ids);
+      queue_->pop();
     }
   }
-
-  triangle_mesh finish() {
-    const auto& sp = vol_.spacing();
-    const auto& org = vol_.origin();
-    mesh_.vertices.resize(grid_.size());
-    for (std::size_t i = 0; i < grid_.size(); ++i) {
-      for (std::size_t q = 0; q < 3; ++q) mesh_.vertices[i][q] = org[q] + grid_[i][q] * sp[q];
-    }
-    // Drop vertices that only clipped-away triangles used. Without clipping every vertex is
-    // used and ids are already in order of first use.
-    if (clipped_.empty() && !clipped_any_) return std::move(mesh_);
-    std::vector<std::uint32_t> remap(grid_.size(), ~std::uint32_t{0});
-    std::uint32_t n = 0;
-    for (auto& t : mesh_.triangles) {
-      for (auto& v : t) {
-        if (remap[v] == ~std::uint32_t{0}) remap[v] = n++;
-        v = remap[v];
-      }
-    }
-    if (n != grid_.size()) {
-      std::vector<vec3> kept(n);
-      for (std::size_t i = 0; i < grid_.size(); ++i) {
-        if (remap[i] != ~std::uint32_t{0}) kept[remap[i]] = mesh_.vertices[i];
-      }
-      mesh_.vertices = std::move(kept);
-    } else {
-      std::vector<vec3> ordered(n);
-      for (std::size_t i = 0; i < grid_.size(); ++i) ordered[remap[i]] = mesh_.vertices[i];
-      mesh_.vertices = std::move(ordered);
-    }
-    return std::move(mesh_);
-  }
-
- private:
-  std::uint32_t vertex(std::uint64_t key) {
-    const auto [id, inserted] = keys_.try_emplace(key, static_cast<std::uint32_t>(grid_.size()));
-    if (inserted) {
-      const auto ends = hier_.edge_ends(key);
-      const double fa = vol_.value(ends[0][0], ends[0][1], ends[0][2]);
-      const double fb = vol_.value(ends[1][0], ends[1][1], ends[1][2]);
-      grid_.push_back(interpolate(ends[0], fa, ends[1], fb, w_));
-    }
-    return id;
-  }
-
-  std::uint32_t clip_vertex(const vec3& p) {
-    const auto [it, inserted] = clipped_.try_emplace(p, static_cast<std::uint32_t>(grid_.size()));
-    if (inserted) grid_.push_back(p);
-    return it->second;
-  }
-
-  // Sutherland–Hodgman against x_q ≤ box_q. Each crossing point is computed from the segment's
-  // ends in lexicographic order, so the two triangles sharing a segment get the same point.
-  void clip(const std::array<std::uint32_t, 3>& ids) {
-    std::vector<std::uint32_t> poly(ids.begin(), ids.end());
-    std::vector<std::uint32_t> next;
-    for (std::size_t q = 0; q < 3 && poly.size() >= 3; ++q) {
-      next.clear();
-      for (std::size_t i = 0; i < poly.size(); ++i) {
-        const std::uint32_t a = poly[i];
-        const std::uint32_t b = poly[(i + 1) % poly.size()];
-        const bool ain = grid_[a][q] <= box_[q];
-        const bool bin = grid_[b][q] <= box_[q];
-        if (ain) next.push_back(a);
-        // A crossing whose inside end lies on the plane is that end itself, already emitted.
-        const bool on_plane = ain ? grid_[a][q] == box_[q] : grid_[b][q] == box_[q];
-        if (ain != bin && !on_plane) {
-          vec3 p = grid_[a];
-          vec3 r = grid_[b];
-          if (r < p) std::swap(p, r);
-          const double s = (box_[q] - p[q]) / (r[q] - p[q]);
-          vec3 x{};
-          for (std::size_t k = 0; k < 3; ++k) x[k] = p[k] + s * (r[k] - p[k]);
-          x[q] = box_[q];
-          next.push_back(clip_vertex(x));
-        }
-      }
-      poly.swap(next);
-    }
-    if (poly.size() < 3) return;
-    for (std::size_t i = 1; i + 1 < poly.size(); ++i) {
-      const std::array<std::uint32_t, 3> t{poly[0], poly[i], poly[i + 1]};
-      if (grid_[t[0]] == grid_[t[1]] || grid_[t[1]] == grid_[t[2]] || grid_[t[0]] == grid_[t[2]]) {
-        continue;
-      }
-      mesh_.triangles.push_back(t);
-    }
-  }
-
-  const hierarchy& hier_;
-  const volume& vol_;
-  double w_;
-  vec3 box_{};
-  detail::flat_map keys_;
-  std::map<vec3, std::uint32_t> clipped_;
-  bool clipped_any_ = false;
-  std::vector<vec3> grid_;
-  triangle_mesh mesh_;
-};
-
-}  // namespace
+}
 
 template <class InCut, class Take>
 triangle_mesh refiner::build_mesh(InCut&& in_cut, Take&& take) const {
-  mesh_builder b(hier_, vol_, isovalue_, static_cast<std::size_t>(stats_.triangles / 2 + 16));
+  detail::mesh_builder b(hier_, vol_, isovalue_,
+                         static_cast<std::size_t>(stats_.triangles / 2 + 16));
   for (const record& r : records_) {
     if (!in_cut(r)) continue;
     for (std::uint64_t i = r.first; i < r.first + r.count; ++i) {

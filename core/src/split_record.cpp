@@ -197,4 +197,24 @@ split_summary compute_split(const hierarchy& hier, const volume& vol, double w, 
   return s;
 }
 
+std::optional<ipoint> compute_root(const hierarchy& hier, const volume& vol, double w,
+                                   std::uint64_t r, std::vector<owned_triangle>& out) {
+  std::array<std::array<ipoint, 4>, 6> tets{};
+  hier.root_tets(r, tets);
+  ipoint centre{};
+  for (std::size_t q = 0; q < 3; ++q) centre[q] = (tets[0][0][q] + tets[0][3][q]) / 2;
+  const bool has_diamond = hier.root_size() >= 2;
+  const std::uint64_t owner = has_diamond ? hier.index(centre) : no_owner;
+  for (const auto& t : tets) {
+    std::array<double, 4> f{};
+    for (std::size_t i = 0; i < 4; ++i) f[i] = vol.value(t[i][0], t[i][1], t[i][2]);
+    const tet_surface s = march_tet(t, f, w);
+    for (int k = 0; k < s.count; ++k) {
+      out.push_back({owner, s.triangles[static_cast<std::size_t>(k)]});
+    }
+  }
+  if (!has_diamond) return std::nullopt;
+  return centre;
+}
+
 }  // namespace progiso

@@ -87,6 +87,10 @@ class refiner {
   void refine_to_triangles(std::uint64_t max_triangles);
   /// Splits until the deadline; checked between splits.
   void refine_until(std::chrono::steady_clock::time_point deadline);
+  /// Splits every ready diamond whose grid index satisfies `in_set`, until none is left; the
+  /// others are dropped from the queue. Given a parent-closed set of diamonds, this splits
+  /// exactly that set (sequential replay of a concurrent engine's cut).
+  void refine_set(const std::function<bool(std::uint64_t)>& in_set);
 
   [[nodiscard]] std::uint64_t triangle_count() const noexcept { return stats_.triangles; }
   [[nodiscard]] const refine_statistics& statistics() const noexcept { return stats_; }

@@ -26,6 +26,7 @@
 
 #include <array>
 #include <cstdint>
+#include <optional>
 #include <string_view>
 #include <vector>
 
@@ -91,5 +92,11 @@ struct split_summary {
 /// and returns the classification. Pure: depends only on (d, the field, w).
 split_summary compute_split(const hierarchy& hier, const volume& vol, double isovalue,
                             const diamond& d, std::vector<owned_triangle>& out);
+
+/// The surface in the six tetrahedra of root cube r (hierarchy::root_tets), appended to `out`,
+/// each piece owned by the root diamond. Returns that diamond's centre, or nullopt when the
+/// root cube is a single cell (root_size 1: no diamond, pieces owned by no_owner). Pure.
+std::optional<ipoint> compute_root(const hierarchy& hier, const volume& vol, double isovalue,
+                                   std::uint64_t r, std::vector<owned_triangle>& out);
 
 }  // namespace progiso

@@ -1,0 +1,120 @@
+#include <progiso/core/detail/mesh_builder.hpp>
+
+#include <algorithm>
+#include <utility>
+
+#include <progiso/core/marching.hpp>
+
+namespace progiso::detail {
+
+mesh_builder::mesh_builder(const hierarchy& hier, const volume& vol, double w, std::size_t expected)
+    : hier_(hier), vol_(vol), w_(w), keys_(expected) {
+  for (std::size_t q = 0; q < 3; ++q) box_[q] = static_cast<double>(hier.data_max()[q]);
+  grid_.reserve(expected);
+  mesh_.triangles.reserve(expected * 2);
+}
+
+void mesh_builder::add(const std::array<std::uint64_t, 3>& keys) {
+  std::array<std::uint32_t, 3> ids{};
+  bool inside = true;
+  for (std::size_t i = 0; i < 3; ++i) {
+    ids[i] = vertex(keys[i]);
+    const vec3& p = grid_[ids[i]];
+    inside = inside && p[0] <= box_[0] && p[1] <= box_[1] && p[2] <= box_[2];
+  }
+  if (inside) {
+    mesh_.triangles.push_back(ids);
+  } else {
+    clipped_any_ = true;
+    clip(ids);
+  }
+}
+
+triangle_mesh mesh_builder::finish() {
+  const auto& sp = vol_.spacing();
+  const auto& org = vol_.origin();
+  mesh_.vertices.resize(grid_.size());
+  for (std::size_t i = 0; i < grid_.size(); ++i) {
+    for (std::size_t q = 0; q < 3; ++q) mesh_.vertices[i][q] = org[q] + grid_[i][q] * sp[q];
+  }
+  // Drop vertices that only clipped-away triangles used. Without clipping every vertex is
+  // used and ids are already in order of first use.
+  if (clipped_.empty() && !clipped_any_) return std::move(mesh_);
+  std::vector<std::uint32_t> remap(grid_.size(), ~std::uint32_t{0});
+  std::uint32_t n = 0;
+  for (auto& t : mesh_.triangles) {
+    for (auto& v : t) {
+      if (remap[v] == ~std::uint32_t{0}) remap[v] = n++;
+      v = remap[v];
+    }
+  }
+  if (n != grid_.size()) {
+    std::vector<vec3> kept(n);
+    for (std::size_t i = 0; i < grid_.size(); ++i) {
+      if (remap[i] != ~std::uint32_t{0}) kept[remap[i]] = mesh_.vertices[i];
+    }
+    mesh_.vertices = std::move(kept);
+  } else {
+    std::vector<vec3> ordered(n);
+    for (std::size_t i = 0; i < grid_.size(); ++i) ordered[remap[i]] = mesh_.vertices[i];
+    mesh_.vertices = std::move(ordered);
+  }
+  return std::move(mesh_);
+}
+
+std::uint32_t mesh_builder::vertex(std::uint64_t key) {
+  const auto [id, inserted] = keys_.try_emplace(key, static_cast<std::uint32_t>(grid_.size()));
+  if (inserted) {
+    const auto ends = hier_.edge_ends(key);
+    const double fa = vol_.value(ends[0][0], ends[0][1], ends[0][2]);
+    const double fb = vol_.value(ends[1][0], ends[1][1], ends[1][2]);
+    grid_.push_back(interpolate(ends[0], fa, ends[1], fb, w_));
+  }
+  return id;
+}
+
+std::uint32_t mesh_builder::clip_vertex(const vec3& p) {
+  const auto [it, inserted] = clipped_.try_emplace(p, static_cast<std::uint32_t>(grid_.size()));
+  if (inserted) grid_.push_back(p);
+  return it->second;
+}
+
+// Sutherland–Hodgman against x_q ≤ box_q. Each crossing point is computed from the segment's
+// ends in lexicographic order, so the two triangles sharing a segment get the same point.
+void mesh_builder::clip(const std::array<std::uint32_t, 3>& ids) {
+  std::vector<std::uint32_t> poly(ids.begin(), ids.end());
+  std::vector<std::uint32_t> next;
+  for (std::size_t q = 0; q < 3 && poly.size() >= 3; ++q) {
+    next.clear();
+    for (std::size_t i = 0; i < poly.size(); ++i) {
+      const std::uint32_t a = poly[i];
+      const std::uint32_t b = poly[(i + 1) % poly.size()];
+      const bool ain = grid_[a][q] <= box_[q];
+      const bool bin = grid_[b][q] <= box_[q];
+      if (ain) next.push_back(a);
+      // A crossing whose inside end lies on the plane is that end itself, already emitted.
+      const bool on_plane = ain ? grid_[a][q] == box_[q] : grid_[b][q] == box_[q];
+      if (ain != bin && !on_plane) {
+        vec3 p = grid_[a];
+        vec3 r = grid_[b];
+        if (r < p) std::swap(p, r);
+        const double s = (box_[q] - p[q]) / (r[q] - p[q]);
+        vec3 x{};
+        for (std::size_t k = 0; k < 3; ++k) x[k] = p[k] + s * (r[k] - p[k]);
+        x[q] = box_[q];
+        next.push_back(clip_vertex(x));
+      }
+    }
+    poly.swap(next);
+  }
+  if (poly.size() < 3) return;
+  for (std::size_t i = 1; i + 1 < poly.size(); ++i) {
+    const std::array<std::uint32_t, 3> t{poly[0], poly[i], poly[i + 1]};
+    if (grid_[t[0]] == grid_[t[1]] || grid_[t[1]] == grid_[t[2]] || grid_[t[0]] == grid_[t[2]]) {
+      continue;
+    }
+    mesh_.triangles.push_back(t);
+  }
+}
+
+}  // namespace progiso::detail
