@@ -3,12 +3,13 @@
 //   progiso extract INPUT -o OUT.ply|OUT.obj --iso W
 //           [--dims NX,NY,NZ --type u8|i8|u16|i16|u32|i32|f32|f64 [--big-endian]]
 //           [--spacing SX,SY,SZ] [--full | --error E | --max-triangles K | --time-ms T]
-//           [--stats-json FILE]
-//   progiso extract --demo -o OUT.ply [--iso W]
+//           [--stats-json FILE] [--threads N]
+//   progiso extract --demo -o OUT.ply [--iso W] [--threads N]
 //
 // Exit status: 0 on success, 2 on bad input or usage (one line on stderr, no output file).
 #include <unistd.h>
 
+#include <algorithm>
 #include <cerrno>
 #include <chrono>
 #include <cmath>
@@ -27,6 +28,8 @@
 #include <progiso/core/mesh_io.hpp>
 #include <progiso/core/refiner.hpp>
 #include <progiso/core/volume_io.hpp>
+#include <progiso/scheduler/engine.hpp>
+#include <progiso/scheduler/tbb_environment.hpp>
 
 #include "cli_common.hpp"
 
@@ -42,8 +45,8 @@ constexpr const char* usage_text =
     "  progiso extract INPUT -o OUT.ply|OUT.obj --iso W\n"
     "          [--dims NX,NY,NZ --type u8|i8|u16|i16|u32|i32|f32|f64 [--big-endian]]\n"
     "          [--spacing SX,SY,SZ] [--full | --error E | --max-triangles K | --time-ms T]\n"
-    "          [--stats-json FILE]\n"
-    "  progiso extract --demo -o OUT.ply [--iso W]\n"
+    "          [--stats-json FILE] [--threads N]\n"
+    "  progiso extract --demo -o OUT.ply [--iso W] [--threads N]\n"
     "  progiso contour INPUT.pgm|INPUT.png -o OUT.obj|OUT.svg --iso W[,W2,...]\n"
     "          [--full | --error E | --max-segments K | --time-ms T] [--frames DIR]\n"
     "          [--stats-json FILE]\n"
@@ -53,7 +56,9 @@ constexpr const char* usage_text =
     "Marschner-Lobb volume (isovalue 0.5 unless --iso is given).\n"
     "Modes: --full (default) refines everywhere the surface can be; --error E stops when\n"
     "every remaining split error is <= E; --max-triangles K keeps at most K triangles;\n"
-    "--time-ms T refines for T milliseconds and returns the last consistent surface.\n"
+    "--time-ms T refines for T milliseconds and returns the surface published by then.\n"
+    "--threads N runs the concurrent engine on N threads (default: all cores); --full gives\n"
+    "the same file for every N.\n"
     "contour: INPUT is a binary PGM (8/16 bit) or a grayscale PNG; several isovalues are\n"
     "comma-separated; OBJ gets 'v x y 0' and 'l ...' polylines, SVG draws them over the image;\n"
     "--frames DIR writes one SVG per refinement stage.\n";
@@ -70,6 +75,7 @@ struct arguments {
   progiso::extract_options options;
   int modes = 0;
   std::optional<std::string> stats_json;
+  unsigned threads = 0;  // 0: all cores
 };
 
 arguments parse(int argc, char** argv) {
@@ -144,6 +150,13 @@ arguments parse(int argc, char** argv) {
       ++a.modes;
     } else if (f == "--stats-json") {
       a.stats_json = value(i, f);
+    } else if (f == "--threads") {
+      const std::string t = value(i, f);
+      const double n = parse_number(f, t);
+      if (n < 1 || n > 4096 || n != std::floor(n)) {
+        throw error("--threads: expected an integer from 1 to 4096, found '" + t + "'");
+      }
+      a.threads = static_cast<unsigned>(n);
     } else if (f == "-h" || f == "--help") {
       std::cout << usage_text;
       std::exit(0);
@@ -184,6 +197,8 @@ std::string stats_json(const arguments& a, const std::string& input, double iso,
   o << "  \"dims\": [" << vol.dims()[0] << ", " << vol.dims()[1] << ", " << vol.dims()[2] << "],\n";
   o << "  \"isovalue\": " << json_number(iso) << ",\n";
   o << "  \"mode\": \"" << mode_names[static_cast<int>(a.options.mode)] << "\",\n";
+  const auto available = static_cast<unsigned>(progiso::scheduler::default_concurrency());
+  o << "  \"threads\": " << (a.threads == 0 ? available : std::min(a.threads, available)) << ",\n";
   o << "  \"splits\": " << r.stats.splits << ",\n";
   o << "  \"diamonds_visited\": " << r.stats.visited << ",\n";
   o << "  \"diamonds_culled\": " << r.stats.culled << ",\n";
@@ -270,7 +285,8 @@ int run(int argc, char** argv) {
             << "\n";
   progress_bar bar;
   a.options.progress = [&bar](const progiso::extract_progress& p) { bar.update(p); };
-  const progiso::extract_result r = progiso::extract_isosurface(*vol, iso, a.options);
+  const progiso::extract_result r =
+      progiso::extract_isosurface_parallel(*vol, iso, a.options, a.threads);
   bar.finish();
   if (r.isovalue_outside_data) {
     const auto [lo, hi] = vol->value_range();

@@ -14,6 +14,7 @@
 
 #include <gtest/gtest.h>
 
+#include "support/mesh_checks.hpp"
 #include "support/test_data.hpp"
 
 namespace progiso {
@@ -158,6 +159,8 @@ TEST_F(Cli, bad_inputs_exit_2_with_one_clear_line_and_no_output) {
   expect_bad_input("extract " + g + " --dims 8,8,8 --type u8 --iso 1 --full --error 2",
                    "at most one");
   expect_bad_input("extract " + g + " --dims 8,8,8 --type u8 --iso 1 --bogus", "--bogus");
+  expect_bad_input("extract " + g + " --dims 8,8,8 --type u8 --iso 1 --threads 0", "--threads");
+  expect_bad_input("extract " + g + " --dims 8,8,8 --type u8 --iso 1 --threads 1.5", "--threads");
   const fs::path bad_header = write_file("bad.nrrd", "NRRD0004\ntype: banana\ndimension: 3\n\n");
   expect_bad_input("extract " + bad_header.string() + " --iso 1", "bad.nrrd");
   const fs::path two_d = write_file("flat.nrrd",
@@ -169,6 +172,30 @@ TEST_F(Cli, bad_inputs_exit_2_with_one_clear_line_and_no_output) {
       run("extract " + g + " --dims 8,8,8 --type u8 --iso 1 -o " + (dir_ / "out.stl").string());
   EXPECT_EQ(r.status, 2);
   EXPECT_NE(r.err.find(".ply or .obj"), std::string::npos) << r.err;
+}
+
+TEST_F(Cli, full_output_is_identical_for_every_thread_count) {
+  std::string bytes;
+  for (const fs::path& out : {dir_ / "t1.ply", dir_ / "t2.ply", dir_ / "t3.ply"}) {
+    const std::string n = out.stem().string().substr(1);
+    const run_result r = run("extract --demo --full --threads " + n + " -o " + out.string());
+    ASSERT_EQ(r.status, 0) << r.err;
+    const std::string b = slurp(out);
+    EXPECT_GT(b.size(), 1000000u);
+    if (bytes.empty()) bytes = b;
+    EXPECT_TRUE(b == bytes) << out << " differs from the 1-thread output";
+  }
+}
+
+TEST_F(Cli, time_budget_returns_a_partial_valid_surface) {
+  const fs::path out = dir_ / "t.ply";
+  const run_result r = run("extract --demo --time-ms 5 --threads 2 -o " + out.string());
+  ASSERT_EQ(r.status, 0) << r.err;
+  const triangle_mesh m = read_ply(out);
+  EXPECT_GT(m.triangles.size(), 0u);
+  EXPECT_LT(m.triangles.size(), 700000u) << "the full demo surface has 764704 triangles";
+  EXPECT_TRUE(test::edge_manifold(m));
+  EXPECT_TRUE(test::consistently_oriented(m));
 }
 
 TEST_F(Cli, nrrd_input_is_read_with_its_spacing) {

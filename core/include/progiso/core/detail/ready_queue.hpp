@@ -21,6 +21,18 @@ class ready_queue {
   explicit ready_queue(queue_discipline d = queue_discipline::largest_error) : discipline_(d) {}
 
   [[nodiscard]] bool empty() const noexcept { return head_ == items_.size(); }
+  [[nodiscard]] std::size_t size() const noexcept { return items_.size() - head_; }
+  [[nodiscard]] queue_discipline discipline() const noexcept { return discipline_; }
+  /// Changes the discipline, keeping the items (O(n) when switching to largest_error).
+  void set_discipline(queue_discipline d) {
+    if (d == discipline_) return;
+    items_.erase(items_.begin(), items_.begin() + static_cast<std::ptrdiff_t>(head_));
+    head_ = 0;
+    discipline_ = d;
+    if (d == queue_discipline::largest_error) {
+      std::make_heap(items_.begin(), items_.end(), ranks_below);
+    }
+  }
   [[nodiscard]] const Item& top() const noexcept {
     switch (discipline_) {
       case queue_discipline::fifo:

@@ -1,0 +1,226 @@
+// progiso/scheduler/engine.hpp — the concurrent progressive isosurface engine.
+//
+// What it is. An engine owns one volume's hierarchy and range data (built once, independent of
+// the isovalue) and the progressive surface of the current isovalue. Refinement runs as tasks on
+// a oneTBB flow graph: split records of ready diamonds (all parents split) are computed in
+// parallel in batches — compute_split() is pure — and a serial commit step publishes them in
+// dependency order and makes their children ready. Ready diamonds wait in the engine's own
+// priority queue (largest nested error first; depth first for full refinement); at most
+// `tasks_per_thread × threads` batches are in flight, so a cancel has little to drain.
+//
+// The four scenarios of the paper (§1):
+//  - quality-driven:  refine_until(ε) splits until every remaining error is ≤ ε;
+//  - time-critical:   refine_for(τ1), take a snapshot, refine_for(τ2) to improve it;
+//  - asynchronous:    start(goal) returns at once; cancel() from any thread stops every worker
+//                     within one split, and what was published stays;
+//  - dynamic:         set_isovalue(w) from any thread cancels in-flight work, publishes the new
+//                     isovalue's root surface at once and resumes the interrupted goal.
+//
+// Snapshots. A root object holds one isovalue, its split records (an append_log) and a record
+// index per grid vertex. The commit step writes a record, then the diamond's record index, then
+// release-publishes the record count W. snapshot() pins an epoch guard, protects the root
+// pointer and acquire-loads W: O(1), no lock, no retry loop beyond epoch_guard::protect's
+// bounded one, and it never waits for a writer nor delays one. The snapshot's cut is exactly the
+// first W records: a triangle of record r < W is in it iff its owner has no record below W.
+// It holds one isovalue by construction (the isovalue is a field of the root) and one
+// parent-closed cut (records are published parent before child). An isovalue change swaps the
+// root pointer and retires the old root through the epoch domain (interval-based: a stalled
+// snapshot pins only the root it reads, see concurrent/epoch.hpp).
+//
+// Determinism: records are pure, so the snapshot's surface depends only on its set of split
+// diamonds. mesh() orders records by diamond (canonical order), so the same split set gives the
+// same mesh bytes whatever the thread count or completion order.
+//
+// Thread safety: every member function of engine may be called from any thread. Control calls
+// (set_isovalue, start, cancel, wait, refine_*) serialise among themselves on a mutex; readers
+// (snapshot, statistics, isovalue, running) never take it. A surface_snapshot belongs to the
+// thread that took it (it holds that thread's epoch guard) and must be destroyed on that thread
+// before the engine. TBB types stay out of this header.
+#pragma once
+
+#include <array>
+#include <chrono>
+#include <cstddef>
+#include <cstdint>
+#include <functional>
+#include <memory>
+
+#include <progiso/concurrent/epoch.hpp>
+#include <progiso/core/hierarchy.hpp>
+#include <progiso/core/mesh.hpp>
+#include <progiso/core/range_data.hpp>
+#include <progiso/core/refiner.hpp>
+#include <progiso/core/split_record.hpp>
+#include <progiso/core/volume.hpp>
+
+namespace progiso {
+
+class engine;
+
+namespace detail {
+struct engine_root;
+struct engine_impl;
+}  // namespace detail
+
+/// Progress of a running engine, passed to engine_options::progress from the commit step.
+struct engine_progress {
+  std::uint64_t splits = 0;
+  std::uint64_t triangles = 0;
+  double next_error = 0.0;  ///< error of the next ready diamond (0 when none)
+  int depth = 0;            ///< depth of the last diamond published
+};
+
+struct engine_options {
+  /// Worker threads; 0: all cores. Capped at default_concurrency(), the size of oneTBB's pool.
+  unsigned threads = 0;
+  /// Diamonds per compute task (TBB costs ~150–200 ns per task; a split ~0.5–1 µs).
+  std::size_t batch = 32;
+  /// In-flight batches per thread: bounds what a cancel must drain.
+  std::size_t tasks_per_thread = 4;
+  /// Reclamation of retired roots.
+  epoch_options reclamation{};
+  /// Fill retired roots with a poison pattern before freeing them (stress tests: a use after
+  /// free reads poison that snapshot::check_integrity() reports).
+  bool poison_retired = false;
+  /// Called with the generation of every root as it is destroyed (stress tests count them).
+  std::function<void(std::uint64_t generation)> on_reclaim;
+  /// Called from the commit step about every `progress_interval` splits (keep it short).
+  std::function<void(const engine_progress&)> progress;
+  std::uint64_t progress_interval = 4096;
+};
+
+/// What a run refines towards.
+struct refine_goal {
+  enum class kind { full, error, triangles, deadline };
+  kind what = kind::full;
+  double max_error = 0.0;                            ///< kind::error
+  std::uint64_t max_triangles = 0;                   ///< kind::triangles
+  std::chrono::steady_clock::time_point deadline{};  ///< kind::deadline
+
+  static refine_goal full() { return {}; }
+  static refine_goal error(double e) { return {kind::error, e, 0, {}}; }
+  static refine_goal triangles(std::uint64_t k) { return {kind::triangles, 0.0, k, {}}; }
+  static refine_goal until(std::chrono::steady_clock::time_point t) {
+    return {kind::deadline, 0.0, 0, t};
+  }
+};
+
+/// Counters of the current isovalue's refinement (and of the engine's life). Readable while
+/// running: each counter is exact at some moment of the run, not all at the same moment.
+struct engine_statistics {
+  refine_statistics refine;          ///< of the current root (isovalue)
+  std::uint64_t published = 0;       ///< records published (including the root record)
+  std::uint64_t discarded = 0;       ///< splits computed but not published (cancel, deadline)
+  std::uint64_t batches = 0;         ///< compute tasks run for this root
+  std::uint64_t generation = 0;      ///< isovalue changes so far
+  std::uint64_t runs = 0;            ///< runs started (engine life)
+  std::uint64_t cancelled_runs = 0;  ///< runs stopped before reaching their goal
+  epoch_statistics reclamation;      ///< retired/reclaimed roots
+};
+
+/// An immutable view of one published cut of one isovalue. Cheap to take, O(cut records) to
+/// walk. Holds an epoch guard of the thread that took it: destroy it on that thread, before
+/// the engine. Move-only.
+class surface_snapshot {
+ public:
+  surface_snapshot() = default;
+  surface_snapshot(surface_snapshot&&) noexcept = default;
+  surface_snapshot& operator=(surface_snapshot&&) noexcept = default;
+  surface_snapshot(const surface_snapshot&) = delete;
+  surface_snapshot& operator=(const surface_snapshot&) = delete;
+  ~surface_snapshot() = default;
+
+  [[nodiscard]] bool valid() const noexcept { return root_ != nullptr; }
+  [[nodiscard]] double isovalue() const noexcept;
+  /// Number of isovalue changes before this snapshot's root (0 for the first isovalue).
+  [[nodiscard]] std::uint64_t generation() const noexcept;
+  /// Split diamonds in the cut (records − 1).
+  [[nodiscard]] std::uint64_t split_count() const noexcept { return published_ - 1; }
+  /// Triangles in the cut before box clipping: O(1).
+  [[nodiscard]] std::uint64_t triangle_count() const noexcept;
+  /// Whether the diamond with this grid index is split in the cut.
+  [[nodiscard]] bool is_split(std::uint64_t index) const noexcept;
+  /// Calls f(grid index) for every split diamond of the cut, in publication order.
+  void for_each_split(const std::function<void(std::uint64_t)>& f) const;
+  /// Calls f(owned_triangle) for every triangle of the cut (edge keys, unclipped).
+  void for_each_triangle(const std::function<void(const owned_triangle&)>& f) const;
+  /// The cut's surface: indexed, clipped to the data box, physical coordinates, records in
+  /// canonical order (by diamond), so it depends only on the split set.
+  [[nodiscard]] triangle_mesh mesh() const;
+  /// The coarser cut of the split diamonds whose nested error exceeds max_error.
+  [[nodiscard]] triangle_mesh mesh_cut(double max_error) const;
+  /// Checks that the root is alive and every record in the cut is well-formed (owners in the
+  /// grid, triangle counts plausible); returns false on poison or garbage (stress tests).
+  [[nodiscard]] bool check_integrity() const noexcept;
+
+ private:
+  friend class engine;
+  template <class Take>
+  triangle_mesh build(Take&& take, bool canonical, double max_error) const;
+
+  epoch_guard guard_;
+  const engine* owner_ = nullptr;
+  const detail::engine_root* root_ = nullptr;
+  std::uint64_t published_ = 0;
+};
+
+/// The engine. See the file comment.
+class engine {
+ public:
+  /// Builds the hierarchy and range data of `vol` (which must outlive the engine) and publishes
+  /// the root surface of `isovalue`. Throws progiso::error for a non-finite isovalue.
+  engine(const volume& vol, double isovalue, engine_options options = {});
+  /// Cancels any run and waits for it; every root is reclaimed. Precondition: no snapshot of
+  /// this engine is alive.
+  ~engine();
+  engine(const engine&) = delete;
+  engine& operator=(const engine&) = delete;
+
+  /// Swaps to isovalue w: cancels in-flight work, publishes w's root surface, retires the old
+  /// root, and resumes the interrupted run's goal (if a run was active). Throws progiso::error
+  /// for a non-finite w.
+  void set_isovalue(double w);
+  /// Starts refining towards `goal` in the background (cancelling a run in progress).
+  void start(const refine_goal& goal);
+  /// Stops the run: every worker stops within one split; returns once all are quiet. What was
+  /// published stays; unpublished ready diamonds go back to the queue. No-op when idle.
+  void cancel();
+  /// Blocks until no run is active (finished or cancelled).
+  void wait();
+  /// Blocking runs: start(goal) then wait(). Return true when the goal was reached (false when
+  /// cancelled from another thread, or for refine_for, when the deadline stopped the run).
+  bool refine(const refine_goal& goal);
+  bool refine_full() { return refine(refine_goal::full()); }
+  bool refine_until(double max_error) { return refine(refine_goal::error(max_error)); }
+  bool refine_for(std::chrono::steady_clock::duration budget) {
+    return refine(refine_goal::until(std::chrono::steady_clock::now() + budget));
+  }
+
+  /// A consistent view of the last published cut. O(1); never waits. Any thread.
+  [[nodiscard]] surface_snapshot snapshot() const;
+  /// The current isovalue. Any thread.
+  [[nodiscard]] double isovalue() const;
+  [[nodiscard]] bool running() const noexcept;
+  /// True when no ready diamond is left (the cut is full resolution). Any thread.
+  [[nodiscard]] bool done() const;
+  [[nodiscard]] engine_statistics statistics() const;
+
+  [[nodiscard]] const volume& field() const noexcept;
+  [[nodiscard]] const hierarchy& hierarchy_of() const noexcept;
+  [[nodiscard]] const range_data& ranges() const noexcept;
+  [[nodiscard]] unsigned threads() const noexcept;
+  [[nodiscard]] double range_build_seconds() const noexcept;
+
+ private:
+  friend class surface_snapshot;
+  std::unique_ptr<detail::engine_impl> impl_;
+};
+
+/// extract_isosurface() through the engine with `threads` workers (0: all cores): the
+/// command-line tool's path. Full mode gives the same mesh for every thread count; time mode
+/// returns the surface published by the deadline.
+[[nodiscard]] extract_result extract_isosurface_parallel(const volume& vol, double isovalue,
+                                                         const extract_options& options,
+                                                         unsigned threads);
+
+}  // namespace progiso

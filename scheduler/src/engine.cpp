@@ -1,0 +1,812 @@
+#include <progiso/scheduler/engine.hpp>
+
+#include <algorithm>
+#include <atomic>
+#include <cmath>
+#include <condition_variable>
+#include <cstring>
+#include <limits>
+#include <mutex>
+#include <optional>
+#include <string>
+#include <thread>
+#include <utility>
+#include <vector>
+
+#include <tbb/flow_graph.h>
+#include <tbb/task_arena.h>
+
+#include <progiso/concurrent/append_log.hpp>
+#include <progiso/core/assert.hpp>
+#include <progiso/core/detail/mesh_builder.hpp>
+#include <progiso/core/detail/ready_queue.hpp>
+#include <progiso/core/detail/zeroed_array.hpp>
+#include <progiso/core/error.hpp>
+#include <progiso/scheduler/tbb_environment.hpp>
+
+namespace progiso {
+namespace detail {
+namespace {
+
+using clock = std::chrono::steady_clock;
+
+// One published split: the new triangles of the split (in a buffer the root owns), the
+// diamond, its nested error and the cut's triangle count once it is published.
+struct engine_record {
+  std::uint64_t diamond;  // grid index; no_owner for the root record
+  const owned_triangle* triangles;
+  std::uint32_t count;
+  std::int32_t depth;
+  double error;
+  std::uint64_t cut_triangles;
+};
+
+struct ready_item {
+  double error;
+  int depth;
+  std::uint64_t index;
+};
+
+// Counters written by the commit step (one writer at a time) and read by anyone: relaxed
+// atomics, each exact at some moment; no other data is published through them.
+class counter {
+ public:
+  void add(std::uint64_t n) noexcept {
+    // relaxed: single writer; readers want a recent value only (statistics).
+    v_.store(v_.load(std::memory_order_relaxed) + n, std::memory_order_relaxed);
+  }
+  void set(std::uint64_t n) noexcept {
+    // relaxed: as add().
+    v_.store(n, std::memory_order_relaxed);
+  }
+  [[nodiscard]] std::uint64_t get() const noexcept {
+    // relaxed: as add().
+    return v_.load(std::memory_order_relaxed);
+  }
+
+ private:
+  std::atomic<std::uint64_t> v_{0};
+};
+
+constexpr std::uint64_t root_alive = 0x70726f6769736f31;  // "progiso1"
+constexpr std::uint64_t root_dead = 0xdbdbdbdbdbdbdbdb;
+constexpr unsigned char poison_byte = 0xdb;
+
+}  // namespace
+
+// One isovalue's progressive surface. Readers reach it through engine_impl::root (protected by
+// an epoch guard) and read the published prefix of `records` and `record_of`; everything under
+// "commit step only" belongs to whichever thread runs the serial commit (or the control thread
+// while no run is active).
+struct engine_root : epoch_object {
+  engine_root(const engine_impl& owner, double w, std::uint64_t gen, std::size_t vertices)
+      : impl(&owner), isovalue(w), generation(gen), record_of(vertices), parents(vertices) {}
+
+  std::uint64_t magic = root_alive;
+  const engine_impl* impl;
+  double isovalue;
+  std::uint64_t generation;
+  append_log<engine_record> records;
+  // Per grid vertex: index of the diamond's record, 0 while unsplit. Written once (0 → r) by the
+  // commit step before the release of records.publish(); read by readers through atomic_ref
+  // (relaxed: a value below the reader's watermark was written before that watermark's release,
+  // and any other value means "not in this cut").
+  detail::zeroed_array<std::uint32_t> record_of;
+
+  // Commit step only.
+  detail::zeroed_array<std::uint8_t> parents;  // parents split so far
+  std::vector<std::vector<owned_triangle>> buffers;
+  detail::ready_queue<ready_item> queue{queue_discipline::largest_error};
+  std::uint64_t cut_triangles = 0;
+
+  // Statistics (commit step writes, anyone reads).
+  counter splits, visited, culled, triangles, record_triangles, discarded, batches, remaining;
+  std::array<counter, tet_case_count> cases;
+  std::array<counter, primitive_count> primitives;
+  std::array<counter, split_configuration_count> configurations;
+
+  [[nodiscard]] std::uint32_t record_index(std::uint64_t vertex) const noexcept {
+    // relaxed: see record_of.
+    return std::atomic_ref<std::uint32_t>(record_of[vertex]).load(std::memory_order_relaxed);
+  }
+};
+
+namespace {
+
+struct child_info {
+  std::uint64_t index;
+  double error;
+  std::uint8_t parents_needed;
+  bool straddles;
+};
+
+struct batch_item {
+  ready_item item;
+  std::uint32_t first = 0;
+  std::uint32_t count = 0;
+  int removed = 0;
+  split_configuration configuration{};
+  std::array<std::uint8_t, tet_case_count> cases{};
+  std::array<std::uint16_t, primitive_count> primitives{};
+  std::uint8_t children = 0;
+  std::array<child_info, 8> child{};
+};
+
+// A compute task: diamonds taken from the ready queue together, computed by one worker.
+struct batch {
+  engine_root* root = nullptr;
+  std::vector<batch_item> items;
+  std::size_t computed = 0;
+  std::vector<owned_triangle> triangles;
+};
+
+}  // namespace
+
+struct engine_impl {
+  engine_impl(const volume& v, engine_options o)
+      : vol(v),
+        opt(std::move(o)),
+        hier(v.dims()),
+        ranges(build_ranges(v, hier, range_seconds)),
+        threads(effective_threads(opt.threads)),
+        domain(opt.reclamation),
+        control_participant(domain),
+        serial(next_serial()),
+        arena(static_cast<int>(threads)) {
+    arena.execute([this] {
+      graph = std::make_unique<tbb::flow::graph>();
+      compute = std::make_unique<tbb::flow::function_node<batch*, batch*>>(
+          *graph, tbb::flow::unlimited, [this](batch* b) { return compute_batch(b); });
+      commit = std::make_unique<tbb::flow::function_node<batch*>>(
+          *graph, tbb::flow::serial, [this](batch* b) { commit_batch(b); });
+      tbb::flow::make_edge(*compute, *commit);
+    });
+  }
+
+  static range_data build_ranges(const volume& v, const hierarchy& h, double& seconds) {
+    const auto t0 = clock::now();
+    range_data r(v, h);
+    seconds = std::chrono::duration<double>(clock::now() - t0).count();
+    return r;
+  }
+  // oneTBB's pool has default_concurrency() threads; asking an arena for more only warns.
+  static unsigned effective_threads(unsigned requested) {
+    const auto available = static_cast<unsigned>(scheduler::default_concurrency());
+    return requested == 0 ? available : std::min(requested, available);
+  }
+  static std::uint64_t next_serial() {
+    static std::atomic<std::uint64_t> n{1};
+    // relaxed: a unique number; nothing is published with it.
+    return n.fetch_add(1, std::memory_order_relaxed);
+  }
+
+  // ---- roots ---------------------------------------------------------------------------------
+
+  engine_root* make_root(double w, std::uint64_t gen) {
+    auto* r = make_managed<engine_root>(domain, *this, w, gen, hier.vertex_count());
+    std::vector<owned_triangle> tris;
+    std::uint64_t visited = 0;
+    std::uint64_t culled = 0;
+    for (std::uint64_t q = 0; q < hier.root_count(); ++q) {
+      const std::optional<ipoint> centre = compute_root(hier, vol, w, q, tris);
+      if (!centre) continue;
+      const diamond d = hier.make_diamond(*centre);
+      ++visited;
+      const diamond_range rr = ranges.get(d);
+      if (rr.straddles(w)) {
+        r->queue.push({rr.error, d.depth, hier.index(*centre)});
+      } else {
+        ++culled;
+      }
+    }
+    r->cut_triangles = tris.size();
+    r->records.push_back(
+        {no_owner, tris.data(), static_cast<std::uint32_t>(tris.size()), -1, 0.0, tris.size()});
+    r->buffers.push_back(std::move(tris));
+    r->records.publish();
+    r->visited.set(visited);
+    r->culled.set(culled);
+    r->triangles.set(r->cut_triangles);
+    r->record_triangles.set(r->cut_triangles);
+    r->remaining.set(r->queue.size());
+    return r;
+  }
+
+  static void destroy_root(void* p) noexcept {
+    auto* r = static_cast<engine_root*>(p);
+    PROGISO_ASSERT(r->magic == root_alive);
+    const engine_impl& impl = *r->impl;
+    if (impl.opt.poison_retired) {
+      for (auto& b : r->buffers) {
+        std::memset(static_cast<void*>(b.data()), poison_byte, b.size() * sizeof(owned_triangle));
+      }
+      for (std::size_t i = 0; i < r->records.size(); ++i) {
+        std::memset(static_cast<void*>(&r->records.at_unpublished(i)), poison_byte,
+                    sizeof(engine_record));
+      }
+      r->isovalue = std::nan("");
+    }
+    r->magic = root_dead;
+    if (impl.opt.on_reclaim) impl.opt.on_reclaim(r->generation);
+    delete r;
+  }
+
+  // ---- readers -------------------------------------------------------------------------------
+
+  // This thread's participant in the domain, registered on the thread's first snapshot of this
+  // engine (takes a mutex once); then found in a small thread-local cache, most recent first.
+  epoch_participant& reader() const {
+    struct entry {
+      std::uint64_t serial;
+      epoch_participant* participant;
+    };
+    thread_local std::vector<entry> cache;
+    for (std::size_t i = 0; i < cache.size(); ++i) {
+      if (cache[i].serial == serial) {
+        if (i != 0) std::swap(cache[i], cache[0]);
+        return *cache[0].participant;
+      }
+    }
+    epoch_participant* p = nullptr;
+    {
+      const std::lock_guard lock(readers_mutex);
+      readers.push_back(std::make_unique<epoch_participant>(domain));
+      p = readers.back().get();
+    }
+    // Forgotten entries keep their participant registered (owned by its engine) but unused.
+    if (cache.size() >= 8) cache.pop_back();
+    cache.push_back({serial, p});
+    std::rotate(cache.begin(), cache.end() - 1, cache.end());
+    return *p;
+  }
+
+  // ---- the run -------------------------------------------------------------------------------
+
+  [[nodiscard]] bool eligible(const engine_root& r) const noexcept {
+    if (r.queue.empty()) return false;
+    if (goal.what == refine_goal::kind::error) return r.queue.top().error > goal.max_error;
+    return true;
+  }
+  [[nodiscard]] bool past_deadline() const noexcept {
+    return goal.what == refine_goal::kind::deadline && clock::now() >= goal.deadline;
+  }
+  [[nodiscard]] bool stopping() const noexcept {
+    // relaxed: a request flag; the data the run publishes is ordered by records.publish().
+    return stop.load(std::memory_order_relaxed);
+  }
+  void request_stop() noexcept {
+    // relaxed: see stopping().
+    stop.store(true, std::memory_order_relaxed);
+  }
+
+  // Commit step (or the driver before any task exists): fills the in-flight window.
+  void dispatch(engine_root& r) {
+    const std::size_t window = std::max<std::size_t>(1, opt.tasks_per_thread * threads);
+    const std::size_t max_batch = std::max<std::size_t>(1, opt.batch);
+    while (inflight < window && !stopping() && eligible(r) && !past_deadline()) {
+      const std::size_t n = std::clamp<std::size_t>(r.queue.size() / (2 * threads), 1, max_batch);
+      auto* b = new batch;
+      b->root = &r;
+      b->items.reserve(n);
+      while (b->items.size() < n && eligible(r)) {
+        b->items.push_back({r.queue.top()});
+        r.queue.pop();
+      }
+      inflight_items += b->items.size();
+      ++inflight;
+      compute->try_put(b);
+    }
+  }
+
+  // Any worker, in parallel: split records of the batch's diamonds (pure), and what the
+  // commit step needs to know about their children.
+  batch* compute_batch(batch* b) {
+    const double w = b->root->isovalue;
+    std::array<ipoint, 8> children{};
+    for (batch_item& it : b->items) {
+      if (stopping() || past_deadline()) break;
+      const diamond d = hier.make_diamond(hier.point(it.item.index));
+      const std::size_t first = b->triangles.size();
+      const split_summary s = compute_split(hier, vol, w, d, b->triangles);
+      it.first = static_cast<std::uint32_t>(first);
+      it.count = static_cast<std::uint32_t>(b->triangles.size() - first);
+      it.removed = s.removed_triangles;
+      it.configuration = s.configuration;
+      it.cases = s.cases;
+      it.primitives = s.primitives;
+      const int nc = hier.children(d, children);
+      it.children = static_cast<std::uint8_t>(nc);
+      for (int i = 0; i < nc; ++i) {
+        const ipoint& c = children[static_cast<std::size_t>(i)];
+        child_info& ci = it.child[static_cast<std::size_t>(i)];
+        ci.index = hier.index(c);
+        ci.parents_needed = static_cast<std::uint8_t>(hier.parent_count(c));
+        // Every parent looks the child's range up, in parallel, so the serial commit step
+        // only counts parents (redundant work for children with several parents, off the
+        // critical path).
+        const diamond_range cr = ranges.get(c);
+        ci.straddles = cr.straddles(w);
+        ci.error = cr.error;
+      }
+      ++b->computed;
+    }
+    return b;
+  }
+
+  // The serial commit step: publishes the batch's records in order (their parents are all
+  // published: they were ready when taken), makes children ready, refills the window.
+  void commit_batch(batch* b) {
+    engine_root& r = *b->root;
+    --inflight;
+    inflight_items -= b->items.size();
+    std::size_t published = 0;
+    if (!stopping() && b->computed > 0) {
+      r.buffers.push_back(std::move(b->triangles));
+      const owned_triangle* base = r.buffers.back().data();
+      std::array<std::uint64_t, tet_case_count> cases{};
+      std::array<std::uint64_t, primitive_count> prims{};
+      std::array<std::uint64_t, split_configuration_count> configs{};
+      std::uint64_t added = 0;
+      std::uint64_t visited = 0;
+      std::uint64_t culled = 0;
+      for (std::size_t i = 0; i < b->computed; ++i) {
+        const batch_item& it = b->items[i];
+        if (past_deadline()) {
+          request_stop();
+          break;
+        }
+        const std::uint64_t after = r.cut_triangles + it.count - static_cast<unsigned>(it.removed);
+        if (goal.what == refine_goal::kind::triangles && after > goal.max_triangles) {
+          budget_hit = true;
+          request_stop();
+          break;
+        }
+        const std::size_t index = r.records.size();
+        PROGISO_ASSERT(index < (std::size_t{1} << 32));
+        r.cut_triangles = after;
+        r.records.push_back(
+            {it.item.index, base + it.first, it.count, it.item.depth, it.item.error, after});
+        std::atomic_ref<std::uint32_t>(r.record_of[it.item.index])
+            .store(static_cast<std::uint32_t>(index),
+                   // relaxed: published by the release in records.publish() below.
+                   std::memory_order_relaxed);
+        added += it.count;
+        for (std::size_t k = 0; k < tet_case_count; ++k) cases[k] += it.cases[k];
+        for (std::size_t k = 0; k < primitive_count; ++k) prims[k] += it.primitives[k];
+        ++configs[static_cast<std::size_t>(it.configuration)];
+        for (std::size_t c = 0; c < it.children; ++c) {
+          const child_info& ci = it.child[c];
+          std::uint8_t& count = r.parents[ci.index];
+          ++count;
+          if (count != ci.parents_needed) continue;
+          ++visited;
+          if (ci.straddles) {
+            r.queue.push({ci.error, it.item.depth + 1, ci.index});
+          } else {
+            ++culled;
+          }
+        }
+        last_depth = it.item.depth;
+        ++published;
+      }
+      r.records.publish();
+      r.splits.add(published);
+      r.triangles.set(r.cut_triangles);
+      r.record_triangles.add(added);
+      r.visited.add(visited);
+      r.culled.add(culled);
+      for (std::size_t k = 0; k < tet_case_count; ++k) r.cases[k].add(cases[k]);
+      for (std::size_t k = 0; k < primitive_count; ++k) r.primitives[k].add(prims[k]);
+      for (std::size_t k = 0; k < split_configuration_count; ++k) {
+        r.configurations[k].add(configs[k]);
+      }
+    }
+    // What was not published goes back to the queue: still ready, never lost.
+    for (std::size_t i = published; i < b->items.size(); ++i) r.queue.push(b->items[i].item);
+    r.discarded.add(b->computed - std::min(b->computed, published));
+    r.batches.add(1);
+    delete b;
+    dispatch(r);
+    r.remaining.set(r.queue.size() + inflight_items);
+    if (opt.progress) {
+      since_progress += published;
+      if (since_progress >= opt.progress_interval) {
+        since_progress = 0;
+        opt.progress({r.splits.get(), r.cut_triangles, r.queue.empty() ? 0.0 : r.queue.top().error,
+                      last_depth});
+      }
+    }
+  }
+
+  // The driver thread of one run.
+  void drive(engine_root* r) {
+    arena.execute([&] {
+      dispatch(*r);
+      graph->wait_for_all();
+    });
+    r->remaining.set(r->queue.size());
+    {
+      const std::lock_guard lock(control);
+      bool reached = false;
+      if (!user_cancelled) {
+        switch (goal.what) {
+          case refine_goal::kind::full:
+          case refine_goal::kind::error:
+            reached = !eligible(*r);
+            break;
+          case refine_goal::kind::triangles:
+            reached = budget_hit || r->queue.empty();
+            break;
+          case refine_goal::kind::deadline:
+            reached = r->queue.empty();
+            break;
+        }
+      }
+      last_reached = reached;
+      active = false;
+      // relaxed: a status reading for running(); waiters synchronise through `control`.
+      active_flag.store(false, std::memory_order_relaxed);
+      if (!reached) cancelled_runs.add(1);
+    }
+    idle.notify_all();
+  }
+
+  // Control (caller holds `control`).
+  void launch(std::unique_lock<std::mutex>& lock, const refine_goal& g) {
+    stop_and_join(lock);
+    engine_root* r = current();
+    goal = g;
+    r->queue.set_discipline(g.what == refine_goal::kind::full ? queue_discipline::lifo
+                                                              : queue_discipline::largest_error);
+    stop.store(false, std::memory_order_relaxed);  // relaxed: the thread start orders it
+    user_cancelled = false;
+    budget_hit = false;
+    active = true;
+    active_flag.store(true, std::memory_order_relaxed);  // relaxed: status only
+    runs.add(1);
+    driver = std::thread([this, r] { drive(r); });
+  }
+  void stop_and_join(std::unique_lock<std::mutex>& lock) {
+    if (!driver.joinable()) return;
+    if (active) {
+      user_cancelled = true;
+      request_stop();
+    }
+    std::thread t = std::move(driver);
+    lock.unlock();
+    t.join();
+    lock.lock();
+  }
+  [[nodiscard]] engine_root* current() const noexcept {
+    // relaxed: the control thread is the only writer of `root`.
+    return root.load(std::memory_order_relaxed);
+  }
+
+  const volume& vol;
+  engine_options opt;
+  hierarchy hier;
+  double range_seconds = 0.0;
+  range_data ranges;
+  unsigned threads;
+  mutable epoch_domain domain;
+  epoch_participant control_participant;  // retires roots; used under `control`
+  mutable std::mutex readers_mutex;
+  mutable std::vector<std::unique_ptr<epoch_participant>> readers;
+  std::uint64_t serial;
+  // The published root: release-stored by set_isovalue() (pairs with the acquire in
+  // epoch_guard::protect() of snapshot()).
+  std::atomic<engine_root*> root{nullptr};
+
+  tbb::task_arena arena;
+  std::unique_ptr<tbb::flow::graph> graph;
+  std::unique_ptr<tbb::flow::function_node<batch*, batch*>> compute;
+  std::unique_ptr<tbb::flow::function_node<batch*>> commit;
+
+  // Run state. `goal` is set before the driver starts (thread start orders it) and read by
+  // tasks; inflight, inflight_items, budget_hit, last_depth, since_progress belong to the
+  // commit step.
+  refine_goal goal;
+  std::atomic<bool> stop{false};
+  std::size_t inflight = 0;
+  std::size_t inflight_items = 0;
+  bool budget_hit = false;
+  int last_depth = 0;
+  std::uint64_t since_progress = 0;
+
+  std::mutex control;
+  std::condition_variable idle;
+  std::thread driver;
+  bool active = false;          // guarded by control
+  bool user_cancelled = false;  // guarded by control (read by the driver after its run)
+  bool last_reached = false;    // guarded by control
+  std::atomic<bool> active_flag{false};
+  counter runs, cancelled_runs;
+  std::uint64_t generation = 0;  // guarded by control
+};
+
+}  // namespace detail
+
+// ---------------------------------------------------------------------------------------------
+// engine
+
+engine::engine(const volume& vol, double isovalue, engine_options options) {
+  if (!std::isfinite(isovalue)) {
+    throw error("isovalue: expected a finite number, found " + std::to_string(isovalue));
+  }
+  impl_ = std::make_unique<detail::engine_impl>(vol, std::move(options));
+  // release: pairs with the acquire in epoch_guard::protect() (snapshot()).
+  impl_->root.store(impl_->make_root(isovalue, 0), std::memory_order_release);
+}
+
+engine::~engine() {
+  {
+    std::unique_lock lock(impl_->control);
+    impl_->stop_and_join(lock);
+  }
+  impl_->arena.execute([this] { impl_->graph->wait_for_all(); });
+  detail::engine_root* r = impl_->current();
+  impl_->root.store(nullptr, std::memory_order_relaxed);  // relaxed: no reader is left
+  detail::engine_impl::destroy_root(r);
+  // Participants, then the domain (which drains the retired roots), go with impl_.
+  impl_->readers.clear();
+}
+
+void engine::set_isovalue(double w) {
+  if (!std::isfinite(w)) {
+    throw error("isovalue: expected a finite number, found " + std::to_string(w));
+  }
+  std::unique_lock lock(impl_->control);
+  const bool resume = impl_->active;
+  const refine_goal goal = impl_->goal;
+  impl_->stop_and_join(lock);
+  detail::engine_root* old = impl_->current();
+  detail::engine_root* fresh = impl_->make_root(w, ++impl_->generation);
+  // seq_cst (the default): release for readers' protect(), and the unlink must be seq_cst for
+  // the TSan variant of the reclamation argument (concurrent/epoch.hpp).
+  impl_->root.store(fresh);
+  impl_->control_participant.retire(old, &detail::engine_impl::destroy_root, old->birth_era());
+  if (resume) impl_->launch(lock, goal);
+}
+
+void engine::start(const refine_goal& goal) {
+  if (goal.what == refine_goal::kind::error && !(goal.max_error >= -1e300)) {
+    throw error("refine goal: expected a number as error threshold");
+  }
+  std::unique_lock lock(impl_->control);
+  impl_->launch(lock, goal);
+}
+
+void engine::cancel() {
+  std::unique_lock lock(impl_->control);
+  impl_->stop_and_join(lock);
+}
+
+void engine::wait() {
+  std::unique_lock lock(impl_->control);
+  impl_->idle.wait(lock, [this] { return !impl_->active; });
+}
+
+bool engine::refine(const refine_goal& goal) {
+  std::unique_lock lock(impl_->control);
+  impl_->launch(lock, goal);
+  impl_->idle.wait(lock, [this] { return !impl_->active; });
+  return impl_->last_reached;
+}
+
+surface_snapshot engine::snapshot() const {
+  surface_snapshot s;
+  s.guard_ = impl_->reader().pin();
+  s.owner_ = this;
+  s.root_ = s.guard_.protect(impl_->root);
+  s.published_ = s.root_->records.published();
+  return s;
+}
+
+double engine::isovalue() const {
+  epoch_guard g = impl_->reader().pin();
+  return g.protect(impl_->root)->isovalue;
+}
+
+bool engine::running() const noexcept {
+  // relaxed: a status reading.
+  return impl_->active_flag.load(std::memory_order_relaxed);
+}
+
+bool engine::done() const {
+  epoch_guard g = impl_->reader().pin();
+  return g.protect(impl_->root)->remaining.get() == 0;
+}
+
+engine_statistics engine::statistics() const {
+  engine_statistics s;
+  {
+    epoch_guard g = impl_->reader().pin();
+    const detail::engine_root* r = g.protect(impl_->root);
+    s.refine.splits = r->splits.get();
+    s.refine.visited = r->visited.get();
+    s.refine.culled = r->culled.get();
+    s.refine.triangles = r->triangles.get();
+    s.refine.record_triangles = r->record_triangles.get();
+    for (std::size_t k = 0; k < tet_case_count; ++k) s.refine.cases[k] = r->cases[k].get();
+    for (std::size_t k = 0; k < primitive_count; ++k) {
+      s.refine.primitives[k] = r->primitives[k].get();
+    }
+    for (std::size_t k = 0; k < split_configuration_count; ++k) {
+      s.refine.configurations[k] = r->configurations[k].get();
+    }
+    s.published = r->records.published();
+    s.discarded = r->discarded.get();
+    s.batches = r->batches.get();
+    s.generation = r->generation;
+  }
+  s.runs = impl_->runs.get();
+  s.cancelled_runs = impl_->cancelled_runs.get();
+  s.reclamation = impl_->domain.statistics();
+  return s;
+}
+
+const volume& engine::field() const noexcept { return impl_->vol; }
+const hierarchy& engine::hierarchy_of() const noexcept { return impl_->hier; }
+const range_data& engine::ranges() const noexcept { return impl_->ranges; }
+unsigned engine::threads() const noexcept { return impl_->threads; }
+double engine::range_build_seconds() const noexcept { return impl_->range_seconds; }
+
+// ---------------------------------------------------------------------------------------------
+// surface_snapshot
+
+double surface_snapshot::isovalue() const noexcept { return root_->isovalue; }
+std::uint64_t surface_snapshot::generation() const noexcept { return root_->generation; }
+std::uint64_t surface_snapshot::triangle_count() const noexcept {
+  return root_->records[published_ - 1].cut_triangles;
+}
+
+bool surface_snapshot::is_split(std::uint64_t index) const noexcept {
+  const std::uint32_t r = root_->record_index(index);
+  return r != 0 && r < published_;
+}
+
+void surface_snapshot::for_each_split(const std::function<void(std::uint64_t)>& f) const {
+  for (std::uint64_t r = 1; r < published_; ++r) f(root_->records[r].diamond);
+}
+
+void surface_snapshot::for_each_triangle(
+    const std::function<void(const owned_triangle&)>& f) const {
+  for (std::uint64_t r = 0; r < published_; ++r) {
+    const detail::engine_record& rec = root_->records[r];
+    for (std::uint32_t k = 0; k < rec.count; ++k) {
+      const owned_triangle& t = rec.triangles[k];
+      if (t.owner == no_owner || !is_split(t.owner)) f(t);
+    }
+  }
+}
+
+template <class Take>
+triangle_mesh surface_snapshot::build(Take&& take, bool canonical, double max_error) const {
+  const engine& e = *owner_;
+  detail::mesh_builder b(e.hierarchy_of(), e.field(), root_->isovalue,
+                         static_cast<std::size_t>(triangle_count() / 2 + 16));
+  std::vector<std::pair<std::uint64_t, std::uint32_t>> order;
+  order.reserve(published_);
+  for (std::uint64_t r = 1; r < published_; ++r) {
+    const detail::engine_record& rec = root_->records[r];
+    if (rec.error > max_error) order.emplace_back(rec.diamond, static_cast<std::uint32_t>(r));
+  }
+  if (canonical) std::sort(order.begin(), order.end());
+  const auto walk = [&](const detail::engine_record& rec) {
+    for (std::uint32_t k = 0; k < rec.count; ++k) {
+      const owned_triangle& t = rec.triangles[k];
+      if (take(t.owner)) b.add(t.keys);
+    }
+  };
+  walk(root_->records[0]);
+  for (const auto& [d, r] : order) walk(root_->records[r]);
+  return b.finish();
+}
+
+triangle_mesh surface_snapshot::mesh() const {
+  PROGISO_ASSERT(valid());
+  return build([this](std::uint64_t owner) { return owner == no_owner || !is_split(owner); }, true,
+               -std::numeric_limits<double>::infinity());
+}
+
+triangle_mesh surface_snapshot::mesh_cut(double max_error) const {
+  PROGISO_ASSERT(valid());
+  return build(
+      [this, max_error](std::uint64_t owner) {
+        if (owner == no_owner || !is_split(owner)) return true;
+        return !(root_->records[root_->record_index(owner)].error > max_error);
+      },
+      true, max_error);
+}
+
+bool surface_snapshot::check_integrity() const noexcept {
+  if (root_ == nullptr) return false;
+  if (root_->magic != detail::root_alive || !std::isfinite(root_->isovalue)) return false;
+  const std::uint64_t vertices = owner_->hierarchy_of().vertex_count();
+  for (std::uint64_t r = 0; r < published_; ++r) {
+    const detail::engine_record& rec = root_->records[r];
+    if (r == 0) {
+      if (rec.diamond != no_owner) return false;
+    } else {
+      if (rec.diamond >= vertices || root_->record_index(rec.diamond) != r) return false;
+      if (rec.count > 64 || !(rec.error >= 0.0)) return false;
+    }
+    for (std::uint32_t k = 0; k < rec.count; ++k) {
+      const std::uint64_t o = rec.triangles[k].owner;
+      if (o != no_owner && o >= vertices) return false;
+    }
+  }
+  return true;
+}
+
+// ---------------------------------------------------------------------------------------------
+
+extract_result extract_isosurface_parallel(const volume& vol, double isovalue,
+                                           const extract_options& options, unsigned threads) {
+  using clock = std::chrono::steady_clock;
+  const auto seconds = [](clock::duration d) { return std::chrono::duration<double>(d).count(); };
+  if (!std::isfinite(isovalue)) {
+    throw error("--iso: expected a finite isovalue, found " + std::to_string(isovalue));
+  }
+  if (options.mode == extract_mode::error && !(options.max_error >= 0.0)) {
+    throw error("--error: expected a non-negative error, found " +
+                std::to_string(options.max_error));
+  }
+  if (options.mode == extract_mode::time && !(options.time_budget.count() >= 0.0)) {
+    throw error("--time-ms: expected a non-negative time budget");
+  }
+  extract_result res;
+  engine_options eo;
+  eo.threads = threads;
+  int max_depth = 0;
+  if (options.progress) {
+    eo.progress = [&options, &max_depth](const engine_progress& p) {
+      options.progress({p.splits, p.triangles, p.depth, max_depth});
+    };
+  }
+  const auto t0 = clock::now();
+  engine eng(vol, isovalue, std::move(eo));
+  max_depth = eng.hierarchy_of().max_depth();
+  res.range_build_seconds = eng.range_build_seconds();
+  res.range_bytes = eng.ranges().byte_size();
+  const auto [lo, hi] = vol.value_range();
+  res.isovalue_outside_data = !(lo <= isovalue && isovalue < hi);
+  {
+    const surface_snapshot first = eng.snapshot();
+    const triangle_mesh m = first.mesh();
+    res.first_surface_seconds = seconds(clock::now() - t0) - res.range_build_seconds;
+  }
+  const auto t1 = clock::now();
+  switch (options.mode) {
+    case extract_mode::full:
+      eng.refine_full();
+      break;
+    case extract_mode::error:
+      eng.refine_until(options.max_error);
+      break;
+    case extract_mode::triangles:
+      eng.refine(refine_goal::triangles(options.max_triangles));
+      break;
+    case extract_mode::time:
+      // The budget counts from the start of refinement, after range-data preprocessing.
+      eng.refine(
+          refine_goal::until(t0 +
+                             std::chrono::duration_cast<clock::duration>(
+                                 std::chrono::duration<double>(res.range_build_seconds)) +
+                             std::chrono::duration_cast<clock::duration>(options.time_budget)));
+      break;
+  }
+  const auto t2 = clock::now();
+  res.refine_seconds = seconds(t2 - t1);
+  {
+    const surface_snapshot s = eng.snapshot();
+    res.mesh = s.mesh();
+  }
+  const auto t3 = clock::now();
+  res.extract_seconds = seconds(t3 - t2);
+  res.total_seconds = seconds(t3 - t0);
+  res.stats = eng.statistics().refine;
+  return res;
+}
+
+}  // namespace progiso

@@ -1,0 +1,289 @@
+// The concurrent engine: the four scenarios, snapshots, determinism, reclamation of roots.
+#include <progiso/core/analytic.hpp>
+#include <progiso/core/error.hpp>
+#include <progiso/core/refiner.hpp>
+#include <progiso/scheduler/engine.hpp>
+
+#include <atomic>
+#include <chrono>
+#include <cmath>
+#include <limits>
+#include <map>
+#include <mutex>
+#include <set>
+#include <thread>
+#include <unordered_set>
+#include <vector>
+
+#include <gtest/gtest.h>
+
+#include "support/mesh_checks.hpp"
+#include "support/reference_mt.hpp"
+
+namespace progiso {
+namespace {
+
+using namespace std::chrono_literals;
+
+// The sequential refiner's surface for exactly the snapshot's split set.
+triangle_mesh replay(const engine& e, const surface_snapshot& s) {
+  std::unordered_set<std::uint64_t> split;
+  s.for_each_split([&](std::uint64_t d) { split.insert(d); });
+  refiner r(e.field(), e.hierarchy_of(), e.ranges(), s.isovalue(), refine_order::breadth_first);
+  r.refine_set([&](std::uint64_t d) { return split.count(d) != 0; });
+  EXPECT_EQ(r.statistics().splits, split.size()) << "the split set is not parent-closed";
+  return r.extract();
+}
+
+engine_options with_threads(unsigned n) {
+  engine_options o;
+  o.threads = n;
+  return o;
+}
+
+TEST(Engine, root_surface_is_published_at_construction) {
+  const volume v = make_marschner_lobb({33, 33, 33});
+  engine e(v, 0.5, with_threads(2));
+  const surface_snapshot s = e.snapshot();
+  ASSERT_TRUE(s.valid());
+  EXPECT_EQ(s.isovalue(), 0.5);
+  EXPECT_EQ(s.generation(), 0u);
+  EXPECT_EQ(s.split_count(), 0u);
+  refiner r(e.field(), e.hierarchy_of(), e.ranges(), 0.5);
+  EXPECT_TRUE(test::same_surface(s.mesh(), r.extract()));
+  EXPECT_FALSE(e.done());
+  EXPECT_THROW(engine(v, std::nan(""), {}), error);
+}
+
+TEST(Engine, full_refinement_equals_marching_tetrahedra_for_every_thread_count) {
+  for (const auto& [name, v, w] :
+       {std::tuple{"sphere", make_sphere_field({33, 29, 31}, {15.2, 14.1, 15.7}), 9.3},
+        std::tuple{"marschner-lobb", make_marschner_lobb({41, 41, 41}), 0.5},
+        std::tuple{"blobs", make_gaussian_blobs({37, 33, 35}, 6, 5u), 0.4}}) {
+    SCOPED_TRACE(name);
+    const test::reference_surface ref = test::reference_marching_tetrahedra(v, w);
+    for (const unsigned n : {1u, 2u, 3u}) {
+      SCOPED_TRACE(n);
+      engine e(v, w, with_threads(n));
+      EXPECT_TRUE(e.refine_full());
+      EXPECT_TRUE(e.done());
+      const surface_snapshot s = e.snapshot();
+      EXPECT_TRUE(test::same_surface(s.mesh(), ref.mesh));
+      EXPECT_TRUE(s.check_integrity());
+    }
+  }
+}
+
+TEST(Engine, mesh_is_byte_identical_whatever_the_thread_count_and_batch_size) {
+  const volume v = make_gaussian_blobs({45, 41, 43}, 7, 11u);
+  std::vector<triangle_mesh> meshes;
+  for (const auto& [n, b] : {std::pair{1u, 32u}, std::pair{2u, 32u}, std::pair{2u, 1u},
+                             std::pair{3u, 7u}, std::pair{4u, 64u}}) {
+    engine_options o;
+    o.threads = n;
+    o.batch = b;
+    engine e(v, 0.45, o);
+    e.refine_full();
+    meshes.push_back(e.snapshot().mesh());
+  }
+  for (std::size_t i = 1; i < meshes.size(); ++i) {
+    EXPECT_EQ(meshes[i].vertices, meshes[0].vertices) << i;
+    EXPECT_EQ(meshes[i].triangles, meshes[0].triangles) << i;
+  }
+}
+
+TEST(Engine, quality_driven_splits_exactly_the_sequential_set) {
+  const volume v = make_marschner_lobb({33, 33, 33});
+  const hierarchy h(v.dims());
+  const range_data ranges(v, h);
+  for (const double eps : {0.2, 0.05, 0.01}) {
+    SCOPED_TRACE(eps);
+    refiner r(v, h, ranges, 0.5);
+    r.refine_to_error(eps);
+    engine e(v, 0.5, with_threads(2));
+    EXPECT_TRUE(e.refine_until(eps));
+    const surface_snapshot s = e.snapshot();
+    EXPECT_EQ(s.split_count(), r.statistics().splits);
+    EXPECT_TRUE(test::same_surface(s.mesh(), r.extract()));
+    // and the coarser cuts by error agree with the sequential ones
+    EXPECT_TRUE(test::same_surface(s.mesh_cut(eps * 4), r.extract_cut(eps * 4)));
+  }
+}
+
+TEST(Engine, triangle_budget_is_respected) {
+  const volume v = make_gaussian_blobs({33, 33, 33}, 8, 3u);
+  const auto box = test::data_box(v);
+  for (const std::uint64_t k : {50u, 400u, 3000u}) {
+    engine e(v, 0.4, with_threads(2));
+    EXPECT_TRUE(e.refine(refine_goal::triangles(k)));
+    const surface_snapshot s = e.snapshot();
+    EXPECT_LE(s.triangle_count(), k);
+    EXPECT_GT(s.split_count(), 0u);
+    EXPECT_TRUE(test::check_valid_cut(s.mesh(), box[0], box[1]));
+  }
+}
+
+TEST(Engine, time_critical_gives_a_surface_by_the_deadline_then_improves_it) {
+  const volume v = make_marschner_lobb({65, 65, 65});
+  engine e(v, 0.5, with_threads(2));
+  // τ1: a surface within 2 ms; τ2: more refinement on top of it.
+  EXPECT_FALSE(e.refine_for(2ms)) << "65³ does not refine fully in 2 ms";
+  const surface_snapshot first = e.snapshot();
+  const std::uint64_t first_splits = first.split_count();
+  EXPECT_GT(first_splits, 0u);
+  EXPECT_TRUE(test::same_surface(first.mesh(), replay(e, first)));
+  e.refine_for(20ms);
+  const surface_snapshot second = e.snapshot();
+  EXPECT_GT(second.split_count(), first_splits);
+  EXPECT_TRUE(test::same_surface(second.mesh(), replay(e, second)));
+  // Nothing was lost: the work interrupted by deadlines still reaches the full surface.
+  e.refine_full();
+  EXPECT_TRUE(
+      test::same_surface(e.snapshot().mesh(), test::reference_marching_tetrahedra(v, 0.5).mesh));
+}
+
+TEST(Engine, cancel_from_another_thread_stops_every_worker_and_keeps_what_was_published) {
+  const volume v = make_marschner_lobb({97, 97, 97});
+  engine e(v, 0.5, with_threads(2));
+  e.start(refine_goal::full());
+  EXPECT_TRUE(e.running() || e.done());
+  std::thread canceller([&] {
+    std::this_thread::sleep_for(5ms);
+    e.cancel();
+  });
+  canceller.join();
+  EXPECT_FALSE(e.running());
+  const engine_statistics a = e.statistics();
+  ASSERT_FALSE(e.done()) << "97³ refines fully in 5 ms? make the volume larger";
+  std::this_thread::sleep_for(10ms);
+  const engine_statistics b = e.statistics();
+  EXPECT_EQ(a.published, b.published) << "a worker published after cancel() returned";
+  EXPECT_EQ(a.batches, b.batches) << "a task ran after cancel() returned";
+  EXPECT_GE(b.cancelled_runs, 1u);
+  const surface_snapshot s = e.snapshot();
+  EXPECT_EQ(s.split_count() + 1, b.published);
+  EXPECT_TRUE(test::same_surface(s.mesh(), replay(e, s)));
+  // Restarting continues from the published cut and reaches the full surface.
+  e.start(refine_goal::full());
+  e.wait();
+  EXPECT_TRUE(e.done());
+  EXPECT_TRUE(
+      test::same_surface(e.snapshot().mesh(), test::reference_marching_tetrahedra(v, 0.5).mesh));
+}
+
+TEST(Engine, isovalue_change_publishes_the_new_root_at_once_and_resumes_refining) {
+  const volume v = make_marschner_lobb({65, 65, 65});
+  std::mutex m;
+  std::multiset<std::uint64_t> reclaimed;
+  {
+    engine_options o = with_threads(2);
+    o.poison_retired = true;
+    o.on_reclaim = [&](std::uint64_t g) {
+      const std::lock_guard lock(m);
+      reclaimed.insert(g);
+    };
+    engine e(v, 0.5, o);
+    e.start(refine_goal::full());
+    std::this_thread::sleep_for(2ms);
+    e.set_isovalue(0.3);
+    {
+      const surface_snapshot s = e.snapshot();
+      EXPECT_EQ(s.isovalue(), 0.3);
+      EXPECT_EQ(s.generation(), 1u);
+      EXPECT_TRUE(s.check_integrity());
+    }
+    e.wait();
+    EXPECT_TRUE(e.done()) << "the interrupted full goal resumes at the new isovalue";
+    const surface_snapshot s = e.snapshot();
+    EXPECT_TRUE(test::same_surface(s.mesh(), test::reference_marching_tetrahedra(v, 0.3).mesh));
+    EXPECT_EQ(e.statistics().reclamation.retired, 1u);
+    EXPECT_THROW(e.set_isovalue(std::numeric_limits<double>::infinity()), error);
+  }
+  EXPECT_EQ(reclaimed, (std::multiset<std::uint64_t>{0, 1})) << "each root reclaimed exactly once";
+}
+
+TEST(Engine, a_held_snapshot_keeps_its_root_readable_across_isovalue_changes) {
+  const volume v = make_sphere_field({33, 33, 33}, {16.2, 15.7, 16.4});
+  engine_options o = with_threads(2);
+  o.poison_retired = true;
+  o.reclamation.reclaim_threshold = 2;
+  o.reclamation.era_frequency = 1;
+  engine e(v, 10.0, o);
+  e.refine_until(0.5);
+  const surface_snapshot held = e.snapshot();
+  const triangle_mesh before = held.mesh();
+  for (int i = 0; i < 30; ++i) {
+    e.set_isovalue(8.0 + 0.1 * i);
+    e.refine_until(0.5);
+  }
+  // The stalled reader pins only its own root: the others were reclaimed.
+  const epoch_statistics st = e.statistics().reclamation;
+  EXPECT_EQ(st.retired, 30u);
+  EXPECT_LE(st.pending, 1u + o.reclamation.reclaim_threshold);
+  EXPECT_TRUE(held.check_integrity());
+  EXPECT_EQ(held.isovalue(), 10.0);
+  const triangle_mesh after = held.mesh();
+  EXPECT_EQ(after.vertices, before.vertices);
+  EXPECT_EQ(after.triangles, before.triangles);
+}
+
+TEST(Engine, snapshots_taken_while_refining_are_valid_cuts_of_one_isovalue) {
+  const volume v = make_gaussian_blobs({49, 49, 49}, 9, 7u);
+  const auto box = test::data_box(v);
+  engine e(v, 0.4, with_threads(2));
+  e.start(refine_goal::full());
+  std::vector<std::uint64_t> seen;
+  while (e.running()) {
+    const surface_snapshot s = e.snapshot();
+    seen.push_back(s.split_count());
+    if (seen.size() % 4 == 1) {
+      const triangle_mesh m = s.mesh();
+      EXPECT_TRUE(test::check_valid_cut(m, box[0], box[1]));
+      EXPECT_TRUE(test::same_surface(m, replay(e, s)));
+    }
+  }
+  e.wait();
+  EXPECT_TRUE(std::is_sorted(seen.begin(), seen.end())) << "published cuts only grow";
+  EXPECT_GE(seen.size(), 2u);
+}
+
+TEST(Engine, statistics_count_cases_and_primitives_like_the_sequential_refiner) {
+  const volume v = make_marschner_lobb({33, 33, 33});
+  const hierarchy h(v.dims());
+  const range_data ranges(v, h);
+  refiner r(v, h, ranges, 0.5);
+  r.refine_full();
+  engine e(v, 0.5, with_threads(2));
+  e.refine_full();
+  const refine_statistics a = r.statistics();
+  const refine_statistics b = e.statistics().refine;
+  EXPECT_EQ(a.splits, b.splits);
+  EXPECT_EQ(a.visited, b.visited);
+  EXPECT_EQ(a.culled, b.culled);
+  EXPECT_EQ(a.triangles, b.triangles);
+  EXPECT_EQ(a.record_triangles, b.record_triangles);
+  EXPECT_EQ(a.cases, b.cases);
+  EXPECT_EQ(a.primitives, b.primitives);
+  EXPECT_EQ(a.configurations, b.configurations);
+}
+
+TEST(Engine, parallel_extraction_matches_the_sequential_one_in_every_mode) {
+  const volume v = make_marschner_lobb({41, 41, 41});
+  extract_options full;
+  const extract_result seq = extract_isosurface(v, 0.5, full);
+  const extract_result par = extract_isosurface_parallel(v, 0.5, full, 2);
+  EXPECT_TRUE(test::same_surface(seq.mesh, par.mesh));
+  EXPECT_EQ(seq.stats.splits, par.stats.splits);
+  extract_options err;
+  err.mode = extract_mode::error;
+  err.max_error = 0.05;
+  EXPECT_TRUE(test::same_surface(extract_isosurface(v, 0.5, err).mesh,
+                                 extract_isosurface_parallel(v, 0.5, err, 2).mesh));
+  extract_options bad;
+  bad.mode = extract_mode::error;
+  bad.max_error = -1.0;
+  EXPECT_THROW((void)extract_isosurface_parallel(v, 0.5, bad, 2), error);
+}
+
+}  // namespace
+}  // namespace progiso
