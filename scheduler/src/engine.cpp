@@ -135,6 +135,7 @@ struct batch_item {
 // A compute task: diamonds taken from the ready queue together, computed by one worker.
 struct batch {
   engine_root* root = nullptr;
+  bool seed = false;  // no work: asks the commit step to fill the window (a run's start)
   std::vector<batch_item> items;
   std::size_t computed = 0;
   std::vector<owned_triangle> triangles;
@@ -279,7 +280,7 @@ struct engine_impl {
     stop.store(true, std::memory_order_relaxed);
   }
 
-  // Commit step (or the driver before any task exists): fills the in-flight window.
+  // Commit step only: fills the in-flight window.
   void dispatch(engine_root& r) {
     const std::size_t window = std::max<std::size_t>(1, opt.tasks_per_thread * threads);
     const std::size_t max_batch = std::max<std::size_t>(1, opt.batch);
@@ -337,6 +338,12 @@ struct engine_impl {
   // published: they were ready when taken), makes children ready, refills the window.
   void commit_batch(batch* b) {
     engine_root& r = *b->root;
+    if (b->seed) {
+      delete b;
+      dispatch(r);
+      r.remaining.set(r.queue.size() + inflight_items);
+      return;
+    }
     --inflight;
     inflight_items -= b->items.size();
     std::size_t published = 0;
@@ -420,8 +427,13 @@ struct engine_impl {
 
   // The driver thread of one run.
   void drive(engine_root* r) {
+    // The first dispatch goes through the serial commit node too: the queue belongs to it
+    // (tasks started by the dispatch loop commit while it still runs).
     arena.execute([&] {
-      dispatch(*r);
+      auto* seed = new batch;
+      seed->root = r;
+      seed->seed = true;
+      commit->try_put(seed);
       graph->wait_for_all();
     });
     r->remaining.set(r->queue.size());

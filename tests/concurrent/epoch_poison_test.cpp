@@ -22,7 +22,7 @@
 
 #include <gtest/gtest.h>
 
-#include "stress_support.hpp"
+#include "support/stress_support.hpp"
 
 namespace progiso {
 namespace {

@@ -1,0 +1,175 @@
+// Randomized concurrent run of the engine (issue 4, stress/). Reader threads take and walk
+// snapshots continuously and sleep 0–50 µs at random points inside their guards, while a control
+// thread changes the isovalue at random moments, starts, cancels and restarts runs, and runs
+// deadlines; the engine refines with all workers. Every snapshot is checked:
+//   - integrity: its root is alive and its records well-formed (retired roots are poisoned
+//     before they are freed, so a snapshot reading a reclaimed root fails here, or under ASan);
+//   - a valid surface: edge-manifold, consistently oriented, open only on the data box, no
+//     degenerate triangles, no self-intersections (CGAL exact predicates);
+//   - exactly one isovalue and the right cut: equal to the sequential refiner's surface for the
+//     snapshot's split set at the snapshot's isovalue (a mix of isovalues would move vertices);
+//   - cuts of one root only grow.
+// At shutdown every root (one per isovalue) has been reclaimed exactly once.
+// Runs PROGISO_STRESS_SECONDS (default 1).
+#include <progiso/core/analytic.hpp>
+#include <progiso/core/refiner.hpp>
+#include <progiso/scheduler/engine.hpp>
+
+#include <atomic>
+#include <chrono>
+#include <cstdio>
+#include <map>
+#include <mutex>
+#include <random>
+#include <set>
+#include <string>
+#include <thread>
+#include <unordered_set>
+#include <vector>
+
+#include <gtest/gtest.h>
+
+#include "support/mesh_checks.hpp"
+#include "support/stress_support.hpp"
+
+namespace progiso {
+namespace {
+
+using namespace std::chrono_literals;
+using clock = std::chrono::steady_clock;
+
+void random_pause(std::mt19937& rng) {
+  std::uniform_int_distribution<int> us(0, 50);
+  std::this_thread::sleep_for(std::chrono::microseconds(us(rng)));
+}
+
+struct reader_counts {
+  std::uint64_t snapshots = 0;
+  std::uint64_t triangles_walked = 0;
+  std::uint64_t violations = 0;
+  std::string first_violation;
+};
+
+TEST(EngineStress, readers_walk_snapshots_while_runs_are_cancelled_and_the_isovalue_changes) {
+  const volume v = make_gaussian_blobs({41, 37, 39}, 7, 19u);
+  const auto box = test::data_box(v);
+  const std::vector<double> isovalues{0.35, 0.4, 0.5, 0.6, 0.45};
+  std::mutex reclaim_mutex;
+  std::multiset<std::uint64_t> reclaimed;
+  std::uint64_t generations = 0;
+  std::uint64_t control_ops = 0;
+  std::vector<reader_counts> counts(2);
+  {
+    engine_options o;
+    o.poison_retired = true;
+    o.reclamation.reclaim_threshold = 2;  // reclaim as early as possible: more chances to catch
+    o.reclamation.era_frequency = 1;      // a use after free
+    o.batch = 8;
+    o.on_reclaim = [&](std::uint64_t g) {
+      const std::lock_guard lock(reclaim_mutex);
+      reclaimed.insert(g);
+    };
+    engine e(v, isovalues[0], o);
+    const auto end = clock::now() + test::stress_duration();
+    std::atomic<bool> finished{false};
+
+    std::vector<std::thread> readers;
+    for (std::size_t t = 0; t < counts.size(); ++t) {
+      readers.emplace_back([&, t] {
+        std::mt19937 rng(static_cast<unsigned>(100 + t));
+        reader_counts& c = counts[t];
+        std::map<std::uint64_t, std::uint64_t> last_splits;  // per generation
+        const auto violation = [&c](const std::string& what) {
+          if (c.violations++ == 0) c.first_violation = what;
+        };
+        // acquire: pairs with the release-store below; the flag orders nothing else.
+        while (!finished.load(std::memory_order_acquire)) {
+          const surface_snapshot s = e.snapshot();
+          ++c.snapshots;
+          random_pause(rng);
+          if (!s.check_integrity()) {
+            violation("snapshot integrity (poisoned or garbage root)");
+            continue;
+          }
+          const std::uint64_t g = s.generation();
+          if (s.split_count() < last_splits[g]) violation("a cut of one root shrank");
+          last_splits[g] = s.split_count();
+          const triangle_mesh m = s.mesh();
+          random_pause(rng);
+          c.triangles_walked += m.triangles.size();
+          if (auto r = test::check_valid_cut(m, box[0], box[1]); !r) {
+            violation(std::string("invalid cut: ") + r.message());
+          }
+          std::unordered_set<std::uint64_t> split;
+          s.for_each_split([&](std::uint64_t d) { split.insert(d); });
+          random_pause(rng);
+          refiner replay(e.field(), e.hierarchy_of(), e.ranges(), s.isovalue(),
+                         refine_order::breadth_first);
+          replay.refine_set([&](std::uint64_t d) { return split.count(d) != 0; });
+          if (replay.statistics().splits != split.size()) violation("split set not parent-closed");
+          if (auto r = test::same_surface(m, replay.extract()); !r) {
+            violation(std::string("differs from the sequential replay: ") + r.message());
+          }
+          if (!s.check_integrity()) violation("integrity lost while the snapshot was held");
+        }
+      });
+    }
+
+    std::mt19937 rng(7);
+    while (clock::now() < end) {
+      std::uniform_int_distribution<int> action(0, 5);
+      std::uniform_int_distribution<std::size_t> pick(0, isovalues.size() - 1);
+      std::uniform_int_distribution<int> ms(0, 3);
+      switch (action(rng)) {
+        case 0:
+        case 1:
+          e.set_isovalue(isovalues[pick(rng)]);
+          ++generations;
+          break;
+        case 2:
+          e.start(refine_goal::full());
+          break;
+        case 3:
+          e.start(refine_goal::error(0.02));
+          break;
+        case 4:
+          e.cancel();
+          break;
+        case 5:
+          e.refine_for(std::chrono::milliseconds(ms(rng)));
+          break;
+      }
+      ++control_ops;
+      std::this_thread::sleep_for(std::chrono::microseconds(ms(rng) * 400));
+    }
+    e.cancel();
+    // release: pairs with the readers' acquire-loads.
+    finished.store(true, std::memory_order_release);
+    for (auto& r : readers) r.join();
+    EXPECT_EQ(e.statistics().reclamation.retired, generations);
+  }
+  std::multiset<std::uint64_t> expected;
+  for (std::uint64_t g = 0; g <= generations; ++g) expected.insert(g);
+  EXPECT_EQ(reclaimed, expected) << "every root reclaimed exactly once";
+  std::uint64_t snapshots = 0;
+  std::uint64_t violations = 0;
+  std::uint64_t triangles = 0;
+  for (const auto& c : counts) {
+    snapshots += c.snapshots;
+    violations += c.violations;
+    triangles += c.triangles_walked;
+    EXPECT_EQ(c.violations, 0u) << c.first_violation;
+  }
+  EXPECT_GT(snapshots, 0u);
+  std::printf(
+      "engine stress: %llu control operations (%llu isovalue changes), %llu snapshots checked, "
+      "%llu triangles walked, %llu violations\n",
+      static_cast<unsigned long long>(control_ops), static_cast<unsigned long long>(generations),
+      static_cast<unsigned long long>(snapshots), static_cast<unsigned long long>(triangles),
+      static_cast<unsigned long long>(violations));
+  RecordProperty("snapshots", std::to_string(snapshots));
+  RecordProperty("violations", std::to_string(violations));
+}
+
+}  // namespace
+}  // namespace progiso
