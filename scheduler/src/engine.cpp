@@ -105,6 +105,14 @@ struct engine_root : epoch_object {
   std::array<counter, primitive_count> primitives;
   std::array<counter, split_configuration_count> configurations;
 
+  // Bytes of records and triangle buffers (commit step, or the control thread while idle).
+  [[nodiscard]] std::uint64_t bytes() const noexcept {
+    std::uint64_t n = records.byte_size();
+    for (const auto& b : buffers) n += b.capacity() * sizeof(owned_triangle);
+    return n;
+  }
+  std::uint64_t retired_bytes = 0;  // bytes() when retired
+
   [[nodiscard]] std::uint32_t record_index(std::uint64_t vertex) const noexcept {
     // relaxed: see record_of.
     return std::atomic_ref<std::uint32_t>(record_of[vertex]).load(std::memory_order_relaxed);
@@ -227,6 +235,7 @@ struct engine_impl {
       }
       r->isovalue = std::nan("");
     }
+    impl.retired_bytes.add(0 - r->retired_bytes);  // single writer: control or drain
     r->magic = root_dead;
     if (impl.opt.on_reclaim) impl.opt.on_reclaim(r->generation);
     delete r;
@@ -437,6 +446,7 @@ struct engine_impl {
       graph->wait_for_all();
     });
     r->remaining.set(r->queue.size());
+    root_bytes.set(r->bytes());
     {
       const std::lock_guard lock(control);
       bool reached = false;
@@ -533,6 +543,7 @@ struct engine_impl {
   bool last_reached = false;    // guarded by control
   std::atomic<bool> active_flag{false};
   counter runs, cancelled_runs;
+  mutable counter retired_bytes, peak_retired_bytes, root_bytes;
   std::uint64_t generation = 0;  // guarded by control
 };
 
@@ -576,7 +587,14 @@ void engine::set_isovalue(double w) {
   // seq_cst (the default): release for readers' protect(), and the unlink must be seq_cst for
   // the TSan variant of the reclamation argument (concurrent/epoch.hpp).
   impl_->root.store(fresh);
+  old->retired_bytes = old->bytes();
+  impl_->retired_bytes.add(old->retired_bytes);
+  impl_->peak_retired_bytes.set(
+      std::max(impl_->peak_retired_bytes.get(), impl_->retired_bytes.get()));
   impl_->control_participant.retire(old, &detail::engine_impl::destroy_root, old->birth_era());
+  // Roots are large and few: reclaim now what no snapshot holds, rather than every
+  // reclaim_threshold retirements. A reader stalled in a snapshot pins only its own root.
+  impl_->control_participant.flush();
   if (resume) impl_->launch(lock, goal);
 }
 
@@ -651,9 +669,16 @@ engine_statistics engine::statistics() const {
     s.batches = r->batches.get();
     s.generation = r->generation;
   }
+  s.retired_bytes = impl_->retired_bytes.get();
+  s.peak_retired_bytes = impl_->peak_retired_bytes.get();
+  s.root_bytes = impl_->root_bytes.get();
   s.runs = impl_->runs.get();
   s.cancelled_runs = impl_->cancelled_runs.get();
   s.reclamation = impl_->domain.statistics();
+  {
+    const std::lock_guard lock(impl_->readers_mutex);
+    for (const auto& p : impl_->readers) s.snapshot_retries += p->protect_retries();
+  }
   return s;
 }
 

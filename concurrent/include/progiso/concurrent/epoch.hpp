@@ -261,6 +261,12 @@ class epoch_participant {
   [[nodiscard]] std::size_t pending() const noexcept { return record_->retired.size(); }
   [[nodiscard]] bool is_pinned() const noexcept { return nesting_ != 0; }
   [[nodiscard]] epoch_domain& domain() const noexcept { return *domain_; }
+  /// How many times protect() re-read a source because the era clock had moved (each is one
+  /// more bounded step, never a wait). Any thread (a recent value).
+  [[nodiscard]] std::uint64_t protect_retries() const noexcept {
+    // relaxed: a statistic.
+    return retries_.load(std::memory_order_relaxed);
+  }
 
  private:
   friend class epoch_guard;
@@ -279,6 +285,7 @@ class epoch_participant {
   std::size_t since_flush_ = 0;
   bool flushing_ = false;
   std::vector<era_interval> reservations_;  // scratch of flush()
+  std::atomic<std::uint64_t> retries_{0};   // protect() re-reads (statistics)
 };
 
 /// `new T(args...)` with its birth stamped: the way to allocate objects for protect()/retire().
@@ -344,6 +351,8 @@ T* epoch_participant::protect(const std::atomic<T*>& source) noexcept {
   // relaxed: `now` only has to be ≥ the birth of `object`, which (2) provides.
   std::uint64_t now = domain_->era_.load(std::memory_order_relaxed);
   for (unsigned attempt = 0; now > upper_; ++attempt) {
+    // relaxed: a statistic with one writer (this participant's thread).
+    retries_.store(retries_.load(std::memory_order_relaxed) + 1, std::memory_order_relaxed);
     if (attempt == domain_->options_.protect_attempts) {
       // (4) fallback: reserve every era, fence, load, then narrow to the current era. Pairs
       // with fence (6) in flush() like (3). The narrowing store is relaxed (seq_cst under TSan):

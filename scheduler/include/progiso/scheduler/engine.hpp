@@ -77,8 +77,10 @@ struct engine_options {
   std::size_t batch = 32;
   /// In-flight batches per thread: bounds what a cancel must drain.
   std::size_t tasks_per_thread = 4;
-  /// Reclamation of retired roots.
-  epoch_options reclamation{};
+  /// Reclamation of retired roots. Roots are few and large (one per isovalue change), so each
+  /// retirement advances the era clock and is followed by a flush: a reader stalled in a
+  /// snapshot then pins only its own root (plus, at most, the one retired in its era).
+  epoch_options reclamation{1, 1, 3, true};
   /// Fill retired roots with a poison pattern before freeing them (stress tests: a use after
   /// free reads poison that snapshot::check_integrity() reports).
   bool poison_retired = false;
@@ -108,14 +110,18 @@ struct refine_goal {
 /// Counters of the current isovalue's refinement (and of the engine's life). Readable while
 /// running: each counter is exact at some moment of the run, not all at the same moment.
 struct engine_statistics {
-  refine_statistics refine;          ///< of the current root (isovalue)
-  std::uint64_t published = 0;       ///< records published (including the root record)
-  std::uint64_t discarded = 0;       ///< splits computed but not published (cancel, deadline)
-  std::uint64_t batches = 0;         ///< compute tasks run for this root
-  std::uint64_t generation = 0;      ///< isovalue changes so far
-  std::uint64_t runs = 0;            ///< runs started (engine life)
-  std::uint64_t cancelled_runs = 0;  ///< runs stopped before reaching their goal
-  epoch_statistics reclamation;      ///< retired/reclaimed roots
+  refine_statistics refine;              ///< of the current root (isovalue)
+  std::uint64_t published = 0;           ///< records published (including the root record)
+  std::uint64_t discarded = 0;           ///< splits computed but not published (cancel, deadline)
+  std::uint64_t batches = 0;             ///< compute tasks run for this root
+  std::uint64_t generation = 0;          ///< isovalue changes so far
+  std::uint64_t runs = 0;                ///< runs started (engine life)
+  std::uint64_t cancelled_runs = 0;      ///< runs stopped before reaching their goal
+  epoch_statistics reclamation;          ///< retired/reclaimed roots
+  std::uint64_t snapshot_retries = 0;    ///< bounded re-reads in snapshot() (era clock moved)
+  std::uint64_t root_bytes = 0;          ///< records and triangles of the current root
+  std::uint64_t retired_bytes = 0;       ///< of retired roots not yet reclaimed
+  std::uint64_t peak_retired_bytes = 0;  ///< the largest retired_bytes so far
 };
 
 /// An immutable view of one published cut of one isovalue. Cheap to take, O(cut records) to

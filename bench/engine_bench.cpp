@@ -1,0 +1,287 @@
+// Benchmarks of the concurrent engine (issue 4). Run:
+//   build/release/bench/progiso_engine_bench --benchmark_counters_tabular=true
+// Latencies are measured per event with steady_clock into our own sample vectors and reported
+// as p50/p99 counters (µs); wall-clock tails on small machines are dominated by the scheduler
+// tick, so p99.9 is reported but not a target. Ratios (speedup, throughput with a reader) come
+// from runs in this same binary.
+#include <progiso/core/analytic.hpp>
+#include <progiso/core/refiner.hpp>
+#include <progiso/scheduler/engine.hpp>
+#include <progiso/scheduler/tbb_environment.hpp>
+
+#include <algorithm>
+#include <atomic>
+#include <chrono>
+#include <random>
+#include <thread>
+#include <vector>
+
+#include <benchmark/benchmark.h>
+
+namespace progiso::bench {
+namespace {
+
+using clock = std::chrono::steady_clock;
+using namespace std::chrono_literals;
+
+const volume& ml(std::int64_t n) {
+  static const volume v129 = make_marschner_lobb({129, 129, 129});
+  static const volume v257 = make_marschner_lobb({257, 257, 257});
+  return n == 257 ? v257 : v129;
+}
+
+double us(clock::duration d) { return std::chrono::duration<double, std::micro>(d).count(); }
+
+void report_percentiles(benchmark::State& state, std::vector<double>& samples, const char* prefix) {
+  if (samples.empty()) return;
+  std::sort(samples.begin(), samples.end());
+  const auto at = [&](double q) {
+    return samples[std::min(samples.size() - 1,
+                            static_cast<std::size_t>(q * static_cast<double>(samples.size())))];
+  };
+  const std::string p(prefix);
+  state.counters[p + "p50_us"] = at(0.50);
+  state.counters[p + "p99_us"] = at(0.99);
+  state.counters[p + "p999_us"] = at(0.999);
+  state.counters[p + "max_us"] = samples.back();
+  state.counters["samples"] = static_cast<double>(samples.size());
+}
+
+// Alternating between two isovalues gives every run a fresh root with all its work ahead.
+double next_isovalue(std::uint64_t i) { return i % 2 == 0 ? 0.5 : 0.45; }
+
+// ---------------------------------------------------------------------------------------------
+// Snapshot acquisition: engine::snapshot() alone (pin, protect the root, load the watermark).
+// Arg: 0 = no writer, 1 = writers on all cores refining continuously.
+void BM_snapshot_acquire(benchmark::State& state) {
+  const bool writers = state.range(0) != 0;
+  engine e(ml(129), 0.5);
+  std::atomic<bool> quit{false};
+  std::thread control;
+  if (writers) {
+    control = std::thread([&] {
+      std::uint64_t i = 0;
+      // acquire: pairs with the release-store at the end; orders nothing else.
+      while (!quit.load(std::memory_order_acquire)) {
+        e.set_isovalue(next_isovalue(++i));
+        e.refine_full();
+      }
+    });
+    while (e.statistics().refine.splits == 0) std::this_thread::yield();
+  }
+  std::vector<double> samples;
+  samples.reserve(1 << 22);
+  const std::uint64_t retries0 = e.statistics().snapshot_retries;
+  for (auto _ : state) {
+    const auto t0 = clock::now();
+    surface_snapshot s = e.snapshot();
+    const auto t1 = clock::now();
+    benchmark::DoNotOptimize(s.split_count());
+    samples.push_back(us(t1 - t0));
+  }
+  // A pair of clock reads alone, for the timer's share of each sample.
+  std::vector<double> timer;
+  for (int i = 0; i < 100000; ++i) {
+    const auto t0 = clock::now();
+    const auto t1 = clock::now();
+    timer.push_back(us(t1 - t0));
+  }
+  std::sort(timer.begin(), timer.end());
+  state.counters["timer_p50_us"] = timer[timer.size() / 2];
+  state.counters["retries"] = static_cast<double>(e.statistics().snapshot_retries - retries0);
+  state.counters["splits_meanwhile"] = static_cast<double>(e.statistics().refine.splits);
+  // release: pairs with the control thread's acquire-load.
+  quit.store(true, std::memory_order_release);
+  if (control.joinable()) {
+    e.cancel();
+    control.join();
+  }
+  report_percentiles(state, samples, "");
+}
+BENCHMARK(BM_snapshot_acquire)->Arg(0)->Arg(1)->Iterations(2000000)->UseRealTime();
+
+// ---------------------------------------------------------------------------------------------
+// cancel() → every worker quiet (cancel returns after the driver joined and all tasks ended),
+// at a random moment 0.5–4 ms into a full refinement of 129³.
+void BM_cancel_quiet(benchmark::State& state) {
+  engine e(ml(129), 0.5);
+  std::mt19937 rng(1);
+  std::uniform_int_distribution<int> delay_us(500, 4000);
+  std::vector<double> samples;
+  std::uint64_t i = 0;
+  for (auto _ : state) {
+    e.set_isovalue(next_isovalue(++i));
+    e.start(refine_goal::full());
+    std::this_thread::sleep_for(std::chrono::microseconds(delay_us(rng)));
+    const bool was_running = e.running();
+    const auto t0 = clock::now();
+    e.cancel();
+    const auto t1 = clock::now();
+    if (was_running) samples.push_back(us(t1 - t0));
+    state.SetIterationTime(std::chrono::duration<double>(t1 - t0).count());
+  }
+  state.counters["discarded_last"] = static_cast<double>(e.statistics().discarded);
+  report_percentiles(state, samples, "cancel_");
+}
+BENCHMARK(BM_cancel_quiet)->Iterations(300)->UseManualTime()->Unit(benchmark::kMicrosecond);
+
+// ---------------------------------------------------------------------------------------------
+// Deadline overshoot: refine_for(τ) returns at most this long after the deadline, with the
+// surface published by the deadline. Arg: τ in ms (ML 257³ never finishes within 33 ms).
+void BM_deadline_overshoot(benchmark::State& state) {
+  engine e(ml(257), 0.5);
+  const auto budget = std::chrono::milliseconds(state.range(0));
+  std::vector<double> samples;
+  std::uint64_t i = 0;
+  std::uint64_t splits = 0;
+  for (auto _ : state) {
+    e.set_isovalue(next_isovalue(++i));
+    const auto deadline = clock::now() + budget;
+    e.refine(refine_goal::until(deadline));
+    const auto back = clock::now();
+    samples.push_back(us(back - deadline));
+    splits += e.statistics().refine.splits;
+    state.SetIterationTime(std::chrono::duration<double>(back - deadline + budget).count());
+  }
+  state.counters["splits_by_deadline"] =
+      static_cast<double>(splits) / static_cast<double>(state.iterations());
+  report_percentiles(state, samples, "overshoot_");
+}
+BENCHMARK(BM_deadline_overshoot)
+    ->Arg(8)
+    ->Arg(16)
+    ->Arg(33)
+    ->Iterations(100)
+    ->UseManualTime()
+    ->Unit(benchmark::kMillisecond);
+
+// ---------------------------------------------------------------------------------------------
+// Full refinement on N threads (speedup = time(1) / time(N)), and the sequential refiner on the
+// same volume as a baseline for the engine's own overhead. Arg: threads (0 = sequential refiner).
+void BM_full_refine(benchmark::State& state) {
+  const auto n = static_cast<unsigned>(state.range(0));
+  const volume& v = ml(state.range(1));
+  if (n == 0) {
+    const hierarchy h(v.dims());
+    const range_data ranges(v, h);
+    std::uint64_t splits = 0;
+    for (auto _ : state) {
+      refiner r(v, h, ranges, 0.5, refine_order::depth_first);
+      r.refine_full();
+      splits = r.statistics().splits;
+    }
+    state.counters["splits"] = static_cast<double>(splits);
+    return;
+  }
+  engine_options o;
+  o.threads = n;
+  engine e(v, 0.5, o);
+  std::uint64_t i = 0;
+  for (auto _ : state) {
+    state.PauseTiming();
+    e.set_isovalue(next_isovalue(++i));
+    state.ResumeTiming();
+    e.refine_full();
+  }
+  state.counters["threads"] = e.threads();
+  state.counters["splits"] = static_cast<double>(e.statistics().refine.splits);
+  state.counters["batches"] = static_cast<double>(e.statistics().batches);
+}
+BENCHMARK(BM_full_refine)
+    ->ArgsProduct({{0, 1, 2}, {129, 257}})
+    ->Unit(benchmark::kMillisecond)
+    ->UseRealTime()
+    ->MinTime(1.0);
+
+// ---------------------------------------------------------------------------------------------
+// Writer throughput (splits per second of a full refinement) with one reader taking and walking
+// snapshots (every triangle of the cut) continuously, against none.
+// Args: writer threads, reader (0/1).
+void BM_writer_with_reader(benchmark::State& state) {
+  engine_options o;
+  o.threads = static_cast<unsigned>(state.range(0));
+  const bool reader = state.range(1) != 0;
+  engine e(ml(129), 0.5, o);
+  std::atomic<bool> quit{false};
+  std::atomic<std::uint64_t> walks{0};
+  std::thread r;
+  if (reader) {
+    r = std::thread([&] {
+      std::uint64_t n = 0;
+      // acquire: pairs with the release-store below.
+      while (!quit.load(std::memory_order_acquire)) {
+        const surface_snapshot s = e.snapshot();
+        std::uint64_t t = 0;
+        s.for_each_triangle([&t](const owned_triangle&) { ++t; });
+        benchmark::DoNotOptimize(t);
+        ++n;
+      }
+      walks.store(n, std::memory_order_relaxed);  // relaxed: read after join
+    });
+  }
+  std::uint64_t i = 0;
+  std::uint64_t splits = 0;
+  for (auto _ : state) {
+    state.PauseTiming();
+    e.set_isovalue(next_isovalue(++i));
+    state.ResumeTiming();
+    e.refine_full();
+    splits += e.statistics().refine.splits;
+  }
+  quit.store(true, std::memory_order_release);  // release: pairs with the reader's acquire
+  if (r.joinable()) r.join();
+  state.counters["splits_per_s"] =
+      benchmark::Counter(static_cast<double>(splits), benchmark::Counter::kIsRate);
+  state.counters["reader_walks"] = static_cast<double>(walks.load(std::memory_order_relaxed));
+}
+BENCHMARK(BM_writer_with_reader)
+    ->ArgsProduct({{1, 2}, {0, 1}})
+    ->Unit(benchmark::kMillisecond)
+    ->UseRealTime()
+    ->MinTime(1.0);
+
+// ---------------------------------------------------------------------------------------------
+// Memory pinned by a reader stalled inside one snapshot for a whole run of 20 isovalue changes,
+// each refined fully: interval-based reclamation (Arg 1) against plain EBR (Arg 0).
+void BM_stalled_reader_memory(benchmark::State& state) {
+  engine_options o;
+  o.reclamation.interval_based = state.range(0) != 0;
+  std::uint64_t peak = 0;
+  std::uint64_t root = 0;
+  std::uint64_t pending = 0;
+  for (auto _ : state) {
+    engine e(ml(129), 0.5, o);
+    e.refine_full();
+    // The stalled reader: its own thread takes one snapshot and holds it, without another
+    // call into the engine, until the run is over.
+    std::atomic<int> phase{0};
+    std::thread stalled([&] {
+      const surface_snapshot s = e.snapshot();
+      phase.store(1, std::memory_order_release);  // release: pairs with the acquire below
+      phase.notify_all();
+      phase.wait(1, std::memory_order_acquire);  // acquire: pairs with the release-store of 2
+      benchmark::DoNotOptimize(s.split_count());
+    });
+    phase.wait(0, std::memory_order_acquire);  // acquire: pairs with the release-store of 1
+    for (int k = 1; k <= 20; ++k) {
+      e.set_isovalue(next_isovalue(static_cast<std::uint64_t>(k)));
+      e.refine_full();
+      pending = std::max(pending, e.statistics().reclamation.pending);
+    }
+    phase.store(2, std::memory_order_release);  // release: pairs with the stalled acquire
+    phase.notify_all();
+    stalled.join();
+    const engine_statistics st = e.statistics();
+    peak = st.peak_retired_bytes;
+    root = st.root_bytes;
+  }
+  state.counters["peak_retired_MiB"] = static_cast<double>(peak) / (1 << 20);
+  state.counters["root_MiB"] = static_cast<double>(root) / (1 << 20);
+  state.counters["peak_pending_roots"] = static_cast<double>(pending);
+}
+BENCHMARK(BM_stalled_reader_memory)->Arg(1)->Arg(0)->Iterations(1)->Unit(benchmark::kMillisecond);
+
+}  // namespace
+}  // namespace progiso::bench
+
+BENCHMARK_MAIN();
