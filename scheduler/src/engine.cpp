@@ -227,6 +227,7 @@ struct engine_impl {
     const engine_impl& impl = *r->impl;
     if (impl.opt.poison_retired) {
       for (auto& b : r->buffers) {
+        if (b.empty()) continue;  // no data pointer to poison
         std::memset(static_cast<void*>(b.data()), poison_byte, b.size() * sizeof(owned_triangle));
       }
       for (std::size_t i = 0; i < r->records.size(); ++i) {
