@@ -201,10 +201,7 @@ triangle_mesh refiner::extract_cut(double max_error) const {
 
 // ---------------------------------------------------------------------------------------------
 
-extract_result extract_isosurface(const volume& vol, double isovalue,
-                                  const extract_options& options) {
-  using clock = std::chrono::steady_clock;
-  const auto seconds = [](clock::duration d) { return std::chrono::duration<double>(d).count(); };
+void check_extract_inputs(double isovalue, const extract_options& options) {
   if (!std::isfinite(isovalue)) {
     throw error("--iso: expected a finite isovalue, found " + std::to_string(isovalue));
   }
@@ -215,6 +212,13 @@ extract_result extract_isosurface(const volume& vol, double isovalue,
   if (options.mode == extract_mode::time && !(options.time_budget.count() >= 0.0)) {
     throw error("--time-ms: expected a non-negative time budget");
   }
+}
+
+extract_result extract_isosurface(const volume& vol, double isovalue,
+                                  const extract_options& options) {
+  using clock = std::chrono::steady_clock;
+  const auto seconds = [](clock::duration d) { return std::chrono::duration<double>(d).count(); };
+  check_extract_inputs(isovalue, options);
   extract_result res;
   const auto t0 = clock::now();
   const hierarchy hier(vol.dims());

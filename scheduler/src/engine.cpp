@@ -783,16 +783,7 @@ extract_result extract_isosurface_parallel(const volume& vol, double isovalue,
                                            const extract_options& options, unsigned threads) {
   using clock = std::chrono::steady_clock;
   const auto seconds = [](clock::duration d) { return std::chrono::duration<double>(d).count(); };
-  if (!std::isfinite(isovalue)) {
-    throw error("--iso: expected a finite isovalue, found " + std::to_string(isovalue));
-  }
-  if (options.mode == extract_mode::error && !(options.max_error >= 0.0)) {
-    throw error("--error: expected a non-negative error, found " +
-                std::to_string(options.max_error));
-  }
-  if (options.mode == extract_mode::time && !(options.time_budget.count() >= 0.0)) {
-    throw error("--time-ms: expected a non-negative time budget");
-  }
+  check_extract_inputs(isovalue, options);
   extract_result res;
   engine_options eo;
   eo.threads = threads;

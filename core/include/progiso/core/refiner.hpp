@@ -183,6 +183,9 @@ struct extract_result {
   bool isovalue_outside_data = false;  ///< empty because the isovalue misses the data range
 };
 
+/// Throws progiso::error for a non-finite isovalue or invalid options (shared by every entry).
+void check_extract_inputs(double isovalue, const extract_options& options);
+
 /// Builds the hierarchy and range data, refines in the requested mode and extracts the cut.
 /// Throws progiso::error for a non-finite isovalue or invalid options.
 [[nodiscard]] extract_result extract_isosurface(const volume& vol, double isovalue,
