@@ -10,6 +10,7 @@
 #include <progiso/scheduler/tbb_environment.hpp>
 
 #include <algorithm>
+#include <array>
 #include <atomic>
 #include <chrono>
 #include <random>
@@ -195,50 +196,82 @@ BENCHMARK(BM_full_refine)
 
 // ---------------------------------------------------------------------------------------------
 // Writer throughput (splits per second of a full refinement) with one reader taking and walking
-// snapshots (every triangle of the cut) continuously, against none.
-// Args: writer threads, reader (0/1).
+// snapshots (every triangle of the cut) continuously, against none. Paired: every iteration
+// refines twice, once with the reader walking and once with it asleep, in alternating order, so
+// both halves of a pair see the same machine (a shared VM's speed drifts by ±15% over seconds).
+// Reports the median of the per-pair ratios. Arg: writer threads.
 void BM_writer_with_reader(benchmark::State& state) {
   engine_options o;
   o.threads = static_cast<unsigned>(state.range(0));
-  const bool reader = state.range(1) != 0;
   engine e(ml(129), 0.5, o);
-  std::atomic<bool> quit{false};
+  // 0 = asleep, 1 = walking, 2 = quit. The reader acknowledges each change through `at`.
+  std::atomic<int> mode{0};
+  std::atomic<int> at{0};
   std::atomic<std::uint64_t> walks{0};
-  std::thread r;
-  if (reader) {
-    r = std::thread([&] {
-      std::uint64_t n = 0;
-      // acquire: pairs with the release-store below.
-      while (!quit.load(std::memory_order_acquire)) {
-        const surface_snapshot s = e.snapshot();
-        std::uint64_t t = 0;
-        s.for_each_triangle([&t](const owned_triangle&) { ++t; });
-        benchmark::DoNotOptimize(t);
-        ++n;
+  std::atomic<std::uint64_t> walked{0};
+  std::thread r([&] {
+    for (;;) {
+      // acquire: pairs with the release-stores of `mode` below.
+      const int m = mode.load(std::memory_order_acquire);
+      at.store(m, std::memory_order_release);  // release: pairs with set_mode()'s acquire
+      if (m == 2) return;
+      if (m == 0) {
+        std::this_thread::sleep_for(50us);
+        continue;
       }
-      walks.store(n, std::memory_order_relaxed);  // relaxed: read after join
-    });
-  }
+      const surface_snapshot s = e.snapshot();
+      std::uint64_t t = 0;
+      s.for_each_triangle([&t](const owned_triangle&) { ++t; });
+      benchmark::DoNotOptimize(t);
+      walks.fetch_add(1, std::memory_order_relaxed);   // relaxed: read after join
+      walked.fetch_add(t, std::memory_order_relaxed);  // relaxed: read after join
+    }
+  });
+  const auto set_mode = [&](int m) {
+    mode.store(m, std::memory_order_release);  // release: pairs with the reader's acquire
+    // acquire: pairs with the reader's release-store of `at`.
+    while (at.load(std::memory_order_acquire) != m) std::this_thread::yield();
+  };
+  std::vector<double> ratios;
+  double alone_s = 0;
+  double with_s = 0;
+  std::uint64_t alone_splits = 0;
+  std::uint64_t with_splits = 0;
   std::uint64_t i = 0;
-  std::uint64_t splits = 0;
+  int first = 0;
   for (auto _ : state) {
-    state.PauseTiming();
-    e.set_isovalue(next_isovalue(++i));
-    state.ResumeTiming();
-    e.refine_full();
-    splits += e.statistics().refine.splits;
+    std::array<double, 2> rate{};
+    first ^= 1;
+    for (int half = 0; half < 2; ++half) {
+      const int reading = half ^ first;
+      e.set_isovalue(next_isovalue(++i));
+      set_mode(reading);
+      const auto t0 = clock::now();
+      e.refine_full();
+      const double secs = std::chrono::duration<double>(clock::now() - t0).count();
+      set_mode(0);
+      const std::uint64_t n = e.statistics().refine.splits;
+      rate[static_cast<std::size_t>(reading)] = static_cast<double>(n) / secs;
+      (reading ? with_s : alone_s) += secs;
+      (reading ? with_splits : alone_splits) += n;
+    }
+    ratios.push_back(rate[1] / rate[0]);
+    state.SetIterationTime(0);
   }
-  quit.store(true, std::memory_order_release);  // release: pairs with the reader's acquire
-  if (r.joinable()) r.join();
-  state.counters["splits_per_s"] =
-      benchmark::Counter(static_cast<double>(splits), benchmark::Counter::kIsRate);
+  set_mode(2);
+  r.join();
+  std::sort(ratios.begin(), ratios.end());
+  state.counters["ratio_median"] = ratios[ratios.size() / 2];
+  state.counters["ratio_min"] = ratios.front();
+  state.counters["ratio_max"] = ratios.back();
+  state.counters["alone_Msplits_s"] = static_cast<double>(alone_splits) / alone_s / 1e6;
+  state.counters["with_Msplits_s"] = static_cast<double>(with_splits) / with_s / 1e6;
+  // relaxed: the reader has been joined.
   state.counters["reader_walks"] = static_cast<double>(walks.load(std::memory_order_relaxed));
+  state.counters["reader_Mtri_s"] =
+      static_cast<double>(walked.load(std::memory_order_relaxed)) / with_s / 1e6;
 }
-BENCHMARK(BM_writer_with_reader)
-    ->ArgsProduct({{1, 2}, {0, 1}})
-    ->Unit(benchmark::kMillisecond)
-    ->UseRealTime()
-    ->MinTime(1.0);
+BENCHMARK(BM_writer_with_reader)->Arg(1)->Arg(2)->Iterations(15)->UseManualTime();
 
 // ---------------------------------------------------------------------------------------------
 // Memory pinned by a reader stalled inside one snapshot for a whole run of 20 isovalue changes,
