@@ -13,6 +13,7 @@
 #include <array>
 #include <atomic>
 #include <chrono>
+#include <cmath>
 #include <random>
 #include <thread>
 #include <vector>
@@ -36,9 +37,10 @@ double us(clock::duration d) { return std::chrono::duration<double, std::micro>(
 void report_percentiles(benchmark::State& state, std::vector<double>& samples, const char* prefix) {
   if (samples.empty()) return;
   std::sort(samples.begin(), samples.end());
+  // Nearest rank: the smallest sample with at least q of all samples at or below it.
   const auto at = [&](double q) {
-    return samples[std::min(samples.size() - 1,
-                            static_cast<std::size_t>(q * static_cast<double>(samples.size())))];
+    const auto rank = static_cast<std::size_t>(std::ceil(q * static_cast<double>(samples.size())));
+    return samples[std::clamp<std::size_t>(rank, 1, samples.size()) - 1];
   };
   const std::string p(prefix);
   state.counters[p + "p50_us"] = at(0.50);
@@ -152,7 +154,7 @@ BENCHMARK(BM_deadline_overshoot)
     ->Arg(8)
     ->Arg(16)
     ->Arg(33)
-    ->Iterations(100)
+    ->Iterations(300)
     ->UseManualTime()
     ->Unit(benchmark::kMillisecond);
 
