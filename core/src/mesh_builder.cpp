@@ -33,14 +33,16 @@ void mesh_builder::add(const std::array<std::uint64_t, 3>& keys) {
 triangle_mesh mesh_builder::finish() {
   const auto& sp = vol_.spacing();
   const auto& org = vol_.origin();
-  mesh_.vertices.resize(grid_.size());
-  for (std::size_t i = 0; i < grid_.size(); ++i) {
-    for (std::size_t q = 0; q < 3; ++q) mesh_.vertices[i][q] = org[q] + grid_[i][q] * sp[q];
+  // In place: the grid positions are not needed after this (no second array to fault in).
+  mesh_.vertices = std::move(grid_);
+  for (vec3& v : mesh_.vertices) {
+    for (std::size_t q = 0; q < 3; ++q) v[q] = org[q] + v[q] * sp[q];
   }
   // Drop vertices that only clipped-away triangles used. Without clipping every vertex is
   // used and ids are already in order of first use.
   if (clipped_.empty() && !clipped_any_) return std::move(mesh_);
-  std::vector<std::uint32_t> remap(grid_.size(), ~std::uint32_t{0});
+  const std::size_t count = mesh_.vertices.size();
+  std::vector<std::uint32_t> remap(count, ~std::uint32_t{0});
   std::uint32_t n = 0;
   for (auto& t : mesh_.triangles) {
     for (auto& v : t) {
@@ -48,15 +50,15 @@ triangle_mesh mesh_builder::finish() {
       v = remap[v];
     }
   }
-  if (n != grid_.size()) {
+  if (n != count) {
     std::vector<vec3> kept(n);
-    for (std::size_t i = 0; i < grid_.size(); ++i) {
+    for (std::size_t i = 0; i < count; ++i) {
       if (remap[i] != ~std::uint32_t{0}) kept[remap[i]] = mesh_.vertices[i];
     }
     mesh_.vertices = std::move(kept);
   } else {
     std::vector<vec3> ordered(n);
-    for (std::size_t i = 0; i < grid_.size(); ++i) ordered[remap[i]] = mesh_.vertices[i];
+    for (std::size_t i = 0; i < count; ++i) ordered[remap[i]] = mesh_.vertices[i];
     mesh_.vertices = std::move(ordered);
   }
   return std::move(mesh_);

@@ -40,12 +40,12 @@ struct refiner::queue : detail::ready_queue<refiner::ready> {
   using detail::ready_queue<refiner::ready>::ready_queue;
 };
 
-void refiner::triangle_store::append(const owned_triangle* t, std::size_t n) {
+void refiner::group_store::append(const packed_group* g, std::size_t n) {
   for (std::size_t i = 0; i < n; ++i, ++size_) {
     if ((size_ & (chunk - 1)) == 0 && (size_ >> chunk_bits) == chunks_.size()) {
-      chunks_.push_back(std::make_unique_for_overwrite<owned_triangle[]>(chunk));
+      chunks_.push_back(std::make_unique_for_overwrite<packed_group[]>(chunk));
     }
-    chunks_[size_ >> chunk_bits][size_ & (chunk - 1)] = t[i];
+    chunks_[size_ >> chunk_bits][size_ & (chunk - 1)] = g[i];
   }
 }
 
@@ -61,11 +61,9 @@ refiner::refiner(const volume& vol, const hierarchy& hier, const range_data& ran
     throw error("isovalue: expected a finite number, found " + std::to_string(isovalue));
   }
   // Root record: the surface in the root tetrahedra, owned by the root diamonds.
-  records_.push_back({no_owner, 0, 0, 0.0});
+  records_.push_back({no_owner, 0, 0, 0, 0.0});
   for (std::uint64_t r = 0; r < hier_.root_count(); ++r) {
-    scratch_.clear();
-    const std::optional<ipoint> centre = compute_root(hier_, vol_, isovalue_, r, scratch_);
-    triangles_.append(scratch_.data(), scratch_.size());
+    const std::optional<ipoint> centre = compute_root(hier_, vol_, isovalue_, r, root_triangles_);
     if (centre) {
       const diamond d = hier_.make_diamond(*centre);
       ++stats_.visited;
@@ -77,9 +75,8 @@ refiner::refiner(const volume& vol, const hierarchy& hier, const range_data& ran
       }
     }
   }
-  records_[0].count = static_cast<std::uint32_t>(triangles_.size());
-  stats_.triangles = triangles_.size();
-  stats_.record_triangles = triangles_.size();
+  stats_.triangles = root_triangles_.size();
+  stats_.record_triangles = root_triangles_.size();
 }
 
 refiner::~refiner() = default;
@@ -99,18 +96,18 @@ bool refiner::split(std::uint64_t max_triangles) {
   if (queue_->empty()) return false;
   const ready next = queue_->top();
   const diamond d = hier_.make_diamond(next.centre);
-  const std::size_t first = triangles_.size();
+  const std::size_t first = groups_.size();
   scratch_.clear();
   const split_summary s = compute_split(hier_, vol_, isovalue_, d, scratch_);
   const std::uint64_t after = stats_.triangles + static_cast<std::uint64_t>(s.added_triangles) -
                               static_cast<std::uint64_t>(s.removed_triangles);
   if (after > max_triangles) return false;
-  triangles_.append(scratch_.data(), scratch_.size());
+  groups_.append(scratch_.data(), scratch_.size());
   queue_->pop();
   std::uint8_t* state = state_.get();
   state[next.index] = static_cast<std::uint8_t>(state[next.index] | split_bit);
   records_.push_back(
-      {next.index, first, static_cast<std::uint32_t>(s.added_triangles), next.error});
+      {next.index, first, static_cast<std::uint32_t>(scratch_.size()), d.scale, next.error});
   stats_.triangles = after;
   stats_.record_triangles += static_cast<std::uint64_t>(s.added_triangles);
   ++stats_.splits;
@@ -170,11 +167,22 @@ template <class InCut, class Take>
 triangle_mesh refiner::build_mesh(InCut&& in_cut, Take&& take) const {
   detail::mesh_builder b(hier_, vol_, isovalue_,
                          static_cast<std::size_t>(stats_.triangles / 2 + 16));
-  for (const record& r : records_) {
+  for (const owned_triangle& t : root_triangles_) {
+    if (take(t.owner)) b.add(t.keys);
+  }
+  for (std::size_t ri = 1; ri < records_.size(); ++ri) {
+    const record& r = records_[ri];
     if (!in_cut(r)) continue;
+    bool have_centre = false;
+    ipoint centre{};
     for (std::uint64_t i = r.first; i < r.first + r.count; ++i) {
-      const owned_triangle& t = triangles_[i];
-      if (take(t.owner)) b.add(t.keys);
+      const packed_group& g = groups_[i];
+      if (!take(g.owner)) continue;
+      if (!have_centre) {
+        centre = hier_.point(r.diamond);
+        have_centre = true;
+      }
+      for (std::size_t k = 0; k < g.count; ++k) b.add(unpack(centre, r.scale, g, k));
     }
   }
   return b.finish();

@@ -1,5 +1,8 @@
 #include <progiso/core/split_record.hpp>
 
+#include <bit>
+
+#include <progiso/core/assert.hpp>
 #include <progiso/core/marching.hpp>
 
 namespace progiso {
@@ -67,8 +70,13 @@ void bump(split_summary& s, primitive p, int n = 1) noexcept {
 
 }  // namespace
 
-split_summary compute_split(const hierarchy& hier, const volume& vol, double w, const diamond& d,
-                            std::vector<owned_triangle>& out) {
+namespace {
+
+// The split of d; emit(tet, its surface) for every child
+// tetrahedron with surface, in a fixed order.
+template <class Emit>
+split_summary split_into(const hierarchy& hier, const volume& vol, double w, const diamond& d,
+                         Emit&& emit) {
   split_summary s;
   // Inside the data box (the usual case) samples are read without clamping.
   const ipoint& dm = hier.data_max();
@@ -141,10 +149,7 @@ split_summary compute_split(const hierarchy& hier, const volume& vol, double w, 
                                                 : std::array<double, 4>{fe, fd, fr[um], fr[um1]};
       const tet_surface ts = march_tet(t, f, w);
       if (ts.count == 0) continue;
-      const std::uint64_t owner = owner_of(hier, t);
-      for (int k = 0; k < ts.count; ++k) {
-        out.push_back({owner, ts.triangles[static_cast<std::size_t>(k)]});
-      }
+      emit(t, ts);
       s.added_triangles += ts.count;
     }
   }
@@ -195,6 +200,40 @@ split_summary compute_split(const hierarchy& hier, const volume& vol, double w, 
     bump(s, primitive::connectivity_change, components - 1);
   }
   return s;
+}
+
+}  // namespace
+
+split_summary compute_split(const hierarchy& hier, const volume& vol, double w, const diamond& d,
+                            std::vector<owned_triangle>& out) {
+  return split_into(hier, vol, w, d, [&](const std::array<ipoint, 4>& t, const tet_surface& ts) {
+    const std::uint64_t owner = owner_of(hier, t);
+    for (int k = 0; k < ts.count; ++k) {
+      out.push_back({owner, ts.triangles[static_cast<std::size_t>(k)]});
+    }
+  });
+}
+
+split_summary compute_split(const hierarchy& hier, const volume& vol, double w, const diamond& d,
+                            std::vector<packed_group>& out) {
+  return split_into(hier, vol, w, d, [&](const std::array<ipoint, 4>& t, const tet_surface& ts) {
+    packed_group g{owner_of(hier, t), static_cast<std::uint8_t>(ts.count), {}};
+    const int shift = std::countr_zero(static_cast<std::uint32_t>(d.scale));  // h = 2^shift
+    for (std::size_t k = 0; k < static_cast<std::size_t>(ts.count); ++k) {
+      for (std::size_t v = 0; v < 3; ++v) {
+        const ipoint m = edge_key_point(ts.triangles[k][v]);
+        int code = 0;
+        for (std::size_t q = 3; q-- > 0;) {
+          const std::int32_t rel = m[q] - 2 * d.centre[q];
+          const std::int32_t o = rel >> shift;  // arithmetic: exact, rel is a multiple of h
+          PROGISO_ASSERT((o << shift) == rel && o >= -2 && o <= 2);
+          code = code * 5 + (o + 2);
+        }
+        g.edges[k][v] = static_cast<std::uint8_t>(code);
+      }
+    }
+    out.push_back(g);
+  });
 }
 
 std::optional<ipoint> compute_root(const hierarchy& hier, const volume& vol, double w,

@@ -102,10 +102,13 @@ class refiner {
   [[nodiscard]] triangle_mesh extract_cut(double max_error) const;
 
  private:
+  // One split: its groups are groups_[first, first + count). Record 0 is the root surface,
+  // kept in root_triangles_.
   struct record {
     std::uint64_t diamond;  // grid index, or no_owner for the root record
     std::uint64_t first;
     std::uint32_t count;
+    std::int32_t scale;  // the diamond's h (packed_group's unit)
     double error;
   };
   struct ready {
@@ -125,25 +128,26 @@ class refiner {
   const range_data& ranges_;
   double isovalue_;
   detail::zeroed_array<std::uint8_t> state_;  // per grid vertex: split flag, split parents
-  // Record triangles in fixed chunks: growth never moves what is stored (no reallocation copy
-  // of hundreds of megabytes, and stable addresses for the concurrent engine later).
-  class triangle_store {
+  // Record triangles, compact (packed_group: 16 bytes for one or two triangles), in fixed
+  // chunks: growth never moves what is stored (no reallocation copy of hundreds of megabytes).
+  class group_store {
    public:
     static constexpr std::size_t chunk_bits = 16;
     static constexpr std::size_t chunk = std::size_t{1} << chunk_bits;
     [[nodiscard]] std::size_t size() const noexcept { return size_; }
-    void append(const owned_triangle* t, std::size_t n);
-    [[nodiscard]] const owned_triangle& operator[](std::size_t i) const noexcept {
+    void append(const packed_group* g, std::size_t n);
+    [[nodiscard]] const packed_group& operator[](std::size_t i) const noexcept {
       return chunks_[i >> chunk_bits][i & (chunk - 1)];
     }
 
    private:
-    std::vector<std::unique_ptr<owned_triangle[]>> chunks_;
+    std::vector<std::unique_ptr<packed_group[]>> chunks_;
     std::size_t size_ = 0;
   };
 
-  triangle_store triangles_;
-  std::vector<owned_triangle> scratch_;
+  std::vector<owned_triangle> root_triangles_;
+  group_store groups_;
+  std::vector<packed_group> scratch_;
   std::vector<record> records_;
   std::unique_ptr<queue> queue_;
   refine_statistics stats_;

@@ -31,6 +31,7 @@
 #include <vector>
 
 #include <progiso/core/hierarchy.hpp>
+#include <progiso/core/marching.hpp>
 #include <progiso/core/volume.hpp>
 
 namespace progiso {
@@ -78,6 +79,45 @@ struct owned_triangle {
   std::array<std::uint64_t, 3> keys;
 };
 
+/// The surface pieces of one child tetrahedron in compact form, for stores that keep millions of
+/// records (the sequential refiner). Every point of a diamond with centre c and scale h lies in
+/// c + h·{-1, 0, 1}³, so the doubled midpoint of any edge between two of them (its edge key) is
+/// 2c + h·o with o in {-2..2}³: one byte, (o0 + 2) + 5 (o1 + 2) + 25 (o2 + 2). The owner is as
+/// in owned_triangle. 16 bytes for one or two triangles, against 32 bytes per owned_triangle;
+/// unpack() gives back the edge keys.
+struct packed_group {
+  std::uint64_t owner;
+  std::uint8_t count;  ///< triangles: 1 or 2
+  std::array<std::array<std::uint8_t, 3>, 2> edges;
+};
+
+/// Edge keys of triangle k of g, made by the split of the diamond with this centre and scale.
+[[nodiscard]] inline std::array<std::uint64_t, 3> unpack(const ipoint& centre, std::int32_t scale,
+                                                         const packed_group& g,
+                                                         std::size_t k) noexcept {
+  // Offset o of every code, in {-2..2}³.
+  static constexpr auto offsets = [] {
+    std::array<std::array<std::int8_t, 3>, 125> t{};
+    for (int e = 0; e < 125; ++e) {
+      t[static_cast<std::size_t>(e)] = {static_cast<std::int8_t>(e % 5 - 2),
+                                        static_cast<std::int8_t>(e / 5 % 5 - 2),
+                                        static_cast<std::int8_t>(e / 25 - 2)};
+    }
+    return t;
+  }();
+  std::array<std::uint64_t, 3> keys{};
+  for (std::size_t v = 0; v < 3; ++v) {
+    const auto& o = offsets[g.edges[k][v]];
+    std::uint64_t key = 0;
+    for (std::size_t q = 0; q < 3; ++q) {
+      key |= static_cast<std::uint64_t>(2 * centre[q] + scale * o[q])
+             << (static_cast<int>(q) * edge_key_bits);
+    }
+    keys[v] = key;
+  }
+  return keys;
+}
+
 /// Classification of one split.
 struct split_summary {
   int tets = 0;               ///< tetrahedra of the diamond inside the grid
@@ -92,6 +132,11 @@ struct split_summary {
 /// and returns the classification. Pure: depends only on (d, the field, w).
 split_summary compute_split(const hierarchy& hier, const volume& vol, double isovalue,
                             const diamond& d, std::vector<owned_triangle>& out);
+
+/// compute_split() with the new pieces appended in compact form, one group per child
+/// tetrahedron with surface; the same triangles in the same order.
+split_summary compute_split(const hierarchy& hier, const volume& vol, double isovalue,
+                            const diamond& d, std::vector<packed_group>& out);
 
 /// The surface in the six tetrahedra of root cube r (hierarchy::root_tets), appended to `out`,
 /// each piece owned by the root diamond. Returns that diamond's centre, or nullopt when the

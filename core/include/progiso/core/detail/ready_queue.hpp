@@ -56,6 +56,12 @@ class ready_queue {
         if (++head_ == items_.size()) {
           items_.clear();
           head_ = 0;
+        } else if (head_ >= 4096 && 2 * head_ >= items_.size()) {
+          // Drop the consumed front once it is half the vector: memory stays within twice the
+          // ready items (a full refinement otherwise keeps every item it ever queued), at an
+          // amortised O(1) move per item.
+          items_.erase(items_.begin(), items_.begin() + static_cast<std::ptrdiff_t>(head_));
+          head_ = 0;
         }
         return;
       case queue_discipline::lifo:
