@@ -39,8 +39,10 @@ std::int64_t dist2(const ipoint& a, const ipoint& b) noexcept {
 }
 
 // The diamond that owns a tetrahedron: the one centred at the midpoint of its longest edge, or
-// none when that midpoint is not a grid vertex (a finest tetrahedron).
-std::uint64_t owner_of(const hierarchy& hier, const std::array<ipoint, 4>& t) noexcept {
+// none when that midpoint is not a grid vertex (a finest tetrahedron). The general rule; the
+// split uses child_owner() and checks it against this one when asserts are on.
+[[maybe_unused]] std::uint64_t owner_of(const hierarchy& hier,
+                                        const std::array<ipoint, 4>& t) noexcept {
   std::int64_t best = -1;
   std::size_t bi = 0;
   std::size_t bj = 1;
@@ -63,6 +65,22 @@ std::uint64_t owner_of(const hierarchy& hier, const std::array<ipoint, 4>& t) no
   return hier.is_diamond(m) ? hier.index(m) : no_owner;
 }
 
+// owner_of() for a child (p, e, a, b) of a split, p a spine end and e the centre: its longest
+// edge is always p-a or p-b (the ring edge a-b and the half spine p-e are shorter in every
+// diamond class), so two distances decide it. Ties cannot occur; the general rule would take
+// p-a first, and so does this.
+std::uint64_t child_owner(const hierarchy& hier, const ipoint& p, const ipoint& a,
+                          const ipoint& b) noexcept {
+  const ipoint& x = dist2(p, b) > dist2(p, a) ? b : a;
+  ipoint m{};
+  for (std::size_t q = 0; q < 3; ++q) {
+    const std::int32_t s = p[q] + x[q];
+    if (s & 1) return no_owner;
+    m[q] = s / 2;
+  }
+  return hier.is_diamond(m) ? hier.index(m) : no_owner;
+}
+
 void bump(split_summary& s, primitive p, int n = 1) noexcept {
   s.primitives[static_cast<std::size_t>(p)] =
       static_cast<std::uint16_t>(s.primitives[static_cast<std::size_t>(p)] + n);
@@ -72,7 +90,7 @@ void bump(split_summary& s, primitive p, int n = 1) noexcept {
 
 namespace {
 
-// The split of d; emit(tet, its surface) for every child
+// The split of d; emit(owner, surface) for every child
 // tetrahedron with surface, in a fixed order.
 template <class Emit>
 split_summary split_into(const hierarchy& hier, const volume& vol, double w, const diamond& d,
@@ -143,13 +161,18 @@ split_summary split_into(const hierarchy& hier, const volume& vol, double w, con
     }
     ++s.cases[static_cast<std::size_t>(tc)];
     for (int half = 0; half < 2; ++half) {
+      // A child whose four corners share one colour has no surface: skip marching it.
+      const bool bp = half == 0 ? bc : bd;
+      if (bp == be && be == br[um] && be == br[um1]) continue;
       const std::array<ipoint, 4> t =
           half == 0 ? std::array<ipoint, 4>{c, e, a, b} : std::array<ipoint, 4>{e, dd, a, b};
       const std::array<double, 4> f = half == 0 ? std::array<double, 4>{fc, fe, fr[um], fr[um1]}
                                                 : std::array<double, 4>{fe, fd, fr[um], fr[um1]};
       const tet_surface ts = march_tet(t, f, w);
       if (ts.count == 0) continue;
-      emit(t, ts);
+      const std::uint64_t owner = child_owner(hier, half == 0 ? c : dd, a, b);
+      PROGISO_ASSERT(owner == owner_of(hier, t));
+      emit(owner, ts);
       s.added_triangles += ts.count;
     }
   }
@@ -206,8 +229,7 @@ split_summary split_into(const hierarchy& hier, const volume& vol, double w, con
 
 split_summary compute_split(const hierarchy& hier, const volume& vol, double w, const diamond& d,
                             std::vector<owned_triangle>& out) {
-  return split_into(hier, vol, w, d, [&](const std::array<ipoint, 4>& t, const tet_surface& ts) {
-    const std::uint64_t owner = owner_of(hier, t);
+  return split_into(hier, vol, w, d, [&](std::uint64_t owner, const tet_surface& ts) {
     for (int k = 0; k < ts.count; ++k) {
       out.push_back({owner, ts.triangles[static_cast<std::size_t>(k)]});
     }
@@ -216,8 +238,8 @@ split_summary compute_split(const hierarchy& hier, const volume& vol, double w, 
 
 split_summary compute_split(const hierarchy& hier, const volume& vol, double w, const diamond& d,
                             std::vector<packed_group>& out) {
-  return split_into(hier, vol, w, d, [&](const std::array<ipoint, 4>& t, const tet_surface& ts) {
-    packed_group g{owner_of(hier, t), static_cast<std::uint8_t>(ts.count), {}};
+  return split_into(hier, vol, w, d, [&](std::uint64_t owner, const tet_surface& ts) {
+    packed_group g{owner, static_cast<std::uint8_t>(ts.count), {}};
     const int shift = std::countr_zero(static_cast<std::uint32_t>(d.scale));  // h = 2^shift
     for (std::size_t k = 0; k < static_cast<std::size_t>(ts.count); ++k) {
       for (std::size_t v = 0; v < 3; ++v) {
