@@ -182,7 +182,7 @@ triangle_mesh refiner::build_mesh(InCut&& in_cut, Take&& take) const {
         centre = hier_.point(r.diamond);
         have_centre = true;
       }
-      for (std::size_t k = 0; k < g.count; ++k) b.add(unpack(centre, r.scale, g, k));
+      for (std::size_t k = 0; k < g.count(); ++k) b.add(unpack(centre, r.scale, g, k));
     }
   }
   return b.finish();

@@ -239,22 +239,22 @@ split_summary compute_split(const hierarchy& hier, const volume& vol, double w, 
 split_summary compute_split(const hierarchy& hier, const volume& vol, double w, const diamond& d,
                             std::vector<packed_group>& out) {
   return split_into(hier, vol, w, d, [&](std::uint64_t owner, const tet_surface& ts) {
-    packed_group g{owner, static_cast<std::uint8_t>(ts.count), {}};
+    std::uint64_t bits = static_cast<std::uint64_t>(ts.count);
     const int shift = std::countr_zero(static_cast<std::uint32_t>(d.scale));  // h = 2^shift
     for (std::size_t k = 0; k < static_cast<std::size_t>(ts.count); ++k) {
       for (std::size_t v = 0; v < 3; ++v) {
         const ipoint m = edge_key_point(ts.triangles[k][v]);
-        int code = 0;
+        std::uint64_t code = 0;
         for (std::size_t q = 3; q-- > 0;) {
           const std::int32_t rel = m[q] - 2 * d.centre[q];
           const std::int32_t o = rel >> shift;  // arithmetic: exact, rel is a multiple of h
           PROGISO_ASSERT((o << shift) == rel && o >= -2 && o <= 2);
-          code = code * 5 + (o + 2);
+          code = code * 5 + static_cast<std::uint64_t>(o + 2);
         }
-        g.edges[k][v] = static_cast<std::uint8_t>(code);
+        bits |= code << (8 * (1 + 3 * k + v));
       }
     }
-    out.push_back(g);
+    out.push_back({owner, bits});
   });
 }
 

@@ -43,8 +43,8 @@ TEST(SplitRecord, packed_groups_unpack_to_the_plain_records_for_every_diamond) {
       EXPECT_EQ(a.primitives, b.primitives);
       std::size_t k = 0;
       for (const packed_group& g : packed) {
-        ASSERT_TRUE(g.count == 1 || g.count == 2);
-        for (std::size_t t = 0; t < g.count; ++t, ++k) {
+        ASSERT_TRUE(g.count() == 1 || g.count() == 2);
+        for (std::size_t t = 0; t < g.count(); ++t, ++k) {
           ASSERT_LT(k, plain.size());
           EXPECT_EQ(g.owner, plain[k].owner);
           EXPECT_EQ(unpack(d.centre, d.scale, g, t), plain[k].keys) << "diamond " << i;

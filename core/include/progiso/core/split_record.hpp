@@ -85,10 +85,17 @@ struct owned_triangle {
 /// 2c + h·o with o in {-2..2}³: one byte, (o0 + 2) + 5 (o1 + 2) + 25 (o2 + 2). The owner is as
 /// in owned_triangle. 16 bytes for one or two triangles, against 32 bytes per owned_triangle;
 /// unpack() gives back the edge keys.
+/// Two words, each written whole: a group is copied right after it is made, and a copy that reads
+/// what narrower stores just wrote waits for them to retire (failed store-to-load forwarding).
 struct packed_group {
   std::uint64_t owner;
-  std::uint8_t count;  ///< triangles: 1 or 2
-  std::array<std::array<std::uint8_t, 3>, 2> edges;
+  std::uint64_t bits;  ///< byte 0: triangles (1 or 2); byte 1 + 3k + v: edge code of vertex v
+                       ///< of triangle k
+
+  [[nodiscard]] std::size_t count() const noexcept { return bits & 0xFFu; }
+  [[nodiscard]] unsigned edge(std::size_t k, std::size_t v) const noexcept {
+    return static_cast<unsigned>(bits >> (8 * (1 + 3 * k + v))) & 0xFFu;
+  }
 };
 
 /// Edge keys of triangle k of g, made by the split of the diamond with this centre and scale.
@@ -107,7 +114,7 @@ struct packed_group {
   }();
   std::array<std::uint64_t, 3> keys{};
   for (std::size_t v = 0; v < 3; ++v) {
-    const auto& o = offsets[g.edges[k][v]];
+    const auto& o = offsets[g.edge(k, v)];
     std::uint64_t key = 0;
     for (std::size_t q = 0; q < 3; ++q) {
       key |= static_cast<std::uint64_t>(2 * centre[q] + scale * o[q])
