@@ -125,6 +125,7 @@ struct child_info {
   std::uint64_t index;
   double error;
   std::uint8_t parents_needed;
+  bool known;  // error and straddles were looked up (else the commit step looks them up)
   bool straddles;
 };
 
@@ -332,12 +333,21 @@ struct engine_impl {
         child_info& ci = it.child[static_cast<std::size_t>(i)];
         ci.index = hier.index(c);
         ci.parents_needed = static_cast<std::uint8_t>(hier.parent_count(c));
-        // Every parent looks the child's range up, in parallel, so the serial commit step
-        // only counts parents (redundant work for children with several parents, off the
-        // critical path).
-        const diamond_range cr = ranges.get(c);
-        ci.straddles = cr.straddles(w);
-        ci.error = cr.error;
+        // The child's range is needed once, when its last parent commits. The parent that
+        // finds all the others already committed looks it up here, in parallel; for the other
+        // parents it would be wasted work (a child has up to four). When two last parents are
+        // in flight together, neither may look: the commit step then does.
+        const std::uint8_t split_parents =
+            std::atomic_ref<std::uint8_t>(b->root->parents[ci.index])
+                // relaxed: a hint only; the commit step, the sole writer, decides readiness,
+                // and a stale count just moves the lookup to the commit step or repeats it.
+                .load(std::memory_order_relaxed);
+        ci.known = split_parents + 1 >= ci.parents_needed;
+        if (ci.known) {
+          const diamond_range cr = ranges.get(c);
+          ci.straddles = cr.straddles(w);
+          ci.error = cr.error;
+        }
       }
       ++b->computed;
     }
@@ -393,12 +403,21 @@ struct engine_impl {
         ++configs[static_cast<std::size_t>(it.configuration)];
         for (std::size_t c = 0; c < it.children; ++c) {
           const child_info& ci = it.child[c];
-          std::uint8_t& count = r.parents[ci.index];
-          ++count;
+          const std::atomic_ref<std::uint8_t> slot(r.parents[ci.index]);
+          // relaxed: the commit step is the only writer; compute tasks read a hint.
+          const auto count = static_cast<std::uint8_t>(slot.load(std::memory_order_relaxed) + 1);
+          slot.store(count, std::memory_order_relaxed);  // relaxed: as the load above
           if (count != ci.parents_needed) continue;
           ++visited;
-          if (ci.straddles) {
-            r.queue.push({ci.error, it.item.depth + 1, ci.index});
+          bool straddles = ci.straddles;
+          double error = ci.error;
+          if (!ci.known) {
+            const diamond_range cr = ranges.get(hier.point(ci.index));
+            straddles = cr.straddles(r.isovalue);
+            error = cr.error;
+          }
+          if (straddles) {
+            r.queue.push({error, it.item.depth + 1, ci.index});
           } else {
             ++culled;
           }
