@@ -30,13 +30,16 @@ namespace {
 
 using clock = std::chrono::steady_clock;
 
-// One published split: the new triangles of the split (in a buffer the root owns), the
-// diamond, its nested error and the cut's triangle count once it is published.
+// One published split: the new triangles of the split as packed groups (in a buffer the root
+// owns; unpacked with the diamond's centre and scale), the diamond, its nested error and the
+// cut's triangle count once it is published. Record 0 is the root surface: its triangles are
+// engine_root::root_triangles, in plain form, and `count` is their number.
 struct engine_record {
   std::uint64_t diamond;  // grid index; no_owner for the root record
-  const owned_triangle* triangles;
+  const packed_group* groups;
   std::uint32_t count;
   std::int32_t depth;
+  std::int32_t scale;
   double error;
   std::uint64_t cut_triangles;
 };
@@ -95,7 +98,8 @@ struct engine_root : epoch_object {
 
   // Commit step only.
   detail::zeroed_array<std::uint8_t> parents;  // parents split so far
-  std::vector<std::vector<owned_triangle>> buffers;
+  std::vector<owned_triangle> root_triangles;  // set before the root is published
+  std::vector<std::vector<packed_group>> buffers;
   detail::ready_queue<ready_item> queue{queue_discipline::largest_error};
   std::uint64_t cut_triangles = 0;
 
@@ -108,7 +112,8 @@ struct engine_root : epoch_object {
   // Bytes of records and triangle buffers (commit step, or the control thread while idle).
   [[nodiscard]] std::uint64_t bytes() const noexcept {
     std::uint64_t n = records.byte_size();
-    for (const auto& b : buffers) n += b.capacity() * sizeof(owned_triangle);
+    n += root_triangles.capacity() * sizeof(owned_triangle);
+    for (const auto& b : buffers) n += b.capacity() * sizeof(packed_group);
     return n;
   }
   std::uint64_t retired_bytes = 0;  // bytes() when retired
@@ -131,8 +136,10 @@ struct child_info {
 
 struct batch_item {
   ready_item item;
-  std::uint32_t first = 0;
+  std::uint32_t first = 0;  // groups in the batch's buffer
   std::uint32_t count = 0;
+  std::int32_t scale = 0;
+  int added = 0;  // triangles
   int removed = 0;
   split_configuration configuration{};
   std::array<std::uint8_t, tet_case_count> cases{};
@@ -147,7 +154,7 @@ struct batch {
   bool seed = false;  // no work: asks the commit step to fill the window (a run's start)
   std::vector<batch_item> items;
   std::size_t computed = 0;
-  std::vector<owned_triangle> triangles;
+  std::vector<packed_group> groups;
 };
 
 }  // namespace
@@ -211,8 +218,8 @@ struct engine_impl {
     }
     r->cut_triangles = tris.size();
     r->records.push_back(
-        {no_owner, tris.data(), static_cast<std::uint32_t>(tris.size()), -1, 0.0, tris.size()});
-    r->buffers.push_back(std::move(tris));
+        {no_owner, nullptr, static_cast<std::uint32_t>(tris.size()), -1, 0, 0.0, tris.size()});
+    r->root_triangles = std::move(tris);
     r->records.publish();
     r->visited.set(visited);
     r->culled.set(culled);
@@ -229,7 +236,11 @@ struct engine_impl {
     if (impl.opt.poison_retired) {
       for (auto& b : r->buffers) {
         if (b.empty()) continue;  // no data pointer to poison
-        std::memset(static_cast<void*>(b.data()), poison_byte, b.size() * sizeof(owned_triangle));
+        std::memset(static_cast<void*>(b.data()), poison_byte, b.size() * sizeof(packed_group));
+      }
+      if (!r->root_triangles.empty()) {
+        std::memset(static_cast<void*>(r->root_triangles.data()), poison_byte,
+                    r->root_triangles.size() * sizeof(owned_triangle));
       }
       for (std::size_t i = 0; i < r->records.size(); ++i) {
         std::memset(static_cast<void*>(&r->records.at_unpublished(i)), poison_byte,
@@ -318,10 +329,12 @@ struct engine_impl {
     for (batch_item& it : b->items) {
       if (stopping() || past_deadline()) break;
       const diamond d = hier.make_diamond(hier.point(it.item.index));
-      const std::size_t first = b->triangles.size();
-      const split_summary s = compute_split(hier, vol, w, d, b->triangles);
+      const std::size_t first = b->groups.size();
+      const split_summary s = compute_split(hier, vol, w, d, b->groups);
       it.first = static_cast<std::uint32_t>(first);
-      it.count = static_cast<std::uint32_t>(b->triangles.size() - first);
+      it.count = static_cast<std::uint32_t>(b->groups.size() - first);
+      it.scale = d.scale;
+      it.added = s.added_triangles;
       it.removed = s.removed_triangles;
       it.configuration = s.configuration;
       it.cases = s.cases;
@@ -368,8 +381,8 @@ struct engine_impl {
     inflight_items -= b->items.size();
     std::size_t published = 0;
     if (!stopping() && b->computed > 0) {
-      r.buffers.push_back(std::move(b->triangles));
-      const owned_triangle* base = r.buffers.back().data();
+      r.buffers.push_back(std::move(b->groups));
+      const packed_group* base = r.buffers.back().data();
       std::array<std::uint64_t, tet_case_count> cases{};
       std::array<std::uint64_t, primitive_count> prims{};
       std::array<std::uint64_t, split_configuration_count> configs{};
@@ -382,7 +395,8 @@ struct engine_impl {
           request_stop();
           break;
         }
-        const std::uint64_t after = r.cut_triangles + it.count - static_cast<unsigned>(it.removed);
+        const std::uint64_t after =
+            r.cut_triangles + static_cast<unsigned>(it.added) - static_cast<unsigned>(it.removed);
         if (goal.what == refine_goal::kind::triangles && after > goal.max_triangles) {
           budget_hit = true;
           request_stop();
@@ -391,13 +405,13 @@ struct engine_impl {
         const std::size_t index = r.records.size();
         PROGISO_ASSERT(index < (std::size_t{1} << 32));
         r.cut_triangles = after;
-        r.records.push_back(
-            {it.item.index, base + it.first, it.count, it.item.depth, it.item.error, after});
+        r.records.push_back({it.item.index, base + it.first, it.count, it.item.depth, it.scale,
+                             it.item.error, after});
         std::atomic_ref<std::uint32_t>(r.record_of[it.item.index])
             .store(static_cast<std::uint32_t>(index),
                    // relaxed: published by the release in records.publish() below.
                    std::memory_order_relaxed);
-        added += it.count;
+        added += static_cast<unsigned>(it.added);
         for (std::size_t k = 0; k < tet_case_count; ++k) cases[k] += it.cases[k];
         for (std::size_t k = 0; k < primitive_count; ++k) prims[k] += it.primitives[k];
         ++configs[static_cast<std::size_t>(it.configuration)];
@@ -726,14 +740,43 @@ void surface_snapshot::for_each_split(const std::function<void(std::uint64_t)>& 
   for (std::uint64_t r = 1; r < published_; ++r) f(root_->records[r].diamond);
 }
 
+namespace {
+
+// Calls f(owner, edge keys) for the triangles of record r whose owner passes take(owner).
+template <class Take, class F>
+void walk_record(const detail::engine_root& root, const hierarchy& hier, std::uint64_t r,
+                 Take&& take, F&& f) {
+  const detail::engine_record& rec = root.records[r];
+  if (r == 0) {
+    for (std::uint32_t k = 0; k < rec.count; ++k) {
+      const owned_triangle& t = root.root_triangles[k];
+      if (take(t.owner)) f(t.owner, t.keys);
+    }
+    return;
+  }
+  bool have_centre = false;
+  ipoint centre{};
+  for (std::uint32_t k = 0; k < rec.count; ++k) {
+    const packed_group& g = rec.groups[k];
+    if (!take(g.owner)) continue;
+    if (!have_centre) {
+      centre = hier.point(rec.diamond);
+      have_centre = true;
+    }
+    for (std::size_t t = 0; t < g.count(); ++t) f(g.owner, unpack(centre, rec.scale, g, t));
+  }
+}
+
+}  // namespace
+
 void surface_snapshot::for_each_triangle(
     const std::function<void(const owned_triangle&)>& f) const {
+  const auto live = [this](std::uint64_t owner) { return owner == no_owner || !is_split(owner); };
   for (std::uint64_t r = 0; r < published_; ++r) {
-    const detail::engine_record& rec = root_->records[r];
-    for (std::uint32_t k = 0; k < rec.count; ++k) {
-      const owned_triangle& t = rec.triangles[k];
-      if (t.owner == no_owner || !is_split(t.owner)) f(t);
-    }
+    walk_record(*root_, owner_->hierarchy_of(), r, live,
+                [&f](std::uint64_t owner, const std::array<std::uint64_t, 3>& keys) {
+                  f(owned_triangle{owner, keys});
+                });
   }
 }
 
@@ -749,14 +792,9 @@ triangle_mesh surface_snapshot::build(Take&& take, bool canonical, double max_er
     if (rec.error > max_error) order.emplace_back(rec.diamond, static_cast<std::uint32_t>(r));
   }
   if (canonical) std::sort(order.begin(), order.end());
-  const auto walk = [&](const detail::engine_record& rec) {
-    for (std::uint32_t k = 0; k < rec.count; ++k) {
-      const owned_triangle& t = rec.triangles[k];
-      if (take(t.owner)) b.add(t.keys);
-    }
-  };
-  walk(root_->records[0]);
-  for (const auto& [d, r] : order) walk(root_->records[r]);
+  const auto add = [&b](std::uint64_t, const std::array<std::uint64_t, 3>& keys) { b.add(keys); };
+  walk_record(*root_, e.hierarchy_of(), 0, take, add);
+  for (const auto& [d, r] : order) walk_record(*root_, e.hierarchy_of(), r, take, add);
   return b.finish();
 }
 
@@ -783,14 +821,19 @@ bool surface_snapshot::check_integrity() const noexcept {
   for (std::uint64_t r = 0; r < published_; ++r) {
     const detail::engine_record& rec = root_->records[r];
     if (r == 0) {
-      if (rec.diamond != no_owner) return false;
-    } else {
-      if (rec.diamond >= vertices || root_->record_index(rec.diamond) != r) return false;
-      if (rec.count > 64 || !(rec.error >= 0.0)) return false;
+      if (rec.diamond != no_owner || rec.count != root_->root_triangles.size()) return false;
+      for (const owned_triangle& t : root_->root_triangles) {
+        if (t.owner != no_owner && t.owner >= vertices) return false;
+      }
+      continue;
     }
+    if (rec.diamond >= vertices || root_->record_index(rec.diamond) != r) return false;
+    // At most one group per child tetrahedron: 2 per ring tetrahedron, 8 of those.
+    if (rec.count > 16 || !(rec.error >= 0.0) || rec.scale <= 0) return false;
     for (std::uint32_t k = 0; k < rec.count; ++k) {
-      const std::uint64_t o = rec.triangles[k].owner;
-      if (o != no_owner && o >= vertices) return false;
+      const packed_group& g = rec.groups[k];
+      if (g.owner != no_owner && g.owner >= vertices) return false;
+      if (g.count() != 1 && g.count() != 2) return false;
     }
   }
   return true;
