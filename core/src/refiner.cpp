@@ -173,17 +173,9 @@ triangle_mesh refiner::build_mesh(InCut&& in_cut, Take&& take) const {
   for (std::size_t ri = 1; ri < records_.size(); ++ri) {
     const record& r = records_[ri];
     if (!in_cut(r)) continue;
-    bool have_centre = false;
-    ipoint centre{};
-    for (std::uint64_t i = r.first; i < r.first + r.count; ++i) {
-      const packed_group& g = groups_[i];
-      if (!take(g.owner)) continue;
-      if (!have_centre) {
-        centre = hier_.point(r.diamond);
-        have_centre = true;
-      }
-      for (std::size_t k = 0; k < g.count(); ++k) b.add(unpack(centre, r.scale, g, k));
-    }
+    for_each_unpacked(
+        hier_, r.diamond, r.scale, groups_, r.first, r.count, take,
+        [&b](std::uint64_t, const std::array<std::uint64_t, 3>& keys) { b.add(keys); });
   }
   return b.finish();
 }

@@ -754,17 +754,7 @@ void walk_record(const detail::engine_root& root, const hierarchy& hier, std::ui
     }
     return;
   }
-  bool have_centre = false;
-  ipoint centre{};
-  for (std::uint32_t k = 0; k < rec.count; ++k) {
-    const packed_group& g = rec.groups[k];
-    if (!take(g.owner)) continue;
-    if (!have_centre) {
-      centre = hier.point(rec.diamond);
-      have_centre = true;
-    }
-    for (std::size_t t = 0; t < g.count(); ++t) f(g.owner, unpack(centre, rec.scale, g, t));
-  }
+  for_each_unpacked(hier, rec.diamond, rec.scale, rec.groups, 0, rec.count, take, f);
 }
 
 }  // namespace

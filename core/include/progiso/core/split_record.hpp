@@ -125,6 +125,26 @@ struct packed_group {
   return keys;
 }
 
+/// Calls f(owner, edge keys) for every triangle of groups[first, first + count) whose owner
+/// passes take(owner); the groups were made by the split of the diamond centred at grid vertex
+/// `diamond` with scale `scale`. The centre is computed only when some group is taken.
+template <class Groups, class Take, class F>
+void for_each_unpacked(const hierarchy& hier, std::uint64_t diamond, std::int32_t scale,
+                       const Groups& groups, std::uint64_t first, std::uint64_t count, Take&& take,
+                       F&& f) {
+  bool have_centre = false;
+  ipoint centre{};
+  for (std::uint64_t i = first; i < first + count; ++i) {
+    const packed_group& g = groups[i];
+    if (!take(g.owner)) continue;
+    if (!have_centre) {
+      centre = hier.point(diamond);
+      have_centre = true;
+    }
+    for (std::size_t t = 0; t < g.count(); ++t) f(g.owner, unpack(centre, scale, g, t));
+  }
+}
+
 /// Classification of one split.
 struct split_summary {
   int tets = 0;               ///< tetrahedra of the diamond inside the grid
