@@ -40,15 +40,6 @@ struct refiner::queue : detail::ready_queue<refiner::ready> {
   using detail::ready_queue<refiner::ready>::ready_queue;
 };
 
-void refiner::group_store::append(const packed_group* g, std::size_t n) {
-  for (std::size_t i = 0; i < n; ++i, ++size_) {
-    if ((size_ & (chunk - 1)) == 0 && (size_ >> chunk_bits) == chunks_.size()) {
-      chunks_.push_back(std::make_unique_for_overwrite<packed_group[]>(chunk));
-    }
-    chunks_[size_ >> chunk_bits][size_ & (chunk - 1)] = g[i];
-  }
-}
-
 refiner::refiner(const volume& vol, const hierarchy& hier, const range_data& ranges,
                  double isovalue, refine_order order)
     : vol_(vol),

@@ -128,27 +128,37 @@ class refiner {
   const range_data& ranges_;
   double isovalue_;
   detail::zeroed_array<std::uint8_t> state_;  // per grid vertex: split flag, split parents
-  // Record triangles, compact (packed_group: 16 bytes for one or two triangles), in fixed
-  // chunks: growth never moves what is stored (no reallocation copy of hundreds of megabytes).
-  class group_store {
+  // Append-only storage in fixed chunks of 64 K elements: growth never moves what is stored
+  // (no reallocation copy of tens or hundreds of megabytes, no second set of fresh pages).
+  template <class T>
+  class chunked_store {
    public:
     static constexpr std::size_t chunk_bits = 16;
     static constexpr std::size_t chunk = std::size_t{1} << chunk_bits;
     [[nodiscard]] std::size_t size() const noexcept { return size_; }
-    void append(const packed_group* g, std::size_t n);
-    [[nodiscard]] const packed_group& operator[](std::size_t i) const noexcept {
+    void push_back(const T& v) {
+      if ((size_ & (chunk - 1)) == 0 && (size_ >> chunk_bits) == chunks_.size()) {
+        chunks_.push_back(std::make_unique_for_overwrite<T[]>(chunk));
+      }
+      chunks_[size_ >> chunk_bits][size_ & (chunk - 1)] = v;
+      ++size_;
+    }
+    void append(const T* v, std::size_t n) {
+      for (std::size_t i = 0; i < n; ++i) push_back(v[i]);
+    }
+    [[nodiscard]] const T& operator[](std::size_t i) const noexcept {
       return chunks_[i >> chunk_bits][i & (chunk - 1)];
     }
 
    private:
-    std::vector<std::unique_ptr<packed_group[]>> chunks_;
+    std::vector<std::unique_ptr<T[]>> chunks_;
     std::size_t size_ = 0;
   };
 
   std::vector<owned_triangle> root_triangles_;
-  group_store groups_;
+  chunked_store<packed_group> groups_;  // packed_group: 16 bytes for one or two triangles
   std::vector<packed_group> scratch_;
-  std::vector<record> records_;
+  chunked_store<record> records_;
   std::unique_ptr<queue> queue_;
   refine_statistics stats_;
 };
