@@ -120,6 +120,8 @@ class refiner {
   struct queue;
 
   bool split(std::uint64_t max_triangles);
+  static constexpr std::size_t prefetch_distance = 8;
+  void prefetch_samples(const ready& item) const noexcept;
   template <class InCut, class Take>
   triangle_mesh build_mesh(InCut&& in_cut, Take&& take) const;
 

@@ -44,6 +44,19 @@ class ready_queue {
     }
     return items_.front();
   }
+  /// The item k places after top() in fifo or lifo order, or nullptr (largest_error: unknown
+  /// without popping). For prefetching.
+  [[nodiscard]] const Item* peek(std::size_t k) const noexcept {
+    switch (discipline_) {
+      case queue_discipline::fifo:
+        return head_ + k < items_.size() ? &items_[head_ + k] : nullptr;
+      case queue_discipline::lifo:
+        return k < size() ? &items_[items_.size() - 1 - k] : nullptr;
+      case queue_discipline::largest_error:
+        break;
+    }
+    return nullptr;
+  }
   void push(const Item& item) {
     items_.push_back(item);
     if (discipline_ == queue_discipline::largest_error) {
