@@ -850,8 +850,6 @@ extract_result extract_isosurface_parallel(const volume& vol, double isovalue,
   max_depth = eng.hierarchy_of().max_depth();
   res.range_build_seconds = eng.range_build_seconds();
   res.range_bytes = eng.ranges().byte_size();
-  const auto [lo, hi] = vol.value_range();
-  res.isovalue_outside_data = !(lo <= isovalue && isovalue < hi);
   {
     const surface_snapshot first = eng.snapshot();
     const triangle_mesh m = first.mesh();
@@ -887,6 +885,9 @@ extract_result extract_isosurface_parallel(const volume& vol, double isovalue,
   res.extract_seconds = seconds(t3 - t2);
   res.total_seconds = seconds(t3 - t0);
   res.stats = eng.statistics().refine;
+  // A scan of every sample: after the timings, not inside "first surface".
+  const auto [lo, hi] = vol.value_range();
+  res.isovalue_outside_data = !(lo <= isovalue && isovalue < hi);
   return res;
 }
 
