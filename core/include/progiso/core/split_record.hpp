@@ -80,11 +80,13 @@ struct owned_triangle {
 };
 
 /// The surface pieces of one child tetrahedron in compact form, for stores that keep millions of
-/// records (the sequential refiner). Every point of a diamond with centre c and scale h lies in
-/// c + h·{-1, 0, 1}³, so the doubled midpoint of any edge between two of them (its edge key) is
-/// 2c + h·o with o in {-2..2}³: one byte, (o0 + 2) + 5 (o1 + 2) + 25 (o2 + 2). The owner is as
-/// in owned_triangle. 16 bytes for one or two triangles, against 32 bytes per owned_triangle;
-/// unpack() gives back the edge keys.
+/// records (the sequential refiner and the engine). Every point of a diamond with centre c and
+/// scale h lies in c + h·{-1, 0, 1}³, so the doubled midpoint of any edge between two of them (its
+/// edge key) is 2c + h·o with o in {-2..2}³: one byte, (o0 + 2) + 5 (o1 + 2) + 25 (o2 + 2). The
+/// owner is as in owned_triangle. 16 bytes for one or two triangles, against 32 bytes per
+/// owned_triangle; unpack() gives back the edge keys (h is a power of two, so packing needs no
+/// division).
+///
 /// Two words, each written whole: a group is copied right after it is made, and a copy that reads
 /// what narrower stores just wrote waits for them to retire (failed store-to-load forwarding).
 struct packed_group {
