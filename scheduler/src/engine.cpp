@@ -96,9 +96,13 @@ struct engine_root : epoch_object {
   // and any other value means "not in this cut").
   detail::zeroed_array<std::uint32_t> record_of;
 
+  // Parents split so far, per grid vertex: written by the commit step only (relaxed
+  // atomic_ref stores); compute tasks load it, relaxed, as a hint of which parent is last.
+  detail::zeroed_array<std::uint8_t> parents;
+  // Root surface: set before the root is published, immutable afterwards.
+  std::vector<owned_triangle> root_triangles;
+
   // Commit step only.
-  detail::zeroed_array<std::uint8_t> parents;  // parents split so far
-  std::vector<owned_triangle> root_triangles;  // set before the root is published
   std::vector<std::vector<packed_group>> buffers;
   detail::ready_queue<ready_item> queue{queue_discipline::largest_error};
   std::uint64_t cut_triangles = 0;
