@@ -188,13 +188,24 @@ int hierarchy::parent_count(const ipoint& c) const noexcept {
 }
 
 int hierarchy::children(const diamond& d, std::array<ipoint, 8>& out) const noexcept {
+  return children_at(d.centre, d.scale, d.type, out);
+}
+
+int hierarchy::children(const ipoint& c, std::array<ipoint, 8>& out) const noexcept {
+  const std::int32_t h = scale_of(c);
+  const int lg = std::countr_zero(static_cast<std::uint32_t>(h));
+  int odd = 0;
+  for (std::size_t q = 0; q < 3; ++q) odd += (c[q] >> lg) & 1;
+  return children_at(c, h, 3 - odd, out);
+}
+
+int hierarchy::children_at(const ipoint& c, std::int32_t h, int type,
+                           std::array<ipoint, 8>& out) const noexcept {
   int n = 0;
-  const ipoint& c = d.centre;
-  const std::int32_t h = d.scale;
   auto push = [&](const ipoint& p) {
     if (in_grid(p)) out[static_cast<std::size_t>(n++)] = p;
   };
-  if (d.type == 2) {
+  if (type == 2) {
     if (h < 2) return 0;
     const std::int32_t g = h / 2;
     for (int m = 0; m < 8; ++m) {
@@ -206,7 +217,7 @@ int hierarchy::children(const diamond& d, std::array<ipoint, 8>& out) const noex
   for (int q = 0; q < 3; ++q) {
     const auto uq = static_cast<std::size_t>(q);
     const bool odd = ((c[uq] >> lg) & 1) != 0;
-    if (d.type == 1 && !odd) continue;
+    if (type == 1 && !odd) continue;
     push(add(c, axis(q, h)));
     push(add(c, axis(q, -h)));
   }

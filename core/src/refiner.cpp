@@ -109,10 +109,9 @@ bool refiner::split(std::uint64_t max_triangles) {
   if (queue_->empty()) return false;
   const ready next = queue_->top();
   if (const ready* ahead = queue_->peek(prefetch_distance)) prefetch_samples(*ahead);
-  const diamond d = hier_.make_diamond(next.centre);
   const std::size_t first = groups_.size();
   scratch_.clear();
-  const split_summary s = compute_split(hier_, vol_, isovalue_, d, scratch_);
+  const split_summary s = compute_split(hier_, vol_, isovalue_, next.centre, scratch_);
   const std::uint64_t after = stats_.triangles + static_cast<std::uint64_t>(s.added_triangles) -
                               static_cast<std::uint64_t>(s.removed_triangles);
   if (after > max_triangles) return false;
@@ -120,8 +119,8 @@ bool refiner::split(std::uint64_t max_triangles) {
   queue_->pop();
   std::uint8_t* state = state_.get();
   state[next.index] = static_cast<std::uint8_t>(state[next.index] | split_bit);
-  records_.push_back(
-      {next.index, first, static_cast<std::uint32_t>(scratch_.size()), d.scale, next.error});
+  records_.push_back({next.index, first, static_cast<std::uint32_t>(scratch_.size()),
+                      hier_.scale_of(next.centre), next.error});
   stats_.triangles = after;
   stats_.record_triangles += static_cast<std::uint64_t>(s.added_triangles);
   ++stats_.splits;
@@ -131,7 +130,7 @@ bool refiner::split(std::uint64_t max_triangles) {
 
   // Children whose parents are now all split become ready.
   std::array<ipoint, 8> children{};
-  const int nc = hier_.children(d, children);
+  const int nc = hier_.children(next.centre, children);
   for (int i = 0; i < nc; ++i) {
     const ipoint& c = children[static_cast<std::size_t>(i)];
     const std::uint64_t ci = hier_.index(c);
@@ -141,7 +140,7 @@ bool refiner::split(std::uint64_t max_triangles) {
     ++stats_.visited;
     const diamond_range r = ranges_.get(c);
     if (r.straddles(isovalue_)) {
-      queue_->push({r.error, d.depth + 1, ci, c});
+      queue_->push({r.error, next.depth + 1, ci, c});
     } else {
       ++stats_.culled;
     }

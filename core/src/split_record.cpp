@@ -90,53 +90,35 @@ void bump(split_summary& s, primitive p, int n = 1) noexcept {
 
 namespace {
 
-// The split of d; emit(owner, surface) for every child
-// tetrahedron with surface, in a fixed order.
-template <class Emit>
-split_summary split_into(const hierarchy& hier, const volume& vol, double w, const diamond& d,
-                         Emit&& emit) {
-  split_summary s;
-  // Inside the data box (the usual case) samples are read without clamping.
-  const ipoint& dm = hier.data_max();
-  const std::int32_t h = d.scale;
-  const bool inside = d.centre[0] - h >= 0 && d.centre[1] - h >= 0 && d.centre[2] - h >= 0 &&
-                      d.centre[0] + h <= dm[0] && d.centre[1] + h <= dm[1] &&
-                      d.centre[2] + h <= dm[2];
-  const auto value = [&](const ipoint& p) {
-    return inside ? vol.at(vol.linear(p[0], p[1], p[2])) : vol.value(p[0], p[1], p[2]);
-  };
-  const ipoint& c = d.spine[0];
-  const ipoint& dd = d.spine[1];
-  const ipoint& e = d.centre;
-  const double fc = value(c);
-  const double fd = value(dd);
-  const double fe = value(e);
-  const bool bc = fc > w;
-  const bool bd = fd > w;
-  const bool be = fe > w;
-  const int n = d.ring_size;
-  std::array<double, 8> fr{};
-  std::array<bool, 8> br{};
-  for (int m = 0; m < n; ++m) {
-    if ((d.ring_in_grid >> m) & 1u) {
-      fr[static_cast<std::size_t>(m)] = value(d.ring[static_cast<std::size_t>(m)]);
-      br[static_cast<std::size_t>(m)] = fr[static_cast<std::size_t>(m)] > w;
-    }
-  }
-  const auto tet_exists = [&](int m) {
-    const int m1 = (m + 1 == n ? 0 : m + 1);
-    return ((d.ring_in_grid >> m) & 1u) && ((d.ring_in_grid >> m1) & 1u);
-  };
+// The colours (value > w) of a diamond's points: spine ends c and d, centre e, ring.
+struct colours {
+  bool c = false;
+  bool d = false;
+  bool e = false;
+  std::array<bool, 8> ring{};
+  unsigned ring_in_grid = 0;
+  int n = 0;  // ring size
 
-  // ---- The children tetrahedra and their surface pieces, per tetrahedron's case. ----------
+  [[nodiscard]] bool tet_exists(int m) const noexcept {
+    const int m1 = (m + 1 == n ? 0 : m + 1);
+    return ((ring_in_grid >> m) & 1u) && ((ring_in_grid >> m1) & 1u);
+  }
+};
+
+// Everything in a split summary that colours decide: tetrahedra, removed triangles, the case of
+// every tetrahedron, the configuration and the primitives (not the added triangles).
+void classify(const colours& k, split_summary& s) noexcept {
+  const bool bc = k.c;
+  const bool bd = k.d;
+  const bool be = k.e;
+  const auto& br = k.ring;
+  const int n = k.n;
   int count_3a = 0;
   int count_4a = 0;
   for (int m = 0; m < n; ++m) {
-    if (!tet_exists(m)) continue;
+    if (!k.tet_exists(m)) continue;
     const auto um = static_cast<std::size_t>(m);
     const auto um1 = static_cast<std::size_t>((m + 1 == n ? 0 : m + 1));
-    const ipoint& a = d.ring[um];
-    const ipoint& b = d.ring[um1];
     ++s.tets;
     const unsigned mask =
         (bc ? 1u : 0u) | (bd ? 2u : 0u) | (br[um] ? 4u : 0u) | (br[um1] ? 8u : 0u);
@@ -160,31 +142,16 @@ split_summary split_into(const hierarchy& hier, const volume& vol, double w, con
       tc = be == bc ? tet_case::c5b : tet_case::c5c;
     }
     ++s.cases[static_cast<std::size_t>(tc)];
-    for (int half = 0; half < 2; ++half) {
-      // A child whose four corners share one colour has no surface: skip marching it.
-      const bool bp = half == 0 ? bc : bd;
-      if (bp == be && be == br[um] && be == br[um1]) continue;
-      const std::array<ipoint, 4> t =
-          half == 0 ? std::array<ipoint, 4>{c, e, a, b} : std::array<ipoint, 4>{e, dd, a, b};
-      const std::array<double, 4> f = half == 0 ? std::array<double, 4>{fc, fe, fr[um], fr[um1]}
-                                                : std::array<double, 4>{fe, fd, fr[um], fr[um1]};
-      const tet_surface ts = march_tet(t, f, w);
-      if (ts.count == 0) continue;
-      const std::uint64_t owner = child_owner(hier, half == 0 ? c : dd, a, b);
-      PROGISO_ASSERT(owner == owner_of(hier, t));
-      emit(owner, ts);
-      s.added_triangles += ts.count;
-    }
   }
 
   // ---- Primitives around the spine. --------------------------------------------------------
   const auto facet_interior = [&](int m) {
-    return tet_exists(m) && tet_exists((m == 0 ? n - 1 : m - 1));
+    return k.tet_exists(m) && k.tet_exists((m == 0 ? n - 1 : m - 1));
   };
   const auto ring_splits = [&](bool want_colour_ne_e) {
     for (int m = 0; m < n; ++m) {
-      if (!((d.ring_in_grid >> m) & 1u)) continue;
-      if (!tet_exists(m) && !tet_exists((m == 0 ? n - 1 : m - 1))) continue;
+      if (!((k.ring_in_grid >> m) & 1u)) continue;
+      if (!k.tet_exists(m) && !k.tet_exists((m == 0 ? n - 1 : m - 1))) continue;
       if ((br[static_cast<std::size_t>(m)] != be) != want_colour_ne_e) continue;
       bump(s, facet_interior(m) ? primitive::vertex_split : primitive::vertex_open);
     }
@@ -199,7 +166,7 @@ split_summary split_into(const hierarchy& hier, const volume& vol, double w, con
   } else if (count_3a == s.tets) {
     s.configuration = split_configuration::empty_region;
     bool closed = true;
-    for (int m = 0; m < n; ++m) closed = closed && tet_exists(m);
+    for (int m = 0; m < n; ++m) closed = closed && k.tet_exists(m);
     bump(s, closed ? primitive::new_loop : primitive::new_surf);
   } else if (count_4a == s.tets) {
     s.configuration = split_configuration::cylinder;
@@ -209,9 +176,9 @@ split_summary split_into(const hierarchy& hier, const volume& vol, double w, con
     int components = 0;
     for (int m = 0; m < n; ++m) {
       const auto um = static_cast<std::size_t>(m);
-      if (!((d.ring_in_grid >> m) & 1u) || br[um] == bc) continue;
+      if (!((k.ring_in_grid >> m) & 1u) || br[um] == bc) continue;
       const int prev = (m == 0 ? n - 1 : m - 1);
-      const bool continues = tet_exists(prev) && br[static_cast<std::size_t>(prev)] != bc;
+      const bool continues = k.tet_exists(prev) && br[static_cast<std::size_t>(prev)] != bc;
       if (!continues) ++components;
     }
     if (components == 0) components = 1;  // closed ring wholly opposite: handled as cylinder
@@ -221,6 +188,275 @@ split_summary split_into(const hierarchy& hier, const volume& vol, double w, con
     ring_splits(true);
     bump(s, primitive::edge_flip, count_4a);
     bump(s, primitive::connectivity_change, components - 1);
+  }
+}
+
+// The split of d by marching every child tetrahedron: the general rule, which the owned_triangle
+// records use and which the tables of the packed path are built from. emit(owner, surface) for
+// every child tetrahedron with surface, in a fixed order.
+template <class Emit>
+split_summary split_into(const hierarchy& hier, const volume& vol, double w, const diamond& d,
+                         Emit&& emit) {
+  split_summary s;
+  // Inside the data box (the usual case) samples are read without clamping.
+  const ipoint& dm = hier.data_max();
+  const std::int32_t h = d.scale;
+  const bool inside = d.centre[0] - h >= 0 && d.centre[1] - h >= 0 && d.centre[2] - h >= 0 &&
+                      d.centre[0] + h <= dm[0] && d.centre[1] + h <= dm[1] &&
+                      d.centre[2] + h <= dm[2];
+  const auto value = [&](const ipoint& p) {
+    return inside ? vol.at(vol.linear(p[0], p[1], p[2])) : vol.value(p[0], p[1], p[2]);
+  };
+  const ipoint& c = d.spine[0];
+  const ipoint& dd = d.spine[1];
+  const ipoint& e = d.centre;
+  const double fc = value(c);
+  const double fd = value(dd);
+  const double fe = value(e);
+  colours k;
+  k.c = fc > w;
+  k.d = fd > w;
+  k.e = fe > w;
+  k.n = d.ring_size;
+  k.ring_in_grid = d.ring_in_grid;
+  const int n = d.ring_size;
+  std::array<double, 8> fr{};
+  for (int m = 0; m < n; ++m) {
+    if ((d.ring_in_grid >> m) & 1u) {
+      fr[static_cast<std::size_t>(m)] = value(d.ring[static_cast<std::size_t>(m)]);
+      k.ring[static_cast<std::size_t>(m)] = fr[static_cast<std::size_t>(m)] > w;
+    }
+  }
+  classify(k, s);
+  for (int m = 0; m < n; ++m) {
+    if (!k.tet_exists(m)) continue;
+    const auto um = static_cast<std::size_t>(m);
+    const auto um1 = static_cast<std::size_t>((m + 1 == n ? 0 : m + 1));
+    const ipoint& a = d.ring[um];
+    const ipoint& b = d.ring[um1];
+    for (int half = 0; half < 2; ++half) {
+      // A child whose four corners share one colour has no surface: skip marching it.
+      const bool bp = half == 0 ? k.c : k.d;
+      if (bp == k.e && k.e == k.ring[um] && k.e == k.ring[um1]) continue;
+      const std::array<ipoint, 4> t =
+          half == 0 ? std::array<ipoint, 4>{c, e, a, b} : std::array<ipoint, 4>{e, dd, a, b};
+      const std::array<double, 4> f = half == 0 ? std::array<double, 4>{fc, fe, fr[um], fr[um1]}
+                                                : std::array<double, 4>{fe, fd, fr[um], fr[um1]};
+      const tet_surface ts = march_tet(t, f, w);
+      if (ts.count == 0) continue;
+      const std::uint64_t owner = child_owner(hier, half == 0 ? c : dd, a, b);
+      PROGISO_ASSERT(owner == owner_of(hier, t));
+      emit(owner, ts);
+      s.added_triangles += ts.count;
+    }
+  }
+  return s;
+}
+
+// The packed bits of one child's surface: edge keys 2·centre + h·o turned into codes of o
+// (h = 2^shift).
+std::uint64_t pack_surface(const tet_surface& ts, const ipoint& centre, int shift) noexcept {
+  std::uint64_t bits = static_cast<std::uint64_t>(ts.count);
+  for (std::size_t k = 0; k < static_cast<std::size_t>(ts.count); ++k) {
+    for (std::size_t v = 0; v < 3; ++v) {
+      const ipoint m = edge_key_point(ts.triangles[k][v]);
+      std::uint64_t code = 0;
+      for (std::size_t q = 3; q-- > 0;) {
+        const std::int32_t rel = m[q] - 2 * centre[q];
+        const std::int32_t o = rel >> shift;  // arithmetic: exact, rel is a multiple of h
+        PROGISO_ASSERT((o << shift) == rel && o >= -2 && o <= 2);
+        code = code * 5 + static_cast<std::uint64_t>(o + 2);
+      }
+      bits |= code << (8 * (1 + 3 * k + v));
+    }
+  }
+  return bits;
+}
+
+// ---- The packed path: splits from tables. -----------------------------------------------------
+//
+// A diamond's points, relative to its centre in units of its scale h, depend only on its shape:
+// which axes are odd at its scale (the type) and the spine's direction along them. There are 26
+// shapes. Marching is invariant under that change of frame: the quad diagonal follows the order
+// of edge keys, which for keys 2c + h·o is the order of o, and the orientation test is a sign of
+// a product of differences. So the packed surface of every child tetrahedron, for each of its 16
+// colourings, is a table entry, built once by march_tet() itself on a diamond of each shape.
+
+using offset = std::array<std::int8_t, 3>;
+
+struct child_table {
+  std::array<std::uint64_t, 16> bits{};  // pack_surface() of each colouring; 0: no surface
+  offset owner2{};                       // 2 × the owner's offset (p + x, see child_owner())
+};
+
+struct shape_table {
+  int n = 0;                            // ring size
+  offset spine{};                       // spine end d; end c is its opposite
+  std::array<offset, 8> ring{};         // ring points
+  std::array<child_table, 16> child{};  // child 2m + half, as split_into() orders them
+};
+
+// Shape index: bit q set when axis q is odd at the diamond's scale, bit 3 + q when the spine
+// runs towards +q along it.
+unsigned shape_of(const ipoint& c, std::int32_t h, int lg) noexcept {
+  unsigned id = 0;
+  for (std::size_t q = 0; q < 3; ++q) {
+    if ((c[q] >> lg) & 1) {
+      id |= 1u << q;
+      if (((c[q] + h) & (4 * h - 1)) == 0) id |= 8u << q;
+    }
+  }
+  return id;
+}
+
+std::array<shape_table, 64> build_shapes() {
+  std::array<shape_table, 64> shapes{};
+  // A diamond of every shape at scale 2 in a 17³ grid, away from the boundary.
+  const hierarchy probe({17, 17, 17});
+  for (unsigned odd = 1; odd < 8; ++odd) {
+    for (unsigned sign = 0; sign < 8; ++sign) {
+      if ((sign & ~odd) != 0) continue;
+      ipoint c{};
+      for (std::size_t q = 0; q < 3; ++q) {
+        c[q] = ((odd >> q) & 1u) != 0 ? (((sign >> q) & 1u) != 0 ? 6 : 10) : 8;
+      }
+      const diamond d = probe.make_diamond(c);
+      const unsigned id = shape_of(c, d.scale, 1);
+      PROGISO_ASSERT(d.scale == 2 && id == (odd | sign << 3));
+      shape_table& t = shapes[id];
+      const auto off = [&](const ipoint& p) {
+        return offset{static_cast<std::int8_t>((p[0] - c[0]) / 2),
+                      static_cast<std::int8_t>((p[1] - c[1]) / 2),
+                      static_cast<std::int8_t>((p[2] - c[2]) / 2)};
+      };
+      t.n = d.ring_size;
+      t.spine = off(d.spine[1]);
+      for (int m = 0; m < d.ring_size; ++m) {
+        t.ring[static_cast<std::size_t>(m)] = off(d.ring[static_cast<std::size_t>(m)]);
+      }
+      for (int m = 0; m < d.ring_size; ++m) {
+        const ipoint& a = d.ring[static_cast<std::size_t>(m)];
+        const ipoint& b = d.ring[static_cast<std::size_t>(m + 1 == d.ring_size ? 0 : m + 1)];
+        for (int half = 0; half < 2; ++half) {
+          child_table& ch = t.child[static_cast<std::size_t>(2 * m + half)];
+          const ipoint& p = half == 0 ? d.spine[0] : d.spine[1];
+          const std::array<ipoint, 4> tet =
+              half == 0 ? std::array<ipoint, 4>{p, c, a, b} : std::array<ipoint, 4>{c, p, a, b};
+          for (unsigned mask = 0; mask < 16; ++mask) {
+            std::array<double, 4> f{};
+            for (std::size_t i = 0; i < 4; ++i) f[i] = ((mask >> i) & 1u) != 0 ? 1.0 : 0.0;
+            ch.bits[mask] = pack_surface(march_tet(tet, f, 0.5), c, 1);
+          }
+          const ipoint& x = dist2(p, b) > dist2(p, a) ? b : a;
+          const offset po = off(p);
+          const offset xo = off(x);
+          for (std::size_t q = 0; q < 3; ++q) {
+            ch.owner2[q] = static_cast<std::int8_t>(po[q] + xo[q]);
+          }
+        }
+      }
+    }
+  }
+  return shapes;
+}
+
+const std::array<shape_table, 64>& shapes() {
+  static const std::array<shape_table, 64> all = build_shapes();
+  return all;
+}
+
+template <class T>
+split_summary split_packed(const hierarchy& hier, const volume& vol, const T* samples, double w,
+                           const ipoint& c, std::vector<packed_group>& out) {
+  split_summary s;
+  const std::int32_t h = hier.scale_of(c);
+  const int lg = std::countr_zero(static_cast<std::uint32_t>(h));
+  const shape_table& shape = shapes()[shape_of(c, h, lg)];
+  const int n = shape.n;
+  const auto point = [&](const offset& o) {
+    return ipoint{c[0] + h * o[0], c[1] + h * o[1], c[2] + h * o[2]};
+  };
+  const ipoint& dm = hier.data_max();
+  const ipoint& gm = hier.grid_max();
+  bool in_data = true;
+  bool in_grid = true;
+  for (std::size_t q = 0; q < 3; ++q) {
+    in_data = in_data && c[q] - h >= 0 && c[q] + h <= dm[q];
+    in_grid = in_grid && c[q] - h >= 0 && c[q] + h <= gm[q];
+  }
+  colours k;
+  k.n = n;
+  k.ring_in_grid = (1u << n) - 1;
+  if (!in_grid) {
+    k.ring_in_grid = 0;
+    for (int m = 0; m < n; ++m) {
+      if (hier.in_grid(point(shape.ring[static_cast<std::size_t>(m)]))) k.ring_in_grid |= 1u << m;
+    }
+  }
+  if (in_data) {
+    const index3& dims = vol.dims();
+    const std::int64_t sy = dims[0];
+    const std::int64_t sz = dims[0] * dims[1];
+    const T* base = samples + vol.linear(c[0], c[1], c[2]);
+    const auto at = [&](const offset& o) {
+      return static_cast<double>(base[h * (o[0] + o[1] * sy + o[2] * sz)]) > w;
+    };
+    const offset& sp = shape.spine;
+    k.c = at({static_cast<std::int8_t>(-sp[0]), static_cast<std::int8_t>(-sp[1]),
+              static_cast<std::int8_t>(-sp[2])});
+    k.d = at(sp);
+    k.e = static_cast<double>(base[0]) > w;
+    for (int m = 0; m < n; ++m) {
+      k.ring[static_cast<std::size_t>(m)] = at(shape.ring[static_cast<std::size_t>(m)]);
+    }
+  } else {
+    const auto at = [&](const ipoint& p) { return vol.value(p[0], p[1], p[2]) > w; };
+    const offset& sp = shape.spine;
+    k.c = at({c[0] - h * sp[0], c[1] - h * sp[1], c[2] - h * sp[2]});
+    k.d = at(point(sp));
+    k.e = at(c);
+    for (int m = 0; m < n; ++m) {
+      if ((k.ring_in_grid >> m) & 1u) {
+        k.ring[static_cast<std::size_t>(m)] = at(point(shape.ring[static_cast<std::size_t>(m)]));
+      }
+    }
+  }
+  classify(k, s);
+  const unsigned ce = (k.c ? 1u : 0u) | (k.e ? 2u : 0u);  // colours of (c, e, ., .)
+  const unsigned ed = (k.e ? 1u : 0u) | (k.d ? 2u : 0u);  // colours of (e, d, ., .)
+  const std::int32_t g = h / 2;                           // owner = c + g · owner2
+  for (int m = 0; m < n; ++m) {
+    if (!k.tet_exists(m)) continue;
+    const auto um = static_cast<std::size_t>(m);
+    const auto um1 = static_cast<std::size_t>((m + 1 == n ? 0 : m + 1));
+    const unsigned ab = (k.ring[um] ? 4u : 0u) | (k.ring[um1] ? 8u : 0u);
+    for (std::size_t half = 0; half < 2; ++half) {
+      const child_table& ch = shape.child[2 * um + half];
+      const std::uint64_t bits = ch.bits[(half == 0 ? ce : ed) | ab];
+      if (bits == 0) continue;
+      std::uint64_t owner = no_owner;
+      const offset& o = ch.owner2;
+      // At h = 1 an owner offset with an odd coordinate is half a grid step: a finest child.
+      if (h > 1 || ((o[0] | o[1] | o[2]) & 1) == 0) {
+        const std::int32_t step = h > 1 ? g : 1;
+        const std::int32_t div = h > 1 ? 1 : 2;
+        const ipoint op{c[0] + step * o[0] / div, c[1] + step * o[1] / div,
+                        c[2] + step * o[2] / div};
+        owner = hier.is_diamond(op) ? hier.index(op) : no_owner;
+      }
+#if defined(PROGISO_ENABLE_ASSERTS)
+      {
+        const diamond d = hier.make_diamond(c);
+        const ipoint& a = d.ring[um];
+        const ipoint& b = d.ring[um1];
+        const std::array<ipoint, 4> t = half == 0 ? std::array<ipoint, 4>{d.spine[0], c, a, b}
+                                                  : std::array<ipoint, 4>{c, d.spine[1], a, b};
+        PROGISO_ASSERT(owner == owner_of(hier, t));
+      }
+#endif
+      out.push_back({owner, bits});
+      s.added_triangles += static_cast<int>(bits & 0xFFu);
+    }
   }
   return s;
 }
@@ -236,26 +472,16 @@ split_summary compute_split(const hierarchy& hier, const volume& vol, double w, 
   });
 }
 
+split_summary compute_split(const hierarchy& hier, const volume& vol, double w,
+                            const ipoint& centre, std::vector<packed_group>& out) {
+  PROGISO_ASSERT(hier.is_diamond(centre));
+  return vol.visit_samples(
+      [&](const auto* samples) { return split_packed(hier, vol, samples, w, centre, out); });
+}
+
 split_summary compute_split(const hierarchy& hier, const volume& vol, double w, const diamond& d,
                             std::vector<packed_group>& out) {
-  return split_into(hier, vol, w, d, [&](std::uint64_t owner, const tet_surface& ts) {
-    std::uint64_t bits = static_cast<std::uint64_t>(ts.count);
-    const int shift = std::countr_zero(static_cast<std::uint32_t>(d.scale));  // h = 2^shift
-    for (std::size_t k = 0; k < static_cast<std::size_t>(ts.count); ++k) {
-      for (std::size_t v = 0; v < 3; ++v) {
-        const ipoint m = edge_key_point(ts.triangles[k][v]);
-        std::uint64_t code = 0;
-        for (std::size_t q = 3; q-- > 0;) {
-          const std::int32_t rel = m[q] - 2 * d.centre[q];
-          const std::int32_t o = rel >> shift;  // arithmetic: exact, rel is a multiple of h
-          PROGISO_ASSERT((o << shift) == rel && o >= -2 && o <= 2);
-          code = code * 5 + static_cast<std::uint64_t>(o + 2);
-        }
-        bits |= code << (8 * (1 + 3 * k + v));
-      }
-    }
-    out.push_back({owner, bits});
-  });
+  return compute_split(hier, vol, w, d.centre, out);
 }
 
 std::optional<ipoint> compute_root(const hierarchy& hier, const volume& vol, double w,

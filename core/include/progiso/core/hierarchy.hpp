@@ -84,6 +84,8 @@ class hierarchy {
   [[nodiscard]] int parent_count(const ipoint& c) const noexcept;
   /// Children that are grid vertices; returns how many were written.
   int children(const diamond& d, std::array<ipoint, 8>& out) const noexcept;
+  /// The same for the diamond centred at c (a diamond centre), without building the diamond.
+  int children(const ipoint& c, std::array<ipoint, 8>& out) const noexcept;
 
   /// Root cubes' centres (the root diamonds when N ≥ 2), and their 6 tetrahedra each.
   [[nodiscard]] std::uint64_t root_count() const noexcept {
@@ -103,6 +105,9 @@ class hierarchy {
   }
 
  private:
+  int children_at(const ipoint& c, std::int32_t h, int type,
+                  std::array<ipoint, 8>& out) const noexcept;
+
   int levels_ = 0;
   std::int32_t root_ = 1;
   ipoint cubes_{};

@@ -163,9 +163,13 @@ split_summary compute_split(const hierarchy& hier, const volume& vol, double iso
                             const diamond& d, std::vector<owned_triangle>& out);
 
 /// compute_split() with the new pieces appended in compact form, one group per child
-/// tetrahedron with surface; the same triangles in the same order.
+/// tetrahedron with surface; the same triangles in the same order. Table-driven: the surface of
+/// each child for each colouring of its corners is looked up, not marched (see split_record.cpp).
 split_summary compute_split(const hierarchy& hier, const volume& vol, double isovalue,
                             const diamond& d, std::vector<packed_group>& out);
+/// The same for the diamond centred at `centre` (a diamond::centre), without the diamond.
+split_summary compute_split(const hierarchy& hier, const volume& vol, double isovalue,
+                            const ipoint& centre, std::vector<packed_group>& out);
 
 /// The surface in the six tetrahedra of root cube r (hierarchy::root_tets), appended to `out`,
 /// each piece owned by the root diamond. Returns that diamond's centre, or nullopt when the
