@@ -149,6 +149,9 @@ void check_against_brute_force(const index3& dims) {
     const auto jt = children.find(c);
     EXPECT_EQ(cset, jt == children.end() ? std::set<ipoint>{} : jt->second)
         << "children of " << c[0] << "," << c[1] << "," << c[2];
+    std::array<ipoint, 8> cs2{};
+    const int nc2 = h.children(c, cs2);  // from the centre alone
+    EXPECT_EQ(std::set<ipoint>(cs2.begin(), cs2.begin() + nc2), cset);
     EXPECT_EQ(d.depth == 0, np == 0);
   }
 
