@@ -47,7 +47,8 @@ refiner::refiner(const volume& vol, const hierarchy& hier, const range_data& ran
       ranges_(ranges),
       isovalue_(isovalue),
       state_(hier.vertex_count()),
-      queue_(std::make_unique<queue>(discipline_of(order))) {
+      queue_(std::make_unique<queue>(discipline_of(order))),
+      prefetch_(vol.byte_size() > prefetch_min_bytes) {
   if (!std::isfinite(isovalue)) {
     throw error("isovalue: expected a finite number, found " + std::to_string(isovalue));
   }
@@ -108,7 +109,9 @@ bool refiner::split_next_within(std::uint64_t max_triangles) { return split(max_
 bool refiner::split(std::uint64_t max_triangles) {
   if (queue_->empty()) return false;
   const ready next = queue_->top();
-  if (const ready* ahead = queue_->peek(prefetch_distance)) prefetch_samples(*ahead);
+  if (prefetch_) {
+    if (const ready* ahead = queue_->peek(prefetch_distance)) prefetch_samples(*ahead);
+  }
   const std::size_t first = groups_.size();
   scratch_.clear();
   const split_summary s = compute_split(hier_, vol_, isovalue_, next.centre, scratch_);

@@ -3,6 +3,7 @@
 #include <bit>
 
 #include <progiso/core/assert.hpp>
+#include <progiso/core/detail/split_classify.hpp>
 #include <progiso/core/marching.hpp>
 
 namespace progiso {
@@ -88,108 +89,90 @@ void bump(split_summary& s, primitive p, int n = 1) noexcept {
 
 }  // namespace
 
-namespace {
+namespace detail {
 
-// The colours (value > w) of a diamond's points: spine ends c and d, centre e, ring.
-struct colours {
-  bool c = false;
-  bool d = false;
-  bool e = false;
-  std::array<bool, 8> ring{};
-  unsigned ring_in_grid = 0;
-  int n = 0;  // ring size
-
-  [[nodiscard]] bool tet_exists(int m) const noexcept {
-    const int m1 = (m + 1 == n ? 0 : m + 1);
-    return ((ring_in_grid >> m) & 1u) && ((ring_in_grid >> m1) & 1u);
-  }
-};
-
-// Everything in a split summary that colours decide: tetrahedra, removed triangles, the case of
-// every tetrahedron, the configuration and the primitives (not the added triangles).
-void classify(const colours& k, split_summary& s) noexcept {
+void classify(const split_colours& k, split_summary& s) noexcept {
+  const int n = k.n;
+  const unsigned full = (1u << n) - 1;
+  // Rotations over the ring: bit m of next(X) is X's bit m + 1, of prev(X) its bit m - 1.
+  const auto next = [&](unsigned x) { return ((x >> 1) | (x << (n - 1))) & full; };
+  const auto prev = [&](unsigned x) { return ((x << 1) | (x >> (n - 1))) & full; };
+  const unsigned g = k.ring_in_grid & full;
+  const unsigned r = k.ring & g;
+  const unsigned t = g & next(g);  // tetrahedra (c, d, ring[m], ring[m + 1]) in the grid
+  const unsigned rn = next(r);     // colour of ring[m + 1]
   const bool bc = k.c;
   const bool bd = k.d;
   const bool be = k.e;
-  const auto& br = k.ring;
-  const int n = k.n;
-  int count_3a = 0;
-  int count_4a = 0;
-  for (int m = 0; m < n; ++m) {
-    if (!k.tet_exists(m)) continue;
-    const auto um = static_cast<std::size_t>(m);
-    const auto um1 = static_cast<std::size_t>((m + 1 == n ? 0 : m + 1));
-    ++s.tets;
-    const unsigned mask =
-        (bc ? 1u : 0u) | (bd ? 2u : 0u) | (br[um] ? 4u : 0u) | (br[um1] ? 8u : 0u);
-    s.removed_triangles += tet_triangle_count(mask);
-    tet_case tc;
-    if (bc != bd) {
-      if (br[um] == br[um1]) {
-        tc = be != br[um] ? tet_case::c1b : tet_case::c1c;
-      } else {
-        tc = be == bc ? tet_case::c2b : tet_case::c2c;
-      }
-    } else if (br[um] == br[um1]) {
-      if (br[um] == bc) {
-        tc = be == bc ? tet_case::c3b : tet_case::c3c;
-        ++count_3a;
-      } else {
-        tc = be == bc ? tet_case::c4b : tet_case::c4c;
-        ++count_4a;
-      }
-    } else {
-      tc = be == bc ? tet_case::c5b : tet_case::c5c;
-    }
-    ++s.cases[static_cast<std::size_t>(tc)];
+  // Tetrahedra by the colours (a, b) of their ring edge.
+  const int n00 = std::popcount(t & ~r & ~rn & full);
+  const int n11 = std::popcount(t & r & rn);
+  const int n_mixed = std::popcount(t) - n00 - n11;
+  s.tets = n00 + n11 + n_mixed;
+  const unsigned cd = (bc ? 1u : 0u) | (bd ? 2u : 0u);
+  s.removed_triangles = n00 * tet_triangle_count(cd) + n11 * tet_triangle_count(cd | 12u) +
+                        n_mixed * tet_triangle_count(cd | 4u);
+  const auto add_case = [&](tet_case c, int count) {
+    s.cases[static_cast<std::size_t>(c)] =
+        static_cast<std::uint8_t>(s.cases[static_cast<std::size_t>(c)] + count);
+  };
+  int count_3a = 0;  // a = b = c's colour
+  int count_4a = 0;  // a = b, opposite to c
+  if (bc != bd) {
+    // 1: a = b (b when e differs from them); 2: a ≠ b (b when e has c's colour).
+    add_case(be != false ? tet_case::c1b : tet_case::c1c, n00);
+    add_case(be != true ? tet_case::c1b : tet_case::c1c, n11);
+    add_case(be == bc ? tet_case::c2b : tet_case::c2c, n_mixed);
+  } else {
+    count_3a = bc ? n11 : n00;
+    count_4a = bc ? n00 : n11;
+    add_case(be == bc ? tet_case::c3b : tet_case::c3c, count_3a);
+    add_case(be == bc ? tet_case::c4b : tet_case::c4c, count_4a);
+    add_case(be == bc ? tet_case::c5b : tet_case::c5c, n_mixed);
   }
 
   // ---- Primitives around the spine. --------------------------------------------------------
-  const auto facet_interior = [&](int m) {
-    return k.tet_exists(m) && k.tet_exists((m == 0 ? n - 1 : m - 1));
-  };
-  const auto ring_splits = [&](bool want_colour_ne_e) {
-    for (int m = 0; m < n; ++m) {
-      if (!((k.ring_in_grid >> m) & 1u)) continue;
-      if (!k.tet_exists(m) && !k.tet_exists((m == 0 ? n - 1 : m - 1))) continue;
-      if ((br[static_cast<std::size_t>(m)] != be) != want_colour_ne_e) continue;
-      bump(s, facet_interior(m) ? primitive::vertex_split : primitive::vertex_open);
-    }
+  const unsigned interior = t & prev(t);  // ring vertices whose facet (a, c, d) is interior
+  const unsigned touched = t | prev(t);   // ring vertices of some tetrahedron
+  const auto ring_splits = [&] {
+    // Ring vertices whose new edge a-e is crossed.
+    const unsigned crossed = g & touched & (be ? ~r : r);
+    bump(s, primitive::vertex_split, std::popcount(crossed & interior));
+    bump(s, primitive::vertex_open, std::popcount(crossed & ~interior));
   };
   if (bc != bd) {
     s.configuration = split_configuration::spine_crossed;
     bump(s, primitive::vertex_move);
-    ring_splits(true);
+    ring_splits();
   } else if (be == bc) {
     s.configuration = split_configuration::no_new_crossing;
-    ring_splits(true);
+    ring_splits();
   } else if (count_3a == s.tets) {
     s.configuration = split_configuration::empty_region;
-    bool closed = true;
-    for (int m = 0; m < n; ++m) closed = closed && k.tet_exists(m);
-    bump(s, closed ? primitive::new_loop : primitive::new_surf);
+    bump(s, t == full ? primitive::new_loop : primitive::new_surf);
   } else if (count_4a == s.tets) {
     s.configuration = split_configuration::cylinder;
     bump(s, primitive::cylinder_flip);
   } else {
     // Components: maximal runs of ring vertices opposite to c in colour, along existing tets.
-    int components = 0;
-    for (int m = 0; m < n; ++m) {
-      const auto um = static_cast<std::size_t>(m);
-      if (!((k.ring_in_grid >> m) & 1u) || br[um] == bc) continue;
-      const int prev = (m == 0 ? n - 1 : m - 1);
-      const bool continues = k.tet_exists(prev) && br[static_cast<std::size_t>(prev)] != bc;
-      if (!continues) ++components;
-    }
+    const unsigned opposite = g & (bc ? ~r : r);
+    int components = std::popcount(opposite & ~prev(t & opposite));
     if (components == 0) components = 1;  // closed ring wholly opposite: handled as cylinder
     s.configuration = components == 1 ? split_configuration::single_component
                                       : split_configuration::multiple_components;
     bump(s, primitive::vertex_split, components);
-    ring_splits(true);
+    ring_splits();
     bump(s, primitive::edge_flip, count_4a);
     bump(s, primitive::connectivity_change, components - 1);
   }
 }
+
+}  // namespace detail
+
+namespace {
+
+using detail::classify;
+using colours = detail::split_colours;
 
 // The split of d by marching every child tetrahedron: the general rule, which the owned_triangle
 // records use and which the tables of the packed path are built from. emit(owner, surface) for
@@ -224,7 +207,7 @@ split_summary split_into(const hierarchy& hier, const volume& vol, double w, con
   for (int m = 0; m < n; ++m) {
     if ((d.ring_in_grid >> m) & 1u) {
       fr[static_cast<std::size_t>(m)] = value(d.ring[static_cast<std::size_t>(m)]);
-      k.ring[static_cast<std::size_t>(m)] = fr[static_cast<std::size_t>(m)] > w;
+      if (fr[static_cast<std::size_t>(m)] > w) k.ring |= 1u << m;
     }
   }
   classify(k, s);
@@ -237,7 +220,9 @@ split_summary split_into(const hierarchy& hier, const volume& vol, double w, con
     for (int half = 0; half < 2; ++half) {
       // A child whose four corners share one colour has no surface: skip marching it.
       const bool bp = half == 0 ? k.c : k.d;
-      if (bp == k.e && k.e == k.ring[um] && k.e == k.ring[um1]) continue;
+      const bool ba = ((k.ring >> um) & 1u) != 0;
+      const bool bb = ((k.ring >> um1) & 1u) != 0;
+      if (bp == k.e && k.e == ba && k.e == bb) continue;
       const std::array<ipoint, 4> t =
           half == 0 ? std::array<ipoint, 4>{c, e, a, b} : std::array<ipoint, 4>{e, dd, a, b};
       const std::array<double, 4> f = half == 0 ? std::array<double, 4>{fc, fe, fr[um], fr[um1]}
@@ -407,7 +392,7 @@ split_summary split_packed(const hierarchy& hier, const volume& vol, const T* sa
     k.d = at(sp);
     k.e = static_cast<double>(base[0]) > w;
     for (int m = 0; m < n; ++m) {
-      k.ring[static_cast<std::size_t>(m)] = at(shape.ring[static_cast<std::size_t>(m)]);
+      if (at(shape.ring[static_cast<std::size_t>(m)])) k.ring |= 1u << m;
     }
   } else {
     const auto at = [&](const ipoint& p) { return vol.value(p[0], p[1], p[2]) > w; };
@@ -417,7 +402,7 @@ split_summary split_packed(const hierarchy& hier, const volume& vol, const T* sa
     k.e = at(c);
     for (int m = 0; m < n; ++m) {
       if ((k.ring_in_grid >> m) & 1u) {
-        k.ring[static_cast<std::size_t>(m)] = at(point(shape.ring[static_cast<std::size_t>(m)]));
+        if (at(point(shape.ring[static_cast<std::size_t>(m)]))) k.ring |= 1u << m;
       }
     }
   }
@@ -429,7 +414,7 @@ split_summary split_packed(const hierarchy& hier, const volume& vol, const T* sa
     if (!k.tet_exists(m)) continue;
     const auto um = static_cast<std::size_t>(m);
     const auto um1 = static_cast<std::size_t>((m + 1 == n ? 0 : m + 1));
-    const unsigned ab = (k.ring[um] ? 4u : 0u) | (k.ring[um1] ? 8u : 0u);
+    const unsigned ab = (((k.ring >> um) & 1u) << 2) | (((k.ring >> um1) & 1u) << 3);
     for (std::size_t half = 0; half < 2; ++half) {
       const child_table& ch = shape.child[2 * um + half];
       const std::uint64_t bits = ch.bits[(half == 0 ? ce : ed) | ab];

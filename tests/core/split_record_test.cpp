@@ -1,6 +1,8 @@
 // The compact form of split records (packed_group) against the plain one (owned_triangle).
 #include <progiso/core/split_record.hpp>
 
+#include <progiso/core/detail/split_classify.hpp>
+
 #include <cstring>
 #include <random>
 #include <vector>
@@ -56,6 +58,111 @@ TEST(SplitRecord, packed_groups_unpack_to_the_plain_records_for_every_diamond) {
   }
   EXPECT_GT(diamonds, 1000u);
   EXPECT_GT(triangles, 1000u);
+}
+
+// The rules of split_record.hpp applied one ring position and one tetrahedron at a time: the
+// reference for detail::classify(), which evaluates them on bit sets.
+split_summary classify_one_by_one(const detail::split_colours& k) {
+  split_summary s;
+  const int n = k.n;
+  const auto colour = [&](int m) { return ((k.ring >> m) & 1u) != 0; };
+  const auto in_grid = [&](int m) { return ((k.ring_in_grid >> m) & 1u) != 0; };
+  const auto prev = [&](int m) { return m == 0 ? n - 1 : m - 1; };
+  const auto add = [&](primitive p, int count = 1) {
+    s.primitives[static_cast<std::size_t>(p)] =
+        static_cast<std::uint16_t>(s.primitives[static_cast<std::size_t>(p)] + count);
+  };
+  int all_3a = 0;
+  int all_4a = 0;
+  for (int m = 0; m < n; ++m) {
+    if (!k.tet_exists(m)) continue;
+    const bool a = colour(m);
+    const bool b = colour(m + 1 == n ? 0 : m + 1);
+    ++s.tets;
+    s.removed_triangles +=
+        tet_triangle_count((k.c ? 1u : 0u) | (k.d ? 2u : 0u) | (a ? 4u : 0u) | (b ? 8u : 0u));
+    tet_case tc{};
+    if (k.c != k.d) {
+      tc = a == b ? (k.e != a ? tet_case::c1b : tet_case::c1c)
+                  : (k.e == k.c ? tet_case::c2b : tet_case::c2c);
+    } else if (a == b && a == k.c) {
+      tc = k.e == k.c ? tet_case::c3b : tet_case::c3c;
+      ++all_3a;
+    } else if (a == b) {
+      tc = k.e == k.c ? tet_case::c4b : tet_case::c4c;
+      ++all_4a;
+    } else {
+      tc = k.e == k.c ? tet_case::c5b : tet_case::c5c;
+    }
+    ++s.cases[static_cast<std::size_t>(tc)];
+  }
+  const auto ring_splits = [&] {
+    for (int m = 0; m < n; ++m) {
+      const bool any = k.tet_exists(m) || k.tet_exists(prev(m));
+      if (!in_grid(m) || !any || colour(m) == k.e) continue;
+      add(k.tet_exists(m) && k.tet_exists(prev(m)) ? primitive::vertex_split
+                                                   : primitive::vertex_open);
+    }
+  };
+  if (k.c != k.d) {
+    s.configuration = split_configuration::spine_crossed;
+    add(primitive::vertex_move);
+    ring_splits();
+  } else if (k.e == k.c) {
+    s.configuration = split_configuration::no_new_crossing;
+    ring_splits();
+  } else if (all_3a == s.tets) {
+    s.configuration = split_configuration::empty_region;
+    bool closed = true;
+    for (int m = 0; m < n; ++m) closed = closed && k.tet_exists(m);
+    add(closed ? primitive::new_loop : primitive::new_surf);
+  } else if (all_4a == s.tets) {
+    s.configuration = split_configuration::cylinder;
+    add(primitive::cylinder_flip);
+  } else {
+    int components = 0;
+    for (int m = 0; m < n; ++m) {
+      if (!in_grid(m) || colour(m) == k.c) continue;
+      const bool continues = k.tet_exists(prev(m)) && colour(prev(m)) != k.c;
+      if (!continues) ++components;
+    }
+    if (components == 0) components = 1;
+    s.configuration = components == 1 ? split_configuration::single_component
+                                      : split_configuration::multiple_components;
+    add(primitive::vertex_split, components);
+    ring_splits();
+    add(primitive::edge_flip, all_4a);
+    add(primitive::connectivity_change, components - 1);
+  }
+  return s;
+}
+
+// Every ring size, every clipping of the ring by the grid and every colouring of the points.
+TEST(SplitRecord, classification_by_bit_sets_matches_the_rules_for_every_colouring) {
+  std::uint64_t checked = 0;
+  for (const int n : {4, 6, 8}) {
+    for (unsigned in_grid = 0; in_grid < (1u << n); ++in_grid) {
+      for (unsigned colouring = 0; colouring < (1u << (n + 3)); ++colouring) {
+        detail::split_colours k;
+        k.n = n;
+        k.ring_in_grid = in_grid;
+        k.c = (colouring & 1u) != 0;
+        k.d = (colouring & 2u) != 0;
+        k.e = (colouring & 4u) != 0;
+        k.ring = (colouring >> 3) & in_grid;  // colours off the grid are never read
+        split_summary got;
+        detail::classify(k, got);
+        const split_summary want = classify_one_by_one(k);
+        ASSERT_EQ(got.tets, want.tets) << n << " " << in_grid << " " << colouring;
+        ASSERT_EQ(got.removed_triangles, want.removed_triangles);
+        ASSERT_EQ(got.cases, want.cases) << n << " " << in_grid << " " << colouring;
+        ASSERT_EQ(got.configuration, want.configuration) << n << " " << in_grid << " " << colouring;
+        ASSERT_EQ(got.primitives, want.primitives) << n << " " << in_grid << " " << colouring;
+        ++checked;
+      }
+    }
+  }
+  EXPECT_EQ(checked, 16u * 128 + 64u * 512 + 256u * 2048);
 }
 
 }  // namespace

@@ -121,6 +121,8 @@ class refiner {
 
   bool split(std::uint64_t max_triangles);
   static constexpr std::size_t prefetch_distance = 8;
+  // Volumes this small stay in the cache: prefetching their samples only costs instructions.
+  static constexpr std::size_t prefetch_min_bytes = std::size_t{1} << 20;
   void prefetch_samples(const ready& item) const noexcept;
   template <class InCut, class Take>
   triangle_mesh build_mesh(InCut&& in_cut, Take&& take) const;
@@ -162,6 +164,7 @@ class refiner {
   std::vector<packed_group> scratch_;
   chunked_store<record> records_;
   std::unique_ptr<queue> queue_;
+  bool prefetch_;  // prefetch_samples() pays off (the volume is larger than the cache)
   refine_statistics stats_;
 };
 
