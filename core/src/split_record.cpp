@@ -1,6 +1,9 @@
 #include <progiso/core/split_record.hpp>
 
+#include <algorithm>
 #include <bit>
+#include <cmath>
+#include <type_traits>
 
 #include <progiso/core/assert.hpp>
 #include <progiso/core/detail/split_classify.hpp>
@@ -91,6 +94,23 @@ void bump(split_summary& s, primitive p, int n = 1) noexcept {
 
 namespace detail {
 
+namespace {
+
+// Bits set in a ring set (at most 8 bits). A table: the portable x86-64 baseline has no popcnt
+// instruction, and std::popcount is then a library call.
+int ring_count(unsigned x) noexcept {
+  static constexpr auto table = [] {
+    std::array<std::uint8_t, 256> t{};
+    for (std::size_t i = 0; i < t.size(); ++i) {
+      t[i] = static_cast<std::uint8_t>(std::popcount(static_cast<unsigned>(i)));
+    }
+    return t;
+  }();
+  return table[x & 0xFFu];
+}
+
+}  // namespace
+
 void classify(const split_colours& k, split_summary& s) noexcept {
   const int n = k.n;
   const unsigned full = (1u << n) - 1;
@@ -105,9 +125,9 @@ void classify(const split_colours& k, split_summary& s) noexcept {
   const bool bd = k.d;
   const bool be = k.e;
   // Tetrahedra by the colours (a, b) of their ring edge.
-  const int n00 = std::popcount(t & ~r & ~rn & full);
-  const int n11 = std::popcount(t & r & rn);
-  const int n_mixed = std::popcount(t) - n00 - n11;
+  const int n00 = ring_count(t & ~r & ~rn & full);
+  const int n11 = ring_count(t & r & rn);
+  const int n_mixed = ring_count(t) - n00 - n11;
   s.tets = n00 + n11 + n_mixed;
   const unsigned cd = (bc ? 1u : 0u) | (bd ? 2u : 0u);
   s.removed_triangles = n00 * tet_triangle_count(cd) + n11 * tet_triangle_count(cd | 12u) +
@@ -137,8 +157,8 @@ void classify(const split_colours& k, split_summary& s) noexcept {
   const auto ring_splits = [&] {
     // Ring vertices whose new edge a-e is crossed.
     const unsigned crossed = g & touched & (be ? ~r : r);
-    bump(s, primitive::vertex_split, std::popcount(crossed & interior));
-    bump(s, primitive::vertex_open, std::popcount(crossed & ~interior));
+    bump(s, primitive::vertex_split, ring_count(crossed & interior));
+    bump(s, primitive::vertex_open, ring_count(crossed & ~interior));
   };
   if (bc != bd) {
     s.configuration = split_configuration::spine_crossed;
@@ -156,7 +176,7 @@ void classify(const split_colours& k, split_summary& s) noexcept {
   } else {
     // Components: maximal runs of ring vertices opposite to c in colour, along existing tets.
     const unsigned opposite = g & (bc ? ~r : r);
-    int components = std::popcount(opposite & ~prev(t & opposite));
+    int components = ring_count(opposite & ~prev(t & opposite));
     if (components == 0) components = 1;  // closed ring wholly opposite: handled as cylinder
     s.configuration = components == 1 ? split_configuration::single_component
                                       : split_configuration::multiple_components;
@@ -352,7 +372,7 @@ const std::array<shape_table, 64>& shapes() {
 
 template <class T>
 split_summary split_packed(const hierarchy& hier, const volume& vol, const T* samples, double w,
-                           const ipoint& c, std::vector<packed_group>& out) {
+                           std::int64_t int_w, const ipoint& c, std::vector<packed_group>& out) {
   split_summary s;
   const std::int32_t h = hier.scale_of(c);
   const int lg = std::countr_zero(static_cast<std::uint32_t>(h));
@@ -379,18 +399,27 @@ split_summary split_packed(const hierarchy& hier, const volume& vol, const T* sa
     }
   }
   if (in_data) {
+    // Integer samples are compared with floor(w) as integers (s > w exactly when s > floor(w)),
+    // with no conversion per sample.
+    const auto above = [&](T v) {
+      if constexpr (std::is_integral_v<T>) {
+        return static_cast<std::int64_t>(v) > int_w;
+      } else {
+        return static_cast<double>(v) > w;
+      }
+    };
     const index3& dims = vol.dims();
     const std::int64_t sy = dims[0];
     const std::int64_t sz = dims[0] * dims[1];
     const T* base = samples + vol.linear(c[0], c[1], c[2]);
     const auto at = [&](const offset& o) {
-      return static_cast<double>(base[h * (o[0] + o[1] * sy + o[2] * sz)]) > w;
+      return above(base[h * (o[0] + o[1] * sy + o[2] * sz)]);
     };
     const offset& sp = shape.spine;
     k.c = at({static_cast<std::int8_t>(-sp[0]), static_cast<std::int8_t>(-sp[1]),
               static_cast<std::int8_t>(-sp[2])});
     k.d = at(sp);
-    k.e = static_cast<double>(base[0]) > w;
+    k.e = above(base[0]);
     for (int m = 0; m < n; ++m) {
       if (at(shape.ring[static_cast<std::size_t>(m)])) k.ring |= 1u << m;
     }
@@ -423,10 +452,11 @@ split_summary split_packed(const hierarchy& hier, const volume& vol, const T* sa
       const offset& o = ch.owner2;
       // At h = 1 an owner offset with an odd coordinate is half a grid step: a finest child.
       if (h > 1 || ((o[0] | o[1] | o[2]) & 1) == 0) {
+        // c + (h/2)·o: at h = 1 the offsets are even and halve exactly by a shift.
         const std::int32_t step = h > 1 ? g : 1;
-        const std::int32_t div = h > 1 ? 1 : 2;
-        const ipoint op{c[0] + step * o[0] / div, c[1] + step * o[1] / div,
-                        c[2] + step * o[2] / div};
+        const int halve = h > 1 ? 0 : 1;
+        const ipoint op{c[0] + ((step * o[0]) >> halve), c[1] + ((step * o[1]) >> halve),
+                        c[2] + ((step * o[2]) >> halve)};
         owner = hier.is_diamond(op) ? hier.index(op) : no_owner;
       }
 #if defined(PROGISO_ENABLE_ASSERTS)
@@ -460,8 +490,12 @@ split_summary compute_split(const hierarchy& hier, const volume& vol, double w, 
 split_summary compute_split(const hierarchy& hier, const volume& vol, double w,
                             const ipoint& centre, std::vector<packed_group>& out) {
   PROGISO_ASSERT(hier.is_diamond(centre));
+  // floor(w) within ±2^62: beyond that no integer sample type reaches, and the order of every
+  // sample against it is the same as against w.
+  constexpr double limit = 4.611686018427387904e18;
+  const std::int64_t int_w = static_cast<std::int64_t>(std::floor(std::clamp(w, -limit, limit)));
   return vol.visit_samples(
-      [&](const auto* samples) { return split_packed(hier, vol, samples, w, centre, out); });
+      [&](const auto* samples) { return split_packed(hier, vol, samples, w, int_w, centre, out); });
 }
 
 split_summary compute_split(const hierarchy& hier, const volume& vol, double w, const diamond& d,

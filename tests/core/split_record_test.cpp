@@ -15,21 +15,12 @@ namespace {
 // Every diamond of a padded hierarchy (non-power-of-two dims: clipped rings, boundary diamonds
 // of every scale) on a random field at two isovalues: the packed groups hold the same
 // triangles, in the same order, with the same owners, and the same classification.
-TEST(SplitRecord, packed_groups_unpack_to_the_plain_records_for_every_diamond) {
-  const index3 dims{19, 13, 22};
-  std::mt19937 rng(7);
-  std::uniform_real_distribution<float> u(0.0F, 1.0F);
-  std::vector<std::byte> bytes(static_cast<std::size_t>(dims[0] * dims[1] * dims[2]) *
-                               sizeof(float));
-  for (std::size_t i = 0; i < bytes.size(); i += sizeof(float)) {
-    const float s = u(rng);
-    std::memcpy(&bytes[i], &s, sizeof s);
-  }
-  const volume v(dims, sample_type::f32, std::move(bytes));
+void check_packed_against_plain(const volume& v, std::initializer_list<double> isovalues) {
+  const index3& dims = v.dims();
   const hierarchy h(dims);
   std::uint64_t diamonds = 0;
   std::uint64_t triangles = 0;
-  for (const double w : {0.5, 0.23}) {
+  for (const double w : isovalues) {
     for (std::uint64_t i = 0; i < h.vertex_count(); ++i) {
       const ipoint c = h.point(i);
       if (!h.is_diamond(c)) continue;
@@ -58,6 +49,31 @@ TEST(SplitRecord, packed_groups_unpack_to_the_plain_records_for_every_diamond) {
   }
   EXPECT_GT(diamonds, 1000u);
   EXPECT_GT(triangles, 1000u);
+}
+
+template <class T, class Dist>
+volume random_volume(const index3& dims, sample_type type, Dist dist) {
+  std::mt19937 rng(7);
+  std::vector<std::byte> bytes(static_cast<std::size_t>(dims[0] * dims[1] * dims[2]) * sizeof(T));
+  for (std::size_t i = 0; i < bytes.size(); i += sizeof(T)) {
+    const T s = static_cast<T>(dist(rng));
+    std::memcpy(&bytes[i], &s, sizeof s);
+  }
+  return volume(dims, type, std::move(bytes));
+}
+
+TEST(SplitRecord, packed_groups_unpack_to_the_plain_records_for_every_diamond) {
+  check_packed_against_plain(random_volume<float>({19, 13, 22}, sample_type::f32,
+                                                  std::uniform_real_distribution<float>(0, 1)),
+                             {0.5, 0.23});
+}
+
+// Integer samples are compared with the isovalue as integers on the packed path: fractional,
+// negative and whole isovalues, and one beyond every sample.
+TEST(SplitRecord, packed_groups_match_the_plain_records_on_integer_samples) {
+  check_packed_against_plain(random_volume<std::int16_t>({19, 13, 22}, sample_type::i16,
+                                                         std::uniform_int_distribution<int>(-8, 8)),
+                             {-3.5, 0.0, 2.0, 7.75, -1e300});
 }
 
 // The rules of split_record.hpp applied one ring position and one tetrahedron at a time: the
