@@ -132,32 +132,37 @@ class refiner {
   const range_data& ranges_;
   double isovalue_;
   detail::zeroed_array<std::uint8_t> state_;  // per grid vertex: split flag, split parents
-  // Append-only storage in fixed chunks of 64 K elements: growth never moves what is stored
-  // (no reallocation copy of tens or hundreds of megabytes, no second set of fresh pages).
+  // Append-only storage in fixed chunks (a power of two, 4 K to 64 K elements, chosen from the
+  // volume's size): growth never moves what is stored (no reallocation copy of tens or hundreds
+  // of megabytes, no second set of fresh pages), and a small volume's refinement stays small
+  // enough for the allocator to keep reusing its memory.
   template <class T>
   class chunked_store {
    public:
-    static constexpr std::size_t chunk_bits = 16;
-    static constexpr std::size_t chunk = std::size_t{1} << chunk_bits;
+    explicit chunked_store(int chunk_bits) noexcept
+        : bits_(chunk_bits), mask_((std::size_t{1} << chunk_bits) - 1) {}
     [[nodiscard]] std::size_t size() const noexcept { return size_; }
     void push_back(const T& v) {
-      if ((size_ & (chunk - 1)) == 0 && (size_ >> chunk_bits) == chunks_.size()) {
-        chunks_.push_back(std::make_unique_for_overwrite<T[]>(chunk));
+      if ((size_ & mask_) == 0 && (size_ >> bits_) == chunks_.size()) {
+        chunks_.push_back(std::make_unique_for_overwrite<T[]>(mask_ + 1));
       }
-      chunks_[size_ >> chunk_bits][size_ & (chunk - 1)] = v;
+      chunks_[size_ >> bits_][size_ & mask_] = v;
       ++size_;
     }
     void append(const T* v, std::size_t n) {
       for (std::size_t i = 0; i < n; ++i) push_back(v[i]);
     }
     [[nodiscard]] const T& operator[](std::size_t i) const noexcept {
-      return chunks_[i >> chunk_bits][i & (chunk - 1)];
+      return chunks_[i >> bits_][i & mask_];
     }
 
    private:
+    int bits_;
+    std::size_t mask_;
     std::vector<std::unique_ptr<T[]>> chunks_;
     std::size_t size_ = 0;
   };
+  static int chunk_bits_for(const volume& vol) noexcept;
 
   std::vector<owned_triangle> root_triangles_;
   chunked_store<packed_group> groups_;  // packed_group: 16 bytes for one or two triangles
