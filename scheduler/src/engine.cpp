@@ -332,18 +332,18 @@ struct engine_impl {
     std::array<ipoint, 8> children{};
     for (batch_item& it : b->items) {
       if (stopping() || past_deadline()) break;
-      const diamond d = hier.make_diamond(hier.point(it.item.index));
+      const ipoint centre = hier.point(it.item.index);
       const std::size_t first = b->groups.size();
-      const split_summary s = compute_split(hier, vol, w, d, b->groups);
+      const split_summary s = compute_split(hier, vol, w, centre, b->groups);
       it.first = static_cast<std::uint32_t>(first);
       it.count = static_cast<std::uint32_t>(b->groups.size() - first);
-      it.scale = d.scale;
+      it.scale = hier.scale_of(centre);
       it.added = s.added_triangles;
       it.removed = s.removed_triangles;
       it.configuration = s.configuration;
       it.cases = s.cases;
       it.primitives = s.primitives;
-      const int nc = hier.children(d, children);
+      const int nc = hier.children(centre, children);
       it.children = static_cast<std::uint8_t>(nc);
       for (int i = 0; i < nc; ++i) {
         const ipoint& c = children[static_cast<std::size_t>(i)];
