@@ -26,6 +26,23 @@ ipoint axis(int q, std::int32_t len) noexcept {
 
 }  // namespace
 
+int hierarchy::choose_levels(const ipoint& data_max, std::int64_t min_extent) noexcept {
+  int largest = 0;  // largest L with 2^L ≤ the smallest extent
+  while ((std::int64_t{2} << largest) <= min_extent) ++largest;
+  const auto padded = [&](int l) {  // grid vertices with root cubes of side 2^l
+    const std::int64_t n = std::int64_t{1} << l;
+    double v = 1.0;
+    for (std::size_t q = 0; q < 3; ++q) v *= static_cast<double>((data_max[q] + n - 1) / n * n + 1);
+    return v;
+  };
+  const int smallest = std::min(largest, min_root_levels);
+  double fewest = padded(largest);
+  for (int l = smallest; l < largest; ++l) fewest = std::min(fewest, padded(l));
+  int l = largest;
+  while (l > smallest && padded(l) > max_padding_ratio * fewest) --l;
+  return l;
+}
+
 hierarchy::hierarchy(const index3& data_dims) {
   std::int64_t min_extent = data_dims[0] - 1;
   for (std::size_t q = 0; q < 3; ++q) {
@@ -39,11 +56,10 @@ hierarchy::hierarchy(const index3& data_dims) {
     }
     min_extent = std::min(min_extent, data_dims[q] - 1);
   }
-  levels_ = 0;
-  while ((std::int64_t{2} << levels_) <= min_extent) ++levels_;
+  for (std::size_t q = 0; q < 3; ++q) data_max_[q] = static_cast<std::int32_t>(data_dims[q] - 1);
+  levels_ = choose_levels(data_max_, min_extent);
   root_ = std::int32_t{1} << levels_;
   for (std::size_t q = 0; q < 3; ++q) {
-    data_max_[q] = static_cast<std::int32_t>(data_dims[q] - 1);
     cubes_[q] = (data_max_[q] + root_ - 1) / root_;
     grid_max_[q] = cubes_[q] * root_;
   }
@@ -222,6 +238,63 @@ int hierarchy::children_at(const ipoint& c, std::int32_t h, int type,
     push(add(c, axis(q, -h)));
   }
   return n;
+}
+
+int hierarchy::type_of(const ipoint& c, std::int32_t h) noexcept {
+  const int lg = std::countr_zero(static_cast<std::uint32_t>(h));
+  int odd = 0;
+  for (std::size_t q = 0; q < 3; ++q) odd += (c[q] >> lg) & 1;
+  return 3 - odd;
+}
+
+// Parent counts from the parent's side (DESIGN.md §2 facts, as parent_count() applies them):
+//  * type 0 at c (scale h) has the face centres f = c ± h e_q (type 1, scale h). A face centre's
+//    parents lie at f ± h along its one even axis q: c itself and c ± 2h e_q.
+//  * type 1 at c (scale h, even axis q0) has the edge midpoints e = c ± h e_q on its odd axes
+//    (type 2, scale h), whose even axes are q0 and q: parents c, c ± 2h e_q and e ± h e_q0.
+//  * type 2 at c (scale h ≥ 2) has the cube centres c + (h/2)(±1, ±1, ±1) (type 0), each with
+//    three parents (corners of its own cube; a child is never a root).
+child_list hierarchy::children_of(const ipoint& c, std::int32_t h, int type) const noexcept {
+  child_list out;
+  const auto within = [&](std::int64_t v, std::size_t q) { return v >= 0 && v <= grid_max_[q]; };
+  if (type == 2) {
+    out.type = 0;
+    out.scale = h / 2;
+    if (h < 2) return out;
+    const std::int32_t g = h / 2;
+    for (int m = 0; m < 8; ++m) {
+      const ipoint p{c[0] + ((m & 1) ? g : -g), c[1] + ((m & 2) ? g : -g),
+                     c[2] + ((m & 4) ? g : -g)};
+      if (!in_grid(p)) continue;
+      const auto i = static_cast<std::size_t>(out.count++);
+      out.centre[i] = p;
+      out.parents[i] = 3;
+    }
+    return out;
+  }
+  out.scale = h;
+  out.type = type + 1;
+  const int lg = std::countr_zero(static_cast<std::uint32_t>(h));
+  std::size_t q0 = 0;  // type 1: the even axis
+  for (std::size_t q = 0; q < 3; ++q) {
+    if (((c[q] >> lg) & 1) == 0) q0 = q;
+  }
+  const int beside = type == 1 ? (within(std::int64_t{c[q0]} - h, q0) ? 1 : 0) +
+                                     (within(std::int64_t{c[q0]} + h, q0) ? 1 : 0)
+                               : 0;
+  for (std::size_t q = 0; q < 3; ++q) {
+    if (type == 1 && q == q0) continue;
+    for (const std::int32_t s : {h, -h}) {
+      ipoint p = c;
+      p[q] += s;
+      if (!within(p[q], q)) continue;
+      const auto i = static_cast<std::size_t>(out.count++);
+      out.centre[i] = p;
+      out.parents[i] =
+          static_cast<std::uint8_t>(1 + (within(std::int64_t{c[q]} + 2 * s, q) ? 1 : 0) + beside);
+    }
+  }
+  return out;
 }
 
 void hierarchy::root_tets(std::uint64_t r,

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <utility>
 
+#include <progiso/core/assert.hpp>
 #include <progiso/core/marching.hpp>
 
 namespace progiso::detail {
@@ -14,20 +15,9 @@ mesh_builder::mesh_builder(const hierarchy& hier, const volume& vol, double w, s
   mesh_.triangles.reserve(expected * 2);
 }
 
-void mesh_builder::add(const std::array<std::uint64_t, 3>& keys) {
-  std::array<std::uint32_t, 3> ids{};
-  bool inside = true;
-  for (std::size_t i = 0; i < 3; ++i) {
-    ids[i] = vertex(keys[i]);
-    const vec3& p = grid_[ids[i]];
-    inside = inside && p[0] <= box_[0] && p[1] <= box_[1] && p[2] <= box_[2];
-  }
-  if (inside) {
-    mesh_.triangles.push_back(ids);
-  } else {
-    clipped_any_ = true;
-    clip(ids);
-  }
+void mesh_builder::clip_any(const std::array<std::uint32_t, 3>& flagged) {
+  clipped_any_ = true;
+  clip({flagged[0] & ~outside_bit, flagged[1] & ~outside_bit, flagged[2] & ~outside_bit});
 }
 
 triangle_mesh mesh_builder::finish() {
@@ -64,15 +54,16 @@ triangle_mesh mesh_builder::finish() {
   return std::move(mesh_);
 }
 
-std::uint32_t mesh_builder::vertex(std::uint64_t key) {
-  const auto [id, inserted] = keys_.try_emplace(key, static_cast<std::uint32_t>(grid_.size()));
-  if (inserted) {
-    const auto ends = hier_.edge_ends(key);
-    const double fa = vol_.value(ends[0][0], ends[0][1], ends[0][2]);
-    const double fb = vol_.value(ends[1][0], ends[1][1], ends[1][2]);
-    grid_.push_back(interpolate(ends[0], fa, ends[1], fb, w_));
-  }
-  return id;
+std::uint32_t mesh_builder::new_vertex(std::uint64_t key) {
+  PROGISO_ASSERT(grid_.size() < outside_bit);
+  const auto id = static_cast<std::uint32_t>(grid_.size());
+  const auto ends = hier_.edge_ends(key);
+  const double fa = vol_.value(ends[0][0], ends[0][1], ends[0][2]);
+  const double fb = vol_.value(ends[1][0], ends[1][1], ends[1][2]);
+  const vec3 p = interpolate(ends[0], fa, ends[1], fb, w_);
+  grid_.push_back(p);
+  const bool inside = p[0] <= box_[0] && p[1] <= box_[1] && p[2] <= box_[2];
+  return inside ? id : id | outside_bit;
 }
 
 std::uint32_t mesh_builder::clip_vertex(const vec3& p) {

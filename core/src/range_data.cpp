@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <limits>
 #include <type_traits>
 #include <vector>
@@ -14,6 +15,7 @@ struct range_data::impl {
   virtual ~impl() = default;
   [[nodiscard]] virtual diamond_range get(const diamond& d) const noexcept = 0;
   [[nodiscard]] virtual diamond_range get_at(const ipoint& c) const noexcept = 0;
+  [[nodiscard]] virtual diamond_range get_at(const ipoint& c, std::int32_t h) const noexcept = 0;
   [[nodiscard]] virtual std::size_t byte_size() const noexcept = 0;
   const volume* vol = nullptr;
   const hierarchy* hier = nullptr;
@@ -103,10 +105,11 @@ class typed_range_data final : public range_data::impl {
   }
 
   [[nodiscard]] diamond_range get_at(const ipoint& c) const noexcept override {
-    const std::int32_t h = hier->scale_of(c);
-    if (h == 1) {
-      return scale1_at(c);
-    }
+    return get_at(c, hier->scale_of(c));
+  }
+
+  [[nodiscard]] diamond_range get_at(const ipoint& c, std::int32_t h) const noexcept override {
+    if (h == 1) return scale1_at(c);
     const entry<T>* e = find(c, h);
     if (e == nullptr) return {};
     return decode(*e);
@@ -293,19 +296,54 @@ class typed_range_data final : public range_data::impl {
   // still sound for culling and still nested, since every caller uses this same function.
   [[nodiscard]] diamond_range read_stencil_clamped(const stencil& st,
                                                    const ipoint& c) const noexcept {
-    const auto f = [&](const ipoint& o) {
-      return vol->value(c[0] + o[0], c[1] + o[1], c[2] + o[2]);
+    const index3& d = vol->dims();
+    const auto at = [&](const ipoint& o) {
+      const auto clamped = [&](std::size_t q) {
+        return std::clamp<std::int64_t>(std::int64_t{c[q]} + o[q], 0, d[q] - 1);
+      };
+      return samples_[clamped(0) + d[0] * (clamped(1) + d[1] * clamped(2))];
     };
+    return summarise(at, st.rel_points, st.rel_splits);
+  }
+
+  // Range of the samples at(p) for p = 0 and every p in `points`, and the largest split error
+  // |at(c) - (at(a) + at(b)) / 2| over the (c, a, b) in `splits`. NaN samples never replace a
+  // number (comparisons with NaN are false).
+  template <class At, class Point>
+  [[nodiscard]] static diamond_range summarise(const At& at, const std::vector<Point>& points,
+                                               const std::vector<std::array<Point, 3>>& splits) {
+    const T first = at(Point{});
+    T lo = first;
+    T hi = first;
+    for (const Point& o : points) {
+      const T v = at(o);
+      lo = v < lo ? v : lo;
+      hi = v > hi ? v : hi;
+    }
+    double err = 0.0;
+    if constexpr (std::is_integral_v<T>) {
+      // Twice the error, |2 f(c) - f(a) - f(b)|, in integers: exact for every integer sample
+      // type (at most 34 bits), and half of it is the same double as the formula below.
+      std::int64_t twice = 0;
+      for (const auto& s : splits) {
+        const std::int64_t e = 2 * static_cast<std::int64_t>(at(s[0])) -
+                               static_cast<std::int64_t>(at(s[1])) -
+                               static_cast<std::int64_t>(at(s[2]));
+        twice = std::max(twice, e < 0 ? -e : e);
+      }
+      err = 0.5 * static_cast<double>(twice);
+    } else {
+      for (const auto& s : splits) {
+        const double e =
+            std::abs(static_cast<double>(at(s[0])) -
+                     0.5 * (static_cast<double>(at(s[1])) + static_cast<double>(at(s[2]))));
+        err = e > err ? e : err;
+      }
+    }
     diamond_range r;
-    r.lo = r.hi = f({0, 0, 0});
-    for (const ipoint& o : st.rel_points) {
-      const double v = f(o);
-      r.lo = std::min(r.lo, v);
-      r.hi = std::max(r.hi, v);
-    }
-    for (const auto& sp : st.rel_splits) {
-      r.error = std::max(r.error, std::abs(f(sp[0]) - 0.5 * (f(sp[1]) + f(sp[2]))));
-    }
+    r.lo = static_cast<double>(lo);
+    r.hi = static_cast<double>(hi);
+    r.error = err;
     return r;
   }
 
@@ -398,25 +436,7 @@ class typed_range_data final : public range_data::impl {
 
   [[nodiscard]] diamond_range read_stencil(const stencil& st, const ipoint& c) const noexcept {
     const T* base = samples_ + vol->linear(c[0], c[1], c[2]);
-    T lo = base[0];
-    T hi = base[0];
-    for (const std::int64_t o : st.points) {
-      const T v = base[o];
-      lo = v < lo ? v : lo;
-      hi = v > hi ? v : hi;
-    }
-    double err = 0.0;
-    for (const auto& s : st.splits) {
-      const double e =
-          std::abs(static_cast<double>(base[s[0]]) -
-                   0.5 * (static_cast<double>(base[s[1]]) + static_cast<double>(base[s[2]])));
-      err = e > err ? e : err;
-    }
-    diamond_range r;
-    r.lo = static_cast<double>(lo);
-    r.hi = static_cast<double>(hi);
-    r.error = err;
-    return r;
+    return summarise([base](std::int64_t o) { return base[o]; }, st.points, st.splits);
   }
 
   std::array<stencil, 64> stencils_;
@@ -440,6 +460,9 @@ range_data& range_data::operator=(range_data&&) noexcept = default;
 
 diamond_range range_data::get(const diamond& d) const noexcept { return impl_->get(d); }
 diamond_range range_data::get(const ipoint& centre) const noexcept { return impl_->get_at(centre); }
+diamond_range range_data::get(const ipoint& centre, std::int32_t scale) const noexcept {
+  return impl_->get_at(centre, scale);
+}
 diamond_range range_data::own(const diamond& d) const noexcept { return impl_->own(d); }
 std::size_t range_data::byte_size() const noexcept { return impl_->byte_size(); }
 

@@ -63,7 +63,8 @@ refiner::refiner(const volume& vol, const hierarchy& hier, const range_data& ran
       ++stats_.visited;
       const diamond_range rr = ranges_.get(d);
       if (rr.straddles(isovalue_)) {
-        queue_->push({rr.error, d.depth, hier_.index(*centre), *centre});
+        queue_->push({rr.error, hier_.index(*centre), *centre, d.scale,
+                      static_cast<std::int16_t>(d.type), static_cast<std::int16_t>(d.depth)});
       } else {
         ++stats_.culled;
       }
@@ -97,7 +98,7 @@ bool refiner::is_split(const ipoint& centre) const noexcept {
 // every point of a diamond lies in centre + h·{-1, 0, 1}³ (h its scale), nine rows of the volume.
 void refiner::prefetch_samples(const ready& item) const noexcept {
   const index3& dims = vol_.dims();
-  const std::int32_t h = hier_.scale_of(item.centre);
+  const std::int32_t h = item.scale;
   const std::size_t size = sample_size(vol_.type());
   const std::byte* base = vol_.bytes();
   const auto clamp = [](std::int64_t v, std::int64_t hi) {
@@ -126,7 +127,7 @@ bool refiner::split(std::uint64_t max_triangles) {
   }
   const std::size_t first = groups_.size();
   scratch_.clear();
-  const split_summary s = compute_split(hier_, vol_, isovalue_, next.centre, scratch_);
+  const split_summary s = compute_split(hier_, vol_, isovalue_, next.centre, next.scale, scratch_);
   const std::uint64_t after = stats_.triangles + static_cast<std::uint64_t>(s.added_triangles) -
                               static_cast<std::uint64_t>(s.removed_triangles);
   if (after > max_triangles) return false;
@@ -134,8 +135,8 @@ bool refiner::split(std::uint64_t max_triangles) {
   queue_->pop();
   std::uint8_t* state = state_.get();
   state[next.index] = static_cast<std::uint8_t>(state[next.index] | split_bit);
-  records_.push_back({next.index, first, static_cast<std::uint32_t>(scratch_.size()),
-                      hier_.scale_of(next.centre), next.error});
+  records_.push_back(
+      {next.index, first, static_cast<std::uint32_t>(scratch_.size()), next.scale, next.error});
   stats_.triangles = after;
   stats_.record_triangles += static_cast<std::uint64_t>(s.added_triangles);
   ++stats_.splits;
@@ -144,18 +145,20 @@ bool refiner::split(std::uint64_t max_triangles) {
   ++stats_.configurations[static_cast<std::size_t>(s.configuration)];
 
   // Children whose parents are now all split become ready.
-  std::array<ipoint, 8> children{};
-  const int nc = hier_.children(next.centre, children);
-  for (int i = 0; i < nc; ++i) {
-    const ipoint& c = children[static_cast<std::size_t>(i)];
+  const child_list children = hier_.children_of(next.centre, next.scale, next.type);
+  const auto depth = static_cast<std::int16_t>(next.depth + 1);
+  const auto type = static_cast<std::int16_t>(children.type);
+  for (int i = 0; i < children.count; ++i) {
+    const auto ui = static_cast<std::size_t>(i);
+    const ipoint& c = children.centre[ui];
     const std::uint64_t ci = hier_.index(c);
     const auto count = static_cast<std::uint8_t>((state[ci] & parent_count_mask) + 1);
     state[ci] = static_cast<std::uint8_t>((state[ci] & ~parent_count_mask) | count);
-    if (count != hier_.parent_count(c)) continue;
+    if (count != children.parents[ui]) continue;
     ++stats_.visited;
-    const diamond_range r = ranges_.get(c);
+    const diamond_range r = ranges_.get(c, children.scale);
     if (r.straddles(isovalue_)) {
-      queue_->push({r.error, next.depth + 1, ci, c});
+      queue_->push({r.error, ci, c, children.scale, type, depth});
     } else {
       ++stats_.culled;
     }

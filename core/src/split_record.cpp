@@ -372,9 +372,9 @@ const std::array<shape_table, 64>& shapes() {
 
 template <class T>
 split_summary split_packed(const hierarchy& hier, const volume& vol, const T* samples, double w,
-                           std::int64_t int_w, const ipoint& c, std::vector<packed_group>& out) {
+                           std::int64_t int_w, const ipoint& c, std::int32_t h,
+                           std::vector<packed_group>& out) {
   split_summary s;
-  const std::int32_t h = hier.scale_of(c);
   const int lg = std::countr_zero(static_cast<std::uint32_t>(h));
   const shape_table& shape = shapes()[shape_of(c, h, lg)];
   const int n = shape.n;
@@ -457,7 +457,9 @@ split_summary split_packed(const hierarchy& hier, const volume& vol, const T* sa
         const int halve = h > 1 ? 0 : 1;
         const ipoint op{c[0] + ((step * o[0]) >> halve), c[1] + ((step * o[1]) >> halve),
                         c[2] + ((step * o[2]) >> halve)};
-        owner = hier.is_diamond(op) ? hier.index(op) : no_owner;
+        // op is a child's centre: a diamond whenever it is a grid vertex (children are finer
+        // than roots), which it is when the whole diamond is.
+        owner = in_grid || hier.in_grid(op) ? hier.index(op) : no_owner;
       }
 #if defined(PROGISO_ENABLE_ASSERTS)
       {
@@ -489,13 +491,21 @@ split_summary compute_split(const hierarchy& hier, const volume& vol, double w, 
 
 split_summary compute_split(const hierarchy& hier, const volume& vol, double w,
                             const ipoint& centre, std::vector<packed_group>& out) {
+  return compute_split(hier, vol, w, centre, hier.scale_of(centre), out);
+}
+
+split_summary compute_split(const hierarchy& hier, const volume& vol, double w,
+                            const ipoint& centre, std::int32_t scale,
+                            std::vector<packed_group>& out) {
   PROGISO_ASSERT(hier.is_diamond(centre));
+  PROGISO_ASSERT(hier.scale_of(centre) == scale);
   // floor(w) within ±2^62: beyond that no integer sample type reaches, and the order of every
   // sample against it is the same as against w.
   constexpr double limit = 4.611686018427387904e18;
   const std::int64_t int_w = static_cast<std::int64_t>(std::floor(std::clamp(w, -limit, limit)));
-  return vol.visit_samples(
-      [&](const auto* samples) { return split_packed(hier, vol, samples, w, int_w, centre, out); });
+  return vol.visit_samples([&](const auto* samples) {
+    return split_packed(hier, vol, samples, w, int_w, centre, scale, out);
+  });
 }
 
 split_summary compute_split(const hierarchy& hier, const volume& vol, double w, const diamond& d,

@@ -329,27 +329,28 @@ struct engine_impl {
   // commit step needs to know about their children.
   batch* compute_batch(batch* b) {
     const double w = b->root->isovalue;
-    std::array<ipoint, 8> children{};
     for (batch_item& it : b->items) {
       if (stopping() || past_deadline()) break;
       const ipoint centre = hier.point(it.item.index);
+      const std::int32_t scale = hier.scale_of(centre);
       const std::size_t first = b->groups.size();
-      const split_summary s = compute_split(hier, vol, w, centre, b->groups);
+      const split_summary s = compute_split(hier, vol, w, centre, scale, b->groups);
       it.first = static_cast<std::uint32_t>(first);
       it.count = static_cast<std::uint32_t>(b->groups.size() - first);
-      it.scale = hier.scale_of(centre);
+      it.scale = scale;
       it.added = s.added_triangles;
       it.removed = s.removed_triangles;
       it.configuration = s.configuration;
       it.cases = s.cases;
       it.primitives = s.primitives;
-      const int nc = hier.children(centre, children);
-      it.children = static_cast<std::uint8_t>(nc);
-      for (int i = 0; i < nc; ++i) {
-        const ipoint& c = children[static_cast<std::size_t>(i)];
+      const child_list children =
+          hier.children_of(centre, scale, hierarchy::type_of(centre, scale));
+      it.children = static_cast<std::uint8_t>(children.count);
+      for (int i = 0; i < children.count; ++i) {
+        const ipoint& c = children.centre[static_cast<std::size_t>(i)];
         child_info& ci = it.child[static_cast<std::size_t>(i)];
         ci.index = hier.index(c);
-        ci.parents_needed = static_cast<std::uint8_t>(hier.parent_count(c));
+        ci.parents_needed = children.parents[static_cast<std::size_t>(i)];
         // The child's range is needed once, when its last parent commits. The parent that
         // finds all the others already committed looks it up here, in parallel; for the other
         // parents it would be wasted work (a child has up to four). When two last parents are
@@ -361,7 +362,7 @@ struct engine_impl {
                 .load(std::memory_order_relaxed);
         ci.known = split_parents + 1 >= ci.parents_needed;
         if (ci.known) {
-          const diamond_range cr = ranges.get(c);
+          const diamond_range cr = ranges.get(c, children.scale);
           ci.straddles = cr.straddles(w);
           ci.error = cr.error;
         }

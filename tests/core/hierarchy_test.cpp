@@ -152,6 +152,22 @@ void check_against_brute_force(const index3& dims) {
     std::array<ipoint, 8> cs2{};
     const int nc2 = h.children(c, cs2);  // from the centre alone
     EXPECT_EQ(std::set<ipoint>(cs2.begin(), cs2.begin() + nc2), cset);
+    // From the parent's scale and type: the same children, in children()'s order, each with
+    // its brute-force number of parents, scale and type.
+    EXPECT_EQ(hierarchy::type_of(c, d.scale), d.type);
+    const child_list cl = h.children_of(c, d.scale, d.type);
+    ASSERT_EQ(cl.count, nc2);
+    for (int i = 0; i < cl.count; ++i) {
+      const auto ui = static_cast<std::size_t>(i);
+      const ipoint& x = cl.centre[ui];
+      EXPECT_EQ(x, cs2[ui]);
+      const auto px = bf.parents.find(x);
+      ASSERT_NE(px, bf.parents.end());
+      EXPECT_EQ(cl.parents[ui], px->second.size())
+          << "parents of child " << x[0] << "," << x[1] << "," << x[2];
+      EXPECT_EQ(cl.scale, h.scale_of(x));
+      EXPECT_EQ(cl.type, h.make_diamond(x).type);
+    }
     EXPECT_EQ(d.depth == 0, np == 0);
   }
 
@@ -204,6 +220,9 @@ TEST(Hierarchy, single_cube_level_3_matches_brute_force_bisection) {
 TEST(Hierarchy, forest_of_reflected_cubes_matches_brute_force_bisection) {
   check_against_brute_force({9, 5, 5});
   check_against_brute_force({6, 7, 5});
+  // Roots of 8 chosen over 16 (a 24³ grid instead of 32³): a forest of 3 × 3 × 3 cubes.
+  ASSERT_EQ(hierarchy({20, 20, 20}).root_size(), 8);
+  check_against_brute_force({20, 20, 20});
 }
 
 TEST(Hierarchy, interior_diamonds_have_the_documented_sizes) {
@@ -224,13 +243,47 @@ TEST(Hierarchy, interior_diamonds_have_the_documented_sizes) {
       }
 }
 
-TEST(Hierarchy, root_size_is_largest_power_of_two_within_the_smallest_dim) {
+TEST(Hierarchy, root_size_is_the_largest_power_of_two_with_little_padding) {
+  // Samples 2^L + 1 per axis: N = 2^L, no padding.
   EXPECT_EQ(hierarchy({257, 257, 257}).root_size(), 256);
+  EXPECT_EQ(hierarchy({257, 257, 257}).grid_max(), (ipoint{256, 256, 256}));
   EXPECT_EQ(hierarchy({64, 64, 93}).root_size(), 32);
   const hierarchy h({64, 64, 93});
   EXPECT_EQ(h.cubes(), (ipoint{2, 2, 3}));
   EXPECT_EQ(hierarchy({32, 32, 32}).cubes(), (ipoint{2, 2, 2}));
   EXPECT_EQ(hierarchy({2, 9, 9}).root_size(), 1);
+  // 68³ (hipip): roots of 64 would pad to 128³; roots of 8 pad to 72³.
+  EXPECT_EQ(hierarchy({68, 68, 68}).root_size(), 8);
+  EXPECT_EQ(hierarchy({68, 68, 68}).grid_max(), (ipoint{72, 72, 72}));
+  // 41³ (nucleon): roots of 8 fit exactly; 32 would pad to 64³.
+  EXPECT_EQ(hierarchy({41, 41, 41}).grid_max(), (ipoint{40, 40, 40}));
+
+  // The rule, checked by enumeration: among N = 2^l with min(8, Nmax) ≤ N ≤ Nmax (Nmax the
+  // largest power of two within the smallest extent), the largest whose padded grid has at
+  // most 1.25 times the vertices of the smallest padded grid in that range.
+  const auto padded = [](const index3& d, std::int64_t n) {
+    double v = 1.0;
+    for (std::size_t q = 0; q < 3; ++q) v *= static_cast<double>((d[q] - 1 + n - 1) / n * n + 1);
+    return v;
+  };
+  for (std::int64_t x = 2; x <= 140; x += 7)
+    for (std::int64_t y = 2; y <= 140; y += 11)
+      for (std::int64_t z = 2; z <= 300; z += 13) {
+        const index3 d{x, y, z};
+        std::int64_t nmax = 1;
+        while (2 * nmax <= std::min({x, y, z}) - 1) nmax *= 2;
+        const std::int64_t nmin = std::min<std::int64_t>(8, nmax);
+        double fewest = padded(d, nmax);
+        for (std::int64_t n = nmin; n < nmax; n *= 2) fewest = std::min(fewest, padded(d, n));
+        std::int64_t expected = nmax;
+        while (expected > nmin && padded(d, expected) > 1.25 * fewest) expected /= 2;
+        const hierarchy hx(d);
+        EXPECT_EQ(hx.root_size(), expected) << x << "," << y << "," << z;
+        for (std::size_t q = 0; q < 3; ++q) {
+          EXPECT_GE(hx.grid_max()[q], d[q] - 1);
+          EXPECT_LT(hx.grid_max()[q] - (d[q] - 1), hx.root_size());  // less than one root cube
+        }
+      }
 }
 
 }  // namespace

@@ -19,8 +19,13 @@
 // diagonal from its all-even to its all-odd corner. The tests check all of this against a
 // brute-force bisection.
 //
-// Choice of N: the largest power of two ≤ min(dims) - 1, so the padding beyond the data box is
-// less than one root cube per axis. Padding vertices take the value of the nearest data vertex.
+// Choice of N: the largest power of two ≤ min(dims) - 1 whose padded grid (the data box rounded
+// up to whole root cubes) has at most 1.25 times the vertices of the tightest padded grid with
+// roots of side 8 or more. Padding vertices take the value of the nearest data vertex. For
+// 2^L + 1 samples per axis this is N = 2^L with no padding; for 68³ samples it is N = 8 (a 72³
+// grid) rather than N = 64 (a 128³ grid: 6.7 times the vertices, all of them refinement state
+// and boundary diamonds). Roots below 8 are not chosen (unless the volume is smaller): the
+// coarsest cut would then be nearly the finest.
 #pragma once
 
 #include <array>
@@ -41,6 +46,15 @@ struct diamond {
   int ring_size = 0;              ///< 6, 4 or 8 (before clipping to the grid)
   std::array<ipoint, 8> ring;     ///< cyclic; entries past ring_size are unspecified
   std::uint8_t ring_in_grid = 0;  ///< bit m set when ring[m] is a grid vertex
+};
+
+/// The children of one diamond, with what a refinement needs to know about each.
+struct child_list {
+  int count = 0;
+  std::int32_t scale = 0;               ///< the children's h (the same for all of them)
+  int type = 0;                         ///< the children's type (the same for all of them)
+  std::array<ipoint, 8> centre;         ///< first `count` entries
+  std::array<std::uint8_t, 8> parents;  ///< parent_count(centre[i])
 };
 
 /// The forest of root cubes covering a volume's grid, and diamond arithmetic on it.
@@ -86,6 +100,12 @@ class hierarchy {
   int children(const diamond& d, std::array<ipoint, 8>& out) const noexcept;
   /// The same for the diamond centred at c (a diamond centre), without building the diamond.
   int children(const ipoint& c, std::array<ipoint, 8>& out) const noexcept;
+  /// Children (same order as children()) and their parent counts, for the diamond centred at c
+  /// whose scale is h and type is `type` (as scale_of and make_diamond give them): what
+  /// children() and parent_count() give, in one pass, from facts known at the parent.
+  [[nodiscard]] child_list children_of(const ipoint& c, std::int32_t h, int type) const noexcept;
+  /// Type of the diamond centred at c, whose scale is h (diamond::type, without the diamond).
+  [[nodiscard]] static int type_of(const ipoint& c, std::int32_t h) noexcept;
 
   /// Root cubes' centres (the root diamonds when N ≥ 2), and their 6 tetrahedra each.
   [[nodiscard]] std::uint64_t root_count() const noexcept {
@@ -105,6 +125,9 @@ class hierarchy {
   }
 
  private:
+  static constexpr int min_root_levels = 3;          // roots of side 8 or more
+  static constexpr double max_padding_ratio = 1.25;  // see "Choice of N" above
+  static int choose_levels(const ipoint& data_max, std::int64_t min_extent) noexcept;
   int children_at(const ipoint& c, std::int32_t h, int type,
                   std::array<ipoint, 8>& out) const noexcept;
 

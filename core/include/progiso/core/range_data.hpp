@@ -26,6 +26,7 @@
 #pragma once
 
 #include <cstddef>
+#include <cstdint>
 #include <memory>
 
 #include <progiso/core/hierarchy.hpp>
@@ -58,6 +59,8 @@ class range_data {
   /// The same for the diamond centred at `centre` (a diamond of the hierarchy), without
   /// building the diamond when it is not needed.
   [[nodiscard]] diamond_range get(const ipoint& centre) const noexcept;
+  /// The same when the diamond's scale h is known (hierarchy::scale_of(centre)).
+  [[nodiscard]] diamond_range get(const ipoint& centre, std::int32_t scale) const noexcept;
   /// Own (not nested) range and split error of d, from its spine, ring and centre.
   [[nodiscard]] diamond_range own(const diamond& d) const noexcept;
   /// Bytes held.

@@ -113,9 +113,11 @@ class refiner {
   };
   struct ready {
     double error;
-    int depth;
     std::uint64_t index;
     ipoint centre;
+    std::int32_t scale;  // h and type of the diamond, known from its parent
+    std::int16_t type;
+    std::int16_t depth;
   };
   struct queue;
 

@@ -170,6 +170,10 @@ split_summary compute_split(const hierarchy& hier, const volume& vol, double iso
 /// The same for the diamond centred at `centre` (a diamond::centre), without the diamond.
 split_summary compute_split(const hierarchy& hier, const volume& vol, double isovalue,
                             const ipoint& centre, std::vector<packed_group>& out);
+/// The same when the diamond's scale is known (hierarchy::scale_of(centre)).
+split_summary compute_split(const hierarchy& hier, const volume& vol, double isovalue,
+                            const ipoint& centre, std::int32_t scale,
+                            std::vector<packed_group>& out);
 
 /// The surface in the six tetrahedra of root cube r (hierarchy::root_tets), appended to `out`,
 /// each piece owned by the root diamond. Returns that diamond's centre, or nullopt when the

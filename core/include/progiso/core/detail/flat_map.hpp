@@ -3,11 +3,13 @@
 // Used where extraction deduplicates surface vertices by edge key: linear probing in a
 // power-of-two table, no erase, one reserved key (~0). Not thread-safe.
 //
-// The hash is made for edge keys (three 21-bit doubled coordinates): keys in the same block of
-// 4 × 4 × 4 doubled coordinates land in one run of 64 slots, placed at random by a mix of the
-// block's coordinates. Triangles reach their vertices in a spatially coherent order, so nearby
-// vertices then share cache lines; with a plain mixing hash every first visit of a vertex was a
-// cache miss, which dominated extraction time.
+// The hash is made for edge keys (three 21-bit doubled coordinates): the keys of one block of
+// 2 × 2 × 2 doubled coordinates (one grid cell's edges and faces) land in one run of 8 slots (two
+// cache lines), placed at random by a mix of the block's coordinates. Triangles reach their
+// vertices in a spatially coherent order, so nearby vertices then share cache lines; with a plain
+// mixing hash every first visit of a vertex was a cache miss, which dominated extraction time.
+// Runs of 64 slots (4 × 4 × 4 blocks) kept more neighbours together but overflowed into each
+// other: 4.5 probes per lookup at the refiner's load of 0.45, against 2.4 with runs of 8.
 #pragma once
 
 #include <cstdint>
@@ -24,16 +26,22 @@ class flat_map {
 
   /// Inserts (key, value) if absent; returns the stored value and whether it was inserted.
   std::pair<std::uint32_t, bool> try_emplace(std::uint64_t key, std::uint32_t value) {
+    const auto [stored, inserted] = try_emplace_ref(key, value);
+    return {*stored, inserted};
+  }
+
+  /// The same, returning the stored value's address: valid until the next insertion.
+  std::pair<std::uint32_t*, bool> try_emplace_ref(std::uint64_t key, std::uint32_t value) {
     if ((size_ + 1) * 2 > slots_.size()) rehash(slots_.size() * 2);
     std::size_t i = hash(key) & mask_;
     while (true) {
       slot& s = slots_[i];
-      if (s.key == key) return {s.value, false};
+      if (s.key == key) return {&s.value, false};
       if (s.key == empty_key) {
         s.key = key;
         s.value = value;
         ++size_;
-        return {value, true};
+        return {&s.value, true};
       }
       i = (i + 1) & mask_;
     }
@@ -65,13 +73,13 @@ class flat_map {
   }
 
   static std::size_t hash(std::uint64_t k) noexcept {
-    constexpr std::uint64_t low = 3 | (std::uint64_t{3} << 21) | (std::uint64_t{3} << 42);
-    const std::uint64_t local = (k & 3) | ((k >> 19) & 0xC) | ((k >> 38) & 0x30);
+    constexpr std::uint64_t low = 1 | (std::uint64_t{1} << 21) | (std::uint64_t{1} << 42);
+    const std::uint64_t local = (k & 1) | ((k >> 20) & 2) | ((k >> 40) & 4);
     std::uint64_t b = k & ~low;
     b ^= b >> 33;
     b *= 0xff51afd7ed558ccdULL;
     b ^= b >> 33;
-    return static_cast<std::size_t>((b << 6) | local);
+    return static_cast<std::size_t>((b << 3) | local);
   }
 
   void rehash(std::size_t capacity) {

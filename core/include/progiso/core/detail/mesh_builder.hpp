@@ -27,12 +27,34 @@ class mesh_builder {
   /// `expected`: about how many vertices the mesh will have (a sizing hint).
   mesh_builder(const hierarchy& hier, const volume& vol, double isovalue, std::size_t expected);
   /// Adds one oriented triangle given by the edge keys of its vertices.
-  void add(const std::array<std::uint64_t, 3>& keys);
+  void add(const std::array<std::uint64_t, 3>& keys) {
+    const std::uint32_t a = vertex(keys[0]);
+    const std::uint32_t b = vertex(keys[1]);
+    const std::uint32_t c = vertex(keys[2]);
+    // Vertex ids carry the outside flag (outside_bit), so a triangle is tested against the
+    // data box without reading its vertices' positions.
+    if (((a | b | c) & outside_bit) == 0) {
+      mesh_.triangles.push_back({a, b, c});
+    } else {
+      clip_any({a, b, c});
+    }
+  }
   /// The mesh; the builder is spent.
   triangle_mesh finish();
 
  private:
-  std::uint32_t vertex(std::uint64_t key);
+  // Vertex ids are below 2^31 (a mesh has fewer than 2^31 vertices: positions alone would take
+  // 48 GiB); vertex() sets this bit on the id of a vertex outside the data box.
+  static constexpr std::uint32_t outside_bit = std::uint32_t{1} << 31;
+  // The id of the vertex on the edge with this key; a hash hit is all most calls do (each vertex
+  // is reached from about six triangles), so that part is inline.
+  std::uint32_t vertex(std::uint64_t key) {
+    const auto [stored, inserted] = keys_.try_emplace_ref(key, 0);
+    if (inserted) *stored = new_vertex(key);  // new_vertex() does not touch keys_
+    return *stored;
+  }
+  std::uint32_t new_vertex(std::uint64_t key);
+  void clip_any(const std::array<std::uint32_t, 3>& flagged);
   std::uint32_t clip_vertex(const vec3& p);
   void clip(const std::array<std::uint32_t, 3>& ids);
 
