@@ -14,6 +14,8 @@
 
 #include <benchmark/benchmark.h>
 
+#include "steady_allocator.hpp"
+
 #include "plain_mtri.hpp"
 
 namespace progiso::bench {
@@ -154,4 +156,4 @@ BENCHMARK(BM_contour_range_build)->Apply(all_inputs)->Unit(benchmark::kMilliseco
 }  // namespace
 }  // namespace progiso::bench
 
-BENCHMARK_MAIN();
+int main(int argc, char** argv) { return progiso::bench::run_benchmarks(argc, argv); }

@@ -20,6 +20,8 @@
 
 #include <benchmark/benchmark.h>
 
+#include "steady_allocator.hpp"
+
 namespace progiso::bench {
 namespace {
 
@@ -319,4 +321,4 @@ BENCHMARK(BM_stalled_reader_memory)->Arg(1)->Arg(0)->Iterations(1)->Unit(benchma
 }  // namespace
 }  // namespace progiso::bench
 
-BENCHMARK_MAIN();
+int main(int argc, char** argv) { return progiso::bench::run_benchmarks(argc, argv); }

@@ -20,6 +20,8 @@
 
 #include <benchmark/benchmark.h>
 
+#include "steady_allocator.hpp"
+
 #include "plain_mt.hpp"
 
 namespace progiso::bench {
@@ -242,4 +244,4 @@ BENCHMARK(BM_time_to_first_surface)->Apply(all_inputs)->Unit(benchmark::kMicrose
 }  // namespace
 }  // namespace progiso::bench
 
-BENCHMARK_MAIN();
+int main(int argc, char** argv) { return progiso::bench::run_benchmarks(argc, argv); }

@@ -296,12 +296,22 @@ class typed_range_data final : public range_data::impl {
   // still sound for culling and still nested, since every caller uses this same function.
   [[nodiscard]] diamond_range read_stencil_clamped(const stencil& st,
                                                    const ipoint& c) const noexcept {
+    // Stencil offsets lie in [-3, 3] per axis (scale-2 edge midpoints reach 3, scale-1 stencils
+    // 2): the clamped coordinates' shares of the linear index, seven per axis, are computed once
+    // per call.
     const index3& d = vol->dims();
+    const std::array<std::int64_t, 3> stride{1, d[0], d[0] * d[1]};
+    std::array<std::array<std::int64_t, 7>, 3> part{};
+    for (std::size_t q = 0; q < 3; ++q) {
+      for (std::size_t k = 0; k < 7; ++k) {
+        const std::int64_t v = std::int64_t{c[q]} + static_cast<std::int64_t>(k) - 3;
+        part[q][k] = std::clamp<std::int64_t>(v, 0, d[q] - 1) * stride[q];
+      }
+    }
     const auto at = [&](const ipoint& o) {
-      const auto clamped = [&](std::size_t q) {
-        return std::clamp<std::int64_t>(std::int64_t{c[q]} + o[q], 0, d[q] - 1);
-      };
-      return samples_[clamped(0) + d[0] * (clamped(1) + d[1] * clamped(2))];
+      return samples_[part[0][static_cast<std::size_t>(o[0] + 3)] +
+                      part[1][static_cast<std::size_t>(o[1] + 3)] +
+                      part[2][static_cast<std::size_t>(o[2] + 3)]];
     };
     return summarise(at, st.rel_points, st.rel_splits);
   }

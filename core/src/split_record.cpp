@@ -398,16 +398,16 @@ split_summary split_packed(const hierarchy& hier, const volume& vol, const T* sa
       if (hier.in_grid(point(shape.ring[static_cast<std::size_t>(m)]))) k.ring_in_grid |= 1u << m;
     }
   }
+  // Integer samples are compared with floor(w) as integers (s > w exactly when s > floor(w)),
+  // with no conversion per sample.
+  const auto above = [&](T v) {
+    if constexpr (std::is_integral_v<T>) {
+      return static_cast<std::int64_t>(v) > int_w;
+    } else {
+      return static_cast<double>(v) > w;
+    }
+  };
   if (in_data) {
-    // Integer samples are compared with floor(w) as integers (s > w exactly when s > floor(w)),
-    // with no conversion per sample.
-    const auto above = [&](T v) {
-      if constexpr (std::is_integral_v<T>) {
-        return static_cast<std::int64_t>(v) > int_w;
-      } else {
-        return static_cast<double>(v) > w;
-      }
-    };
     const index3& dims = vol.dims();
     const std::int64_t sy = dims[0];
     const std::int64_t sz = dims[0] * dims[1];
@@ -424,14 +424,31 @@ split_summary split_packed(const hierarchy& hier, const volume& vol, const T* sa
       if (at(shape.ring[static_cast<std::size_t>(m)])) k.ring |= 1u << m;
     }
   } else {
-    const auto at = [&](const ipoint& p) { return vol.value(p[0], p[1], p[2]) > w; };
+    // Near the data box's faces: samples at clamped coordinates (the padding takes the nearest
+    // data value). Offsets are -h, 0 or h per axis, so each axis has three clamped shares of
+    // the linear index.
+    const index3& dims = vol.dims();
+    const std::array<std::int64_t, 3> stride{1, dims[0], dims[0] * dims[1]};
+    std::array<std::array<std::int64_t, 3>, 3> part{};
+    for (std::size_t q = 0; q < 3; ++q) {
+      for (std::size_t j = 0; j < 3; ++j) {
+        const std::int64_t v = std::int64_t{c[q]} + (static_cast<std::int64_t>(j) - 1) * h;
+        part[q][j] = std::clamp<std::int64_t>(v, 0, dims[q] - 1) * stride[q];
+      }
+    }
+    const auto at = [&](const offset& o) {
+      return above(samples[part[0][static_cast<std::size_t>(o[0] + 1)] +
+                           part[1][static_cast<std::size_t>(o[1] + 1)] +
+                           part[2][static_cast<std::size_t>(o[2] + 1)]]);
+    };
     const offset& sp = shape.spine;
-    k.c = at({c[0] - h * sp[0], c[1] - h * sp[1], c[2] - h * sp[2]});
-    k.d = at(point(sp));
-    k.e = at(c);
+    k.c = at({static_cast<std::int8_t>(-sp[0]), static_cast<std::int8_t>(-sp[1]),
+              static_cast<std::int8_t>(-sp[2])});
+    k.d = at(sp);
+    k.e = at({0, 0, 0});
     for (int m = 0; m < n; ++m) {
       if ((k.ring_in_grid >> m) & 1u) {
-        if (at(point(shape.ring[static_cast<std::size_t>(m)]))) k.ring |= 1u << m;
+        if (at(shape.ring[static_cast<std::size_t>(m)])) k.ring |= 1u << m;
       }
     }
   }

@@ -104,25 +104,25 @@ struct packed_group {
 [[nodiscard]] inline std::array<std::uint64_t, 3> unpack(const ipoint& centre, std::int32_t scale,
                                                          const packed_group& g,
                                                          std::size_t k) noexcept {
-  // Offset o of every code, in {-2..2}³.
-  static constexpr auto offsets = [] {
-    std::array<std::array<std::int8_t, 3>, 125> t{};
+  // A key packs the doubled midpoint 2c + h·o field by field, and no field leaves its range, so
+  // the key is the number key(2c) + h · Σ o_q 2^(21 q): one table entry per code, o in {-2..2}³.
+  static constexpr auto deltas = [] {
+    std::array<std::int64_t, 125> t{};
     for (int e = 0; e < 125; ++e) {
-      t[static_cast<std::size_t>(e)] = {static_cast<std::int8_t>(e % 5 - 2),
-                                        static_cast<std::int8_t>(e / 5 % 5 - 2),
-                                        static_cast<std::int8_t>(e / 25 - 2)};
+      const std::array<std::int64_t, 3> o{e % 5 - 2, e / 5 % 5 - 2, e / 25 - 2};
+      std::int64_t d = 0;
+      for (std::size_t q = 0; q < 3; ++q) d += o[q] * (std::int64_t{1} << (q * edge_key_bits));
+      t[static_cast<std::size_t>(e)] = d;
     }
     return t;
   }();
+  std::uint64_t base = 0;
+  for (std::size_t q = 0; q < 3; ++q) {
+    base |= static_cast<std::uint64_t>(2 * centre[q]) << (static_cast<int>(q) * edge_key_bits);
+  }
   std::array<std::uint64_t, 3> keys{};
   for (std::size_t v = 0; v < 3; ++v) {
-    const auto& o = offsets[g.edge(k, v)];
-    std::uint64_t key = 0;
-    for (std::size_t q = 0; q < 3; ++q) {
-      key |= static_cast<std::uint64_t>(2 * centre[q] + scale * o[q])
-             << (static_cast<int>(q) * edge_key_bits);
-    }
-    keys[v] = key;
+    keys[v] = base + static_cast<std::uint64_t>(scale * deltas[g.edge(k, v)]);
   }
   return keys;
 }
