@@ -1,5 +1,6 @@
 #include <progiso/core/range_data.hpp>
 
+#include <progiso/core/assert.hpp>
 #include <progiso/core/detail/range_entry.hpp>
 
 #include <algorithm>
@@ -281,14 +282,23 @@ class typed_range_data final : public range_data::impl {
     // Empty when the subtree lies wholly in the padding. Its reach per axis: 1 for an edge
     // midpoint; for a face centre 2 along its odd axes and 1 along the even one; 2 for a cube
     // centre. These nest: a child's reach plus its offset never exceeds its parent's.
+    // The stencil is read directly when the subtree lies in the data box, clamped otherwise.
     const ipoint& dmax = hier->data_max();
-    const int odd = (c[0] & 1) + (c[1] & 1) + (c[2] & 1);
+    bool inside = true;
     for (std::size_t q = 0; q < 3; ++q) {
-      const std::int32_t reach = odd == 1 ? 1 : (odd == 3 ? 2 : ((c[q] & 1) ? 2 : 1));
+      const std::int32_t reach = scale1_reach(c, q);
       if (c[q] - reach >= dmax[q]) return {};
+      inside = inside && c[q] - reach >= 0 && c[q] + reach <= dmax[q];
     }
     const stencil& st = stencils_[class_of(c)];
-    return interior(c, 2) ? read_stencil(st, c) : read_stencil_clamped(st, c);
+    return inside ? read_stencil(st, c) : read_stencil_clamped(st, c);
+  }
+
+  // How far the subtree of the scale-1 diamond centred at c reaches along axis q (make_stencils
+  // checks it against every stencil).
+  static std::int32_t scale1_reach(const ipoint& c, std::size_t q) noexcept {
+    const int odd = (c[0] & 1) + (c[1] & 1) + (c[2] & 1);
+    return odd == 1 ? 1 : (odd == 3 ? 2 : ((c[q] & 1) ? 2 : 1));
   }
 
   // Near the data boundary the same stencil is read with clamped samples (padding and points
@@ -424,6 +434,11 @@ class typed_range_data final : public range_data::impl {
       const ipoint c{8 + (cls & 3), 8 + ((cls >> 2) & 3), 8 + ((cls >> 4) & 3)};
       if (((c[0] | c[1] | c[2]) & 1) == 0) continue;  // scale ≥ 2: stored, no stencil
       stencils_[static_cast<std::size_t>(cls)] = build_stencil(probe, c);
+#if defined(PROGISO_ENABLE_ASSERTS)
+      for (const ipoint& o : stencils_[static_cast<std::size_t>(cls)].rel_points) {
+        for (std::size_t q = 0; q < 3; ++q) PROGISO_ASSERT(std::abs(o[q]) <= scale1_reach(c, q));
+      }
+#endif
     }
     for (std::int32_t cls = 0; cls < 512; ++cls) {
       const ipoint c{16 + (cls & 7), 16 + ((cls >> 3) & 7), 16 + ((cls >> 6) & 7)};
