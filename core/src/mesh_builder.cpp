@@ -11,8 +11,12 @@ namespace progiso::detail {
 mesh_builder::mesh_builder(const hierarchy& hier, const volume& vol, double w, std::size_t expected)
     : hier_(hier), vol_(vol), w_(w), keys_(expected) {
   for (std::size_t q = 0; q < 3; ++q) box_[q] = static_cast<double>(hier.data_max()[q]);
-  grid_.reserve(expected);
-  mesh_.triangles.reserve(expected * 2);
+  // A closed surface has about half as many vertices as triangles; clipping at the data box
+  // (padded hierarchies only) adds some of both. Reserving for them saves a copy of each array.
+  const bool padded = hier.grid_max() != hier.data_max();
+  const std::size_t slack = padded ? expected / 8 + 64 : 0;
+  grid_.reserve(expected + slack);
+  mesh_.triangles.reserve(2 * (expected + slack));
 }
 
 void mesh_builder::clip_any(const std::array<std::uint32_t, 3>& flagged) {

@@ -17,6 +17,8 @@ struct range_data::impl {
   [[nodiscard]] virtual diamond_range get(const diamond& d) const noexcept = 0;
   [[nodiscard]] virtual diamond_range get_at(const ipoint& c) const noexcept = 0;
   [[nodiscard]] virtual diamond_range get_at(const ipoint& c, std::int32_t h) const noexcept = 0;
+  [[nodiscard]] virtual bool empty_at(const ipoint& c, std::int32_t h) const noexcept = 0;
+  [[nodiscard]] virtual diamond_range bounds_at(const ipoint& c, std::int32_t h) const noexcept = 0;
   [[nodiscard]] virtual std::size_t byte_size() const noexcept = 0;
   const volume* vol = nullptr;
   const hierarchy* hier = nullptr;
@@ -107,6 +109,17 @@ class typed_range_data final : public range_data::impl {
 
   [[nodiscard]] diamond_range get_at(const ipoint& c) const noexcept override {
     return get_at(c, hier->scale_of(c));
+  }
+
+  [[nodiscard]] diamond_range bounds_at(const ipoint& c, std::int32_t h) const noexcept override {
+    if (h == 1) return scale1_at<false>(c);
+    return get_at(c, h);
+  }
+
+  [[nodiscard]] bool empty_at(const ipoint& c, std::int32_t h) const noexcept override {
+    if (h == 1) return scale1_outside(c);
+    const entry<T>* e = find(c, h);
+    return e == nullptr || decode(*e).empty();
   }
 
   [[nodiscard]] diamond_range get_at(const ipoint& c, std::int32_t h) const noexcept override {
@@ -278,6 +291,7 @@ class typed_range_data final : public range_data::impl {
 
   // Nested range of a scale-1 diamond: a stencil read away from the data boundary, the
   // definition (own range and descendants') near it.
+  template <bool with_error = true>
   [[nodiscard]] diamond_range scale1_at(const ipoint& c) const noexcept {
     // Empty when the subtree lies wholly in the padding. Its reach per axis: 1 for an edge
     // midpoint; for a face centre 2 along its odd axes and 1 along the even one; 2 for a cube
@@ -291,7 +305,16 @@ class typed_range_data final : public range_data::impl {
       inside = inside && c[q] - reach >= 0 && c[q] + reach <= dmax[q];
     }
     const stencil& st = stencils_[class_of(c)];
-    return inside ? read_stencil(st, c) : read_stencil_clamped(st, c);
+    return inside ? read_stencil<with_error>(st, c) : read_stencil_clamped<with_error>(st, c);
+  }
+
+  // scale1_at(c) is empty: the same test, alone.
+  [[nodiscard]] bool scale1_outside(const ipoint& c) const noexcept {
+    const ipoint& dmax = hier->data_max();
+    for (std::size_t q = 0; q < 3; ++q) {
+      if (c[q] - scale1_reach(c, q) >= dmax[q]) return true;
+    }
+    return false;
   }
 
   // How far the subtree of the scale-1 diamond centred at c reaches along axis q (make_stencils
@@ -304,6 +327,7 @@ class typed_range_data final : public range_data::impl {
   // Near the data boundary the same stencil is read with clamped samples (padding and points
   // beyond the grid take the nearest data value): a superset of the exact range and error, so
   // still sound for culling and still nested, since every caller uses this same function.
+  template <bool with_error = true>
   [[nodiscard]] diamond_range read_stencil_clamped(const stencil& st,
                                                    const ipoint& c) const noexcept {
     // Stencil offsets lie in [-3, 3] per axis (scale-2 edge midpoints reach 3, scale-1 stencils
@@ -323,13 +347,13 @@ class typed_range_data final : public range_data::impl {
                       part[1][static_cast<std::size_t>(o[1] + 3)] +
                       part[2][static_cast<std::size_t>(o[2] + 3)]];
     };
-    return summarise(at, st.rel_points, st.rel_splits);
+    return summarise<with_error>(at, st.rel_points, st.rel_splits);
   }
 
   // Range of the samples at(p) for p = 0 and every p in `points`, and the largest split error
   // |at(c) - (at(a) + at(b)) / 2| over the (c, a, b) in `splits`. NaN samples never replace a
   // number (comparisons with NaN are false).
-  template <class At, class Point>
+  template <bool with_error, class At, class Point>
   [[nodiscard]] static diamond_range summarise(const At& at, const std::vector<Point>& points,
                                                const std::vector<std::array<Point, 3>>& splits) {
     const T first = at(Point{});
@@ -341,7 +365,9 @@ class typed_range_data final : public range_data::impl {
       hi = v > hi ? v : hi;
     }
     double err = 0.0;
-    if constexpr (std::is_integral_v<T>) {
+    if constexpr (!with_error) {
+      err = std::numeric_limits<double>::quiet_NaN();
+    } else if constexpr (std::is_integral_v<T>) {
       // Twice the error, |2 f(c) - f(a) - f(b)|, in integers: exact for every integer sample
       // type (at most 34 bits), and half of it is the same double as the formula below.
       std::int64_t twice = 0;
@@ -459,9 +485,10 @@ class typed_range_data final : public range_data::impl {
     return read_stencil(stencils_[class_of(c)], c);
   }
 
+  template <bool with_error = true>
   [[nodiscard]] diamond_range read_stencil(const stencil& st, const ipoint& c) const noexcept {
     const T* base = samples_ + vol->linear(c[0], c[1], c[2]);
-    return summarise([base](std::int64_t o) { return base[o]; }, st.points, st.splits);
+    return summarise<with_error>([base](std::int64_t o) { return base[o]; }, st.points, st.splits);
   }
 
   std::array<stencil, 64> stencils_;
@@ -487,6 +514,12 @@ diamond_range range_data::get(const diamond& d) const noexcept { return impl_->g
 diamond_range range_data::get(const ipoint& centre) const noexcept { return impl_->get_at(centre); }
 diamond_range range_data::get(const ipoint& centre, std::int32_t scale) const noexcept {
   return impl_->get_at(centre, scale);
+}
+diamond_range range_data::bounds(const ipoint& centre, std::int32_t scale) const noexcept {
+  return impl_->bounds_at(centre, scale);
+}
+bool range_data::empty(const ipoint& centre, std::int32_t scale) const noexcept {
+  return impl_->empty_at(centre, scale);
 }
 diamond_range range_data::own(const diamond& d) const noexcept { return impl_->own(d); }
 std::size_t range_data::byte_size() const noexcept { return impl_->byte_size(); }

@@ -50,10 +50,14 @@ refiner::refiner(const volume& vol, const hierarchy& hier, const range_data& ran
       groups_(chunk_bits_for(vol)),
       records_(chunk_bits_for(vol)),
       queue_(std::make_unique<queue>(discipline_of(order))),
-      prefetch_(vol.byte_size() > prefetch_min_bytes) {
+      prefetch_(vol.byte_size() > prefetch_min_bytes),
+      errors_needed_(order == refine_order::largest_error_first) {
   if (!std::isfinite(isovalue)) {
     throw error("isovalue: expected a finite number, found " + std::to_string(isovalue));
   }
+  // As many ready diamonds as one chunk of records before the queue first grows (its growth
+  // by doubling copied the queue a dozen times per refinement of a small volume).
+  queue_->reserve(std::size_t{1} << chunk_bits_for(vol));
   // Root record: the surface in the root tetrahedra, owned by the root diamonds.
   records_.push_back({no_owner, 0, 0, 0, 0.0});
   for (std::uint64_t r = 0; r < hier_.root_count(); ++r) {
@@ -87,7 +91,18 @@ int refiner::chunk_bits_for(const volume& vol) noexcept {
 }
 
 bool refiner::done() const noexcept { return queue_->empty(); }
-double refiner::next_error() const noexcept { return done() ? 0.0 : queue_->top().error; }
+double refiner::next_error() const noexcept {
+  if (done()) return 0.0;
+  const ready& top = queue_->top();
+  return std::isnan(top.error) ? ranges_.get(top.centre, top.scale).error : top.error;
+}
+
+bool refiner::owns_surface(std::uint64_t diamond) const noexcept {
+  for (const packed_group& g : scratch_) {
+    if (g.owner == diamond) return true;
+  }
+  return false;
+}
 int refiner::next_depth() const noexcept { return done() ? -1 : queue_->top().depth; }
 
 bool refiner::is_split(const ipoint& centre) const noexcept {
@@ -156,7 +171,19 @@ bool refiner::split(std::uint64_t max_triangles) {
     state[ci] = static_cast<std::uint8_t>((state[ci] & ~parent_count_mask) | count);
     if (count != children.parents[ui]) continue;
     ++stats_.visited;
-    const diamond_range r = ranges_.get(c, children.scale);
+    if (!errors_needed_ && owns_surface(ci)) {
+      // A piece of surface in one of the child's tetrahedra: its range straddles w unless it
+      // is empty (wholly in the padding), and its error is not needed in this order (it is
+      // computed if asked for: next_error(), extract_cut()).
+      if (ranges_.empty(c, children.scale)) {
+        ++stats_.culled;
+      } else {
+        queue_->push({unknown_error, ci, c, children.scale, type, depth});
+      }
+      continue;
+    }
+    const diamond_range r =
+        errors_needed_ ? ranges_.get(c, children.scale) : ranges_.bounds(c, children.scale);
     if (r.straddles(isovalue_)) {
       queue_->push({r.error, ci, c, children.scale, type, depth});
     } else {
@@ -222,7 +249,12 @@ triangle_mesh refiner::extract() const {
 triangle_mesh refiner::extract_cut(double max_error) const {
   const std::uint8_t* state = state_.get();
   return build_mesh(
-      [max_error](const record& r) { return r.diamond == no_owner || r.error > max_error; },
+      [this, max_error](const record& r) {
+        if (r.diamond == no_owner) return true;
+        const double e =
+            std::isnan(r.error) ? ranges_.get(hier_.point(r.diamond), r.scale).error : r.error;
+        return e > max_error;
+      },
       [&](std::uint64_t owner) {
         if (owner == no_owner || (state[owner] & split_bit) == 0) return true;
         const diamond d = hier_.make_diamond(hier_.point(owner));

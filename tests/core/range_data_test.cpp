@@ -59,6 +59,15 @@ void check_all_diamonds(const volume& v) {
         if (!h.is_diamond(c)) continue;
         const diamond d = h.make_diamond(c);
         const diamond_range r = rd.get(d);
+        // The other ways in: by centre and scale, bounds only, emptiness only.
+        const diamond_range by_scale = rd.get(c, d.scale);
+        EXPECT_EQ(by_scale.lo, r.lo);
+        EXPECT_EQ(by_scale.hi, r.hi);
+        EXPECT_EQ(by_scale.error, r.error);
+        const diamond_range bounds = rd.bounds(c, d.scale);
+        EXPECT_EQ(bounds.lo, r.lo);
+        EXPECT_EQ(bounds.hi, r.hi);
+        EXPECT_EQ(rd.empty(c, d.scale), r.empty()) << x << "," << y << "," << z;
         const nested expected = subtree_values(h, v, d, memo);
         if (expected.lo <= expected.hi) {
           EXPECT_LE(r.lo, expected.lo) << x << "," << y << "," << z;

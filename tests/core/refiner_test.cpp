@@ -56,6 +56,45 @@ TEST(Refiner, quality_driven_refinement_leaves_no_error_above_the_threshold) {
   EXPECT_EQ(previous, full.triangle_count()) << "error 0 must reach full resolution";
 }
 
+// Breadth- and depth-first refinement skip the error of a ready diamond whose range need not
+// be read (a piece of surface in one of its tetrahedra proves it straddles w); it is computed
+// when asked for.
+TEST(Refiner, errors_left_out_by_breadth_and_depth_first_order_are_computed_when_asked) {
+  fixture f(make_gaussian_blobs({33, 29, 31}, 8, 5u));
+  const double w = 0.3;
+  refiner by_error(f.v, f.h, f.ranges, w, refine_order::largest_error_first);
+  by_error.refine_full();
+  for (const refine_order order : {refine_order::breadth_first, refine_order::depth_first}) {
+    refiner r(f.v, f.h, f.ranges, w, order);
+    // next_error() is the top diamond's nested error: finite, and no larger than the largest
+    // error of the volume (the roots').
+    double largest = 0.0;
+    for (std::uint64_t i = 0; i < f.h.vertex_count(); ++i) {
+      const ipoint c = f.h.point(i);
+      if (f.h.is_diamond(c) && f.h.make_diamond(c).depth == 0) {
+        largest = std::max(largest, f.ranges.get(c).error);
+      }
+    }
+    for (int k = 0; k < 3000 && !r.done(); ++k) {
+      const double e = r.next_error();
+      ASSERT_TRUE(std::isfinite(e)) << "split " << k;
+      ASSERT_GE(e, 0.0);
+      ASSERT_LE(e, largest);
+      r.split_next();
+    }
+    r.refine_full();
+    EXPECT_EQ(r.statistics().splits, by_error.statistics().splits);
+    // Records keep unknown errors; cuts by error read them from the range data, so they are
+    // the same as after a refinement that computed every error.
+    for (const double eps : {0.0, 0.002, 0.01, 0.05, 0.2}) {
+      EXPECT_TRUE(test::same_surface(r.extract_cut(eps), by_error.extract_cut(eps))) << eps;
+    }
+    // The cuts differ from each other, so the errors decide them.
+    EXPECT_LT(r.extract_cut(0.05).triangles.size(), r.extract_cut(0.002).triangles.size());
+    EXPECT_LT(r.extract_cut(0.002).triangles.size(), r.extract().triangles.size());
+  }
+}
+
 TEST(Refiner, triangle_budget_is_respected_and_splits_largest_error_first) {
   fixture f(make_gaussian_blobs({33, 33, 33}, 8, 3u));
   refiner r(f.v, f.h, f.ranges, 0.3);

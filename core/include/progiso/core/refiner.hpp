@@ -26,6 +26,7 @@
 #include <chrono>
 #include <cstdint>
 #include <functional>
+#include <limits>
 #include <memory>
 #include <vector>
 
@@ -109,7 +110,7 @@ class refiner {
     std::uint64_t first;
     std::uint32_t count;
     std::int32_t scale;  // the diamond's h (packed_group's unit)
-    double error;
+    double error;        // NaN: not computed (see errors_needed_)
   };
   struct ready {
     double error;
@@ -172,6 +173,12 @@ class refiner {
   chunked_store<record> records_;
   std::unique_ptr<queue> queue_;
   bool prefetch_;  // prefetch_samples() pays off (the volume is larger than the cache)
+  // The queue orders by error (largest_error_first). In the other orders a ready diamond's
+  // error is left unknown when the range lookup is skipped (owns_surface()).
+  bool errors_needed_;
+  static constexpr double unknown_error = std::numeric_limits<double>::quiet_NaN();
+  /// True when one of the groups of the split just computed (scratch_) has this owner.
+  [[nodiscard]] bool owns_surface(std::uint64_t diamond) const noexcept;
   refine_statistics stats_;
 };
 

@@ -20,6 +20,8 @@ class ready_queue {
  public:
   explicit ready_queue(queue_discipline d = queue_discipline::largest_error) : discipline_(d) {}
 
+  /// Room for n items before the first reallocation.
+  void reserve(std::size_t n) { items_.reserve(n); }
   [[nodiscard]] bool empty() const noexcept { return head_ == items_.size(); }
   [[nodiscard]] std::size_t size() const noexcept { return items_.size() - head_; }
   [[nodiscard]] queue_discipline discipline() const noexcept { return discipline_; }
