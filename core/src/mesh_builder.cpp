@@ -1,6 +1,7 @@
 #include <progiso/core/detail/mesh_builder.hpp>
 
 #include <algorithm>
+#include <bit>
 #include <utility>
 
 #include <progiso/core/assert.hpp>
@@ -79,16 +80,18 @@ std::uint32_t mesh_builder::clip_vertex(const vec3& p) {
 // Sutherland–Hodgman against x_q ≤ box_q. Each crossing point is computed from the segment's
 // ends in lexicographic order, so the two triangles sharing a segment get the same point.
 void mesh_builder::clip(const std::array<std::uint32_t, 3>& ids) {
-  std::vector<std::uint32_t> poly(ids.begin(), ids.end());
-  std::vector<std::uint32_t> next;
-  for (std::size_t q = 0; q < 3 && poly.size() >= 3; ++q) {
-    next.clear();
-    for (std::size_t i = 0; i < poly.size(); ++i) {
+  // Clipping a convex polygon by a plane adds at most one vertex: at most 6 after 3 planes.
+  std::array<std::uint32_t, 8> poly{ids[0], ids[1], ids[2]};
+  std::array<std::uint32_t, 8> next{};
+  std::size_t size = 3;
+  for (std::size_t q = 0; q < 3 && size >= 3; ++q) {
+    std::size_t kept = 0;
+    for (std::size_t i = 0; i < size; ++i) {
       const std::uint32_t a = poly[i];
-      const std::uint32_t b = poly[(i + 1) % poly.size()];
+      const std::uint32_t b = poly[i + 1 == size ? 0 : i + 1];
       const bool ain = grid_[a][q] <= box_[q];
       const bool bin = grid_[b][q] <= box_[q];
-      if (ain) next.push_back(a);
+      if (ain) next[kept++] = a;
       // A crossing whose inside end lies on the plane is that end itself, already emitted.
       const bool on_plane = ain ? grid_[a][q] == box_[q] : grid_[b][q] == box_[q];
       if (ain != bin && !on_plane) {
@@ -99,19 +102,30 @@ void mesh_builder::clip(const std::array<std::uint32_t, 3>& ids) {
         vec3 x{};
         for (std::size_t k = 0; k < 3; ++k) x[k] = p[k] + s * (r[k] - p[k]);
         x[q] = box_[q];
-        next.push_back(clip_vertex(x));
+        next[kept++] = clip_vertex(x);
       }
     }
-    poly.swap(next);
+    PROGISO_ASSERT(kept <= 6);
+    poly = next;
+    size = kept;
   }
-  if (poly.size() < 3) return;
-  for (std::size_t i = 1; i + 1 < poly.size(); ++i) {
+  if (size < 3) return;
+  for (std::size_t i = 1; i + 1 < size; ++i) {
     const std::array<std::uint32_t, 3> t{poly[0], poly[i], poly[i + 1]};
     if (grid_[t[0]] == grid_[t[1]] || grid_[t[1]] == grid_[t[2]] || grid_[t[0]] == grid_[t[2]]) {
       continue;
     }
     mesh_.triangles.push_back(t);
   }
+}
+
+std::size_t mesh_builder::position_hash::operator()(const vec3& p) const noexcept {
+  std::uint64_t h = 0;
+  for (const double v : p) {
+    // + 0.0 makes -0.0 hash as 0.0 (they compare equal).
+    h = (h ^ std::bit_cast<std::uint64_t>(v + 0.0)) * 0x9E3779B97F4A7C15ULL;
+  }
+  return static_cast<std::size_t>(h ^ (h >> 29));
 }
 
 }  // namespace progiso::detail

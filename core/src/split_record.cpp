@@ -456,15 +456,26 @@ split_summary split_packed(const hierarchy& hier, const volume& vol, const T* sa
   const unsigned ce = (k.c ? 1u : 0u) | (k.e ? 2u : 0u);  // colours of (c, e, ., .)
   const unsigned ed = (k.e ? 1u : 0u) | (k.d ? 2u : 0u);  // colours of (e, d, ., .)
   const std::int32_t g = h / 2;                           // owner = c + g · owner2
-  for (int m = 0; m < n; ++m) {
-    if (!k.tet_exists(m)) continue;
-    const auto um = static_cast<std::size_t>(m);
-    const auto um1 = static_cast<std::size_t>((m + 1 == n ? 0 : m + 1));
+  // Children with surface, as bit sets over ring positions: child (half, m) has corners
+  // (spine end, centre, ring[m], ring[m + 1]) and holds surface unless all four agree.
+  const unsigned full = (1u << n) - 1;
+  const auto next = [&](unsigned x) { return ((x >> 1) | (x << (n - 1))) & full; };
+  const unsigned exists = k.ring_in_grid & next(k.ring_in_grid);
+  const unsigned black_pair = k.ring & next(k.ring);  // ring[m], ring[m + 1] both black
+  const unsigned white_pair = ~(k.ring | next(k.ring)) & full;
+  const auto mixed = [&](bool p, bool q) {  // (p, q): colours of the child's spine end, centre
+    return exists & (p != q ? full : (p ? ~black_pair : ~white_pair));
+  };
+  const std::array<unsigned, 2> with_surface{mixed(k.c, k.e), mixed(k.e, k.d)};
+  for (unsigned todo = with_surface[0] | with_surface[1]; todo != 0; todo &= todo - 1) {
+    const auto um = static_cast<std::size_t>(std::countr_zero(todo));
+    const auto um1 = um + 1 == static_cast<std::size_t>(n) ? std::size_t{0} : um + 1;
     const unsigned ab = (((k.ring >> um) & 1u) << 2) | (((k.ring >> um1) & 1u) << 3);
     for (std::size_t half = 0; half < 2; ++half) {
+      if (((with_surface[half] >> um) & 1u) == 0) continue;
       const child_table& ch = shape.child[2 * um + half];
       const std::uint64_t bits = ch.bits[(half == 0 ? ce : ed) | ab];
-      if (bits == 0) continue;
+      PROGISO_ASSERT(bits != 0);
       std::uint64_t owner = no_owner;
       const offset& o = ch.owner2;
       // At h = 1 an owner offset with an odd coordinate is half a grid step: a finest child.

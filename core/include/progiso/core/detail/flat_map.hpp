@@ -33,19 +33,24 @@ class flat_map {
 
   /// The same, returning the stored value's address: valid until the next insertion.
   std::pair<std::uint32_t*, bool> try_emplace_ref(std::uint64_t key, std::uint32_t value) {
-    if ((size_ + 1) * 2 > slots_.size()) rehash(slots_.size() * 2);
     std::size_t i = hash(key);
     while (true) {
       slot& s = slots_[i];
       if (s.key == key) return {&s.value, false};
-      if (s.key == empty_key) {
-        s.key = key;
-        s.value = value;
-        ++size_;
-        return {&s.value, true};
-      }
+      if (s.key == empty_key) break;
       i = (i + 1) & mask_;
     }
+    // Absent. Grown before the load passes one half (lookups, the common case, skip this).
+    if ((size_ + 1) * 2 > slots_.size()) {
+      rehash(slots_.size() * 2);
+      i = hash(key);
+      while (slots_[i].key != empty_key) i = (i + 1) & mask_;
+    }
+    slot& s = slots_[i];
+    s.key = key;
+    s.value = value;
+    ++size_;
+    return {&s.value, true};
   }
 
   /// Pointer to the value of key, or nullptr.

@@ -12,7 +12,7 @@
 #include <array>
 #include <cstddef>
 #include <cstdint>
-#include <map>
+#include <unordered_map>
 #include <vector>
 
 #include <progiso/core/detail/flat_map.hpp>
@@ -63,7 +63,12 @@ class mesh_builder {
   double w_;
   vec3 box_{};
   flat_map keys_;
-  std::map<vec3, std::uint32_t> clipped_;
+  // Clip vertices by position (bit patterns: every crossing is computed the same way, so equal
+  // points are equal doubles).
+  struct position_hash {
+    std::size_t operator()(const vec3& p) const noexcept;
+  };
+  std::unordered_map<vec3, std::uint32_t, position_hash> clipped_;
   bool clipped_any_ = false;
   std::vector<vec3> grid_;
   triangle_mesh mesh_;
