@@ -370,6 +370,31 @@ const std::array<shape_table, 64>& shapes() {
   return all;
 }
 
+// classify() of a diamond whose ring lies wholly in the grid, by table: one entry per ring size
+// (4, 6, 8) and colouring of c, d, e and the ring (2688 entries), made by classify() itself.
+const split_summary& interior_summary(const colours& k) noexcept {
+  static const std::array<std::vector<split_summary>, 3> tables = [] {
+    std::array<std::vector<split_summary>, 3> t;
+    for (std::size_t i = 0; i < 3; ++i) {
+      const int n = 4 + 2 * static_cast<int>(i);
+      t[i].resize(std::size_t{8} << n);
+      for (unsigned key = 0; key < (8u << n); ++key) {
+        colours c;
+        c.n = n;
+        c.ring_in_grid = (1u << n) - 1;
+        c.c = (key & 1u) != 0;
+        c.d = (key & 2u) != 0;
+        c.e = (key & 4u) != 0;
+        c.ring = key >> 3;
+        classify(c, t[i][key]);
+      }
+    }
+    return t;
+  }();
+  const unsigned key = (k.c ? 1u : 0u) | (k.d ? 2u : 0u) | (k.e ? 4u : 0u) | (k.ring << 3);
+  return tables[static_cast<std::size_t>(k.n / 2 - 2)][key];
+}
+
 template <class T>
 split_summary split_packed(const hierarchy& hier, const volume& vol, const T* samples, double w,
                            std::int64_t int_w, const ipoint& c, std::int32_t h,
@@ -452,7 +477,13 @@ split_summary split_packed(const hierarchy& hier, const volume& vol, const T* sa
       }
     }
   }
-  classify(k, s);
+  // Diamonds wholly in the grid (nearly all) take their classification from a table: it depends
+  // only on n and the colours of c, d, e and the ring.
+  if (k.ring_in_grid == (1u << n) - 1) {
+    s = interior_summary(k);
+  } else {
+    classify(k, s);
+  }
   const unsigned ce = (k.c ? 1u : 0u) | (k.e ? 2u : 0u);  // colours of (c, e, ., .)
   const unsigned ed = (k.e ? 1u : 0u) | (k.d ? 2u : 0u);  // colours of (e, d, ., .)
   const std::int32_t g = h / 2;                           // owner = c + g · owner2
