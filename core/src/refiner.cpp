@@ -97,6 +97,26 @@ double refiner::next_error() const noexcept {
   return std::isnan(top.error) ? ranges_.get(top.centre, top.scale).error : top.error;
 }
 
+void refiner::add_classification(const split_summary& s, std::uint64_t times) const noexcept {
+  for (std::size_t i = 0; i < tet_case_count; ++i) stats_.cases[i] += times * s.cases[i];
+  for (std::size_t i = 0; i < primitive_count; ++i) {
+    stats_.primitives[i] += times * s.primitives[i];
+  }
+  stats_.configurations[static_cast<std::size_t>(s.configuration)] += times;
+}
+
+const refine_statistics& refiner::statistics() const noexcept {
+  if (any_pending_) {
+    for (std::size_t i = 0; i < interior_classification_count; ++i) {
+      if (pending_[i] == 0) continue;
+      add_classification(interior_classification(i), pending_[i]);
+      pending_[i] = 0;
+    }
+    any_pending_ = false;
+  }
+  return stats_;
+}
+
 bool refiner::owns_surface(std::uint64_t diamond) const noexcept {
   for (const packed_group& g : scratch_) {
     if (g.owner == diamond) return true;
@@ -155,9 +175,13 @@ bool refiner::split(std::uint64_t max_triangles) {
   stats_.triangles = after;
   stats_.record_triangles += static_cast<std::uint64_t>(s.added_triangles);
   ++stats_.splits;
-  for (std::size_t i = 0; i < tet_case_count; ++i) stats_.cases[i] += s.cases[i];
-  for (std::size_t i = 0; i < primitive_count; ++i) stats_.primitives[i] += s.primitives[i];
-  ++stats_.configurations[static_cast<std::size_t>(s.configuration)];
+  if (s.classification >= 0) {
+    // Counted by classification, added up when the statistics are read.
+    ++pending_[static_cast<std::size_t>(s.classification)];
+    any_pending_ = true;
+  } else {
+    add_classification(s, 1);
+  }
 
   // Children whose parents are now all split become ready.
   const child_list children = hier_.children_of(next.centre, next.scale, next.type);

@@ -371,14 +371,13 @@ const std::array<shape_table, 64>& shapes() {
 }
 
 // classify() of a diamond whose ring lies wholly in the grid, by table: one entry per ring size
-// (4, 6, 8) and colouring of c, d, e and the ring (2688 entries), made by classify() itself.
-const split_summary& interior_summary(const colours& k) noexcept {
-  static const std::array<std::vector<split_summary>, 3> tables = [] {
-    std::array<std::vector<split_summary>, 3> t;
-    for (std::size_t i = 0; i < 3; ++i) {
-      const int n = 4 + 2 * static_cast<int>(i);
-      t[i].resize(std::size_t{8} << n);
-      for (unsigned key = 0; key < (8u << n); ++key) {
+// (4, 6, 8) and colouring of c, d, e and the ring, made by classify() itself.
+const std::vector<split_summary>& interior_table() {
+  static const std::vector<split_summary> table = [] {
+    std::vector<split_summary> t(interior_classification_count);
+    std::size_t i = 0;
+    for (int n = 4; n <= 8; n += 2) {
+      for (unsigned key = 0; key < (8u << n); ++key, ++i) {
         colours c;
         c.n = n;
         c.ring_in_grid = (1u << n) - 1;
@@ -386,13 +385,19 @@ const split_summary& interior_summary(const colours& k) noexcept {
         c.d = (key & 2u) != 0;
         c.e = (key & 4u) != 0;
         c.ring = key >> 3;
-        classify(c, t[i][key]);
+        classify(c, t[i]);
+        t[i].classification = static_cast<std::int16_t>(i);
       }
     }
     return t;
   }();
+  return table;
+}
+
+const split_summary& interior_summary(const colours& k) noexcept {
+  static constexpr std::array<unsigned, 3> first{0, 8u << 4, (8u << 4) + (8u << 6)};
   const unsigned key = (k.c ? 1u : 0u) | (k.d ? 2u : 0u) | (k.e ? 4u : 0u) | (k.ring << 3);
-  return tables[static_cast<std::size_t>(k.n / 2 - 2)][key];
+  return interior_table()[first[static_cast<std::size_t>(k.n / 2 - 2)] + key];
 }
 
 template <class T>
@@ -538,6 +543,11 @@ split_summary split_packed(const hierarchy& hier, const volume& vol, const T* sa
 }
 
 }  // namespace
+
+const split_summary& interior_classification(std::size_t i) noexcept {
+  PROGISO_ASSERT(i < interior_classification_count);
+  return interior_table()[i];
+}
 
 split_summary compute_split(const hierarchy& hier, const volume& vol, double w, const diamond& d,
                             std::vector<owned_triangle>& out) {

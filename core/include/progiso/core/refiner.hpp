@@ -94,7 +94,7 @@ class refiner {
   void refine_set(const std::function<bool(std::uint64_t)>& in_set);
 
   [[nodiscard]] std::uint64_t triangle_count() const noexcept { return stats_.triangles; }
-  [[nodiscard]] const refine_statistics& statistics() const noexcept { return stats_; }
+  [[nodiscard]] const refine_statistics& statistics() const noexcept;
   [[nodiscard]] bool is_split(const ipoint& centre) const noexcept;
 
   /// The surface of the current cut: indexed, clipped to the data box, physical coordinates.
@@ -179,7 +179,13 @@ class refiner {
   static constexpr double unknown_error = std::numeric_limits<double>::quiet_NaN();
   /// True when one of the groups of the split just computed (scratch_) has this owner.
   [[nodiscard]] bool owns_surface(std::uint64_t diamond) const noexcept;
-  refine_statistics stats_;
+  // Case, primitive and configuration counts of interior splits are kept per classification
+  // (split_summary::classification) and added into stats_ when statistics() is read: one
+  // increment per split instead of twenty.
+  mutable refine_statistics stats_;
+  mutable std::array<std::uint64_t, interior_classification_count> pending_{};
+  mutable bool any_pending_ = false;
+  void add_classification(const split_summary& s, std::uint64_t times) const noexcept;
 };
 
 // -------------------------------------------------------------------------------------------

@@ -155,7 +155,16 @@ struct split_summary {
   split_configuration configuration = split_configuration::no_new_crossing;
   std::array<std::uint8_t, tet_case_count> cases{};
   std::array<std::uint16_t, primitive_count> primitives{};
+  /// ≥ 0 for a diamond wholly in the grid: the index of its classification (every field above
+  /// but added_triangles) in interior_classification(); -1 otherwise.
+  std::int16_t classification = -1;
 };
+
+/// Number of classifications of diamonds wholly in the grid: one per ring size (4, 6, 8) and
+/// colouring of the spine ends, centre and ring.
+inline constexpr std::size_t interior_classification_count = (8u << 4) + (8u << 6) + (8u << 8);
+/// Classification i (split_summary::classification); its added_triangles is 0.
+[[nodiscard]] const split_summary& interior_classification(std::size_t i) noexcept;
 
 /// Computes the split record of diamond d at isovalue w: appends the new triangles to `out`
 /// and returns the classification. Pure: depends only on (d, the field, w).
