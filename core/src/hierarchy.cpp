@@ -326,29 +326,8 @@ void hierarchy::root_tets(std::uint64_t r,
   }
 }
 
-std::array<ipoint, 2> hierarchy::edge_ends(std::uint64_t key) const noexcept {
-  const ipoint d2 = edge_key_point(key);
-  std::array<ipoint, 2> e{};
-  int odd = 0;
-  for (std::size_t q = 0; q < 3; ++q) odd += d2[q] & 1;
-  if (odd == 0) {
-    const diamond d = make_diamond({d2[0] / 2, d2[1] / 2, d2[2] / 2});
-    e = d.spine;
-  } else {
-    // A finest edge: along one axis, or the diagonal of a unit square or cube that joins the
-    // corner even on the edge's axes to the corner odd on them.
-    for (std::size_t q = 0; q < 3; ++q) {
-      if (d2[q] & 1) {
-        const std::int32_t lo = (d2[q] - 1) / 2;
-        const std::int32_t hi = lo + 1;
-        const bool lo_even = (lo & 1) == 0;
-        e[0][q] = odd == 1 ? lo : (lo_even ? lo : hi);
-        e[1][q] = odd == 1 ? hi : (lo_even ? hi : lo);
-      } else {
-        e[0][q] = e[1][q] = d2[q] / 2;
-      }
-    }
-  }
+std::array<ipoint, 2> hierarchy::spine_ends(const ipoint& d2) const noexcept {
+  std::array<ipoint, 2> e = make_diamond({d2[0] / 2, d2[1] / 2, d2[2] / 2}).spine;
   if (vertex_less(e[1], e[0])) std::swap(e[0], e[1]);
   return e;
 }

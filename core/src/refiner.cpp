@@ -170,8 +170,8 @@ bool refiner::split(std::uint64_t max_triangles) {
   queue_->pop();
   std::uint8_t* state = state_.get();
   state[next.index] = static_cast<std::uint8_t>(state[next.index] | split_bit);
-  records_.push_back(
-      {next.index, first, static_cast<std::uint32_t>(scratch_.size()), next.scale, next.error});
+  records_.push_back({edge_key(next.centre, next.centre), first,
+                      static_cast<std::uint32_t>(scratch_.size()), next.scale, next.error});
   stats_.triangles = after;
   stats_.record_triangles += static_cast<std::uint64_t>(s.added_triangles);
   ++stats_.splits;
@@ -255,8 +255,8 @@ triangle_mesh refiner::build_mesh(InCut&& in_cut, Take&& take) const {
   for (std::size_t ri = 1; ri < records_.size(); ++ri) {
     const record& r = records_[ri];
     if (!in_cut(r)) continue;
-    for_each_unpacked(
-        hier_, r.diamond, r.scale, groups_, r.first, r.count, take,
+    for_each_unpacked_at(
+        r.centre_key, r.scale, groups_, r.first, r.count, take,
         [&b](std::uint64_t, const std::array<std::uint64_t, 3>& keys) { b.add(keys); });
   }
   return b.finish();
@@ -274,9 +274,12 @@ triangle_mesh refiner::extract_cut(double max_error) const {
   const std::uint8_t* state = state_.get();
   return build_mesh(
       [this, max_error](const record& r) {
-        if (r.diamond == no_owner) return true;
-        const double e =
-            std::isnan(r.error) ? ranges_.get(hier_.point(r.diamond), r.scale).error : r.error;
+        if (r.centre_key == no_owner) return true;
+        const auto centre = [&r] {
+          const ipoint c2 = edge_key_point(r.centre_key);
+          return ipoint{c2[0] / 2, c2[1] / 2, c2[2] / 2};
+        };
+        const double e = std::isnan(r.error) ? ranges_.get(centre(), r.scale).error : r.error;
         return e > max_error;
       },
       [&](std::uint64_t owner) {

@@ -30,6 +30,7 @@
 
 #include <array>
 #include <cstdint>
+#include <utility>
 
 #include <progiso/core/marching.hpp>
 #include <progiso/core/volume.hpp>
@@ -116,7 +117,22 @@ class hierarchy {
   void root_tets(std::uint64_t r, std::array<std::array<ipoint, 4>, 6>& out) const noexcept;
 
   /// The two ends of the grid edge with the given edge key (canonical order: lower first).
-  [[nodiscard]] std::array<ipoint, 2> edge_ends(std::uint64_t key) const noexcept;
+  [[nodiscard]] std::array<ipoint, 2> edge_ends(std::uint64_t key) const noexcept {
+    const ipoint d2 = edge_key_point(key);
+    const int odd = (d2[0] & 1) + (d2[1] & 1) + (d2[2] & 1);
+    if (odd == 0) return spine_ends(d2);  // the spine of the diamond centred at d2 / 2
+    // A finest edge: along one axis, or the diagonal of a unit square or cube that joins the
+    // corner even on the edge's axes to the corner odd on them.
+    std::array<ipoint, 2> e{};
+    for (std::size_t q = 0; q < 3; ++q) {
+      const std::int32_t lo = d2[q] >> 1;
+      const bool flip = (d2[q] & 1) != 0 && odd > 1 && (lo & 1) != 0;
+      e[0][q] = lo + (flip ? 1 : 0);
+      e[1][q] = lo + ((d2[q] & 1) != 0 && !flip ? 1 : 0);
+    }
+    if (vertex_less(e[1], e[0])) std::swap(e[0], e[1]);
+    return e;
+  }
 
   /// True when the region of the diamond lies wholly in the padding outside the data box
   /// (its pieces of surface would all be clipped away).
@@ -125,6 +141,7 @@ class hierarchy {
   }
 
  private:
+  std::array<ipoint, 2> spine_ends(const ipoint& d2) const noexcept;
   static constexpr int min_root_levels = 3;          // roots of side 8 or more
   static constexpr double max_padding_ratio = 1.25;  // see "Choice of N" above
   static int choose_levels(const ipoint& data_max, std::int64_t min_extent) noexcept;

@@ -106,7 +106,7 @@ class refiner {
   // One split: its groups are groups_[first, first + count). Record 0 is the root surface,
   // kept in root_triangles_.
   struct record {
-    std::uint64_t diamond;  // grid index, or no_owner for the root record
+    std::uint64_t centre_key;  // edge_key(centre, centre), or no_owner for the root record
     std::uint64_t first;
     std::uint32_t count;
     std::int32_t scale;  // the diamond's h (packed_group's unit)

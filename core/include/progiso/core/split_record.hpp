@@ -100,10 +100,12 @@ struct packed_group {
   }
 };
 
-/// Edge keys of triangle k of g, made by the split of the diamond with this centre and scale.
-[[nodiscard]] inline std::array<std::uint64_t, 3> unpack(const ipoint& centre, std::int32_t scale,
-                                                         const packed_group& g,
-                                                         std::size_t k) noexcept {
+/// Edge keys of triangle k of g, made by the split of the diamond whose doubled centre has the
+/// edge key `centre_key` (edge_key(c, c)), with this scale.
+[[nodiscard]] inline std::array<std::uint64_t, 3> unpack_at(std::uint64_t centre_key,
+                                                            std::int32_t scale,
+                                                            const packed_group& g,
+                                                            std::size_t k) noexcept {
   // A key packs the doubled midpoint 2c + h·o field by field, and no field leaves its range, so
   // the key is the number key(2c) + h · Σ o_q 2^(21 q): one table entry per code, o in {-2..2}³.
   static constexpr auto deltas = [] {
@@ -116,34 +118,50 @@ struct packed_group {
     }
     return t;
   }();
-  std::uint64_t base = 0;
-  for (std::size_t q = 0; q < 3; ++q) {
-    base |= static_cast<std::uint64_t>(2 * centre[q]) << (static_cast<int>(q) * edge_key_bits);
-  }
   std::array<std::uint64_t, 3> keys{};
   for (std::size_t v = 0; v < 3; ++v) {
-    keys[v] = base + static_cast<std::uint64_t>(scale * deltas[g.edge(k, v)]);
+    keys[v] = centre_key + static_cast<std::uint64_t>(scale * deltas[g.edge(k, v)]);
   }
   return keys;
 }
 
+/// The same for the diamond with this centre.
+[[nodiscard]] inline std::array<std::uint64_t, 3> unpack(const ipoint& centre, std::int32_t scale,
+                                                         const packed_group& g,
+                                                         std::size_t k) noexcept {
+  return unpack_at(edge_key(centre, centre), scale, g, k);
+}
+
 /// Calls f(owner, edge keys) for every triangle of groups[first, first + count) whose owner
-/// passes take(owner); the groups were made by the split of the diamond centred at grid vertex
-/// `diamond` with scale `scale`. The centre is computed only when some group is taken.
+/// passes take(owner); the groups were made by the split of the diamond whose doubled centre
+/// has the edge key `centre_key`, with scale `scale`.
+template <class Groups, class Take, class F>
+void for_each_unpacked_at(std::uint64_t centre_key, std::int32_t scale, const Groups& groups,
+                          std::uint64_t first, std::uint64_t count, Take&& take, F&& f) {
+  for (std::uint64_t i = first; i < first + count; ++i) {
+    const packed_group& g = groups[i];
+    if (!take(g.owner)) continue;
+    for (std::size_t t = 0; t < g.count(); ++t) f(g.owner, unpack_at(centre_key, scale, g, t));
+  }
+}
+
+/// The same for the diamond centred at grid vertex `diamond` (an index). The centre is computed
+/// only when some group is taken.
 template <class Groups, class Take, class F>
 void for_each_unpacked(const hierarchy& hier, std::uint64_t diamond, std::int32_t scale,
                        const Groups& groups, std::uint64_t first, std::uint64_t count, Take&& take,
                        F&& f) {
+  std::uint64_t centre_key = 0;
   bool have_centre = false;
-  ipoint centre{};
   for (std::uint64_t i = first; i < first + count; ++i) {
     const packed_group& g = groups[i];
     if (!take(g.owner)) continue;
     if (!have_centre) {
-      centre = hier.point(diamond);
+      const ipoint c = hier.point(diamond);
+      centre_key = edge_key(c, c);
       have_centre = true;
     }
-    for (std::size_t t = 0; t < g.count(); ++t) f(g.owner, unpack(centre, scale, g, t));
+    for (std::size_t t = 0; t < g.count(); ++t) f(g.owner, unpack_at(centre_key, scale, g, t));
   }
 }
 
