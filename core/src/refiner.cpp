@@ -16,6 +16,9 @@ namespace {
 
 // Per-diamond state, one byte per grid vertex (zeroed lazily, page by page).
 constexpr std::uint8_t split_bit = 0x80;
+// Set on a diamond when one of its tetrahedra holds surface (it owns a group of a split
+// record): its range then straddles the isovalue. Kept in breadth- and depth-first order only.
+constexpr std::uint8_t surface_bit = 0x40;
 constexpr std::uint8_t parent_count_mask = 0x07;
 
 }  // namespace
@@ -117,12 +120,6 @@ const refine_statistics& refiner::statistics() const noexcept {
   return stats_;
 }
 
-bool refiner::owns_surface(std::uint64_t diamond) const noexcept {
-  for (const packed_group& g : scratch_) {
-    if (g.owner == diamond) return true;
-  }
-  return false;
-}
 int refiner::next_depth() const noexcept { return done() ? -1 : queue_->top().depth; }
 
 bool refiner::is_split(const ipoint& centre) const noexcept {
@@ -170,6 +167,12 @@ bool refiner::split(std::uint64_t max_triangles) {
   queue_->pop();
   std::uint8_t* state = state_.get();
   state[next.index] = static_cast<std::uint8_t>(state[next.index] | split_bit);
+  if (!errors_needed_) {
+    for (const packed_group& g : scratch_) {
+      if (g.owner != no_owner)
+        state[g.owner] = static_cast<std::uint8_t>(state[g.owner] | surface_bit);
+    }
+  }
   records_.push_back({edge_key(next.centre, next.centre), first,
                       static_cast<std::uint32_t>(scratch_.size()), next.scale, next.error});
   stats_.triangles = after;
@@ -195,7 +198,7 @@ bool refiner::split(std::uint64_t max_triangles) {
     state[ci] = static_cast<std::uint8_t>((state[ci] & ~parent_count_mask) | count);
     if (count != children.parents[ui]) continue;
     ++stats_.visited;
-    if (!errors_needed_ && owns_surface(ci)) {
+    if ((state[ci] & surface_bit) != 0) {
       // A piece of surface in one of the child's tetrahedra: its range straddles w unless it
       // is empty (wholly in the padding), and its error is not needed in this order (it is
       // computed if asked for: next_error(), extract_cut()).

@@ -372,25 +372,28 @@ const std::array<shape_table, 64>& shapes() {
 
 // classify() of a diamond whose ring lies wholly in the grid, by table: one entry per ring size
 // (4, 6, 8) and colouring of c, d, e and the ring, made by classify() itself.
-const std::vector<split_summary>& interior_table() {
-  static const std::vector<split_summary> table = [] {
-    std::vector<split_summary> t(interior_classification_count);
-    std::size_t i = 0;
-    for (int n = 4; n <= 8; n += 2) {
-      for (unsigned key = 0; key < (8u << n); ++key, ++i) {
-        colours c;
-        c.n = n;
-        c.ring_in_grid = (1u << n) - 1;
-        c.c = (key & 1u) != 0;
-        c.d = (key & 2u) != 0;
-        c.e = (key & 4u) != 0;
-        c.ring = key >> 3;
-        classify(c, t[i]);
-        t[i].classification = static_cast<std::int16_t>(i);
-      }
+std::vector<split_summary> build_interior_table() {
+  std::vector<split_summary> t(interior_classification_count);
+  std::size_t i = 0;
+  for (int n = 4; n <= 8; n += 2) {
+    for (unsigned key = 0; key < (8u << n); ++key, ++i) {
+      colours c;
+      c.n = n;
+      c.ring_in_grid = (1u << n) - 1;
+      c.c = (key & 1u) != 0;
+      c.d = (key & 2u) != 0;
+      c.e = (key & 4u) != 0;
+      c.ring = key >> 3;
+      classify(c, t[i]);
+      t[i].classification = static_cast<std::int16_t>(i);
     }
-    return t;
-  }();
+  }
+  return t;
+}
+
+// Small enough to inline: a split pays one initialisation check, not a call.
+inline const std::vector<split_summary>& interior_table() {
+  static const std::vector<split_summary> table = build_interior_table();
   return table;
 }
 

@@ -174,11 +174,10 @@ class refiner {
   std::unique_ptr<queue> queue_;
   bool prefetch_;  // prefetch_samples() pays off (the volume is larger than the cache)
   // The queue orders by error (largest_error_first). In the other orders a ready diamond's
-  // error is left unknown when the range lookup is skipped (owns_surface()).
+  // error is left unknown when the range lookup is skipped (one of its tetrahedra holds
+  // surface: see surface_bit in refiner.cpp).
   bool errors_needed_;
   static constexpr double unknown_error = std::numeric_limits<double>::quiet_NaN();
-  /// True when one of the groups of the split just computed (scratch_) has this owner.
-  [[nodiscard]] bool owns_surface(std::uint64_t diamond) const noexcept;
   // Case, primitive and configuration counts of interior splits are kept per classification
   // (split_summary::classification) and added into stats_ when statistics() is read: one
   // increment per split instead of twenty.
