@@ -28,9 +28,19 @@ class mesh_builder {
   mesh_builder(const hierarchy& hier, const volume& vol, double isovalue, std::size_t expected);
   /// Adds one oriented triangle given by the edge keys of its vertices.
   void add(const std::array<std::uint64_t, 3>& keys) {
-    const std::uint32_t a = vertex(keys[0]);
-    const std::uint32_t b = vertex(keys[1]);
-    const std::uint32_t c = vertex(keys[2]);
+    // Consecutive triangles often share vertices (the two of a quad, neighbours in one split),
+    // so the previous triangle's keys are tried before the hash.
+    const auto id = [&](std::uint64_t key) {
+      for (std::size_t i = 0; i < 3; ++i) {
+        if (last_keys_[i] == key) return last_ids_[i];
+      }
+      return vertex(key);
+    };
+    const std::uint32_t a = id(keys[0]);
+    const std::uint32_t b = id(keys[1]);
+    const std::uint32_t c = id(keys[2]);
+    last_keys_ = keys;
+    last_ids_ = {a, b, c};
     // Vertex ids carry the outside flag (outside_bit), so a triangle is tested against the
     // data box without reading its vertices' positions.
     if (((a | b | c) & outside_bit) == 0) {
@@ -63,6 +73,9 @@ class mesh_builder {
   double w_;
   vec3 box_{};
   flat_map keys_;
+  std::array<std::uint64_t, 3> last_keys_{flat_map::empty_key, flat_map::empty_key,
+                                          flat_map::empty_key};
+  std::array<std::uint32_t, 3> last_ids_{};
   // Clip vertices by position (bit patterns: every crossing is computed the same way, so equal
   // points are equal doubles).
   struct position_hash {
