@@ -18,7 +18,8 @@ struct range_data::impl {
   [[nodiscard]] virtual diamond_range get_at(const ipoint& c) const noexcept = 0;
   [[nodiscard]] virtual diamond_range get_at(const ipoint& c, std::int32_t h) const noexcept = 0;
   [[nodiscard]] virtual bool empty_at(const ipoint& c, std::int32_t h) const noexcept = 0;
-  [[nodiscard]] virtual diamond_range bounds_at(const ipoint& c, std::int32_t h) const noexcept = 0;
+  [[nodiscard]] virtual bool straddles_at(const ipoint& c, std::int32_t h, double w,
+                                          std::int64_t floor_w) const noexcept = 0;
   [[nodiscard]] virtual std::size_t byte_size() const noexcept = 0;
   const volume* vol = nullptr;
   const hierarchy* hier = nullptr;
@@ -111,9 +112,22 @@ class typed_range_data final : public range_data::impl {
     return get_at(c, hier->scale_of(c));
   }
 
-  [[nodiscard]] diamond_range bounds_at(const ipoint& c, std::int32_t h) const noexcept override {
-    if (h == 1) return scale1_at<false>(c);
-    return get_at(c, h);
+  [[nodiscard]] bool straddles_at(const ipoint& c, std::int32_t h, double w,
+                                  std::int64_t floor_w) const noexcept override {
+    if (h != 1) return get_at(c, h).straddles(w);
+    const ipoint& dmax = hier->data_max();
+    bool inside = true;
+    for (std::size_t q = 0; q < 3; ++q) {
+      const std::int32_t reach = scale1_reach(c, q);
+      if (c[q] - reach >= dmax[q]) return false;  // empty: wholly in the padding
+      inside = inside && c[q] - reach >= 0 && c[q] + reach <= dmax[q];
+    }
+    const stencil& st = stencils_[class_of(c)];
+    if (inside) {
+      const T* base = samples_ + vol->linear(c[0], c[1], c[2]);
+      return straddle_over([base](std::int64_t o) { return base[o]; }, st.points, w, floor_w);
+    }
+    return straddle_over(clamped_reader(c), st.rel_points, w, floor_w);
   }
 
   [[nodiscard]] bool empty_at(const ipoint& c, std::int32_t h) const noexcept override {
@@ -291,7 +305,6 @@ class typed_range_data final : public range_data::impl {
 
   // Nested range of a scale-1 diamond: a stencil read away from the data boundary, the
   // definition (own range and descendants') near it.
-  template <bool with_error = true>
   [[nodiscard]] diamond_range scale1_at(const ipoint& c) const noexcept {
     // Empty when the subtree lies wholly in the padding. Its reach per axis: 1 for an edge
     // midpoint; for a face centre 2 along its odd axes and 1 along the even one; 2 for a cube
@@ -305,7 +318,7 @@ class typed_range_data final : public range_data::impl {
       inside = inside && c[q] - reach >= 0 && c[q] + reach <= dmax[q];
     }
     const stencil& st = stencils_[class_of(c)];
-    return inside ? read_stencil<with_error>(st, c) : read_stencil_clamped<with_error>(st, c);
+    return inside ? read_stencil(st, c) : read_stencil_clamped(st, c);
   }
 
   // scale1_at(c) is empty: the same test, alone.
@@ -327,33 +340,71 @@ class typed_range_data final : public range_data::impl {
   // Near the data boundary the same stencil is read with clamped samples (padding and points
   // beyond the grid take the nearest data value): a superset of the exact range and error, so
   // still sound for culling and still nested, since every caller uses this same function.
-  template <bool with_error = true>
   [[nodiscard]] diamond_range read_stencil_clamped(const stencil& st,
                                                    const ipoint& c) const noexcept {
-    // Stencil offsets lie in [-3, 3] per axis (scale-2 edge midpoints reach 3, scale-1 stencils
-    // 2): the clamped coordinates' shares of the linear index, seven per axis, are computed once
-    // per call.
+    return summarise(clamped_reader(c), st.rel_points, st.rel_splits);
+  }
+
+  // Samples at c + o, o a stencil offset, with clamped coordinates. Offsets lie in [-3, 3] per
+  // axis (scale-2 edge midpoints reach 3, scale-1 stencils 2): the clamped coordinates' shares
+  // of the linear index, seven per axis, are computed once per diamond.
+  struct clamped_samples {
+    const T* samples;
+    std::array<std::array<std::int64_t, 7>, 3> part;
+    T operator()(const ipoint& o) const noexcept {
+      return samples[part[0][static_cast<std::size_t>(o[0] + 3)] +
+                     part[1][static_cast<std::size_t>(o[1] + 3)] +
+                     part[2][static_cast<std::size_t>(o[2] + 3)]];
+    }
+  };
+  [[nodiscard]] clamped_samples clamped_reader(const ipoint& c) const noexcept {
     const index3& d = vol->dims();
     const std::array<std::int64_t, 3> stride{1, d[0], d[0] * d[1]};
-    std::array<std::array<std::int64_t, 7>, 3> part{};
+    clamped_samples r{samples_, {}};
     for (std::size_t q = 0; q < 3; ++q) {
       for (std::size_t k = 0; k < 7; ++k) {
         const std::int64_t v = std::int64_t{c[q]} + static_cast<std::int64_t>(k) - 3;
-        part[q][k] = std::clamp<std::int64_t>(v, 0, d[q] - 1) * stride[q];
+        r.part[q][k] = std::clamp<std::int64_t>(v, 0, d[q] - 1) * stride[q];
       }
     }
-    const auto at = [&](const ipoint& o) {
-      return samples_[part[0][static_cast<std::size_t>(o[0] + 3)] +
-                      part[1][static_cast<std::size_t>(o[1] + 3)] +
-                      part[2][static_cast<std::size_t>(o[2] + 3)]];
+    return r;
+  }
+
+  // Whether the samples at(p), p = 0 and every p in `points`, straddle w, as summarise()'s
+  // range would (lo <= w < hi), stopping as soon as they do. Integer samples are compared with
+  // floor(w) as integers.
+  template <class At, class Point>
+  [[nodiscard]] static bool straddle_over(const At& at, const std::vector<Point>& points, double w,
+                                          std::int64_t floor_w) {
+    const auto above = [&](T v) {
+      if constexpr (std::is_integral_v<T>) {
+        return static_cast<std::int64_t>(v) > floor_w;
+      } else {
+        return static_cast<double>(v) > w;
+      }
     };
-    return summarise<with_error>(at, st.rel_points, st.rel_splits);
+    const T first = at(Point{});
+    if constexpr (!std::is_integral_v<T>) {
+      if (first != first) return false;  // NaN first: summarise()'s lo and hi stay NaN
+    }
+    bool high = above(first);
+    bool low = !high;
+    for (const Point& o : points) {
+      const T v = at(o);
+      if (above(v)) {
+        high = true;
+      } else if (v == v) {  // not NaN: NaN never becomes lo or hi
+        low = true;
+      }
+      if (high && low) return true;
+    }
+    return false;
   }
 
   // Range of the samples at(p) for p = 0 and every p in `points`, and the largest split error
   // |at(c) - (at(a) + at(b)) / 2| over the (c, a, b) in `splits`. NaN samples never replace a
   // number (comparisons with NaN are false).
-  template <bool with_error, class At, class Point>
+  template <class At, class Point>
   [[nodiscard]] static diamond_range summarise(const At& at, const std::vector<Point>& points,
                                                const std::vector<std::array<Point, 3>>& splits) {
     const T first = at(Point{});
@@ -365,9 +416,7 @@ class typed_range_data final : public range_data::impl {
       hi = v > hi ? v : hi;
     }
     double err = 0.0;
-    if constexpr (!with_error) {
-      err = std::numeric_limits<double>::quiet_NaN();
-    } else if constexpr (std::is_integral_v<T>) {
+    if constexpr (std::is_integral_v<T>) {
       // Twice the error, |2 f(c) - f(a) - f(b)|, in integers: exact for every integer sample
       // type (at most 34 bits), and half of it is the same double as the formula below.
       std::int64_t twice = 0;
@@ -485,10 +534,9 @@ class typed_range_data final : public range_data::impl {
     return read_stencil(stencils_[class_of(c)], c);
   }
 
-  template <bool with_error = true>
   [[nodiscard]] diamond_range read_stencil(const stencil& st, const ipoint& c) const noexcept {
     const T* base = samples_ + vol->linear(c[0], c[1], c[2]);
-    return summarise<with_error>([base](std::int64_t o) { return base[o]; }, st.points, st.splits);
+    return summarise([base](std::int64_t o) { return base[o]; }, st.points, st.splits);
   }
 
   std::array<stencil, 64> stencils_;
@@ -515,8 +563,12 @@ diamond_range range_data::get(const ipoint& centre) const noexcept { return impl
 diamond_range range_data::get(const ipoint& centre, std::int32_t scale) const noexcept {
   return impl_->get_at(centre, scale);
 }
-diamond_range range_data::bounds(const ipoint& centre, std::int32_t scale) const noexcept {
-  return impl_->bounds_at(centre, scale);
+bool range_data::straddles(const ipoint& centre, std::int32_t scale, double w) const noexcept {
+  // floor(w) within ±2^62: beyond that no integer sample type reaches, and the order of every
+  // sample against it is the same as against w.
+  constexpr double limit = 4.611686018427387904e18;
+  const auto floor_w = static_cast<std::int64_t>(std::floor(std::clamp(w, -limit, limit)));
+  return impl_->straddles_at(centre, scale, w, floor_w);
 }
 bool range_data::empty(const ipoint& centre, std::int32_t scale) const noexcept {
   return impl_->empty_at(centre, scale);

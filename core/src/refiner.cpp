@@ -209,8 +209,15 @@ bool refiner::split(std::uint64_t max_triangles) {
       }
       continue;
     }
-    const diamond_range r =
-        errors_needed_ ? ranges_.get(c, children.scale) : ranges_.bounds(c, children.scale);
+    if (!errors_needed_) {
+      if (ranges_.straddles(c, children.scale, isovalue_)) {
+        queue_->push({unknown_error, ci, c, children.scale, type, depth});
+      } else {
+        ++stats_.culled;
+      }
+      continue;
+    }
+    const diamond_range r = ranges_.get(c, children.scale);
     if (r.straddles(isovalue_)) {
       queue_->push({r.error, ci, c, children.scale, type, depth});
     } else {

@@ -3,6 +3,7 @@
 #include <progiso/core/analytic.hpp>
 #include <progiso/core/range_data.hpp>
 
+#include <cmath>
 #include <map>
 
 #include <gtest/gtest.h>
@@ -64,9 +65,11 @@ void check_all_diamonds(const volume& v) {
         EXPECT_EQ(by_scale.lo, r.lo);
         EXPECT_EQ(by_scale.hi, r.hi);
         EXPECT_EQ(by_scale.error, r.error);
-        const diamond_range bounds = rd.bounds(c, d.scale);
-        EXPECT_EQ(bounds.lo, r.lo);
-        EXPECT_EQ(bounds.hi, r.hi);
+        for (const double w : {r.lo, r.hi, 0.5 * (r.lo + r.hi), r.lo - 0.5, r.hi + 0.5,
+                               std::nextafter(r.hi, -1e300), 0.1, 0.3, 0.55, 100.5}) {
+          EXPECT_EQ(rd.straddles(c, d.scale, w), r.straddles(w))
+              << x << "," << y << "," << z << " at " << w;
+        }
         EXPECT_EQ(rd.empty(c, d.scale), r.empty()) << x << "," << y << "," << z;
         const nested expected = subtree_values(h, v, d, memo);
         if (expected.lo <= expected.hi) {

@@ -61,9 +61,9 @@ class range_data {
   [[nodiscard]] diamond_range get(const ipoint& centre) const noexcept;
   /// The same when the diamond's scale h is known (hierarchy::scale_of(centre)).
   [[nodiscard]] diamond_range get(const ipoint& centre, std::int32_t scale) const noexcept;
-  /// get(centre, scale)'s lo and hi; its error may be left uncomputed (NaN) where computing it
-  /// costs more than the bounds (scale-1 diamonds).
-  [[nodiscard]] diamond_range bounds(const ipoint& centre, std::int32_t scale) const noexcept;
+  /// get(centre, scale).straddles(w), reading only as many samples as it takes to decide (no
+  /// error computed).
+  [[nodiscard]] bool straddles(const ipoint& centre, std::int32_t scale, double w) const noexcept;
   /// True when get(centre, scale) is empty (the subtree lies wholly in the padding), without
   /// computing the range: O(1), no samples read.
   [[nodiscard]] bool empty(const ipoint& centre, std::int32_t scale) const noexcept;
