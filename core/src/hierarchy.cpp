@@ -256,6 +256,38 @@ int hierarchy::type_of(const ipoint& c, std::int32_t h) noexcept {
 //    three parents (corners of its own cube; a child is never a root).
 child_list hierarchy::children_of(const ipoint& c, std::int32_t h, int type) const noexcept {
   child_list out;
+  // Away from the grid's faces (c ± 2h inside) every child and every parent candidate is a grid
+  // vertex: all children, with 2 (face centres), 4 (edge midpoints) or 3 (cube centres) parents.
+  if (c[0] >= 2 * h && c[1] >= 2 * h && c[2] >= 2 * h && c[0] + 2 * h <= grid_max_[0] &&
+      c[1] + 2 * h <= grid_max_[1] && c[2] + 2 * h <= grid_max_[2]) {
+    if (type == 2) {
+      out.type = 0;
+      out.scale = h / 2;
+      if (h < 2) return out;
+      const std::int32_t g = h / 2;
+      for (std::size_t m = 0; m < 8; ++m) {
+        out.centre[m] = {c[0] + ((m & 1) ? g : -g), c[1] + ((m & 2) ? g : -g),
+                         c[2] + ((m & 4) ? g : -g)};
+      }
+      out.parents.fill(3);
+      out.count = 8;
+      return out;
+    }
+    out.scale = h;
+    out.type = type + 1;
+    const int lg = std::countr_zero(static_cast<std::uint32_t>(h));
+    const std::uint8_t parents = type == 0 ? 2 : 4;
+    for (std::size_t q = 0; q < 3; ++q) {
+      if (type == 1 && ((c[q] >> lg) & 1) == 0) continue;  // the face centre's even axis
+      for (const std::int32_t s : {h, -h}) {
+        const auto i = static_cast<std::size_t>(out.count++);
+        out.centre[i] = c;
+        out.centre[i][q] += s;
+        out.parents[i] = parents;
+      }
+    }
+    return out;
+  }
   const auto within = [&](std::int64_t v, std::size_t q) { return v >= 0 && v <= grid_max_[q]; };
   if (type == 2) {
     out.type = 0;
