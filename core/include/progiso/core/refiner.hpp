@@ -22,6 +22,7 @@
 // volume, hierarchy and range data may run concurrently.
 #pragma once
 
+#include <algorithm>
 #include <array>
 #include <chrono>
 #include <cstdint>
@@ -153,7 +154,17 @@ class refiner {
       ++size_;
     }
     void append(const T* v, std::size_t n) {
-      for (std::size_t i = 0; i < n; ++i) push_back(v[i]);
+      while (n > 0) {
+        if ((size_ & mask_) == 0 && (size_ >> bits_) == chunks_.size()) {
+          chunks_.push_back(std::make_unique_for_overwrite<T[]>(mask_ + 1));
+        }
+        const std::size_t room = mask_ + 1 - (size_ & mask_);
+        const std::size_t k = n < room ? n : room;
+        std::copy(v, v + k, chunks_[size_ >> bits_].get() + (size_ & mask_));
+        size_ += k;
+        v += k;
+        n -= k;
+      }
     }
     [[nodiscard]] const T& operator[](std::size_t i) const noexcept {
       return chunks_[i >> bits_][i & mask_];
