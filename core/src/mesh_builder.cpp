@@ -20,11 +20,6 @@ mesh_builder::mesh_builder(const hierarchy& hier, const volume& vol, double w, s
   mesh_.triangles.reserve(2 * (expected + slack));
 }
 
-void mesh_builder::clip_any(const std::array<std::uint32_t, 3>& flagged) {
-  clipped_any_ = true;
-  clip({flagged[0] & ~outside_bit, flagged[1] & ~outside_bit, flagged[2] & ~outside_bit});
-}
-
 triangle_mesh mesh_builder::finish() {
   const auto& sp = vol_.spacing();
   const auto& org = vol_.origin();
@@ -33,10 +28,21 @@ triangle_mesh mesh_builder::finish() {
   for (vec3& v : mesh_.vertices) {
     for (std::size_t q = 0; q < 3; ++q) v[q] = org[q] + v[q] * sp[q];
   }
-  // Drop vertices that only clipped-away triangles used. Without clipping every vertex is
-  // used and ids are already in order of first use.
-  if (clipped_.empty() && !clipped_any_) return std::move(mesh_);
+  // Every vertex is used (in order of first use) unless clipping left one of its triangles'
+  // inside corners out (a corner on the box's face with the rest of the piece beyond it) and
+  // no other triangle uses it: then the unused ones are dropped.
+  if (suspects_.empty()) return std::move(mesh_);
   const std::size_t count = mesh_.vertices.size();
+  {
+    std::vector<bool> used(count, false);
+    for (const auto& t : mesh_.triangles) {
+      for (const std::uint32_t v : t) used[v] = true;
+    }
+    if (std::all_of(suspects_.begin(), suspects_.end(),
+                    [&used](std::uint32_t v) { return used[v]; })) {
+      return std::move(mesh_);
+    }
+  }
   std::vector<std::uint32_t> remap(count, ~std::uint32_t{0});
   std::uint32_t n = 0;
   for (auto& t : mesh_.triangles) {
@@ -60,15 +66,18 @@ triangle_mesh mesh_builder::finish() {
 }
 
 std::uint32_t mesh_builder::new_vertex(std::uint64_t key) {
-  PROGISO_ASSERT(grid_.size() < outside_bit);
-  const auto id = static_cast<std::uint32_t>(grid_.size());
   const auto ends = hier_.edge_ends(key);
   const double fa = vol_.value(ends[0][0], ends[0][1], ends[0][2]);
   const double fb = vol_.value(ends[1][0], ends[1][1], ends[1][2]);
   const vec3 p = interpolate(ends[0], fa, ends[1], fb, w_);
-  grid_.push_back(p);
-  const bool inside = p[0] <= box_[0] && p[1] <= box_[1] && p[2] <= box_[2];
-  return inside ? id : id | outside_bit;
+  if (p[0] <= box_[0] && p[1] <= box_[1] && p[2] <= box_[2]) {
+    PROGISO_ASSERT(grid_.size() < outside_bit);
+    grid_.push_back(p);
+    return static_cast<std::uint32_t>(grid_.size() - 1);
+  }
+  PROGISO_ASSERT(outside_.size() < outside_bit);
+  outside_.push_back(p);
+  return static_cast<std::uint32_t>(outside_.size() - 1) | outside_bit;
 }
 
 std::uint32_t mesh_builder::clip_vertex(const vec3& p) {
@@ -77,45 +86,64 @@ std::uint32_t mesh_builder::clip_vertex(const vec3& p) {
   return it->second;
 }
 
-// Sutherland–Hodgman against x_q ≤ box_q. Each crossing point is computed from the segment's
-// ends in lexicographic order, so the two triangles sharing a segment get the same point.
+// Sutherland–Hodgman against x_q ≤ box_q, on positions. Each crossing point is computed from
+// the segment's ends in lexicographic order, so the two triangles sharing a segment get the same
+// point; crossing points get vertex ids (one per position) only when a kept triangle uses them.
 void mesh_builder::clip(const std::array<std::uint32_t, 3>& ids) {
-  // Clipping a convex polygon by a plane adds at most one vertex: at most 6 after 3 planes.
-  std::array<std::uint32_t, 8> poly{ids[0], ids[1], ids[2]};
-  std::array<std::uint32_t, 8> next{};
+  struct corner {
+    vec3 p;
+    std::uint32_t id;  // a vertex id, or none for a crossing point
+  };
+  constexpr std::uint32_t none = ~std::uint32_t{0};
+  // Clipping a convex polygon by a plane adds at most one corner: at most 6 after 3 planes.
+  std::array<corner, 8> poly{};
+  std::array<corner, 8> next{};
+  for (std::size_t i = 0; i < 3; ++i) poly[i] = {position(ids[i]), ids[i]};
   std::size_t size = 3;
   for (std::size_t q = 0; q < 3 && size >= 3; ++q) {
     std::size_t kept = 0;
     for (std::size_t i = 0; i < size; ++i) {
-      const std::uint32_t a = poly[i];
-      const std::uint32_t b = poly[i + 1 == size ? 0 : i + 1];
-      const bool ain = grid_[a][q] <= box_[q];
-      const bool bin = grid_[b][q] <= box_[q];
+      const corner& a = poly[i];
+      const corner& b = poly[i + 1 == size ? 0 : i + 1];
+      const bool ain = a.p[q] <= box_[q];
+      const bool bin = b.p[q] <= box_[q];
       if (ain) next[kept++] = a;
       // A crossing whose inside end lies on the plane is that end itself, already emitted.
-      const bool on_plane = ain ? grid_[a][q] == box_[q] : grid_[b][q] == box_[q];
+      const bool on_plane = ain ? a.p[q] == box_[q] : b.p[q] == box_[q];
       if (ain != bin && !on_plane) {
-        vec3 p = grid_[a];
-        vec3 r = grid_[b];
+        vec3 p = a.p;
+        vec3 r = b.p;
         if (r < p) std::swap(p, r);
         const double s = (box_[q] - p[q]) / (r[q] - p[q]);
         vec3 x{};
         for (std::size_t k = 0; k < 3; ++k) x[k] = p[k] + s * (r[k] - p[k]);
         x[q] = box_[q];
-        next[kept++] = clip_vertex(x);
+        next[kept++] = {x, none};
       }
     }
     PROGISO_ASSERT(kept <= 6);
     poly = next;
     size = kept;
   }
-  if (size < 3) return;
+  // Each of the input's inside vertices should end up in a kept triangle; one that does not may
+  // be unused (finish() checks).
+  std::array<bool, 3> used{};
   for (std::size_t i = 1; i + 1 < size; ++i) {
-    const std::array<std::uint32_t, 3> t{poly[0], poly[i], poly[i + 1]};
-    if (grid_[t[0]] == grid_[t[1]] || grid_[t[1]] == grid_[t[2]] || grid_[t[0]] == grid_[t[2]]) {
-      continue;
+    const std::array<corner*, 3> t{&poly[0], &poly[i], &poly[i + 1]};
+    if (t[0]->p == t[1]->p || t[1]->p == t[2]->p || t[0]->p == t[2]->p) continue;
+    std::array<std::uint32_t, 3> tri{};
+    for (std::size_t k = 0; k < 3; ++k) {
+      if (t[k]->id == none) {
+        t[k]->id = clip_vertex(t[k]->p);
+      } else {
+        for (std::size_t j = 0; j < 3; ++j) used[j] = used[j] || ids[j] == t[k]->id;
+      }
+      tri[k] = t[k]->id;
     }
-    mesh_.triangles.push_back(t);
+    mesh_.triangles.push_back(tri);
+  }
+  for (std::size_t j = 0; j < 3; ++j) {
+    if ((ids[j] & outside_bit) == 0 && !used[j]) suspects_.push_back(ids[j]);
   }
 }
 

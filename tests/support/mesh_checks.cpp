@@ -389,7 +389,17 @@ mesh_report make_report(const triangle_mesh& mesh, const vec3& box_min, const ve
 ::testing::AssertionResult check_valid_cut(const triangle_mesh& mesh, const vec3& box_min,
                                            const vec3& box_max) {
   const mesh_report r = make_report(mesh, box_min, box_max);
-  if (r.valid()) return ::testing::AssertionSuccess();
+  if (r.valid()) {
+    // An extracted surface holds only the vertices its triangles use.
+    std::vector<bool> used(mesh.vertices.size(), false);
+    for (const auto& tri : mesh.triangles) {
+      for (const std::uint32_t v : tri) used[v] = true;
+    }
+    const auto unused = std::find(used.begin(), used.end(), false);
+    if (unused == used.end()) return ::testing::AssertionSuccess();
+    return ::testing::AssertionFailure() << "vertex " << (unused - used.begin()) << " of "
+                                         << mesh.vertices.size() << " is used by no triangle";
+  }
   return ::testing::AssertionFailure()
          << "invalid surface (" << mesh.vertices.size() << " vertices, " << mesh.triangles.size()
          << " triangles): " << r.summary();

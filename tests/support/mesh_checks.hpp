@@ -113,8 +113,9 @@ struct mesh_report {
 [[nodiscard]] mesh_report make_report(const triangle_mesh& mesh, const vec3& box_min,
                                       const vec3& box_max);
 
-/// Success when make_report(mesh, box_min, box_max).valid(); otherwise a failure carrying the
-/// summary. Use as EXPECT_TRUE(check_valid_cut(mesh, lo, hi)).
+/// Success when make_report(mesh, box_min, box_max).valid() and every vertex is used by some
+/// triangle; otherwise a failure carrying the summary. Use as
+/// EXPECT_TRUE(check_valid_cut(mesh, lo, hi)).
 [[nodiscard]] ::testing::AssertionResult check_valid_cut(const triangle_mesh& mesh,
                                                          const vec3& box_min, const vec3& box_max);
 

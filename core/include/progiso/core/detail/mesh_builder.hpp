@@ -46,7 +46,7 @@ class mesh_builder {
     if (((a | b | c) & outside_bit) == 0) {
       mesh_.triangles.push_back({a, b, c});
     } else {
-      clip_any({a, b, c});
+      clip({a, b, c});
     }
   }
   /// The mesh; the builder is spent.
@@ -54,8 +54,12 @@ class mesh_builder {
 
  private:
   // Vertex ids are below 2^31 (a mesh has fewer than 2^31 vertices: positions alone would take
-  // 48 GiB); vertex() sets this bit on the id of a vertex outside the data box.
+  // 48 GiB). A vertex outside the data box is never in the output (clipping removes it); it is
+  // kept apart, in outside_, and its id is its index there with this bit set.
   static constexpr std::uint32_t outside_bit = std::uint32_t{1} << 31;
+  [[nodiscard]] const vec3& position(std::uint32_t id) const noexcept {
+    return (id & outside_bit) != 0 ? outside_[id & ~outside_bit] : grid_[id];
+  }
   // The id of the vertex on the edge with this key; a hash hit is all most calls do (each vertex
   // is reached from about six triangles), so that part is inline.
   std::uint32_t vertex(std::uint64_t key) {
@@ -64,7 +68,6 @@ class mesh_builder {
     return *stored;
   }
   std::uint32_t new_vertex(std::uint64_t key);
-  void clip_any(const std::array<std::uint32_t, 3>& flagged);
   std::uint32_t clip_vertex(const vec3& p);
   void clip(const std::array<std::uint32_t, 3>& ids);
 
@@ -82,8 +85,9 @@ class mesh_builder {
     std::size_t operator()(const vec3& p) const noexcept;
   };
   std::unordered_map<vec3, std::uint32_t, position_hash> clipped_;
-  bool clipped_any_ = false;
-  std::vector<vec3> grid_;
+  std::vector<std::uint32_t> suspects_;  // inside vertices clipping left out of a triangle
+  std::vector<vec3> grid_;               // vertices inside the data box, then clip vertices
+  std::vector<vec3> outside_;
   triangle_mesh mesh_;
 };
 
