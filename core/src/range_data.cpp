@@ -18,8 +18,8 @@ struct range_data::impl {
   [[nodiscard]] virtual diamond_range get_at(const ipoint& c) const noexcept = 0;
   [[nodiscard]] virtual diamond_range get_at(const ipoint& c, std::int32_t h) const noexcept = 0;
   [[nodiscard]] virtual bool empty_at(const ipoint& c, std::int32_t h) const noexcept = 0;
-  [[nodiscard]] virtual bool straddles_at(const ipoint& c, std::int32_t h, double w,
-                                          std::int64_t floor_w) const noexcept = 0;
+  [[nodiscard]] virtual bool straddles_at(const ipoint& c, std::int32_t h,
+                                          const detail::sample_threshold& w) const noexcept = 0;
   [[nodiscard]] virtual std::size_t byte_size() const noexcept = 0;
   const volume* vol = nullptr;
   const hierarchy* hier = nullptr;
@@ -112,26 +112,21 @@ class typed_range_data final : public range_data::impl {
     return get_at(c, hier->scale_of(c));
   }
 
-  [[nodiscard]] bool straddles_at(const ipoint& c, std::int32_t h, double w,
-                                  std::int64_t floor_w) const noexcept override {
-    if (h != 1) return get_at(c, h).straddles(w);
-    const ipoint& dmax = hier->data_max();
-    bool inside = true;
-    for (std::size_t q = 0; q < 3; ++q) {
-      const std::int32_t reach = scale1_reach(c, q);
-      if (c[q] - reach >= dmax[q]) return false;  // empty: wholly in the padding
-      inside = inside && c[q] - reach >= 0 && c[q] + reach <= dmax[q];
-    }
+  [[nodiscard]] bool straddles_at(const ipoint& c, std::int32_t h,
+                                  const detail::sample_threshold& w) const noexcept override {
+    if (h != 1) return get_at(c, h).straddles(w.w);
+    const place where = scale1_place(c);
+    if (where == place::outside) return false;  // empty: wholly in the padding
     const stencil& st = stencils_[class_of(c)];
-    if (inside) {
+    if (where == place::inside) {
       const T* base = samples_ + vol->linear(c[0], c[1], c[2]);
-      return straddle_over([base](std::int64_t o) { return base[o]; }, st.points, w, floor_w);
+      return straddle_over([base](std::int64_t o) { return base[o]; }, st.points, w);
     }
-    return straddle_over(clamped_reader(c), st.rel_points, w, floor_w);
+    return straddle_over(clamped_reader(c), st.rel_points, w);
   }
 
   [[nodiscard]] bool empty_at(const ipoint& c, std::int32_t h) const noexcept override {
-    if (h == 1) return scale1_outside(c);
+    if (h == 1) return scale1_place(c) == place::outside;
     const entry<T>* e = find(c, h);
     return e == nullptr || decode(*e).empty();
   }
@@ -310,24 +305,24 @@ class typed_range_data final : public range_data::impl {
     // midpoint; for a face centre 2 along its odd axes and 1 along the even one; 2 for a cube
     // centre. These nest: a child's reach plus its offset never exceeds its parent's.
     // The stencil is read directly when the subtree lies in the data box, clamped otherwise.
+    const place where = scale1_place(c);
+    if (where == place::outside) return {};
+    const stencil& st = stencils_[class_of(c)];
+    return where == place::inside ? read_stencil(st, c) : read_stencil_clamped(st, c);
+  }
+
+  // Where the subtree of the scale-1 diamond centred at c lies: wholly in the padding (its range
+  // is empty), wholly in the data box (its stencil is read directly), or across the box's faces.
+  enum class place { outside, inside, across };
+  [[nodiscard]] place scale1_place(const ipoint& c) const noexcept {
     const ipoint& dmax = hier->data_max();
     bool inside = true;
     for (std::size_t q = 0; q < 3; ++q) {
       const std::int32_t reach = scale1_reach(c, q);
-      if (c[q] - reach >= dmax[q]) return {};
+      if (c[q] - reach >= dmax[q]) return place::outside;
       inside = inside && c[q] - reach >= 0 && c[q] + reach <= dmax[q];
     }
-    const stencil& st = stencils_[class_of(c)];
-    return inside ? read_stencil(st, c) : read_stencil_clamped(st, c);
-  }
-
-  // scale1_at(c) is empty: the same test, alone.
-  [[nodiscard]] bool scale1_outside(const ipoint& c) const noexcept {
-    const ipoint& dmax = hier->data_max();
-    for (std::size_t q = 0; q < 3; ++q) {
-      if (c[q] - scale1_reach(c, q) >= dmax[q]) return true;
-    }
-    return false;
+    return inside ? place::inside : place::across;
   }
 
   // How far the subtree of the scale-1 diamond centred at c reaches along axis q (make_stencils
@@ -371,27 +366,19 @@ class typed_range_data final : public range_data::impl {
   }
 
   // Whether the samples at(p), p = 0 and every p in `points`, straddle w, as summarise()'s
-  // range would (lo <= w < hi), stopping as soon as they do. Integer samples are compared with
-  // floor(w) as integers.
+  // range would (lo <= w < hi), stopping as soon as they do.
   template <class At, class Point>
-  [[nodiscard]] static bool straddle_over(const At& at, const std::vector<Point>& points, double w,
-                                          std::int64_t floor_w) {
-    const auto above = [&](T v) {
-      if constexpr (std::is_integral_v<T>) {
-        return static_cast<std::int64_t>(v) > floor_w;
-      } else {
-        return static_cast<double>(v) > w;
-      }
-    };
+  [[nodiscard]] static bool straddle_over(const At& at, const std::vector<Point>& points,
+                                          const detail::sample_threshold& w) {
     const T first = at(Point{});
     if constexpr (!std::is_integral_v<T>) {
       if (first != first) return false;  // NaN first: summarise()'s lo and hi stay NaN
     }
-    bool high = above(first);
+    bool high = w.above(first);
     bool low = !high;
     for (const Point& o : points) {
       const T v = at(o);
-      if (above(v)) {
+      if (w.above(v)) {
         high = true;
       } else if (v == v) {  // not NaN: NaN never becomes lo or hi
         low = true;
@@ -563,12 +550,9 @@ diamond_range range_data::get(const ipoint& centre) const noexcept { return impl
 diamond_range range_data::get(const ipoint& centre, std::int32_t scale) const noexcept {
   return impl_->get_at(centre, scale);
 }
-bool range_data::straddles(const ipoint& centre, std::int32_t scale, double w) const noexcept {
-  // floor(w) within ±2^62: beyond that no integer sample type reaches, and the order of every
-  // sample against it is the same as against w.
-  constexpr double limit = 4.611686018427387904e18;
-  const auto floor_w = static_cast<std::int64_t>(std::floor(std::clamp(w, -limit, limit)));
-  return impl_->straddles_at(centre, scale, w, floor_w);
+bool range_data::straddles(const ipoint& centre, std::int32_t scale,
+                           const detail::sample_threshold& w) const noexcept {
+  return impl_->straddles_at(centre, scale, w);
 }
 bool range_data::empty(const ipoint& centre, std::int32_t scale) const noexcept {
   return impl_->empty_at(centre, scale);

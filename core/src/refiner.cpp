@@ -54,7 +54,8 @@ refiner::refiner(const volume& vol, const hierarchy& hier, const range_data& ran
       records_(chunk_bits_for(vol)),
       queue_(std::make_unique<queue>(discipline_of(order))),
       prefetch_(vol.byte_size() > prefetch_min_bytes),
-      errors_needed_(order == refine_order::largest_error_first) {
+      errors_needed_(order == refine_order::largest_error_first),
+      threshold_(isovalue) {
   if (!std::isfinite(isovalue)) {
     throw error("isovalue: expected a finite number, found " + std::to_string(isovalue));
   }
@@ -210,7 +211,7 @@ bool refiner::split(std::uint64_t max_triangles) {
       continue;
     }
     if (!errors_needed_) {
-      if (ranges_.straddles(c, children.scale, isovalue_)) {
+      if (ranges_.straddles(c, children.scale, threshold_)) {
         queue_->push({unknown_error, ci, c, children.scale, type, depth});
       } else {
         ++stats_.culled;

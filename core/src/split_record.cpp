@@ -6,6 +6,7 @@
 #include <type_traits>
 
 #include <progiso/core/assert.hpp>
+#include <progiso/core/detail/sample_threshold.hpp>
 #include <progiso/core/detail/split_classify.hpp>
 #include <progiso/core/marching.hpp>
 
@@ -404,9 +405,9 @@ const split_summary& interior_summary(const colours& k) noexcept {
 }
 
 template <class T>
-split_summary split_packed(const hierarchy& hier, const volume& vol, const T* samples, double w,
-                           std::int64_t int_w, const ipoint& c, std::int32_t h,
-                           std::vector<packed_group>& out) {
+split_summary split_packed(const hierarchy& hier, const volume& vol, const T* samples,
+                           const detail::sample_threshold& threshold, const ipoint& c,
+                           std::int32_t h, std::vector<packed_group>& out) {
   split_summary s;
   const int lg = std::countr_zero(static_cast<std::uint32_t>(h));
   const shape_table& shape = shapes()[shape_of(c, h, lg)];
@@ -431,15 +432,7 @@ split_summary split_packed(const hierarchy& hier, const volume& vol, const T* sa
       if (hier.in_grid(point(shape.ring[static_cast<std::size_t>(m)]))) k.ring_in_grid |= 1u << m;
     }
   }
-  // Integer samples are compared with floor(w) as integers (s > w exactly when s > floor(w)),
-  // with no conversion per sample.
-  const auto above = [&](T v) {
-    if constexpr (std::is_integral_v<T>) {
-      return static_cast<std::int64_t>(v) > int_w;
-    } else {
-      return static_cast<double>(v) > w;
-    }
-  };
+  const auto above = [&threshold](T v) { return threshold.above(v); };
   if (in_data) {
     const index3& dims = vol.dims();
     const std::int64_t sy = dims[0];
@@ -571,12 +564,9 @@ split_summary compute_split(const hierarchy& hier, const volume& vol, double w,
                             std::vector<packed_group>& out) {
   PROGISO_ASSERT(hier.is_diamond(centre));
   PROGISO_ASSERT(hier.scale_of(centre) == scale);
-  // floor(w) within ±2^62: beyond that no integer sample type reaches, and the order of every
-  // sample against it is the same as against w.
-  constexpr double limit = 4.611686018427387904e18;
-  const std::int64_t int_w = static_cast<std::int64_t>(std::floor(std::clamp(w, -limit, limit)));
+  const detail::sample_threshold threshold(w);
   return vol.visit_samples([&](const auto* samples) {
-    return split_packed(hier, vol, samples, w, int_w, centre, scale, out);
+    return split_packed(hier, vol, samples, threshold, centre, scale, out);
   });
 }
 

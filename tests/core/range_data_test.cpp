@@ -67,7 +67,7 @@ void check_all_diamonds(const volume& v) {
         EXPECT_EQ(by_scale.error, r.error);
         for (const double w : {r.lo, r.hi, 0.5 * (r.lo + r.hi), r.lo - 0.5, r.hi + 0.5,
                                std::nextafter(r.hi, -1e300), 0.1, 0.3, 0.55, 100.5}) {
-          EXPECT_EQ(rd.straddles(c, d.scale, w), r.straddles(w))
+          EXPECT_EQ(rd.straddles(c, d.scale, detail::sample_threshold(w)), r.straddles(w))
               << x << "," << y << "," << z << " at " << w;
         }
         EXPECT_EQ(rd.empty(c, d.scale), r.empty()) << x << "," << y << "," << z;

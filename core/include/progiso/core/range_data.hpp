@@ -29,6 +29,7 @@
 #include <cstdint>
 #include <memory>
 
+#include <progiso/core/detail/sample_threshold.hpp>
 #include <progiso/core/hierarchy.hpp>
 #include <progiso/core/volume.hpp>
 
@@ -61,9 +62,10 @@ class range_data {
   [[nodiscard]] diamond_range get(const ipoint& centre) const noexcept;
   /// The same when the diamond's scale h is known (hierarchy::scale_of(centre)).
   [[nodiscard]] diamond_range get(const ipoint& centre, std::int32_t scale) const noexcept;
-  /// get(centre, scale).straddles(w), reading only as many samples as it takes to decide (no
-  /// error computed).
-  [[nodiscard]] bool straddles(const ipoint& centre, std::int32_t scale, double w) const noexcept;
+  /// get(centre, scale).straddles(w.w), reading only as many samples as it takes to decide (no
+  /// error computed). `w` is made once per isovalue.
+  [[nodiscard]] bool straddles(const ipoint& centre, std::int32_t scale,
+                               const detail::sample_threshold& w) const noexcept;
   /// True when get(centre, scale) is empty (the subtree lies wholly in the padding), without
   /// computing the range: O(1), no samples read.
   [[nodiscard]] bool empty(const ipoint& centre, std::int32_t scale) const noexcept;

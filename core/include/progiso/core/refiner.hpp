@@ -189,6 +189,7 @@ class refiner {
   // surface: see surface_bit in refiner.cpp).
   bool errors_needed_;
   static constexpr double unknown_error = std::numeric_limits<double>::quiet_NaN();
+  detail::sample_threshold threshold_;  // the isovalue, for range_data::straddles()
   // Case, primitive and configuration counts of interior splits are kept per classification
   // (split_summary::classification) and added into stats_ when statistics() is read: one
   // increment per split instead of twenty.
