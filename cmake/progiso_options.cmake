@@ -15,8 +15,18 @@ elseif(PROGISO_SANITIZE STREQUAL "thread")
   add_compile_options(-fsanitize=thread -fno-omit-frame-pointer)
   add_link_options(-fsanitize=thread)
   add_compile_definitions(PROGISO_SANITIZER_BUILD=1 PROGISO_TSAN=1)
+elseif(PROGISO_SANITIZE STREQUAL "fuzzer")
+  # libFuzzer builds (clang only): everything instrumented for coverage, ASan and UBSan; the
+  # harnesses in tests/fuzz/ link the fuzzer's main with -fsanitize=fuzzer.
+  if(NOT CMAKE_CXX_COMPILER_ID STREQUAL "Clang")
+    message(FATAL_ERROR "PROGISO_SANITIZE=fuzzer needs clang (the fuzz preset sets it)")
+  endif()
+  add_compile_options(-fsanitize=fuzzer-no-link,address,undefined -fno-sanitize-recover=undefined
+                      -fno-omit-frame-pointer)
+  add_link_options(-fsanitize=address,undefined)
+  add_compile_definitions(PROGISO_SANITIZER_BUILD=1 PROGISO_FUZZ_BUILD=1)
 elseif(NOT PROGISO_SANITIZE STREQUAL "")
-  message(FATAL_ERROR "PROGISO_SANITIZE must be empty, address-undefined or thread")
+  message(FATAL_ERROR "PROGISO_SANITIZE must be empty, address-undefined, thread or fuzzer")
 endif()
 
 # Shared surface vertices must be bit-identical however they are computed (a + t (b - a),

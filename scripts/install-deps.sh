@@ -1,10 +1,19 @@
 #!/usr/bin/env bash
 # Installs progiso's build and test dependencies from Debian 12's packages (run as root, or
 # with sudo available). Packages already present are not fetched again.
+#
+#   scripts/install-deps.sh           what the README's two commands need
+#   scripts/install-deps.sh --fuzz    also clang's libFuzzer runtime (scripts/fuzz.sh)
 set -euo pipefail
 packages=(cmake ninja-build g++ clang-format pkg-config libgtest-dev libgmock-dev libbenchmark-dev
           libteem-dev zlib1g-dev libpng-dev libcgal-dev libgmp-dev libmpfr-dev libboost-dev
           libtbb-dev)
+for option in "$@"; do
+  case "$option" in
+    --fuzz) packages+=(clang libclang-rt-14-dev python3) ;;
+    *) echo "install-deps: unknown option $option (expected --fuzz)" >&2; exit 2 ;;
+  esac
+done
 missing=()
 for p in "${packages[@]}"; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")

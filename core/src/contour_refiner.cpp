@@ -6,6 +6,7 @@
 #include <map>
 #include <string>
 
+#include <progiso/core/deadline.hpp>
 #include <progiso/core/detail/flat_map.hpp>
 #include <progiso/core/detail/ready_queue.hpp>
 #include <progiso/core/error.hpp>
@@ -287,9 +288,15 @@ contour_result extract_contours(const volume& image, const std::vector<double>& 
     throw error("contour: expected a 2D image (depth 1), found depth " +
                 std::to_string(image.dims()[2]));
   }
-  if (isovalues.empty()) throw error("--iso: expected at least one isovalue");
+  if (isovalues.empty()) throw error("isovalues: expected at least one");
   for (const double w : isovalues) {
-    if (!std::isfinite(w)) throw error("--iso: expected finite isovalues");
+    if (!std::isfinite(w)) throw error("isovalues: expected finite numbers");
+  }
+  if (options.mode == contour_mode::error && !(options.max_error >= 0.0)) {
+    throw error("error threshold: expected a non-negative number");
+  }
+  if (options.mode == contour_mode::time && !(options.time_budget.count() >= 0.0)) {
+    throw error("time budget: expected a non-negative duration");
   }
   contour_result res;
   const auto t0 = clock::now();
@@ -301,76 +308,70 @@ contour_result extract_contours(const volume& image, const std::vector<double>& 
   const contour_order order = options.mode == contour_mode::full
                                   ? contour_order::breadth_first
                                   : contour_order::largest_error_first;
-  std::vector<std::unique_ptr<contour_refiner>> refs;
-  for (const double w : isovalues) {
-    refs.push_back(std::make_unique<contour_refiner>(image, hier, ranges, w, order));
-  }
-  const auto gather = [&] {
-    contour_set all;
-    for (const auto& r : refs) {
-      contour_set c = r->extract();
-      const auto base = static_cast<std::uint32_t>(all.vertices.size());
-      all.vertices.insert(all.vertices.end(), c.vertices.begin(), c.vertices.end());
-      for (auto& p : c.polylines) {
-        for (auto& v : p.vertices) v += base;
-        all.polylines.push_back(std::move(p));
-      }
+  const clock::time_point deadline = deadline_after(t1, options.time_budget);
+
+  // Isovalues are refined one at a time, in the order given, and each one's contours go to the
+  // sink (or into the result) before the next starts: memory holds one refiner, whatever the
+  // number of isovalues. A segment budget or a deadline is shared fairly: each isovalue gets
+  // an equal part of what the ones before it left.
+  std::vector<contour_set> finished;  // kept for the frames only
+  const auto append = [](contour_set& all, const contour_set& c) {
+    const auto base = static_cast<std::uint32_t>(all.vertices.size());
+    all.vertices.insert(all.vertices.end(), c.vertices.begin(), c.vertices.end());
+    for (polyline p : c.polylines) {
+      for (auto& v : p.vertices) v += base;
+      all.polylines.push_back(std::move(p));
     }
-    return all;
   };
   int stage = 0;
   std::uint64_t splits = 0;
   std::uint64_t next_frame = 1;
-  const auto frame = [&](bool last) {
+  const auto frame = [&](const contour_refiner* current, bool last) {
     if (!options.frame) return;
     if (last || splits >= next_frame || stage == 0) {
-      options.frame(gather(), stage++);
+      contour_set all;
+      for (const contour_set& c : finished) append(all, c);
+      if (current != nullptr) append(all, current->extract());
+      options.frame(all, stage++);
       while (next_frame <= splits) next_frame *= 2;
     }
   };
-  res.first_contour_seconds = seconds(clock::now() - t1);
-  frame(false);
-  const auto deadline = t1 + std::chrono::duration_cast<clock::duration>(options.time_budget);
-  const auto segments_now = [&] {
-    std::uint64_t n = 0;
-    for (const auto& r : refs) n += r->segment_count();
-    return n;
-  };
-  // The refiner whose next split has the largest error (round robin in breadth-first mode).
-  std::size_t rr = 0;
-  const auto pick = [&]() -> contour_refiner* {
-    contour_refiner* best = nullptr;
-    if (order == contour_order::breadth_first) {
-      for (std::size_t k = 0; k < refs.size(); ++k) {
-        contour_refiner* r = refs[(rr + k) % refs.size()].get();
-        if (!r->done()) {
-          rr = (rr + k + 1) % refs.size();
-          return r;
-        }
+  std::uint64_t segments_left = options.max_segments;
+  const std::size_t n = isovalues.size();
+  for (std::size_t k = 0; k < n; ++k) {
+    contour_refiner r(image, hier, ranges, isovalues[k], order);
+    if (k == 0) res.first_contour_seconds = seconds(clock::now() - t1);
+    if (k == 0) frame(&r, false);
+    const std::uint64_t share = segments_left / (n - k);
+    const clock::time_point now = clock::now();
+    const clock::time_point my_deadline = deadline == clock::time_point::max() || deadline <= now
+                                              ? deadline
+                                              : now + (deadline - now) / static_cast<long>(n - k);
+    for (;;) {
+      if (r.done()) break;
+      if (options.mode == contour_mode::error && !(r.next_error() > options.max_error)) break;
+      if (options.mode == contour_mode::time && clock::now() >= my_deadline) break;
+      if (options.mode == contour_mode::segments) {
+        if (!r.split_next(share)) break;
+      } else {
+        r.split_next();
       }
-      return nullptr;
+      ++splits;
+      frame(&r, false);
     }
-    for (const auto& r : refs) {
-      if (!r->done() && (best == nullptr || r->next_error() > best->next_error())) best = r.get();
-    }
-    return best;
-  };
-  while (contour_refiner* r = pick()) {
-    if (options.mode == contour_mode::error && !(r->next_error() > options.max_error)) break;
-    if (options.mode == contour_mode::time && clock::now() >= deadline) break;
-    if (options.mode == contour_mode::segments) {
-      const std::uint64_t others = segments_now() - r->segment_count();
-      if (others > options.max_segments || !r->split_next(options.max_segments - others)) break;
+    if (options.mode == contour_mode::segments)
+      segments_left -= std::min(segments_left, r.segment_count());
+    contour_set c = r.extract();
+    res.stats.push_back(r.statistics());
+    if (options.frame) finished.push_back(c);
+    if (options.sink) {
+      options.sink(c, k);
     } else {
-      r->split_next();
+      append(res.contours, c);
     }
-    ++splits;
-    frame(false);
   }
   res.refine_seconds = seconds(clock::now() - t1);
-  res.contours = gather();
-  frame(true);
-  for (const auto& r : refs) res.stats.push_back(r->statistics());
+  frame(nullptr, true);
   res.total_seconds = seconds(clock::now() - t0);
   return res;
 }

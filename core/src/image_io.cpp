@@ -17,65 +17,48 @@
 #include <utility>
 #include <vector>
 
+#include <progiso/core/detail/file_input.hpp>
 #include <progiso/core/detail/file_output.hpp>
 #include <progiso/core/error.hpp>
 
 namespace progiso {
 namespace {
 
-namespace fs = std::filesystem;
-
-using detail::errno_text;
 using detail::lower_extension;
 
-struct file_closer {
-  void operator()(std::FILE* f) const noexcept { std::fclose(f); }
-};
-using file_handle = std::unique_ptr<std::FILE, file_closer>;
+/// Magic numbers and short tokens are quoted in full up to 16 bytes.
+std::string quoted(std::string_view bytes) { return detail::quoted(bytes, 16); }
 
-/// Up to `limit` bytes of `bytes` for a message: printable ASCII as is, the rest as \xNN.
-std::string quoted(std::string_view bytes, std::size_t limit = 16) {
-  constexpr std::string_view hex = "0123456789abcdef";
-  std::string out = "\"";
-  for (std::size_t i = 0; i < std::min(bytes.size(), limit); ++i) {
-    const auto c = static_cast<unsigned char>(bytes[i]);
-    if (c >= 0x20 && c < 0x7f && c != '"' && c != '\\') {
-      out += static_cast<char>(c);
-    } else {
-      out += "\\x";
-      out += hex[c >> 4];
-      out += hex[c & 0xfu];
-    }
+// Widths and heights above this are refused before any allocation: the volume's axis limit
+// (grid coordinates fit in 16 bits, see hierarchy.hpp), far below PNG's 2^31 - 1.
+constexpr std::uint64_t max_image_side = (std::uint64_t{1} << 15) + 1;
+
+/// Refuses a width or height outside 2..max_image_side, naming the file.
+void check_image_size(const std::string& name, std::uint64_t width, std::uint64_t height) {
+  if (width < 2 || height < 2) {
+    throw error(name + ": expected a width and height of at least 2, found " +
+                std::to_string(width) + " x " + std::to_string(height));
   }
-  if (bytes.size() > limit) out += "...";
-  return out + "\"";
+  if (width > max_image_side || height > max_image_side) {
+    throw error(name + ": expected a width and height of at most " +
+                std::to_string(max_image_side) + " (the largest image progiso contours), found " +
+                std::to_string(width) + " x " + std::to_string(height));
+  }
 }
 
-// Widths and heights above this are refused before any allocation: 2^31 - 1 is also PNG's
-// limit, and it keeps width × height × 2 far from overflowing 64 bits.
-constexpr std::uint64_t max_image_side = 0x7fffffff;
+/// The volume of an image, with the volume's own complaints prefixed by the file name.
+volume make_image(const std::string& name, std::uint64_t width, std::uint64_t height,
+                  sample_type type, std::vector<std::byte> samples) {
+  try {
+    return volume({static_cast<std::int64_t>(width), static_cast<std::int64_t>(height), 1}, type,
+                  std::move(samples));
+  } catch (const error& e) {
+    throw error(name + ": " + e.what());
+  }
+}
 
 // =============================================================================================
 // PGM.
-
-/// Reads the whole of a file into memory.
-std::vector<char> slurp(const fs::path& file, const char* kind) {
-  const std::string name = file.string();
-  file_handle f(std::fopen(name.c_str(), "rb"));
-  if (!f) {
-    throw error(name + ": cannot open " + kind + " file (" + errno_text(errno) + ")");
-  }
-  std::vector<char> data;
-  char block[1 << 16];
-  std::size_t got = 0;
-  while ((got = std::fread(block, 1, sizeof block, f.get())) > 0) {
-    data.insert(data.end(), block, block + got);
-  }
-  if (std::ferror(f.get()) != 0) {
-    throw error(name + ": cannot read " + kind + " file (I/O error)");
-  }
-  return data;
-}
 
 /// What a netpbm magic number other than P5 stands for, for the error message.
 std::string_view netpbm_kind(std::string_view magic) {
@@ -251,7 +234,7 @@ std::string_view png_color_name(int color_type) {
 
 volume read_pgm(const std::filesystem::path& file) {
   const std::string name = file.string();
-  const std::vector<char> data = slurp(file, "PGM");
+  const std::vector<char> data = detail::input_file(file, "PGM").read_all();
 
   // ---- Magic number.
   const std::string_view magic(data.data(), std::min<std::size_t>(data.size(), 2));
@@ -270,15 +253,7 @@ volume read_pgm(const std::filesystem::path& file) {
   const std::uint64_t width = header.number("width");
   const std::uint64_t height = header.number("height");
   const std::uint64_t maxval = header.number("maxval");
-  if (width < 2 || height < 2) {
-    throw error(name + ": expected a width and height of at least 2, found " +
-                std::to_string(width) + " x " + std::to_string(height));
-  }
-  if (width > max_image_side || height > max_image_side) {
-    throw error(name + ": expected a width and height of at most " +
-                std::to_string(max_image_side) + ", found " + std::to_string(width) + " x " +
-                std::to_string(height));
-  }
+  check_image_size(name, width, height);
   if (maxval < 1 || maxval > 65535) {
     throw error(name + ": expected a PGM maxval from 1 to 65535, found " + std::to_string(maxval));
   }
@@ -326,18 +301,18 @@ volume read_pgm(const std::filesystem::path& file) {
                 ", found " + std::to_string(value) + " at column " + std::to_string(x) + ", row " +
                 std::to_string(y));
   }
-  return volume({static_cast<std::int64_t>(width), static_cast<std::int64_t>(height), 1},
-                bytes_per_sample == 1 ? sample_type::u8 : sample_type::u16, std::move(samples));
+  return make_image(name, width, height, bytes_per_sample == 1 ? sample_type::u8 : sample_type::u16,
+                    std::move(samples));
 }
 
 volume read_png(const std::filesystem::path& file) {
   const std::string name = file.string();
-  file_handle f(std::fopen(name.c_str(), "rb"));
-  if (!f) throw error(name + ": cannot open PNG file (" + errno_text(errno) + ")");
+  detail::input_file input(file, "PNG");
+  std::FILE* const f = input.stream();
 
   // ---- Signature, checked here so that "not a PNG" reads as such.
   unsigned char signature[8] = {};
-  const std::size_t got = std::fread(signature, 1, sizeof signature, f.get());
+  const std::size_t got = input.read(signature, sizeof signature);
   if (got < sizeof signature || png_sig_cmp(signature, 0, sizeof signature) != 0) {
     throw error(
         name + ": expected a PNG file (signature \"\\x89PNG\\x0d\\x0a\\x1a\\x0a\"), found " +
@@ -355,7 +330,7 @@ volume read_png(const std::filesystem::path& file) {
   // libpng says "Read Error" for a file that ends early; the end-of-file flag tells that apart
   // from corrupt data.
   const auto corrupt = [&]() {
-    if (std::feof(f.get()) != 0) {
+    if (std::feof(f) != 0) {
       return error(name + ": truncated PNG file (it ends before the image data does; libpng: " +
                    failure.message + ")");
     }
@@ -364,15 +339,12 @@ volume read_png(const std::filesystem::path& file) {
 
   // ---- Header.
   png_header header;
-  if (!read_png_info(h.png, h.info, f.get(), header)) throw corrupt();
+  if (!read_png_info(h.png, h.info, f, header)) throw corrupt();
   if ((header.color_type & PNG_COLOR_MASK_COLOR) != 0) {
     throw error(name + ": expected a grayscale PNG, found " +
                 std::string(png_color_name(header.color_type)));
   }
-  if (header.width < 2 || header.height < 2) {
-    throw error(name + ": expected a width and height of at least 2, found " +
-                std::to_string(header.width) + " x " + std::to_string(header.height));
-  }
+  check_image_size(name, header.width, header.height);
   // A corrupt header can announce a huge raster in a tiny file; refuse to allocate for it.
   // Deflate cannot compress better than about 1032:1 (a 258-byte match in two bits), so the
   // filtered raster — at least height × (1 + packed row bytes) — cannot exceed ~1032 times the
@@ -382,9 +354,8 @@ volume read_png(const std::filesystem::path& file) {
            ((header.color_type & PNG_COLOR_MASK_ALPHA) != 0 ? 2 : 1) +
        7) /
       8;
-  std::error_code size_error;
-  const std::uint64_t file_size = fs::file_size(file, size_error);
-  if (!size_error && std::uint64_t{header.height} * (packed_row + 1) > file_size * 1100 + 4096) {
+  const std::uint64_t file_size = input.size();
+  if (std::uint64_t{header.height} * (packed_row + 1) > file_size * 1100 + 4096) {
     throw error(name + ": corrupt or truncated PNG file (" + std::to_string(header.width) + " x " +
                 std::to_string(header.height) + " pixels cannot fit in " +
                 std::to_string(file_size) + " bytes)");
@@ -400,8 +371,8 @@ volume read_png(const std::filesystem::path& file) {
   }
   if (!read_png_raster(h.png, h.info, header, rows.data(), row_bytes)) throw corrupt();
 
-  return volume({std::int64_t{header.width}, std::int64_t{header.height}, 1},
-                bytes_per_sample == 1 ? sample_type::u8 : sample_type::u16, std::move(samples));
+  return make_image(name, header.width, header.height,
+                    bytes_per_sample == 1 ? sample_type::u8 : sample_type::u16, std::move(samples));
 }
 
 volume read_image(const std::filesystem::path& file) {

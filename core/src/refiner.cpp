@@ -6,6 +6,7 @@
 #include <map>
 #include <string>
 
+#include <progiso/core/deadline.hpp>
 #include <progiso/core/detail/mesh_builder.hpp>
 #include <progiso/core/detail/ready_queue.hpp>
 #include <progiso/core/error.hpp>
@@ -304,14 +305,14 @@ triangle_mesh refiner::extract_cut(double max_error) const {
 
 void check_extract_inputs(double isovalue, const extract_options& options) {
   if (!std::isfinite(isovalue)) {
-    throw error("--iso: expected a finite isovalue, found " + std::to_string(isovalue));
+    throw error("isovalue: expected a finite number, found " + std::to_string(isovalue));
   }
   if (options.mode == extract_mode::error && !(options.max_error >= 0.0)) {
-    throw error("--error: expected a non-negative error, found " +
+    throw error("error threshold: expected a non-negative number, found " +
                 std::to_string(options.max_error));
   }
   if (options.mode == extract_mode::time && !(options.time_budget.count() >= 0.0)) {
-    throw error("--time-ms: expected a non-negative time budget");
+    throw error("time budget: expected a non-negative duration");
   }
 }
 
@@ -335,7 +336,7 @@ extract_result extract_isosurface(const volume& vol, double isovalue,
     const triangle_mesh first = ref.extract();
     res.first_surface_seconds = seconds(clock::now() - t1);
   }
-  const auto deadline = t1 + std::chrono::duration_cast<clock::duration>(options.time_budget);
+  const auto deadline = deadline_after(t1, options.time_budget);
   extract_progress prog;
   prog.max_depth = hier.max_depth();
   std::uint64_t since = 0;

@@ -3,6 +3,7 @@
 #include <cmath>
 #include <limits>
 #include <string>
+#include <type_traits>
 
 #include <progiso/core/error.hpp>
 
@@ -74,6 +75,13 @@ volume::volume(index3 dims, sample_type type, std::vector<std::byte> samples,
                   std::to_string(spacing_[a]));
     }
     if (!std::isfinite(origin_[a])) throw error("volume: origin must be finite");
+    // Every written coordinate (origin + index × spacing) must be a finite double.
+    const double far = std::fabs(origin_[a]) + static_cast<double>(dims_[a] - 1) * spacing_[a];
+    if (!std::isfinite(far)) {
+      throw error("volume: origin + (dims - 1) × spacing overflows on axis " + std::to_string(a) +
+                  " (spacing " + std::to_string(spacing_[a]) + ", " + std::to_string(dims_[a]) +
+                  " samples)");
+    }
   }
   const std::size_t expected = voxel_count() * sample_size(type_);
   if (samples_.size() != expected) {
@@ -82,14 +90,29 @@ volume::volume(index3 dims, sample_type type, std::vector<std::byte> samples,
   }
   double lo = std::numeric_limits<double>::infinity();
   double hi = -lo;
+  std::size_t non_finite = voxel_count();  // the first NaN or infinite sample, if any
   visit_samples([&](const auto* s) {
+    using T = std::remove_cvref_t<decltype(*s)>;
     const std::size_t n = voxel_count();
     for (std::size_t i = 0; i < n; ++i) {
       const auto v = static_cast<double>(s[i]);
       if (v < lo) lo = v;
       if (v > hi) hi = v;
+      if constexpr (std::is_floating_point_v<T>) {
+        // v − v is 0 for every finite v and NaN for a NaN or an infinity.
+        if (!(v - v == 0.0) && non_finite == n) non_finite = i;
+      }
     }
   });
+  if (non_finite != voxel_count()) {
+    const auto i = static_cast<std::int64_t>(non_finite);
+    const std::int64_t x = i % dims_[0];
+    const std::int64_t y = (i / dims_[0]) % dims_[1];
+    const std::int64_t z = i / (dims_[0] * dims_[1]);
+    throw error("volume: expected finite samples, found " + std::to_string(at(non_finite)) +
+                " at sample " + std::to_string(non_finite) + " (x " + std::to_string(x) + ", y " +
+                std::to_string(y) + ", z " + std::to_string(z) + ")");
+  }
   range_ = {lo, hi};
 }
 

@@ -5,6 +5,7 @@
 #include <cmath>
 #include <condition_variable>
 #include <cstring>
+#include <exception>
 #include <limits>
 #include <mutex>
 #include <optional>
@@ -164,8 +165,9 @@ struct batch {
 }  // namespace
 
 struct engine_impl {
-  engine_impl(const volume& v, engine_options o)
-      : vol(v),
+  engine_impl(std::shared_ptr<const volume> owned, const volume& v, engine_options o)
+      : owned_volume(std::move(owned)),
+        vol(v),
         opt(std::move(o)),
         hier(v.dims()),
         ranges(build_ranges(v, hier, range_seconds)),
@@ -463,14 +465,51 @@ struct engine_impl {
     delete b;
     dispatch(r);
     r.remaining.set(r.queue.size() + inflight_items);
-    if (opt.progress) {
+    if (opt.progress && !callback_error) {
       since_progress += published;
       if (since_progress >= opt.progress_interval) {
         since_progress = 0;
-        opt.progress({r.splits.get(), r.cut_triangles, r.queue.empty() ? 0.0 : r.queue.top().error,
-                      last_depth});
+        // The callback may call cancel() (a stop request from here) but no control call that
+        // waits for this run; an exception it throws stops the run and is rethrown by the
+        // control thread's wait() or refine(), never across TBB.
+        const callback_scope in_callback(this);
+        try {
+          opt.progress({r.splits.get(), r.cut_triangles,
+                        r.queue.empty() ? 0.0 : r.queue.top().error, last_depth});
+        } catch (...) {
+          callback_error = std::current_exception();
+          request_stop();
+        }
       }
     }
+  }
+
+  // Marks the progress callback's thread, so that control calls made from inside it can tell.
+  struct callback_scope {
+    explicit callback_scope(const engine_impl* e) noexcept : saved(in_callback_of) {
+      in_callback_of = e;
+    }
+    callback_scope(const callback_scope&) = delete;
+    callback_scope& operator=(const callback_scope&) = delete;
+    ~callback_scope() { in_callback_of = saved; }
+    const engine_impl* saved;
+  };
+  static thread_local const engine_impl* in_callback_of;
+  [[nodiscard]] bool in_own_callback() const noexcept { return in_callback_of == this; }
+  void refuse_in_callback(const char* call) const {
+    if (in_own_callback()) {
+      throw error(std::string("engine: ") + call +
+                  " cannot be called from the engine's progress callback (it would wait for the "
+                  "run that calls it); call cancel() there, which requests a stop");
+    }
+  }
+  // After a run: moves a callback's exception to the control thread (caller holds `control`).
+  void rethrow_callback_error(std::unique_lock<std::mutex>& lock) {
+    if (!pending_error) return;
+    std::exception_ptr e = std::move(pending_error);
+    pending_error = nullptr;
+    lock.unlock();
+    std::rethrow_exception(e);
   }
 
   // The driver thread of one run.
@@ -489,7 +528,13 @@ struct engine_impl {
     {
       const std::lock_guard lock(control);
       bool reached = false;
-      if (!user_cancelled) {
+      // callback_error and callback_cancel were written by commit tasks, which happen before
+      // wait_for_all() returns above.
+      const bool stopped_by_callback = callback_cancel || callback_error != nullptr;
+      callback_cancel = false;
+      if (callback_error) pending_error = std::move(callback_error);
+      callback_error = nullptr;
+      if (!user_cancelled && !stopped_by_callback) {
         switch (goal.what) {
           case refine_goal::kind::full:
           case refine_goal::kind::error:
@@ -543,6 +588,7 @@ struct engine_impl {
     return root.load(std::memory_order_relaxed);
   }
 
+  std::shared_ptr<const volume> owned_volume;  // set when the engine owns its volume
   const volume& vol;
   engine_options opt;
   hierarchy hier;
@@ -580,11 +626,17 @@ struct engine_impl {
   bool active = false;          // guarded by control
   bool user_cancelled = false;  // guarded by control (read by the driver after its run)
   bool last_reached = false;    // guarded by control
+  // Set by the progress callback (commit step) during a run, read by the driver after it.
+  bool callback_cancel = false;
+  std::exception_ptr callback_error;
+  std::exception_ptr pending_error;  // guarded by control: rethrown by wait() / refine()
   std::atomic<bool> active_flag{false};
   counter runs, cancelled_runs;
   mutable counter retired_bytes, peak_retired_bytes, root_bytes;
   std::uint64_t generation = 0;  // guarded by control
 };
+
+thread_local const engine_impl* engine_impl::in_callback_of = nullptr;
 
 }  // namespace detail
 
@@ -592,10 +644,27 @@ struct engine_impl {
 // engine
 
 engine::engine(const volume& vol, double isovalue, engine_options options) {
+  init(nullptr, vol, isovalue, std::move(options));
+}
+
+engine::engine(volume&& vol, double isovalue, engine_options options) {
+  auto owned = std::make_shared<const volume>(std::move(vol));
+  const volume& v = *owned;
+  init(std::move(owned), v, isovalue, std::move(options));
+}
+
+engine::engine(std::shared_ptr<const volume> vol, double isovalue, engine_options options) {
+  if (!vol) throw error("engine: expected a volume, found a null pointer");
+  const volume& v = *vol;
+  init(std::move(vol), v, isovalue, std::move(options));
+}
+
+void engine::init(std::shared_ptr<const volume> owned, const volume& vol, double isovalue,
+                  engine_options options) {
   if (!std::isfinite(isovalue)) {
     throw error("isovalue: expected a finite number, found " + std::to_string(isovalue));
   }
-  impl_ = std::make_unique<detail::engine_impl>(vol, std::move(options));
+  impl_ = std::make_unique<detail::engine_impl>(std::move(owned), vol, std::move(options));
   // release: pairs with the acquire in epoch_guard::protect() (snapshot()).
   impl_->root.store(impl_->make_root(isovalue, 0), std::memory_order_release);
 }
@@ -617,6 +686,7 @@ void engine::set_isovalue(double w) {
   if (!std::isfinite(w)) {
     throw error("isovalue: expected a finite number, found " + std::to_string(w));
   }
+  impl_->refuse_in_callback("set_isovalue()");
   std::unique_lock lock(impl_->control);
   const bool resume = impl_->active;
   const refine_goal goal = impl_->goal;
@@ -641,25 +711,38 @@ void engine::start(const refine_goal& goal) {
   if (goal.what == refine_goal::kind::error && !(goal.max_error >= -1e300)) {
     throw error("refine goal: expected a number as error threshold");
   }
+  impl_->refuse_in_callback("start()");
   std::unique_lock lock(impl_->control);
   impl_->launch(lock, goal);
 }
 
 void engine::cancel() {
+  if (impl_->in_own_callback()) {
+    // From the progress callback, on a thread of the run itself: joining the run here would
+    // wait for this very call, so only request the stop; the run ends within one split.
+    impl_->callback_cancel = true;
+    impl_->request_stop();
+    return;
+  }
   std::unique_lock lock(impl_->control);
   impl_->stop_and_join(lock);
 }
 
 void engine::wait() {
+  impl_->refuse_in_callback("wait()");
   std::unique_lock lock(impl_->control);
   impl_->idle.wait(lock, [this] { return !impl_->active; });
+  impl_->rethrow_callback_error(lock);
 }
 
 bool engine::refine(const refine_goal& goal) {
+  impl_->refuse_in_callback("refine()");
   std::unique_lock lock(impl_->control);
   impl_->launch(lock, goal);
   impl_->idle.wait(lock, [this] { return !impl_->active; });
-  return impl_->last_reached;
+  const bool reached = impl_->last_reached;
+  impl_->rethrow_callback_error(lock);
+  return reached;
 }
 
 surface_snapshot engine::snapshot() const {
@@ -873,11 +956,10 @@ extract_result extract_isosurface_parallel(const volume& vol, double isovalue,
       break;
     case extract_mode::time:
       // The budget counts from the start of refinement, after range-data preprocessing.
-      eng.refine(
-          refine_goal::until(t0 +
-                             std::chrono::duration_cast<clock::duration>(
-                                 std::chrono::duration<double>(res.range_build_seconds)) +
-                             std::chrono::duration_cast<clock::duration>(options.time_budget)));
+      eng.refine(refine_goal::until(
+          deadline_after(t0 + std::chrono::duration_cast<clock::duration>(
+                                  std::chrono::duration<double>(res.range_build_seconds)),
+                         options.time_budget)));
       break;
   }
   const auto t2 = clock::now();

@@ -198,7 +198,7 @@ TEST(ContourIo, read_contour_obj_rejects_other_elements_bad_numbers_and_bad_indi
   const std::vector<std::pair<std::string, std::string>> cases = {
       {three + "f 1 2 3\n", ":4: expected only v and l lines in a contour OBJ file, found \"f\""},
       {three + "vt 0 1\n", "found \"vt\""},
-      {"v 0 0 1\n", ":1: expected a 2D contour vertex with z = 0, found z = 1"},
+      {"v 0 0 1\n", ":1: expected a 2D contour vertex with z = 0, found z = \"1\""},
       {"v 0\n", ":1: expected \"v x y 0\" with decimal numbers, found \"v 0\""},
       {"v 0 zero 0\n", "expected \"v x y 0\""},
       {"v 0 0 0 1\n", "expected \"v x y 0\""},
@@ -404,17 +404,34 @@ TEST(ContourIo, overwriting_replaces_the_file_and_leaves_no_temporary) {
   EXPECT_EQ(dir.entries(), (std::vector<std::string>{"c.obj", "c.svg"}));
 }
 
-TEST(ContourIo, failed_rename_leaves_the_target_untouched_and_removes_the_temporary) {
+TEST(ContourIo, a_directory_in_the_targets_place_is_refused_before_writing) {
   const scratch_dir dir;
-  // A non-empty directory in the target's place: the temporary is written, the rename fails.
   fs::create_directory(dir / "c.svg");
   write_text(dir / "c.svg" / "keep", "x");
   const std::string message = error_message(
       dir / "c.svg", [&] { progiso::write_contours(dir / "c.svg", sample_contours()); });
-  EXPECT_TRUE(contains(message, "cannot move the finished temporary file onto it")) << message;
+  EXPECT_TRUE(contains(message, "found a directory")) << message;
   EXPECT_EQ(dir.entries(), (std::vector<std::string>{"c.svg"}));
-  EXPECT_TRUE(fs::is_directory(dir / "c.svg"));
-  EXPECT_EQ(file_text(dir / "c.svg" / "keep"), "x");
+}
+
+TEST(ContourIo, failed_rename_leaves_the_target_untouched_and_removes_the_temporary) {
+  const scratch_dir dir;
+  // A non-empty directory appears in the target's place while the file is being written: the
+  // temporary is complete, the rename fails.
+  const progiso::contour_set c = sample_contours();
+  std::vector<double> isovalues;
+  for (const auto& p : c.polylines) isovalues.push_back(p.isovalue);
+  const std::string message = error_message(dir / "c.obj", [&] {
+    progiso::contour_writer w(dir / "c.obj", isovalues);
+    w.add(c);
+    fs::create_directory(dir / "c.obj");
+    write_text(dir / "c.obj" / "keep", "x");
+    w.commit();
+  });
+  EXPECT_TRUE(contains(message, "cannot move the finished temporary file onto it")) << message;
+  EXPECT_EQ(dir.entries(), (std::vector<std::string>{"c.obj"}));
+  EXPECT_TRUE(fs::is_directory(dir / "c.obj"));
+  EXPECT_EQ(file_text(dir / "c.obj" / "keep"), "x");
 }
 
 }  // namespace

@@ -365,9 +365,11 @@ TEST(RangeData2d, shared_images_stay_within_their_bytes) {
 
 TEST(RangeData2d, rejects_an_image_that_does_not_match_the_hierarchy) {
   const volume v = noisy_image<std::uint8_t>(10, 10, 255);
-  EXPECT_THROW(range_data2d(v, hierarchy2d(10, 11)), error);
+  const hierarchy2d other(10, 11);
+  EXPECT_THROW(range_data2d(v, other), error);
   const volume thick({10, 10, 2}, sample_type::u8, std::vector<std::byte>(200));
-  EXPECT_THROW(range_data2d(thick, hierarchy2d(10, 10)), error);
+  const hierarchy2d square(10, 10);
+  EXPECT_THROW(range_data2d(thick, square), error);
 }
 
 }  // namespace

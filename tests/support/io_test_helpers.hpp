@@ -3,6 +3,7 @@
 
 #include <filesystem>
 #include <fstream>
+#include <sstream>
 #include <string>
 
 #include <gtest/gtest.h>
@@ -33,6 +34,14 @@ std::string error_message_naming(const std::filesystem::path& file, F&& f,
   }
   ADD_FAILURE() << "expected progiso::error for " << file;
   return {};
+}
+
+/// The whole file as bytes ("" when it cannot be read).
+inline std::string read_whole_file(const std::filesystem::path& file) {
+  std::ifstream in(file, std::ios::binary);
+  std::ostringstream text;
+  text << in.rdbuf();
+  return text.str();
 }
 
 inline bool contains(const std::string& haystack, const std::string& needle) {

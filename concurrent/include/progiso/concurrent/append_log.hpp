@@ -32,6 +32,7 @@
 #include <stdexcept>
 #include <type_traits>
 
+#include <progiso/core/config.hpp>
 #include <progiso/core/detail/zeroed_array.hpp>
 
 namespace progiso {

@@ -80,6 +80,7 @@
 #include <progiso/concurrent/detail/epoch_record.hpp>
 #include <progiso/concurrent/detail/memory_order.hpp>
 #include <progiso/core/assert.hpp>
+#include <progiso/core/config.hpp>
 
 namespace progiso {
 

@@ -22,6 +22,8 @@
 #include <array>
 #include <cstdint>
 
+#include <progiso/core/config.hpp>
+#include <progiso/core/error.hpp>
 #include <progiso/core/volume.hpp>
 
 namespace progiso {

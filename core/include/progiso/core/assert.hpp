@@ -10,6 +10,8 @@
 #include <cstdio>
 #include <cstdlib>
 
+#include <progiso/core/config.hpp>
+
 #if defined(PROGISO_ENABLE_ASSERTS)
 #define PROGISO_ASSERT(cond)                                                                    \
   do {                                                                                          \

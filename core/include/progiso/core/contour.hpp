@@ -16,6 +16,9 @@
 #include <cstdint>
 #include <vector>
 
+#include <progiso/core/config.hpp>
+#include <progiso/core/error.hpp>
+
 namespace progiso {
 
 using vec2 = std::array<double, 2>;

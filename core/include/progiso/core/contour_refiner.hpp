@@ -24,9 +24,12 @@
 #include <memory>
 #include <vector>
 
+#include <progiso/core/config.hpp>
 #include <progiso/core/contour.hpp>
 #include <progiso/core/contour_split.hpp>
+#include <progiso/core/detail/borrow.hpp>
 #include <progiso/core/detail/zeroed_array.hpp>
+#include <progiso/core/error.hpp>
 #include <progiso/core/hierarchy2d.hpp>
 #include <progiso/core/range_data2d.hpp>
 #include <progiso/core/volume.hpp>
@@ -53,6 +56,11 @@ class contour_refiner {
   /// Starts at the root cut. Throws progiso::error for a non-finite isovalue.
   contour_refiner(const volume& image, const hierarchy2d& hier, const range_data2d& ranges,
                   double isovalue, contour_order order = contour_order::largest_error_first);
+  /// Refused at compile time: the refiner keeps references to all three (detail/borrow.hpp).
+  template <class V, class H, class R>
+  requires detail::any_rvalue<V, H, R> contour_refiner(
+      V&&, H&&, R&&, double, contour_order = contour_order::largest_error_first)
+  = delete;
   ~contour_refiner();
   contour_refiner(const contour_refiner&) = delete;
   contour_refiner& operator=(const contour_refiner&) = delete;
@@ -128,14 +136,23 @@ class contour_refiner {
 
 enum class contour_mode { full, error, segments, time };
 
+/// Isovalues are refined one after the other, in the order given, each to the mode's goal, and
+/// each one's contours are handed to `sink` (or gathered into contour_result::contours) before
+/// the next starts, so memory holds one isovalue's refinement at a time: the image, its range
+/// data and one refiner, however many isovalues there are. A segment budget or a deadline is
+/// shared: each isovalue gets an equal part of what the isovalues before it left over.
 struct contour_options {
   contour_mode mode = contour_mode::full;
   double max_error = 0.0;
-  std::uint64_t max_segments = 0;  ///< over all isovalues together
-  std::chrono::duration<double> time_budget{0.0};
+  std::uint64_t max_segments = 0;                  ///< over all isovalues together
+  std::chrono::duration<double> time_budget{0.0};  ///< over all isovalues together
   /// Called with the current contours at each refinement stage (for --frames): after 0, 1, 2,
-  /// 4, 8, … splits and at the end.
+  /// 4, 8, … splits in all and at the end; each frame holds the isovalues finished so far and
+  /// the current one's cut (so with frames, the finished contours stay in memory).
   std::function<void(const contour_set&, int stage)> frame;
+  /// Called with each isovalue's contours (and its index in the list) as soon as it is
+  /// finished. When set, contour_result::contours stays empty.
+  std::function<void(const contour_set&, std::size_t index)> sink;
 };
 
 struct contour_result {
@@ -148,7 +165,9 @@ struct contour_result {
   std::size_t range_bytes = 0;
 };
 
-/// Contours of `image` (dims w, h, 1) at each isovalue. Throws progiso::error on bad input.
+/// Contours of `image` (dims w, h, 1) at each isovalue. Throws progiso::error on bad input
+/// (not an image, no isovalue, a non-finite isovalue, a negative error or time budget), and
+/// whatever the callbacks throw.
 [[nodiscard]] contour_result extract_contours(const volume& image,
                                               const std::vector<double>& isovalues,
                                               const contour_options& options);

@@ -41,7 +41,9 @@
 #include <string_view>
 #include <vector>
 
+#include <progiso/core/config.hpp>
 #include <progiso/core/contour.hpp>
+#include <progiso/core/error.hpp>
 #include <progiso/core/hierarchy2d.hpp>
 #include <progiso/core/volume.hpp>
 

@@ -11,6 +11,8 @@
 #include <stdexcept>
 #include <string>
 
+#include <progiso/core/config.hpp>
+
 namespace progiso {
 
 /// A recoverable failure caused by input: its what() is a complete, single-line message.

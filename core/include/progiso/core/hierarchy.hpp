@@ -32,6 +32,8 @@
 #include <cstdint>
 #include <utility>
 
+#include <progiso/core/config.hpp>
+#include <progiso/core/error.hpp>
 #include <progiso/core/marching.hpp>
 #include <progiso/core/volume.hpp>
 

@@ -26,6 +26,8 @@
 
 #include <filesystem>
 
+#include <progiso/core/config.hpp>
+#include <progiso/core/error.hpp>
 #include <progiso/core/volume.hpp>
 
 namespace progiso {

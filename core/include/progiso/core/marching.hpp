@@ -27,6 +27,8 @@
 #include <array>
 #include <cstdint>
 
+#include <progiso/core/config.hpp>
+#include <progiso/core/error.hpp>
 #include <progiso/core/mesh.hpp>
 
 namespace progiso {

@@ -11,6 +11,9 @@
 #include <cstdint>
 #include <vector>
 
+#include <progiso/core/config.hpp>
+#include <progiso/core/error.hpp>
+
 namespace progiso {
 
 using vec3 = std::array<double, 3>;

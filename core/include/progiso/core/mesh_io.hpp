@@ -21,6 +21,8 @@
 
 #include <filesystem>
 
+#include <progiso/core/config.hpp>
+#include <progiso/core/error.hpp>
 #include <progiso/core/mesh.hpp>
 
 namespace progiso {

@@ -29,7 +29,10 @@
 #include <cstdint>
 #include <memory>
 
+#include <progiso/core/config.hpp>
+#include <progiso/core/detail/borrow.hpp>
 #include <progiso/core/detail/sample_threshold.hpp>
+#include <progiso/core/error.hpp>
 #include <progiso/core/hierarchy.hpp>
 #include <progiso/core/volume.hpp>
 
@@ -51,6 +54,10 @@ class range_data {
  public:
   /// Builds the data: one pass over the hierarchy, O(voxels).
   range_data(const volume& vol, const hierarchy& hier);
+  /// Refused at compile time: the range data keeps pointers to both (detail/borrow.hpp).
+  template <class V, class H>
+  requires detail::any_rvalue<V, H> range_data(V&&, H&&)
+  = delete;
   ~range_data();
   range_data(range_data&&) noexcept;
   range_data& operator=(range_data&&) noexcept;

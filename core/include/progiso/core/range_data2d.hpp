@@ -39,6 +39,9 @@
 #include <cstdint>
 #include <memory>
 
+#include <progiso/core/config.hpp>
+#include <progiso/core/detail/borrow.hpp>
+#include <progiso/core/error.hpp>
 #include <progiso/core/hierarchy2d.hpp>
 #include <progiso/core/range_data.hpp>
 #include <progiso/core/volume.hpp>
@@ -52,6 +55,10 @@ class range_data2d {
   /// progiso::error when the image is not one sample thick or its size differs from the
   /// hierarchy's data box.
   range_data2d(const volume& image, const hierarchy2d& hier);
+  /// Refused at compile time: the range data keeps pointers to both (detail/borrow.hpp).
+  template <class V, class H>
+  requires detail::any_rvalue<V, H> range_data2d(V&&, H&&)
+  = delete;
   ~range_data2d();
   range_data2d(range_data2d&&) noexcept;
   range_data2d& operator=(range_data2d&&) noexcept;

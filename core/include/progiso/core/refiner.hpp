@@ -31,7 +31,10 @@
 #include <memory>
 #include <vector>
 
+#include <progiso/core/config.hpp>
+#include <progiso/core/detail/borrow.hpp>
 #include <progiso/core/detail/zeroed_array.hpp>
+#include <progiso/core/error.hpp>
 #include <progiso/core/hierarchy.hpp>
 #include <progiso/core/mesh.hpp>
 #include <progiso/core/range_data.hpp>
@@ -64,6 +67,11 @@ class refiner {
   /// Throws progiso::error when the isovalue is not finite.
   refiner(const volume& vol, const hierarchy& hier, const range_data& ranges, double isovalue,
           refine_order order = refine_order::largest_error_first);
+  /// Refused at compile time: the refiner keeps references to all three (detail/borrow.hpp).
+  template <class V, class H, class R>
+  requires detail::any_rvalue<V, H, R> refiner(V&&, H&&, R&&, double,
+                                               refine_order = refine_order::largest_error_first)
+  = delete;
   ~refiner();
   refiner(const refiner&) = delete;
   refiner& operator=(const refiner&) = delete;

@@ -30,6 +30,8 @@
 #include <string_view>
 #include <vector>
 
+#include <progiso/core/config.hpp>
+#include <progiso/core/error.hpp>
 #include <progiso/core/hierarchy.hpp>
 #include <progiso/core/marching.hpp>
 #include <progiso/core/volume.hpp>

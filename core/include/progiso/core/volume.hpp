@@ -23,6 +23,8 @@
 #include <vector>
 
 #include <progiso/core/assert.hpp>
+#include <progiso/core/config.hpp>
+#include <progiso/core/error.hpp>
 
 namespace progiso {
 
@@ -42,8 +44,11 @@ using index3 = std::array<std::int64_t, 3>;
 class volume {
  public:
   /// Takes ownership of `samples` (host byte order, x fastest). Throws progiso::error when
-  /// dims[0] or dims[1] is < 2 or dims[2] < 1, or when the byte count differs from dims ×
-  /// sample_size(type), or when a spacing is not finite and positive.
+  /// dims[0] or dims[1] is < 2 or dims[2] < 1 or a dim is above 32769, when the byte count
+  /// differs from dims × sample_size(type), when a spacing is not finite and positive, when
+  /// origin + (dims − 1) × spacing is not finite (coordinates would overflow), or when a
+  /// floating-point sample is NaN or infinite (the message gives the first one's position):
+  /// colours, ranges and vertex positions are only meaningful for finite samples.
   volume(index3 dims, sample_type type, std::vector<std::byte> samples,
          std::array<double, 3> spacing = {1.0, 1.0, 1.0},
          std::array<double, 3> origin = {0.0, 0.0, 0.0});
@@ -70,7 +75,7 @@ class volume {
     const auto c = [](std::int64_t v, std::int64_t hi) { return v < 0 ? 0 : (v > hi ? hi : v); };
     return at(linear(c(x, dims_[0] - 1), c(y, dims_[1] - 1), c(z, dims_[2] - 1)));
   }
-  /// Smallest and largest sample (NaN samples are ignored).
+  /// Smallest and largest sample.
   [[nodiscard]] std::array<double, 2> value_range() const noexcept { return range_; }
 
   /// Calls f(const T* samples) with the typed sample array.

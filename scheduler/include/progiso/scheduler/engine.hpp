@@ -46,6 +46,9 @@
 #include <memory>
 
 #include <progiso/concurrent/epoch.hpp>
+#include <progiso/core/config.hpp>
+#include <progiso/core/deadline.hpp>
+#include <progiso/core/error.hpp>
 #include <progiso/core/hierarchy.hpp>
 #include <progiso/core/mesh.hpp>
 #include <progiso/core/range_data.hpp>
@@ -86,7 +89,9 @@ struct engine_options {
   bool poison_retired = false;
   /// Called with the generation of every root as it is destroyed (stress tests count them).
   std::function<void(std::uint64_t generation)> on_reclaim;
-  /// Called from the commit step about every `progress_interval` splits (keep it short).
+  /// Called from the commit step about every `progress_interval` splits (keep it short). It may
+  /// call engine::cancel() (a stop request) and any reader; an exception it throws stops the
+  /// run and is rethrown by wait() / refine().
   std::function<void(const engine_progress&)> progress;
   std::uint64_t progress_interval = 4096;
 };
@@ -176,6 +181,12 @@ class engine {
   /// Builds the hierarchy and range data of `vol` (which must outlive the engine) and publishes
   /// the root surface of `isovalue`. Throws progiso::error for a non-finite isovalue.
   engine(const volume& vol, double isovalue, engine_options options = {});
+  /// The same for a volume the engine takes over (a temporary such as read_nrrd(…) or
+  /// make_demo_volume(…) binds here, so it cannot dangle).
+  engine(volume&& vol, double isovalue, engine_options options = {});
+  /// The same for a volume shared with the caller; the engine keeps it alive. Throws
+  /// progiso::error for a null pointer.
+  engine(std::shared_ptr<const volume> vol, double isovalue, engine_options options = {});
   /// Cancels any run and waits for it; every root is reclaimed. Precondition: no snapshot of
   /// this engine is alive.
   ~engine();
@@ -184,22 +195,27 @@ class engine {
 
   /// Swaps to isovalue w: cancels in-flight work, publishes w's root surface, retires the old
   /// root, and resumes the interrupted run's goal (if a run was active). Throws progiso::error
-  /// for a non-finite w.
+  /// for a non-finite w, and when called from the progress callback.
   void set_isovalue(double w);
-  /// Starts refining towards `goal` in the background (cancelling a run in progress).
+  /// Starts refining towards `goal` in the background (cancelling a run in progress). Throws
+  /// progiso::error when called from the progress callback.
   void start(const refine_goal& goal);
   /// Stops the run: every worker stops within one split; returns once all are quiet. What was
   /// published stays; unpublished ready diamonds go back to the queue. No-op when idle.
+  /// From engine_options::progress (a thread of the run itself) it only requests the stop and
+  /// returns at once; the run then ends within one split per worker.
   void cancel();
-  /// Blocks until no run is active (finished or cancelled).
+  /// Blocks until no run is active (finished or cancelled). Rethrows an exception that the
+  /// progress callback threw during the run (which stopped it). Throws progiso::error when
+  /// called from the progress callback.
   void wait();
   /// Blocking runs: start(goal) then wait(). Return true when the goal was reached (false when
-  /// cancelled from another thread, or for refine_for, when the deadline stopped the run).
+  /// cancelled, or for refine_for, when the deadline stopped the run). Rethrows as wait().
   bool refine(const refine_goal& goal);
   bool refine_full() { return refine(refine_goal::full()); }
   bool refine_until(double max_error) { return refine(refine_goal::error(max_error)); }
   bool refine_for(std::chrono::steady_clock::duration budget) {
-    return refine(refine_goal::until(std::chrono::steady_clock::now() + budget));
+    return refine(refine_goal::until(deadline_after(std::chrono::steady_clock::now(), budget)));
   }
 
   /// A consistent view of the last published cut. O(1); never waits. Any thread.
@@ -219,6 +235,8 @@ class engine {
 
  private:
   friend class surface_snapshot;
+  void init(std::shared_ptr<const volume> owned, const volume& vol, double isovalue,
+            engine_options options);
   std::unique_ptr<detail::engine_impl> impl_;
 };
 

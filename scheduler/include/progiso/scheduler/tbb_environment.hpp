@@ -9,6 +9,9 @@
 // mask, cgroup limits) on first use, so keep it out of hot paths.
 #pragma once
 
+#include <progiso/core/config.hpp>
+#include <progiso/core/error.hpp>
+
 namespace progiso::scheduler {
 
 /// oneTBB's default number of worker threads for this process (`tbb::info::default_concurrency()`:

@@ -1,0 +1,283 @@
+#include "cli_options.hpp"
+
+#include <charconv>
+#include <cmath>
+#include <string_view>
+#include <system_error>
+
+#include <progiso/core/detail/file_input.hpp>
+#include <progiso/core/detail/file_output.hpp>
+#include <progiso/core/error.hpp>
+
+namespace progiso::cli {
+
+const char* const usage_text =
+    "usage:\n"
+    "  progiso extract INPUT -o OUT.ply|OUT.obj --iso W\n"
+    "          [--dims NX,NY,NZ --type u8|i8|u16|i16|u32|i32|f32|f64 [--big-endian]]\n"
+    "          [--spacing SX,SY,SZ] [--full | --error E | --max-triangles K | --time-ms T]\n"
+    "          [--stats-json FILE] [--threads N]\n"
+    "  progiso extract --demo -o OUT.ply [--iso W] [--threads N]\n"
+    "  progiso contour INPUT.pgm|INPUT.png -o OUT.obj|OUT.svg --iso W[,W2,...]\n"
+    "          [--full | --error E | --max-segments K | --time-ms T] [--frames DIR]\n"
+    "          [--stats-json FILE]\n"
+    "\n"
+    "INPUT is a .nrrd/.nhdr file, or a headerless raw file described by --dims and --type\n"
+    "(x fastest, little-endian unless --big-endian). --demo uses a built-in 129^3\n"
+    "Marschner-Lobb volume (isovalue 0.5 unless --iso is given).\n"
+    "Modes: --full (default) refines everywhere the surface can be; --error E stops when\n"
+    "every remaining split error is <= E; --max-triangles K keeps at most K triangles;\n"
+    "--time-ms T refines for T milliseconds and returns the surface published by then.\n"
+    "--threads N runs the concurrent engine on N threads (default: all cores); --full gives\n"
+    "the same file for every N.\n"
+    "contour: INPUT is a binary PGM (8/16 bit) or a grayscale PNG; several isovalues are\n"
+    "comma-separated and refined one after the other (a budget or deadline is shared);\n"
+    "OBJ gets 'v x y 0' and 'l ...' polylines, SVG draws them over the image;\n"
+    "--frames DIR writes one SVG per refinement stage.\n"
+    "Outputs appear only when everything succeeded; an output that names an input or\n"
+    "another output is refused.\n";
+
+namespace {
+
+/// 'TEXT' for a message: at most 40 bytes, non-printable bytes escaped.
+std::string shown(const std::string& text) {
+  std::string q = detail::quoted(text);
+  q.front() = '\'';
+  q.back() = '\'';
+  return q;
+}
+
+/// The value after option args[i] (advancing i), or a one-line error naming the option.
+std::string next_value(const std::vector<std::string>& args, std::size_t& i,
+                       const std::string& flag) {
+  if (i + 1 >= args.size()) throw error(flag + ": missing value");
+  return args[++i];
+}
+
+/// Splits "a,b,c" at commas; every part must be non-empty.
+std::vector<std::string> split_list(const std::string& flag, const std::string& text) {
+  std::vector<std::string> parts;
+  std::size_t start = 0;
+  for (;;) {
+    const std::size_t comma = text.find(',', start);
+    parts.push_back(
+        text.substr(start, comma == std::string::npos ? std::string::npos : comma - start));
+    if (parts.back().empty()) {
+      throw error(flag + ": expected comma-separated values, found " + shown(text));
+    }
+    if (comma == std::string::npos) break;
+    start = comma + 1;
+  }
+  return parts;
+}
+
+std::vector<std::string> split_three(const std::string& flag, const std::string& text) {
+  const auto parts = text.empty() ? std::vector<std::string>{} : split_list(flag, text);
+  if (parts.size() != 3) {
+    throw error(flag + ": expected three comma-separated values, found " + shown(text));
+  }
+  return parts;
+}
+
+}  // namespace
+
+double parse_number(const std::string& flag, const std::string& text) {
+  std::string_view t = text;
+  if (t.size() > 1 && t[0] == '+' && t[1] != '-' && t[1] != '+') t.remove_prefix(1);
+  double v = 0.0;
+  const auto r = std::from_chars(t.data(), t.data() + t.size(), v);
+  if (r.ec == std::errc::result_out_of_range && r.ptr == t.data() + t.size()) {
+    throw error(flag + ": expected a finite number, found " + shown(text) +
+                " (beyond the range of a double)");
+  }
+  if (r.ec != std::errc{} || r.ptr != t.data() + t.size() || t.empty()) {
+    throw error(flag + ": expected a number, found " + shown(text));
+  }
+  if (!std::isfinite(v)) throw error(flag + ": expected a finite number, found " + shown(text));
+  return v;
+}
+
+std::uint64_t parse_count(const std::string& flag, const std::string& text) {
+  const auto bad = [&] {
+    return error(flag + ": expected a non-negative integer up to 18446744073709551615, found " +
+                 shown(text));
+  };
+  std::uint64_t n = 0;
+  const auto r = std::from_chars(text.data(), text.data() + text.size(), n);
+  if (r.ec == std::errc{} && r.ptr == text.data() + text.size() && !text.empty()) return n;
+  if (r.ec == std::errc::result_out_of_range) throw bad();
+  double v = 0.0;
+  try {
+    v = parse_number(flag, text);
+  } catch (const error&) {
+    throw bad();
+  }
+  // 2^64 is exactly representable; every double below it that is integral converts exactly.
+  if (!(v >= 0.0) || v != std::floor(v) || v >= 18446744073709551616.0) throw bad();
+  return static_cast<std::uint64_t>(v);
+}
+
+extract_arguments parse_extract(const std::vector<std::string>& args) {
+  extract_arguments a;
+  if (args.empty()) {
+    throw error("missing command (expected 'extract' or 'contour'; see progiso --help)");
+  }
+  if (args[0] != "extract") {
+    throw error("unknown command " + shown(args[0]) + " (expected 'extract' or 'contour')");
+  }
+  int modes = 0;
+  for (std::size_t i = 1; i < args.size(); ++i) {
+    const std::string& f = args[i];
+    const auto value = [&] { return next_value(args, i, f); };
+    if (f == "-o" || f == "--output") {
+      a.output = value();
+    } else if (f == "--iso") {
+      a.iso = parse_number(f, value());
+    } else if (f == "--demo") {
+      a.demo = true;
+    } else if (f == "--dims") {
+      const auto parts = split_three(f, value());
+      index3 d{};
+      for (std::size_t q = 0; q < 3; ++q) {
+        const std::uint64_t v = parse_count(f, parts[q]);
+        if (v < 1 || v > 1000000000) {
+          throw error("--dims: expected positive integers up to 1000000000, found " +
+                      shown(parts[q]));
+        }
+        d[q] = static_cast<std::int64_t>(v);
+      }
+      a.dims = d;
+    } else if (f == "--type") {
+      const std::string t = value();
+      a.type = parse_sample_type(t);
+      if (!a.type) {
+        throw error("--type: expected one of u8 i8 u16 i16 u32 i32 f32 f64, found " + shown(t));
+      }
+    } else if (f == "--big-endian") {
+      a.big_endian = true;
+    } else if (f == "--spacing") {
+      const auto parts = split_three(f, value());
+      std::array<double, 3> s{};
+      for (std::size_t q = 0; q < 3; ++q) {
+        s[q] = parse_number(f, parts[q]);
+        if (s[q] <= 0) throw error("--spacing: expected positive values, found " + shown(parts[q]));
+      }
+      a.spacing = s;
+    } else if (f == "--full") {
+      a.options.mode = extract_mode::full;
+      ++modes;
+    } else if (f == "--error") {
+      a.options.mode = extract_mode::error;
+      a.options.max_error = parse_number(f, value());
+      if (a.options.max_error < 0) throw error("--error: expected a non-negative number");
+      ++modes;
+    } else if (f == "--max-triangles") {
+      a.options.mode = extract_mode::triangles;
+      a.options.max_triangles = parse_count(f, value());
+      ++modes;
+    } else if (f == "--time-ms") {
+      a.options.mode = extract_mode::time;
+      const double ms = parse_number(f, value());
+      if (ms < 0) throw error("--time-ms: expected a non-negative number of milliseconds");
+      // Budgets beyond the clock's range saturate (deadline_after): no deadline at all.
+      a.options.time_budget = std::chrono::duration<double>(ms / 1000.0);
+      ++modes;
+    } else if (f == "--stats-json") {
+      a.stats_json = value();
+    } else if (f == "--threads") {
+      const std::string t = value();
+      const std::uint64_t n = parse_count(f, t);
+      if (n < 1 || n > 4096) {
+        throw error("--threads: expected an integer from 1 to 4096, found " + shown(t));
+      }
+      a.threads = static_cast<unsigned>(n);
+    } else if (f == "-h" || f == "--help") {
+      a.help = true;
+      return a;
+    } else if (!f.empty() && f[0] == '-') {
+      throw error("unknown option " + shown(f));
+    } else if (!a.input) {
+      a.input = f;
+    } else {
+      throw error("unexpected argument " + shown(f) + " (only one INPUT is allowed)");
+    }
+  }
+  if (modes > 1) throw error("choose at most one of --full, --error, --max-triangles, --time-ms");
+  if (a.demo && a.input) throw error("--demo takes no INPUT");
+  if (!a.demo && !a.input) throw error("missing INPUT (or --demo)");
+  if (!a.output) throw error("missing -o OUT.ply|OUT.obj");
+  if (!a.demo && !a.iso) throw error("missing --iso W");
+  if (a.dims.has_value() != a.type.has_value()) {
+    throw error("--dims and --type must be given together for a raw volume");
+  }
+  if (a.big_endian && !a.dims) throw error("--big-endian applies to raw input with --dims/--type");
+  const std::string ext = detail::lower_extension(*a.output);
+  if (ext != ".ply" && ext != ".obj") {
+    throw error(*a.output + ": unknown mesh format (expected a .ply or .obj file name)");
+  }
+  if (a.stats_json && a.stats_json->empty()) {
+    throw error("--stats-json: expected a file name, found an empty one");
+  }
+  return a;
+}
+
+contour_arguments parse_contour(const std::vector<std::string>& args) {
+  contour_arguments a;
+  if (args.empty() || args[0] != "contour") throw error("expected the 'contour' command");
+  int modes = 0;
+  for (std::size_t i = 1; i < args.size(); ++i) {
+    const std::string& f = args[i];
+    const auto value = [&] { return next_value(args, i, f); };
+    if (f == "-o" || f == "--output") {
+      a.output = value();
+    } else if (f == "--iso") {
+      for (const auto& part : split_list(f, value())) a.isovalues.push_back(parse_number(f, part));
+    } else if (f == "--full") {
+      a.options.mode = contour_mode::full;
+      ++modes;
+    } else if (f == "--error") {
+      a.options.mode = contour_mode::error;
+      a.options.max_error = parse_number(f, value());
+      if (a.options.max_error < 0) throw error("--error: expected a non-negative number");
+      ++modes;
+    } else if (f == "--max-segments") {
+      a.options.mode = contour_mode::segments;
+      a.options.max_segments = parse_count(f, value());
+      ++modes;
+    } else if (f == "--time-ms") {
+      const double ms = parse_number(f, value());
+      if (ms < 0) throw error("--time-ms: expected a non-negative number of milliseconds");
+      a.options.mode = contour_mode::time;
+      a.options.time_budget = std::chrono::duration<double>(ms / 1000.0);
+      ++modes;
+    } else if (f == "--frames") {
+      a.frames = value();
+      if (a.frames->empty()) throw error("--frames: expected a directory name, found an empty one");
+    } else if (f == "--stats-json") {
+      a.stats_json = value();
+      if (a.stats_json->empty()) {
+        throw error("--stats-json: expected a file name, found an empty one");
+      }
+    } else if (f == "-h" || f == "--help") {
+      a.help = true;
+      return a;
+    } else if (!f.empty() && f[0] == '-') {
+      throw error("unknown option " + shown(f));
+    } else if (!a.input) {
+      a.input = f;
+    } else {
+      throw error("unexpected argument " + shown(f) + " (only one INPUT is allowed)");
+    }
+  }
+  if (modes > 1) throw error("choose at most one of --full, --error, --max-segments, --time-ms");
+  if (!a.input) throw error("missing INPUT.pgm|INPUT.png");
+  if (!a.output) throw error("missing -o OUT.obj|OUT.svg");
+  if (a.isovalues.empty()) throw error("missing --iso W[,W2,...]");
+  const std::string ext = detail::lower_extension(*a.output);
+  if (ext != ".obj" && ext != ".svg") {
+    throw error(*a.output + ": unknown contour format (expected a .obj or .svg file name)");
+  }
+  return a;
+}
+
+}  // namespace progiso::cli

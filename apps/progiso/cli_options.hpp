@@ -1,0 +1,61 @@
+// apps/progiso/cli_options.hpp — the command line of `progiso extract` and `progiso contour`,
+// parsed into plain structs. Pure: no file is touched, nothing is printed, nothing exits, so
+// the parser can be fuzzed (fuzz/cli_options_fuzz.cpp) and tested on its own. Every bad
+// argument throws progiso::error with one line that names the option and what was found.
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <progiso/core/contour_refiner.hpp>
+#include <progiso/core/refiner.hpp>
+#include <progiso/core/volume.hpp>
+
+namespace progiso::cli {
+
+extern const char* const usage_text;
+
+/// A finite double, written as C's strtod would accept it without leading spaces (an
+/// optional sign, decimal or hexadecimal digits, an exponent); subnormal values such as
+/// 1e-320 are numbers too. Throws "FLAG: expected a number, found 'TEXT'" or "FLAG: expected a
+/// finite number …" for overflow, inf and nan.
+[[nodiscard]] double parse_number(const std::string& flag, const std::string& text);
+
+/// A non-negative integer up to 2^64 − 1, written in decimal or as an integral number such as
+/// 1e6. Throws "FLAG: expected a non-negative integer …" otherwise (also beyond 2^64 − 1).
+[[nodiscard]] std::uint64_t parse_count(const std::string& flag, const std::string& text);
+
+struct extract_arguments {
+  bool help = false;
+  std::optional<std::string> input;
+  bool demo = false;
+  std::optional<std::string> output;
+  std::optional<double> iso;
+  std::optional<index3> dims;
+  std::optional<sample_type> type;
+  bool big_endian = false;
+  std::optional<std::array<double, 3>> spacing;
+  extract_options options;
+  std::optional<std::string> stats_json;
+  unsigned threads = 0;  // 0: all cores
+};
+
+struct contour_arguments {
+  bool help = false;
+  std::optional<std::string> input;
+  std::optional<std::string> output;
+  std::vector<double> isovalues;
+  contour_options options;
+  std::optional<std::string> frames;
+  std::optional<std::string> stats_json;
+};
+
+/// `args` is argv without the program name, starting with "extract". Throws progiso::error.
+[[nodiscard]] extract_arguments parse_extract(const std::vector<std::string>& args);
+/// `args` is argv without the program name, starting with "contour". Throws progiso::error.
+[[nodiscard]] contour_arguments parse_contour(const std::vector<std::string>& args);
+
+}  // namespace progiso::cli

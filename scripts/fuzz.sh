@@ -1,0 +1,77 @@
+#!/usr/bin/env bash
+# Builds progiso's libFuzzer harnesses (clang, AddressSanitizer + UBSan: the `fuzz` preset) and
+# runs each for as long as asked.
+#
+#   scripts/fuzz.sh [SECONDS_PER_HARNESS] [HARNESS ...]     (default: 60 s, every harness)
+#
+# Harnesses: raw nrrd pgm png ply obj cli extract (tests/fuzz/*_fuzz.cpp). Each starts from a working
+# corpus in build/fuzz/corpus/<harness>: the committed seeds and regressions
+# (tests/fuzz/corpus/<harness>), plus crops of the real data in ../shared/data (or
+# $PROGISO_DATA_DIR) made by tests/fuzz/make_seeds.py; the corpus grows across runs. An input
+# that crashes a harness is written to build/fuzz/artifacts/<harness>/: copy it into
+# tests/fuzz/corpus/<harness>/ so that every test build replays it from then on.
+#
+# Prints one line per harness (executions, executions per second, corpus size, crashes) and
+# exits non-zero when any harness found a crash. Two harnesses run at a time ($PROGISO_FUZZ_JOBS).
+set -euo pipefail
+cd "$(dirname "$0")/.."
+
+seconds="${1:-60}"
+shift || true
+harnesses=("$@")
+[ ${#harnesses[@]} -gt 0 ] || harnesses=(raw nrrd pgm png ply obj cli extract)
+jobs="${PROGISO_FUZZ_JOBS:-2}"
+
+./scripts/install-deps.sh --fuzz >/dev/null
+cmake --preset fuzz >/dev/null
+targets=()
+for h in "${harnesses[@]}"; do targets+=("progiso_fuzz_$h"); done
+cmake --build build/fuzz --target "${targets[@]}" >/dev/null
+
+work=build/fuzz
+data="${PROGISO_DATA_DIR:-../shared/data}"
+seeds="$work/seeds"
+rm -rf "$seeds"
+if [ -d "$data" ]; then
+  python3 tests/fuzz/make_seeds.py "$seeds" "$data"
+else
+  python3 tests/fuzz/make_seeds.py "$seeds"
+fi
+
+run_one() {
+  local h="$1"
+  local corpus="$work/corpus/$h" artifacts="$work/artifacts/$h/" log="$work/logs/$h.log"
+  mkdir -p "$corpus" "$artifacts" "$(dirname "$log")"
+  cp -n tests/fuzz/corpus/"$h"/* "$corpus"/ 2>/dev/null || true
+  cp -n "$seeds/$h"/* "$corpus"/ 2>/dev/null || true
+  local status=0
+  "$work/tests/fuzz/progiso_fuzz_$h" "$corpus" -max_total_time="$seconds" \
+      -artifact_prefix="$artifacts" -print_final_stats=1 -rss_limit_mb=2048 -timeout=20 \
+      -max_len=262144 -close_fd_mask=3 >"$log" 2>&1 || status=$?
+  local execs rate size crashes
+  execs=$(sed -n 's/^stat::number_of_executed_units: *//p' "$log" | tail -1)
+  rate=$(sed -n 's/^stat::average_exec_per_sec: *//p' "$log" | tail -1)
+  size=$(find "$corpus" -type f | wc -l)
+  crashes=$(find "$artifacts" -type f | wc -l)
+  printf 'fuzz %-5s %12s executions %8s/s  corpus %6s  crashes %s  (exit %s)\n' \
+      "$h" "${execs:-?}" "${rate:-?}" "$size" "$crashes" "$status"
+  [ "$status" -eq 0 ] && [ "$crashes" -eq 0 ]
+}
+
+failed=0
+pids=()
+names=()
+for h in "${harnesses[@]}"; do
+  run_one "$h" &
+  pids+=($!)
+  names+=("$h")
+  if [ ${#pids[@]} -ge "$jobs" ]; then
+    wait "${pids[0]}" || { failed=1; echo "fuzz ${names[0]}: FOUND A CRASH, see $work/logs/${names[0]}.log"; }
+    pids=("${pids[@]:1}")
+    names=("${names[@]:1}")
+  fi
+done
+for i in "${!pids[@]}"; do
+  wait "${pids[$i]}" || { failed=1; echo "fuzz ${names[$i]}: FOUND A CRASH, see $work/logs/${names[$i]}.log"; }
+done
+exit "$failed"

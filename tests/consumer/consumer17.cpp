@@ -1,0 +1,2 @@
+// Compiled with -std=c++17 by ctest: must stop at progiso/core/config.hpp's #error.
+#include <progiso/scheduler/engine.hpp>

@@ -1,0 +1,57 @@
+// tests/fuzz/fuzz_support.hpp — what every libFuzzer harness shares: a private scratch
+// directory (in /dev/shm when it exists: memory-backed, so a file per input costs microseconds)
+// and a way to write the input's bytes there under a chosen name. The readers take paths, so
+// the harnesses hand them real files, as the command does.
+//
+// A harness calls the code under test and catches progiso::error only: that is the documented
+// way to reject an input. Anything else — a crash, a sanitizer report, an uncaught exception
+// (std::bad_alloc included: a bad file must never be reported by running out of memory),
+// libFuzzer's RSS or malloc limit, a timeout — is a finding.
+#pragma once
+
+#include <unistd.h>
+
+#include <cstddef>
+#include <cstdint>
+#include <cstdio>
+#include <filesystem>
+#include <string>
+#include <string_view>
+#include <system_error>
+
+namespace progiso::fuzz {
+
+/// The process's scratch directory, created on first use and removed at exit.
+inline const std::filesystem::path& scratch() {
+  static const std::filesystem::path dir = [] {
+    std::error_code ec;
+    std::filesystem::path base = "/dev/shm";
+    if (!std::filesystem::is_directory(base, ec)) base = std::filesystem::temp_directory_path();
+    std::filesystem::path d = base / ("progiso-fuzz-" + std::to_string(::getpid()));
+    std::filesystem::create_directories(d, ec);
+    return d;
+  }();
+  static const struct cleanup {
+    ~cleanup() {
+      std::error_code ec;
+      std::filesystem::remove_all(dir, ec);
+    }
+  } remover;
+  return dir;
+}
+
+/// Writes `bytes` to scratch()/name (replacing it) and returns the path.
+inline std::filesystem::path write_file(const std::string& name, std::string_view bytes) {
+  const std::filesystem::path p = scratch() / name;
+  std::FILE* f = std::fopen(p.c_str(), "wb");
+  if (f == nullptr) std::abort();
+  if (!bytes.empty() && std::fwrite(bytes.data(), 1, bytes.size(), f) != bytes.size()) std::abort();
+  std::fclose(f);
+  return p;
+}
+
+inline std::string_view as_text(const std::uint8_t* data, std::size_t size) {
+  return {reinterpret_cast<const char*>(data), size};
+}
+
+}  // namespace progiso::fuzz

@@ -1,0 +1,245 @@
+#!/usr/bin/env python3
+"""Seed inputs for the fuzz harnesses in tests/fuzz/.
+
+    make_seeds.py OUT_DIR [SHARED_DATA_DIR]
+
+writes OUT_DIR/<harness>/<name> for the harnesses raw, extract, nrrd, pgm, png, ply, obj and cli: small
+valid files of every kind the readers accept, and the hostile cases of issue 11 (printf field
+widths in data file names, declared sizes far beyond the data, NaN samples, numbers beyond
+their types …). With SHARED_DATA_DIR (../shared/data), it adds crops of the real volumes and
+images there, in every encoding. The committed corpus (tests/fuzz/corpus/) is this script's
+output without SHARED_DATA_DIR plus every input that ever crashed a harness; scripts/fuzz.sh
+adds the shared-data seeds to its working corpus, outside the repository.
+"""
+import gzip
+import math
+import os
+import struct
+import sys
+import zlib
+
+
+def put(out, harness, name, data):
+    if harness == "raw":  # the extract harness reads the same layout
+        put(out, "extract", name, data)
+    d = os.path.join(out, harness)
+    os.makedirs(d, exist_ok=True)
+    with open(os.path.join(d, name), "wb") as f:
+        f.write(data if isinstance(data, bytes) else data.encode("latin-1"))
+
+
+# ---- raw: 6 header bytes (dims, type/flags, spacing selector, isovalue selector), then data.
+
+def raw_seed(dims, type_code, big, fit, spacing_sel, iso_sel, body):
+    flags = type_code | (8 if big else 0) | (16 if fit else 0)
+    return bytes([(d - 1) % 24 for d in dims] + [flags, spacing_sel, iso_sel]) + body
+
+
+def raw_seeds(out, crops):
+    cube = bytes((x * 7 + y * 13 + z * 29) % 251 for z in range(6) for y in range(6) for x in range(6))
+    put(out, "raw", "u8_cube", raw_seed((6, 6, 6), 0, False, False, 1, 128, cube))
+    put(out, "raw", "u8_fit", raw_seed((5, 7, 3), 0, False, True, 2, 90, cube[:50]))
+    f32 = b"".join(struct.pack("<f", math.sin(i * 0.3)) for i in range(64))
+    put(out, "raw", "f32", raw_seed((4, 4, 4), 6, False, False, 3, 120, f32))
+    f32_nan = b"".join(struct.pack("<f", float("nan") if i % 2 else i) for i in range(64))
+    put(out, "raw", "f32_every_other_nan", raw_seed((4, 4, 4), 6, False, False, 3, 120, f32_nan))
+    f64_be = b"".join(struct.pack(">d", i * 0.5 - 10) for i in range(27))
+    put(out, "raw", "f64_big_endian", raw_seed((3, 3, 3), 7, True, False, 1, 60, f64_be))
+    i16 = b"".join(struct.pack("<h", (i * 997) % 4000 - 2000) for i in range(64))
+    put(out, "raw", "i16", raw_seed((4, 4, 4), 3, False, False, 0, 200, i16))
+    put(out, "raw", "spacing_nan_bits", raw_seed((4, 4, 4), 0, False, True, 201,
+                                                 10, struct.pack("<d", float("nan")) + cube))
+    put(out, "raw", "spacing_1e308", raw_seed((8, 8, 8), 0, False, True, 202, 10,
+                                              struct.pack("<d", 1e308) + cube))
+    put(out, "raw", "size_mismatch", raw_seed((24, 24, 24), 4, False, False, 1, 1, cube))
+    for name, (dims, data) in crops.items():
+        put(out, "raw", "shared_" + name, raw_seed(dims, 0, False, True, 1, 100, data))
+    put(out, "raw", "image_one_sample_thick", raw_seed((24, 16, 1), 0, False, True, 1, 128,
+                                                       bytes((x * 11 + y * 5) % 256 for y in range(16) for x in range(24))))
+
+
+# ---- nrrd: attached files, and detached headers "\0DATA\0" data.
+
+SEP = b"\0DATA\0"
+
+
+def nrrd_seeds(out, crops):
+    cube = bytes((x * 7 + y * 13 + z * 29) % 251 for z in range(4) for y in range(4) for x in range(4))
+    base = "NRRD0004\ntype: uchar\ndimension: 3\nsizes: 4 4 4\n"
+    put(out, "nrrd", "raw_u8", (base + "encoding: raw\n\n").encode() + cube)
+    put(out, "nrrd", "gzip_u8", (base + "spacings: 1 2 3\nencoding: gzip\n\n").encode() + gzip.compress(cube))
+    i16 = b"".join(struct.pack(">h", v * 37 - 900) for v in range(64))
+    put(out, "nrrd", "gzip_i16_big", ("NRRD0004\ntype: short\ndimension: 3\nsizes: 4 4 4\n"
+                                      "endian: big\nencoding: gzip\n\n").encode() + gzip.compress(i16))
+    put(out, "nrrd", "ascii_float", "NRRD0004\ntype: float\ndimension: 3\nsizes: 2 2 2\nencoding: ascii\n\n"
+        "1 2.5 -3 4e2\n1e-320 6 7 8\n")
+    put(out, "nrrd", "hex_u16", "NRRD0004\ntype: ushort\ndimension: 3\nsizes: 2 2 2\nendian: little\n"
+        "encoding: hex\n\n0102030405060708090a0b0c0d0e0f10\n")
+    put(out, "nrrd", "space_directions",
+        "NRRD0005\n# comment\ntype: uint8\ndimension: 3\nspace: right-anterior-superior\nsizes: 4 4 4\n"
+        "space directions: (0.5,0,0) (0,-2,0) (0,0,3)\nspace origin: (1.5,-2,30)\nkinds: domain domain domain\n"
+        "key:=value\nencoding: raw\n\n".encode() + cube)
+    put(out, "nrrd", "byte_skip_minus_one", (base + "encoding: raw\nbyte skip: -1\n\n").encode() + b"junk" + cube)
+    put(out, "nrrd", "line_skip", (base + "encoding: raw\nline skip: 2\n\n").encode() + b"a\nb\n" + cube)
+    put(out, "nrrd", "declared_2000x2000x1000",
+        "NRRD0004\ntype: uchar\ndimension: 3\nsizes: 2000 2000 1000\nencoding: raw\n\n".encode() + bytes(2000))
+    put(out, "nrrd", "declared_gzip_doubles",
+        "NRRD0004\ntype: double\ndimension: 3\nsizes: 2000 2000 1000\nendian: little\nencoding: gzip\n\n".encode()
+        + gzip.compress(bytes(100000)))
+    put(out, "nrrd", "many_keys", (base + "".join("k%d:=v\n" % i for i in range(2000)) + "encoding: raw\n\n").encode() + cube)
+    det = base + "encoding: raw\n"
+    put(out, "nrrd", "detached_single", (det + "data file: d.raw\n").encode() + SEP + cube)
+    put(out, "nrrd", "detached_gzip", (base + "encoding: gzip\ndata file: d.raw.gz\n").encode() + SEP + gzip.compress(cube))
+    put(out, "nrrd", "detached_list", (det + "data file: LIST\nd0.raw\nd1.raw\nd2.raw\nd.raw\n").encode() + SEP + cube[:16])
+    put(out, "nrrd", "detached_pattern", (det + "data file: d%d.raw 0 2 1 2\n").encode() + SEP + cube)
+    for width in ("%64d", "%100000d", "%s", "%n", "%d%d", "%0999999999d", "%%d%d"):
+        put(out, "nrrd", "pattern_" + width.replace("%", "pct"), (det + "data file: " + width + " 0 1 1\n").encode() + SEP + cube)
+    put(out, "nrrd", "data_file_dev_zero", (det + "data file: /dev/zero\n").encode() + SEP)
+    for name, (dims, data) in crops.items():
+        head = "NRRD0004\ntype: uchar\ndimension: 3\nsizes: %d %d %d\n" % dims
+        put(out, "nrrd", "shared_%s_raw" % name, (head + "encoding: raw\n\n").encode() + data)
+        put(out, "nrrd", "shared_%s_gzip" % name, (head + "encoding: gzip\n\n").encode() + gzip.compress(data))
+
+
+# ---- images.
+
+def pgm(w, h, pixels, maxval=255):
+    if maxval < 256:
+        body = bytes(pixels)
+    else:
+        body = b"".join(struct.pack(">H", p) for p in pixels)
+    return ("P5\n# seed\n%d %d\n%d\n" % (w, h, maxval)).encode() + body
+
+
+def png_chunk(kind, data):
+    return struct.pack(">I", len(data)) + kind + data + struct.pack(">I", zlib.crc32(kind + data) & 0xffffffff)
+
+
+def png(w, h, rows, depth=8, color=0):
+    raw = b"".join(b"\0" + r for r in rows)
+    return (b"\x89PNG\r\n\x1a\n" + png_chunk(b"IHDR", struct.pack(">IIBBBBB", w, h, depth, color, 0, 0, 0))
+            + png_chunk(b"IDAT", zlib.compress(raw)) + png_chunk(b"IEND", b""))
+
+
+def image_seeds(out, images):
+    w, h = 24, 16
+    px = [int(127.5 + 120 * math.sin(x * 0.4) * math.cos(y * 0.3)) for y in range(h) for x in range(w)]
+    put(out, "pgm", "u8", pgm(w, h, px))
+    put(out, "pgm", "u16", pgm(w, h, [p * 4 for p in px], 1023))
+    put(out, "pgm", "wide_40000x2", "P5\n40000 2\n255\n".encode() + bytes(100))
+    put(out, "pgm", "maxval_0", "P5\n2 2\n0\n".encode() + bytes(4))
+    put(out, "pgm", "plain_p2", "P2\n2 2\n255\n1 2 3 4\n")
+    rows8 = [bytes(px[y * w:(y + 1) * w]) for y in range(h)]
+    put(out, "png", "gray8", png(w, h, rows8))
+    rows16 = [b"".join(struct.pack(">H", p * 200) for p in px[y * w:(y + 1) * w]) for y in range(h)]
+    put(out, "png", "gray16", png(w, h, rows16, 16))
+    rows1 = [bytes([0b10110010, 0b01011100, 0b11110000]) for _ in range(h)]
+    put(out, "png", "gray1", png(w, h, rows1, 1))
+    rowsa = [b"".join(bytes([p, 255]) for p in px[y * w:(y + 1) * w]) for y in range(h)]
+    put(out, "png", "gray_alpha", png(w, h, rowsa, 8, 4))
+    put(out, "png", "huge_header", png(30000, 30000, [b""], 8)[:60])
+    for name, (iw, ih, data) in images.items():
+        put(out, "pgm", "shared_" + name, pgm(iw, ih, data))
+        put(out, "png", "shared_" + name, png(iw, ih, [data[y * iw:(y + 1) * iw] for y in range(ih)]))
+
+
+# ---- mesh and contour files.
+
+def ply(vertices, faces):
+    head = ("ply\nformat binary_little_endian 1.0\ncomment generated by progiso\nelement vertex %d\n"
+            "property float x\nproperty float y\nproperty float z\nelement face %d\n"
+            "property list uchar int vertex_indices\nend_header\n" % (len(vertices), len(faces)))
+    body = b"".join(struct.pack("<fff", *v) for v in vertices)
+    body += b"".join(struct.pack("<Biii", 3, *f) for f in faces)
+    return head.encode() + body
+
+
+def mesh_seeds(out):
+    v = [(0, 0, 0), (1, 0, 0), (0, 1, 0), (0, 0, 1)]
+    f = [(0, 2, 1), (0, 1, 3), (0, 3, 2), (1, 2, 3)]
+    put(out, "ply", "tetrahedron", ply(v, f))
+    put(out, "ply", "bad_index", ply(v, [(0, 1, 7)]))
+    put(out, "ply", "negative_index", ply(v, [(0, 1, -1)]))
+    put(out, "ply", "truncated", ply(v, f)[:-5])
+    put(out, "ply", "huge_count", ply(v, f).replace(b"element face 4", b"element face 4000000000"))
+    put(out, "obj", "contours", "# generated by progiso: isocontours, 4 vertices, 2 polylines\n"
+        "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\n# isovalue 64\nl 1 2 3 4 1\n# isovalue 127.5\nl 2 3\n")
+    put(out, "obj", "streamed", "# generated by progiso: isocontours\nv 0 0 0\nv 1 0 0\n# isovalue 1\nl 1 2\n"
+        "v 2 0 0\nv 3 1 0\n# isovalue 2\nl 3 4\n")
+    put(out, "obj", "bad_index", "v 0 0 0\nl 1 2\n")
+    put(out, "obj", "z_not_zero", "v 0 0 1\nl 1\n")
+    put(out, "obj", "subnormal", "v 1e-320 0 0\nv 1 1 0\n# isovalue 1e-320\nl 1 2\n")
+    put(out, "obj", "face", "v 0 0 0\nf 1 1 1\n")
+
+
+# ---- command lines, NUL-separated.
+
+def cli_seeds(out):
+    cases = {
+        "extract_raw": ["extract", "v.raw", "--dims", "64,64,93", "--type", "i16", "--spacing", "3.2,3.2,1.5",
+                        "--iso", "500", "--max-triangles", "50000", "-o", "skin.ply"],
+        "extract_nrrd": ["extract", "scan.nrrd", "--iso", "120", "--time-ms", "33", "-o", "q.obj",
+                         "--stats-json", "s.json", "--threads", "2"],
+        "demo": ["extract", "--demo", "-o", "demo.ply", "--stats-json", "demo.json"],
+        "time_overflow": ["extract", "v.nrrd", "--iso", "1", "--time-ms", "9.3e12", "-o", "o.ply"],
+        "count_overflow": ["extract", "v.nrrd", "--iso", "1", "--max-triangles", "3e19", "-o", "o.ply"],
+        "count_max": ["extract", "v.nrrd", "--iso", "1", "--max-triangles", "18446744073709551615", "-o", "o.ply"],
+        "spacing_huge": ["extract", "v.raw", "--dims", "8,8,8", "--type", "u8", "--spacing", "1e40,1,1",
+                         "--iso", "1", "-o", "o.ply"],
+        "subnormal": ["extract", "v.nrrd", "--iso", "1e-320", "--error", "4.9e-324", "-o", "o.obj"],
+        "hex_float": ["extract", "v.nrrd", "--iso", "0x1p-3", "-o", "o.obj"],
+        "contour": ["contour", "coins.pgm", "--iso", "64,128,192", "-o", "coins.svg", "--frames", "f"],
+        "contour_many": ["contour", "dem.pgm", "--iso", ",".join(str(300 + 50 * i) for i in range(15)),
+                         "--error", "5", "-o", "dem.obj"],
+        "contour_segments": ["contour", "a.png", "--iso", "10", "--max-segments", "1e6", "-o", "a.obj"],
+        "help": ["extract", "--help"],
+        "missing_value": ["extract", "v.nrrd", "--iso"],
+    }
+    for name, args in cases.items():
+        put(out, "cli", name, "\0".join(args))
+
+
+def shared_crops(data_dir):
+    """16^3 crops of the 8-bit shared volumes and 48 x 32 crops of the shared images."""
+    crops, images = {}, {}
+    if not data_dir:
+        return crops, images
+    for name, (nx, ny, nz) in {"bucky_32x32x32_uint8.raw": (32, 32, 32),
+                               "nucleon_41x41x41_uint8.raw": (41, 41, 41),
+                               "hipip_68x68x68_uint8.raw": (68, 68, 68)}.items():
+        path = os.path.join(data_dir, name)
+        if not os.path.exists(path):
+            continue
+        with open(path, "rb") as f:
+            vol = f.read()
+        x0, y0, z0 = nx // 4, ny // 4, nz // 4
+        crop = bytes(vol[(x0 + x) + nx * ((y0 + y) + ny * (z0 + z))]
+                     for z in range(16) for y in range(16) for x in range(16))
+        crops[name.split("_")[0]] = ((16, 16, 16), crop)
+    for name in ("camera_512x512.pgm", "coins_384x303.pgm"):
+        path = os.path.join(data_dir, name)
+        if not os.path.exists(path):
+            continue
+        with open(path, "rb") as f:
+            raw = f.read()
+        w, h = (int(t) for t in name.split("_")[1].split(".")[0].split("x"))
+        body = raw[len(raw) - w * h:]
+        x0, y0 = w // 3, h // 3
+        images[name.split("_")[0]] = (48, 32, bytes(body[(y0 + y) * w + x0 + x] for y in range(32) for x in range(48)))
+    return crops, images
+
+
+def main():
+    if len(sys.argv) not in (2, 3):
+        sys.exit(__doc__)
+    out = sys.argv[1]
+    crops, images = shared_crops(sys.argv[2] if len(sys.argv) == 3 else None)
+    raw_seeds(out, crops)
+    nrrd_seeds(out, crops)
+    image_seeds(out, images)
+    mesh_seeds(out)
+    cli_seeds(out)
+
+
+if __name__ == "__main__":
+    main()

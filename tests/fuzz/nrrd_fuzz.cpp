@@ -1,0 +1,40 @@
+// Fuzz harness: NRRD files, attached (.nrrd) and detached (.nhdr with data files).
+//
+// Input layout: when the input holds the separator "\0DATA\0", what comes before it is a
+// detached header (v.nhdr) and what follows is written as each of the data files d.raw, d0.raw,
+// d1.raw, d2.raw and d.raw.gz that seeds' headers name; otherwise the whole input is v.nrrd.
+// Both the reader and volume_input_files() (the command's input list) are run.
+#include <cstdint>
+#include <string_view>
+
+#include <progiso/core/error.hpp>
+#include <progiso/core/volume_io.hpp>
+
+#include "fuzz_support.hpp"
+
+extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
+  using namespace progiso;
+  const std::string_view text = fuzz::as_text(data, size);
+  constexpr std::string_view separator("\0DATA\0", 6);
+  const std::size_t cut = text.find(separator);
+  std::filesystem::path file;
+  if (cut == std::string_view::npos) {
+    file = fuzz::write_file("v.nrrd", text);
+  } else {
+    const std::string_view payload = text.substr(cut + separator.size());
+    for (const char* name : {"d.raw", "d0.raw", "d1.raw", "d2.raw", "d.raw.gz"}) {
+      fuzz::write_file(name, payload);
+    }
+    file = fuzz::write_file("v.nhdr", text.substr(0, cut));
+  }
+  try {
+    (void)volume_input_files(file, std::nullopt);
+  } catch (const progiso::error&) {
+  }
+  try {
+    const volume v = read_volume(file, std::nullopt, std::nullopt);
+    (void)v.value_range();
+  } catch (const progiso::error&) {
+  }
+  return 0;
+}
