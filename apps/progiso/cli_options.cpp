@@ -117,6 +117,44 @@ std::uint64_t parse_count(const std::string& flag, const std::string& text) {
   return static_cast<std::uint64_t>(v);
 }
 
+namespace {
+
+/// The mode options shared by both commands: --full, --error E, the budget flag (--max-triangles
+/// or --max-segments) K, --time-ms T. Returns false when `f` is none of them; counts the modes
+/// given in `modes`. The modes enums share their order: full, error, budget, time.
+template <class Options, class Value>
+bool parse_mode(const std::string& f, const Value& value, const char* budget_flag,
+                std::uint64_t Options::*budget, Options& o, int& modes) {
+  using mode = decltype(o.mode);
+  if (f == "--full") {
+    o.mode = static_cast<mode>(0);
+  } else if (f == "--error") {
+    o.mode = static_cast<mode>(1);
+    o.max_error = parse_number(f, value());
+    if (o.max_error < 0) throw error("--error: expected a non-negative number");
+  } else if (f == budget_flag) {
+    o.mode = static_cast<mode>(2);
+    o.*budget = parse_count(f, value());
+  } else if (f == "--time-ms") {
+    o.mode = static_cast<mode>(3);
+    const double ms = parse_number(f, value());
+    if (ms < 0) throw error("--time-ms: expected a non-negative number of milliseconds");
+    // Budgets beyond the clock's range saturate (deadline_after): no deadline at all.
+    o.time_budget = std::chrono::duration<double>(ms / 1000.0);
+  } else {
+    return false;
+  }
+  ++modes;
+  return true;
+}
+
+static_assert(static_cast<int>(extract_mode::triangles) == 2 &&
+              static_cast<int>(extract_mode::time) == 3 &&
+              static_cast<int>(contour_mode::segments) == 2 &&
+              static_cast<int>(contour_mode::time) == 3);
+
+}  // namespace
+
 extract_arguments parse_extract(const std::vector<std::string>& args) {
   extract_arguments a;
   if (args.empty()) {
@@ -129,6 +167,10 @@ extract_arguments parse_extract(const std::vector<std::string>& args) {
   for (std::size_t i = 1; i < args.size(); ++i) {
     const std::string& f = args[i];
     const auto value = [&] { return next_value(args, i, f); };
+    if (parse_mode(f, value, "--max-triangles", &extract_options::max_triangles, a.options,
+                   modes)) {
+      continue;
+    }
     if (f == "-o" || f == "--output") {
       a.output = value();
     } else if (f == "--iso") {
@@ -163,25 +205,6 @@ extract_arguments parse_extract(const std::vector<std::string>& args) {
         if (s[q] <= 0) throw error("--spacing: expected positive values, found " + shown(parts[q]));
       }
       a.spacing = s;
-    } else if (f == "--full") {
-      a.options.mode = extract_mode::full;
-      ++modes;
-    } else if (f == "--error") {
-      a.options.mode = extract_mode::error;
-      a.options.max_error = parse_number(f, value());
-      if (a.options.max_error < 0) throw error("--error: expected a non-negative number");
-      ++modes;
-    } else if (f == "--max-triangles") {
-      a.options.mode = extract_mode::triangles;
-      a.options.max_triangles = parse_count(f, value());
-      ++modes;
-    } else if (f == "--time-ms") {
-      a.options.mode = extract_mode::time;
-      const double ms = parse_number(f, value());
-      if (ms < 0) throw error("--time-ms: expected a non-negative number of milliseconds");
-      // Budgets beyond the clock's range saturate (deadline_after): no deadline at all.
-      a.options.time_budget = std::chrono::duration<double>(ms / 1000.0);
-      ++modes;
     } else if (f == "--stats-json") {
       a.stats_json = value();
     } else if (f == "--threads") {
@@ -228,28 +251,13 @@ contour_arguments parse_contour(const std::vector<std::string>& args) {
   for (std::size_t i = 1; i < args.size(); ++i) {
     const std::string& f = args[i];
     const auto value = [&] { return next_value(args, i, f); };
+    if (parse_mode(f, value, "--max-segments", &contour_options::max_segments, a.options, modes)) {
+      continue;
+    }
     if (f == "-o" || f == "--output") {
       a.output = value();
     } else if (f == "--iso") {
       for (const auto& part : split_list(f, value())) a.isovalues.push_back(parse_number(f, part));
-    } else if (f == "--full") {
-      a.options.mode = contour_mode::full;
-      ++modes;
-    } else if (f == "--error") {
-      a.options.mode = contour_mode::error;
-      a.options.max_error = parse_number(f, value());
-      if (a.options.max_error < 0) throw error("--error: expected a non-negative number");
-      ++modes;
-    } else if (f == "--max-segments") {
-      a.options.mode = contour_mode::segments;
-      a.options.max_segments = parse_count(f, value());
-      ++modes;
-    } else if (f == "--time-ms") {
-      const double ms = parse_number(f, value());
-      if (ms < 0) throw error("--time-ms: expected a non-negative number of milliseconds");
-      a.options.mode = contour_mode::time;
-      a.options.time_budget = std::chrono::duration<double>(ms / 1000.0);
-      ++modes;
     } else if (f == "--frames") {
       a.frames = value();
       if (a.frames->empty()) throw error("--frames: expected a directory name, found an empty one");

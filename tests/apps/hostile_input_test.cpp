@@ -455,8 +455,15 @@ TEST_F(Hostile, eight_hundred_isovalues_take_about_the_memory_of_eight) {
   const bounded_result few =
       run({"contour", img.string(), "--iso", list(8), "-o", path("few.obj").string()}, b);
   ASSERT_EQ(few.status, 0) << few.err;
+  // Sanitizer builds (which do not measure the memory) run a tenth of the isovalues: the
+  // output is still checked.
+#if defined(PROGISO_SANITIZER_BUILD)
+  constexpr int count = 80;
+#else
+  constexpr int count = 800;
+#endif
   const bounded_result many =
-      run({"contour", img.string(), "--iso", list(800), "-o", path("many.obj").string()}, b);
+      run({"contour", img.string(), "--iso", list(count), "-o", path("many.obj").string()}, b);
   ASSERT_EQ(many.status, 0) << many.err;
   // About 4 MB per isovalue before (3.2 GB for 800): now the output's own size at most. The
   // sanitizers' allocators keep freed memory in quarantine, so only plain builds measure it.
@@ -469,7 +476,7 @@ TEST_F(Hostile, eight_hundred_isovalues_take_about_the_memory_of_eight) {
   for (const auto& p : c.polylines) {
     if (seen.empty() || seen.back() != p.isovalue) seen.push_back(p.isovalue);
   }
-  EXPECT_GT(seen.size(), 700u);
+  EXPECT_GT(seen.size(), count * 7u / 8u);
 }
 
 // ---- 7. Messages say what is true and name the file.
