@@ -4,6 +4,8 @@
 #
 #   scripts/install-deps.sh           what the README's two commands need
 #   scripts/install-deps.sh --fuzz    also clang's libFuzzer runtime (scripts/fuzz.sh)
+#   scripts/install-deps.sh --peers   also VTK, the peer the benchmarks compare with
+#                                     (bench/peer_bench.cpp; a large download)
 set -euo pipefail
 packages=(cmake ninja-build g++ clang-format pkg-config libgtest-dev libgmock-dev libbenchmark-dev
           libteem-dev zlib1g-dev libpng-dev libcgal-dev libgmp-dev libmpfr-dev libboost-dev
@@ -11,7 +13,8 @@ packages=(cmake ninja-build g++ clang-format pkg-config libgtest-dev libgmock-de
 for option in "$@"; do
   case "$option" in
     --fuzz) packages+=(clang libclang-rt-14-dev python3) ;;
-    *) echo "install-deps: unknown option $option (expected --fuzz)" >&2; exit 2 ;;
+    --peers) packages+=(libvtk9-dev) ;;
+    *) echo "install-deps: unknown option $option (expected --fuzz or --peers)" >&2; exit 2 ;;
   esac
 done
 missing=()

@@ -1,0 +1,264 @@
+// progiso against its peer, VTK's Flying Edges (issue 12), in one binary: vtkFlyingEdges3D on
+// every 3D volume of ../shared/data, 257³ and 513³ smooth fields (Marschner–Lobb) and the busy
+// vtkRTAnalyticSource wavelet at 256³ and 512³; vtkFlyingEdges2D on every image. Both sides
+// start from the volume in memory (FE reads progiso's own sample array, wrapped without a copy)
+// and end with the surface in memory: FE's vtkPolyData (normals, gradients and scalars off),
+// progiso's pipeline — range data, refinement and extraction of the finest cut into an indexed
+// mesh (extract_isosurface_parallel, as the command runs it), or the contour polylines in 2D.
+// vtkSMPTools runs on the same thread count as progiso.
+//
+// Each benchmark runs both sides in alternating pairs (the order flips every pair) and reports
+// medians: fe_ms, progiso_ms with its phases (range_ms, refine_ms, extract_ms), both triangle
+// (segment) counts, and `ratio`, the median of the per-pair ratios progiso / FE. The iteration
+// time Google Benchmark prints is progiso's. Built only when CMake finds VTK
+// (scripts/install-deps.sh --peers). Run:
+//   build/release/bench/progiso_peer_bench --benchmark_counters_tabular=true
+#include <progiso/core/analytic.hpp>
+#include <progiso/core/contour_refiner.hpp>
+#include <progiso/core/image_io.hpp>
+#include <progiso/core/refiner.hpp>
+#include <progiso/core/volume_io.hpp>
+#include <progiso/scheduler/engine.hpp>
+#include <progiso/scheduler/tbb_environment.hpp>
+
+#include <algorithm>
+#include <chrono>
+#include <cstdlib>
+#include <cstring>
+#include <filesystem>
+#include <map>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include <benchmark/benchmark.h>
+
+#include "steady_allocator.hpp"
+#include "vtk_peer.hpp"
+
+namespace progiso::bench {
+namespace {
+
+using clock_type = std::chrono::steady_clock;
+
+double ms_since(clock_type::time_point t0) {
+  return std::chrono::duration<double, std::milli>(clock_type::now() - t0).count();
+}
+
+double median(std::vector<double> v) {
+  std::sort(v.begin(), v.end());
+  return v.empty() ? 0.0 : v[v.size() / 2];
+}
+
+std::filesystem::path data_dir() {
+  if (const char* env = std::getenv("PROGISO_DATA_DIR")) return env;
+  return std::filesystem::path(PROGISO_SOURCE_DIR) / ".." / "shared" / "data";
+}
+
+struct input {
+  std::string name;
+  std::shared_ptr<const volume> vol;
+  double isovalue;
+  int pairs;  // alternating pairs per benchmark run
+};
+
+/// The wavelet of vtkRTAnalyticSource (its defaults) on n³ samples, as a progiso volume.
+std::shared_ptr<const volume> wavelet(int n) {
+  const std::vector<float> w = vtk_wavelet(n);
+  std::vector<std::byte> bytes(w.size() * sizeof(float));
+  std::memcpy(bytes.data(), w.data(), bytes.size());
+  return std::make_shared<const volume>(index3{n, n, n}, sample_type::f32, std::move(bytes));
+}
+
+const std::vector<input>& volumes() {
+  static const std::vector<input> all = [] {
+    std::vector<input> v;
+    const auto raw = [&](std::string name, const char* file, index3 dims, sample_type t,
+                         std::array<double, 3> spacing, double w) {
+      const std::filesystem::path p = data_dir() / file;
+      if (!std::filesystem::exists(p)) return;
+      v.push_back({std::move(name),
+                   std::make_shared<const volume>(read_raw(p, {dims, t, false}, spacing)), w, 21});
+    };
+    raw("bucky", "bucky_32x32x32_uint8.raw", {32, 32, 32}, sample_type::u8, {1, 1, 1}, 51);
+    raw("nucleon", "nucleon_41x41x41_uint8.raw", {41, 41, 41}, sample_type::u8, {1, 1, 1}, 60);
+    raw("neghip", "neghip_66x66x66_uint8.raw", {66, 66, 66}, sample_type::u8, {1, 1, 1}, 30);
+    raw("hipip", "hipip_68x68x68_uint8.raw", {68, 68, 68}, sample_type::u8, {1, 1, 1}, 128);
+    raw("headsq", "headsq_64x64x93_int16le.raw", {64, 64, 93}, sample_type::i16, {3.2, 3.2, 1.5},
+        500);
+    raw("brainsmall", "brainsmall_128x128x84_uint8.raw", {128, 128, 84}, sample_type::u8, {1, 1, 1},
+        50);
+    v.push_back(
+        {"ml257", std::make_shared<const volume>(make_marschner_lobb({257, 257, 257})), 0.5, 7});
+    v.push_back(
+        {"ml513", std::make_shared<const volume>(make_marschner_lobb({513, 513, 513})), 0.5, 3});
+    v.push_back({"wavelet256", wavelet(256), 157.0, 7});
+    v.push_back({"wavelet512", wavelet(512), 157.0, 3});
+    return v;
+  }();
+  return all;
+}
+
+const std::vector<input>& images() {
+  static const std::vector<input> all = [] {
+    std::vector<input> v;
+    const auto image = [&](std::string name, const char* file, double w) {
+      const std::filesystem::path p = data_dir() / file;
+      if (std::filesystem::exists(p)) {
+        v.push_back({std::move(name), std::make_shared<const volume>(read_image(p)), w, 41});
+      }
+    };
+    image("camera", "camera_512x512.pgm", 128);
+    image("coins", "coins_384x303.pgm", 128);
+    image("dem", "jacksboro_dem_403x344_u16.pgm", 600);
+    return v;
+  }();
+  return all;
+}
+
+/// Flying Edges on progiso's own samples (read in place).
+std::unique_ptr<flying_edges> peer(const volume& v, double isovalue) {
+  const int dims[3] = {static_cast<int>(v.dims()[0]), static_cast<int>(v.dims()[1]),
+                       static_cast<int>(v.dims()[2])};
+  return std::make_unique<flying_edges>(dims, v.spacing().data(), v.origin().data(),
+                                        static_cast<vtk_sample>(v.type()), v.bytes(), isovalue);
+}
+
+struct pair_stats {
+  std::vector<double> fe, mine, ratio, range, refine, extract;
+  double fe_cells = 0.0;
+  double mine_cells = 0.0;
+};
+
+void report(benchmark::State& state, const pair_stats& s, const char* cells) {
+  state.counters["fe_ms"] = median(s.fe);
+  state.counters["progiso_ms"] = median(s.mine);
+  state.counters["ratio"] = median(s.ratio);
+  if (!s.range.empty()) {
+    state.counters["range_ms"] = median(s.range);
+    state.counters["refine_ms"] = median(s.refine);
+    state.counters["extract_ms"] = median(s.extract);
+  }
+  state.counters[std::string("fe_") + cells] = s.fe_cells;
+  state.counters[std::string("progiso_") + cells] = s.mine_cells;
+}
+
+// ---- 3D: vtkFlyingEdges3D against the progiso pipeline.
+
+void BM_peer_volume(benchmark::State& state) {
+  const input& in = volumes()[static_cast<std::size_t>(state.range(0))];
+  const auto threads = static_cast<unsigned>(state.range(1));
+  const std::string backend = vtk_threads(static_cast<int>(threads));
+  state.SetLabel(in.name + " " + std::to_string(threads) + " thr, VTK SMP " + backend);
+  const std::unique_ptr<flying_edges> fe = peer(*in.vol, in.isovalue);
+  extract_options options;  // full
+  pair_stats s;
+  int pair = 0;
+  for (auto _ : state) {
+    double fe_ms = 0.0;
+    double mine_ms = 0.0;
+    const auto run_fe = [&] {
+      const auto t0 = clock_type::now();
+      const std::size_t cells = fe->run();
+      fe_ms = ms_since(t0);
+      s.fe_cells = static_cast<double>(cells);
+    };
+    const auto run_mine = [&] {
+      const auto t0 = clock_type::now();
+      const extract_result r = extract_isosurface_parallel(*in.vol, in.isovalue, options, threads);
+      mine_ms = ms_since(t0);
+      s.range.push_back(r.range_build_seconds * 1e3);
+      s.refine.push_back(r.refine_seconds * 1e3);
+      s.extract.push_back(r.extract_seconds * 1e3);
+      s.mine_cells = static_cast<double>(r.mesh.triangles.size());
+      benchmark::DoNotOptimize(r.mesh.vertices.data());
+    };
+    if (pair++ % 2 == 0) {
+      run_fe();
+      run_mine();
+    } else {
+      run_mine();
+      run_fe();
+    }
+    s.fe.push_back(fe_ms);
+    s.mine.push_back(mine_ms);
+    s.ratio.push_back(mine_ms / fe_ms);
+    state.SetIterationTime(mine_ms / 1e3);
+  }
+  report(state, s, "triangles");
+}
+
+// ---- 2D: vtkFlyingEdges2D against progiso's contours (polylines in memory).
+
+void BM_peer_image(benchmark::State& state) {
+  const input& in = images()[static_cast<std::size_t>(state.range(0))];
+  (void)vtk_threads(1);
+  state.SetLabel(in.name);
+  const std::unique_ptr<flying_edges> fe = peer(*in.vol, in.isovalue);
+  contour_options options;  // full
+  pair_stats s;
+  int pair = 0;
+  for (auto _ : state) {
+    double fe_ms = 0.0;
+    double mine_ms = 0.0;
+    const auto run_fe = [&] {
+      const auto t0 = clock_type::now();
+      const std::size_t cells = fe->run();
+      fe_ms = ms_since(t0);
+      s.fe_cells = static_cast<double>(cells);
+    };
+    const auto run_mine = [&] {
+      const auto t0 = clock_type::now();
+      const contour_result r = extract_contours(*in.vol, {in.isovalue}, options);
+      mine_ms = ms_since(t0);
+      s.mine_cells = static_cast<double>(r.contours.segment_count());
+      benchmark::DoNotOptimize(r.contours.vertices.data());
+    };
+    if (pair++ % 2 == 0) {
+      run_fe();
+      run_mine();
+    } else {
+      run_mine();
+      run_fe();
+    }
+    s.fe.push_back(fe_ms);
+    s.mine.push_back(mine_ms);
+    s.ratio.push_back(mine_ms / fe_ms);
+    state.SetIterationTime(mine_ms / 1e3);
+  }
+  report(state, s, "segments");
+}
+
+void register_all() {
+  const unsigned cores = std::max(1u, static_cast<unsigned>(scheduler::default_concurrency()));
+  for (std::size_t i = 0; i < volumes().size(); ++i) {
+    for (unsigned t = 1; t <= cores; t = t < 2 ? 2 : t * 4) {
+      benchmark::RegisterBenchmark(("BM_peer_volume/" + volumes()[i].name).c_str(), BM_peer_volume)
+          ->Args({static_cast<std::int64_t>(i), static_cast<std::int64_t>(t)})
+          ->Iterations(volumes()[i].pairs)
+          ->UseManualTime()
+          ->Unit(benchmark::kMillisecond);
+      if (t == cores) break;
+    }
+  }
+  for (std::size_t i = 0; i < images().size(); ++i) {
+    benchmark::RegisterBenchmark(("BM_peer_image/" + images()[i].name).c_str(), BM_peer_image)
+        ->Args({static_cast<std::int64_t>(i)})
+        ->Iterations(images()[i].pairs)
+        ->UseManualTime()
+        ->Unit(benchmark::kMillisecond);
+  }
+}
+
+}  // namespace
+}  // namespace progiso::bench
+
+int main(int argc, char** argv) {
+  progiso::bench::steady_allocator();
+  benchmark::Initialize(&argc, argv);
+  if (benchmark::ReportUnrecognizedArguments(argc, argv)) return 1;
+  progiso::bench::register_all();
+  benchmark::RunSpecifiedBenchmarks();
+  benchmark::Shutdown();
+  return 0;
+}
