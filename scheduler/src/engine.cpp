@@ -566,6 +566,7 @@ struct engine_impl {
                                                               : queue_discipline::largest_error);
     stop.store(false, std::memory_order_relaxed);  // relaxed: the thread start orders it
     user_cancelled = false;
+    pending_error = nullptr;  // a callback error belongs to the run it stopped
     budget_hit = false;
     active = true;
     active_flag.store(true, std::memory_order_relaxed);  // relaxed: status only
