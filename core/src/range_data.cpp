@@ -62,6 +62,75 @@ using detail::quantize_error;
 template <class T>
 using entry = detail::range_entry<T>;
 
+// The shape of a stencil: the subtree of the diamond centred at c, every vertex of every
+// descendant's tetrahedra and every descendant's split (centre, spine ends), as grid offsets
+// from c, sorted, without repeats. It depends only on c modulo 4 (scale 1) or 8 (scale-2 edge
+// midpoints), not on the volume, so it is found once per process by walking the subtree in a
+// probe hierarchy (the walk costs milliseconds; every range_data used to repeat it).
+struct stencil_shape {
+  bool used = false;
+  std::vector<ipoint> points;
+  std::vector<std::array<ipoint, 3>> splits;
+};
+
+struct stencil_shapes {
+  std::array<stencil_shape, 64> scale1;  // by class_of(c): c mod 4 per axis
+  std::array<stencil_shape, 512> edge2;  // scale-2 edge midpoints, by c mod 8 per axis
+};
+
+stencil_shape walk_subtree(const hierarchy& probe, const ipoint& c) {
+  std::vector<diamond> sub{probe.make_diamond(c)};
+  std::vector<ipoint> seen{c};
+  for (std::size_t k = 0; k < sub.size(); ++k) {
+    std::array<ipoint, 8> ch{};
+    const int n = probe.children(sub[k], ch);
+    for (int i = 0; i < n; ++i) {
+      const ipoint& x = ch[static_cast<std::size_t>(i)];
+      if (std::find(seen.begin(), seen.end(), x) != seen.end()) continue;
+      seen.push_back(x);
+      sub.push_back(probe.make_diamond(x));
+    }
+  }
+  stencil_shape shape;
+  shape.used = true;
+  const auto rel = [&](const ipoint& p) { return ipoint{p[0] - c[0], p[1] - c[1], p[2] - c[2]}; };
+  for (const diamond& d : sub) {
+    shape.points.push_back(rel(d.centre));
+    shape.points.push_back(rel(d.spine[0]));
+    shape.points.push_back(rel(d.spine[1]));
+    for (int m = 0; m < d.ring_size; ++m) {
+      shape.points.push_back(rel(d.ring[static_cast<std::size_t>(m)]));
+    }
+    shape.splits.push_back({rel(d.centre), rel(d.spine[0]), rel(d.spine[1])});
+  }
+  std::sort(shape.points.begin(), shape.points.end());
+  shape.points.erase(std::unique(shape.points.begin(), shape.points.end()), shape.points.end());
+  std::sort(shape.splits.begin(), shape.splits.end());
+  shape.splits.erase(std::unique(shape.splits.begin(), shape.splits.end()), shape.splits.end());
+  return shape;
+}
+
+const stencil_shapes& stencil_shape_table() {
+  // A function-local static: made once, thread-safe, on first use.
+  static const stencil_shapes table = [] {
+    stencil_shapes t;
+    const hierarchy probe({33, 33, 33});
+    for (std::int32_t cls = 0; cls < 64; ++cls) {
+      const ipoint c{8 + (cls & 3), 8 + ((cls >> 2) & 3), 8 + ((cls >> 4) & 3)};
+      if (((c[0] | c[1] | c[2]) & 1) == 0) continue;  // scale ≥ 2: stored, no stencil
+      t.scale1[static_cast<std::size_t>(cls)] = walk_subtree(probe, c);
+    }
+    for (std::int32_t cls = 0; cls < 512; ++cls) {
+      const ipoint c{16 + (cls & 7), 16 + ((cls >> 3) & 7), 16 + ((cls >> 6) & 7)};
+      if (((c[0] | c[1] | c[2]) & 1) != 0 || !probe.is_diamond(c)) continue;
+      if (probe.scale_of(c) != 2 || probe.make_diamond(c).type != 2) continue;
+      t.edge2[static_cast<std::size_t>(cls)] = walk_subtree(probe, c);
+    }
+    return t;
+  }();
+  return table;
+}
+
 // One dense array of entries per scale, clipped to the part of the grid whose diamonds have a
 // descendant reaching into the data box. Per axis, the vertices of the subtree of a diamond of
 // scale h centred at c lie within c ± r h, with r = 3 for edge midpoints (own radius h/2 away
@@ -439,74 +508,43 @@ class typed_range_data final : public range_data::impl {
     return static_cast<std::size_t>((c[0] & 3) | ((c[1] & 3) << 2) | ((c[2] & 3) << 4));
   }
 
-  // The stencil of the subtree of the diamond centred at c in `probe`: every vertex of every
-  // descendant's tetrahedra, and every descendant's split, as offsets in the volume's layout.
-  [[nodiscard]] stencil build_stencil(const hierarchy& probe, const ipoint& c) const {
+  // A stencil in this volume's layout: the class's relative offsets (stencil_shapes()) as
+  // linear offsets, sorted and without repeats (on a thin volume two grid offsets can share one).
+  [[nodiscard]] stencil make_stencil(const stencil_shape& shape) const {
     const auto& dims = vol->dims();
-    const auto lin = [&](const ipoint& p) {
-      return (p[0] - c[0]) + dims[0] * ((p[1] - c[1]) + dims[1] * std::int64_t{p[2] - c[2]});
+    const auto lin = [&](const ipoint& o) {
+      return o[0] + dims[0] * (o[1] + dims[1] * std::int64_t{o[2]});
     };
-    std::vector<diamond> sub{probe.make_diamond(c)};
-    std::vector<ipoint> seen{c};
-    for (std::size_t k = 0; k < sub.size(); ++k) {
-      std::array<ipoint, 8> ch{};
-      const int n = probe.children(sub[k], ch);
-      for (int i = 0; i < n; ++i) {
-        const ipoint& x = ch[static_cast<std::size_t>(i)];
-        if (std::find(seen.begin(), seen.end(), x) != seen.end()) continue;
-        seen.push_back(x);
-        sub.push_back(probe.make_diamond(x));
-      }
-    }
     stencil st;
-    const auto rel = [&](const ipoint& p) { return ipoint{p[0] - c[0], p[1] - c[1], p[2] - c[2]}; };
-    for (const diamond& d : sub) {
-      st.rel_points.push_back(rel(d.centre));
-      st.rel_points.push_back(rel(d.spine[0]));
-      st.rel_points.push_back(rel(d.spine[1]));
-      for (int m = 0; m < d.ring_size; ++m)
-        st.rel_points.push_back(rel(d.ring[static_cast<std::size_t>(m)]));
-      st.rel_splits.push_back({rel(d.centre), rel(d.spine[0]), rel(d.spine[1])});
-      st.points.push_back(lin(d.centre));
-      st.points.push_back(lin(d.spine[0]));
-      st.points.push_back(lin(d.spine[1]));
-      for (int m = 0; m < d.ring_size; ++m)
-        st.points.push_back(lin(d.ring[static_cast<std::size_t>(m)]));
-      st.splits.push_back({lin(d.centre), lin(d.spine[0]), lin(d.spine[1])});
-    }
+    st.rel_points = shape.points;
+    st.rel_splits = shape.splits;
+    for (const ipoint& o : shape.points) st.points.push_back(lin(o));
+    for (const auto& t : shape.splits) st.splits.push_back({lin(t[0]), lin(t[1]), lin(t[2])});
     std::sort(st.points.begin(), st.points.end());
     st.points.erase(std::unique(st.points.begin(), st.points.end()), st.points.end());
     std::sort(st.splits.begin(), st.splits.end());
     st.splits.erase(std::unique(st.splits.begin(), st.splits.end()), st.splits.end());
-    std::sort(st.rel_points.begin(), st.rel_points.end());
-    st.rel_points.erase(std::unique(st.rel_points.begin(), st.rel_points.end()),
-                        st.rel_points.end());
-    std::sort(st.rel_splits.begin(), st.rel_splits.end());
-    st.rel_splits.erase(std::unique(st.rel_splits.begin(), st.rel_splits.end()),
-                        st.rel_splits.end());
     return st;
   }
 
   // Scale-1 diamonds: one stencil per c mod 4. Scale-2 edge midpoints (whose children are the
   // scale-1 cube centres, the costliest stencils): one per c mod 8, so the build reads each
-  // subtree once instead of once per parent.
+  // subtree once instead of once per parent. The shapes are made once per process.
   void make_stencils() {
-    const hierarchy probe({33, 33, 33});
-    for (std::int32_t cls = 0; cls < 64; ++cls) {
-      const ipoint c{8 + (cls & 3), 8 + ((cls >> 2) & 3), 8 + ((cls >> 4) & 3)};
-      if (((c[0] | c[1] | c[2]) & 1) == 0) continue;  // scale ≥ 2: stored, no stencil
-      stencils_[static_cast<std::size_t>(cls)] = build_stencil(probe, c);
+    const stencil_shapes& shapes = stencil_shape_table();
+    for (std::size_t cls = 0; cls < shapes.scale1.size(); ++cls) {
+      if (!shapes.scale1[cls].used) continue;
+      stencils_[cls] = make_stencil(shapes.scale1[cls]);
 #if defined(PROGISO_ENABLE_ASSERTS)
-      for (const ipoint& o : stencils_[static_cast<std::size_t>(cls)].rel_points) {
+      const auto k = static_cast<std::int32_t>(cls);
+      const ipoint c{8 + (k & 3), 8 + ((k >> 2) & 3), 8 + ((k >> 4) & 3)};
+      for (const ipoint& o : shapes.scale1[cls].points) {
         for (std::size_t q = 0; q < 3; ++q) PROGISO_ASSERT(std::abs(o[q]) <= scale1_reach(c, q));
       }
 #endif
     }
-    for (std::int32_t cls = 0; cls < 512; ++cls) {
-      const ipoint c{16 + (cls & 7), 16 + ((cls >> 3) & 7), 16 + ((cls >> 6) & 7)};
-      if (((c[0] | c[1] | c[2]) & 1) != 0 || !probe.is_diamond(c)) continue;
-      if (probe.scale_of(c) != 2 || probe.make_diamond(c).type != 2) continue;
-      edge2_stencils_[static_cast<std::size_t>(cls)] = build_stencil(probe, c);
+    for (std::size_t cls = 0; cls < shapes.edge2.size(); ++cls) {
+      if (shapes.edge2[cls].used) edge2_stencils_[cls] = make_stencil(shapes.edge2[cls]);
     }
   }
 
