@@ -26,6 +26,7 @@
 #include <cstdlib>
 #include <cstring>
 #include <filesystem>
+#include <functional>
 #include <map>
 #include <memory>
 #include <string>
@@ -55,30 +56,40 @@ std::filesystem::path data_dir() {
   return std::filesystem::path(PROGISO_SOURCE_DIR) / ".." / "shared" / "data";
 }
 
+/// One input: made when its first benchmark runs (a filtered run builds only what it uses;
+/// the 513³ fields alone take seconds and 0.5–1 GB).
 struct input {
   std::string name;
-  std::shared_ptr<const volume> vol;
+  std::function<volume()> make;
   double isovalue;
   int pairs;  // alternating pairs per benchmark run
+  std::shared_ptr<const volume> made;
+  const volume& get() {
+    if (!made) made = std::make_shared<const volume>(make());
+    return *made;
+  }
 };
 
 /// The wavelet of vtkRTAnalyticSource (its defaults) on n³ samples, as a progiso volume.
-std::shared_ptr<const volume> wavelet(int n) {
+volume wavelet(int n) {
   const std::vector<float> w = vtk_wavelet(n);
   std::vector<std::byte> bytes(w.size() * sizeof(float));
   std::memcpy(bytes.data(), w.data(), bytes.size());
-  return std::make_shared<const volume>(index3{n, n, n}, sample_type::f32, std::move(bytes));
+  return volume(index3{n, n, n}, sample_type::f32, std::move(bytes));
 }
 
-const std::vector<input>& volumes() {
-  static const std::vector<input> all = [] {
+std::vector<input>& volumes() {
+  static std::vector<input> all = [] {
     std::vector<input> v;
     const auto raw = [&](std::string name, const char* file, index3 dims, sample_type t,
                          std::array<double, 3> spacing, double w) {
       const std::filesystem::path p = data_dir() / file;
       if (!std::filesystem::exists(p)) return;
       v.push_back({std::move(name),
-                   std::make_shared<const volume>(read_raw(p, {dims, t, false}, spacing)), w, 21});
+                   [=] {
+                     return read_raw(p, {dims, t, false}, spacing);
+                   },
+                   w, 21, nullptr});
     };
     raw("bucky", "bucky_32x32x32_uint8.raw", {32, 32, 32}, sample_type::u8, {1, 1, 1}, 51);
     raw("nucleon", "nucleon_41x41x41_uint8.raw", {41, 41, 41}, sample_type::u8, {1, 1, 1}, 60);
@@ -88,24 +99,22 @@ const std::vector<input>& volumes() {
         500);
     raw("brainsmall", "brainsmall_128x128x84_uint8.raw", {128, 128, 84}, sample_type::u8, {1, 1, 1},
         50);
-    v.push_back(
-        {"ml257", std::make_shared<const volume>(make_marschner_lobb({257, 257, 257})), 0.5, 7});
-    v.push_back(
-        {"ml513", std::make_shared<const volume>(make_marschner_lobb({513, 513, 513})), 0.5, 3});
-    v.push_back({"wavelet256", wavelet(256), 157.0, 7});
-    v.push_back({"wavelet512", wavelet(512), 157.0, 3});
+    v.push_back({"ml257", [] { return make_marschner_lobb({257, 257, 257}); }, 0.5, 7, nullptr});
+    v.push_back({"ml513", [] { return make_marschner_lobb({513, 513, 513}); }, 0.5, 3, nullptr});
+    v.push_back({"wavelet256", [] { return wavelet(256); }, 157.0, 7, nullptr});
+    v.push_back({"wavelet512", [] { return wavelet(512); }, 157.0, 3, nullptr});
     return v;
   }();
   return all;
 }
 
-const std::vector<input>& images() {
-  static const std::vector<input> all = [] {
+std::vector<input>& images() {
+  static std::vector<input> all = [] {
     std::vector<input> v;
     const auto image = [&](std::string name, const char* file, double w) {
       const std::filesystem::path p = data_dir() / file;
       if (std::filesystem::exists(p)) {
-        v.push_back({std::move(name), std::make_shared<const volume>(read_image(p)), w, 41});
+        v.push_back({std::move(name), [=] { return read_image(p); }, w, 41, nullptr});
       }
     };
     image("camera", "camera_512x512.pgm", 128);
@@ -146,11 +155,12 @@ void report(benchmark::State& state, const pair_stats& s, const char* cells) {
 // ---- 3D: vtkFlyingEdges3D against the progiso pipeline.
 
 void BM_peer_volume(benchmark::State& state) {
-  const input& in = volumes()[static_cast<std::size_t>(state.range(0))];
+  input& in = volumes()[static_cast<std::size_t>(state.range(0))];
+  const volume& vol = in.get();
   const auto threads = static_cast<unsigned>(state.range(1));
   const std::string backend = vtk_threads(static_cast<int>(threads));
   state.SetLabel(in.name + " " + std::to_string(threads) + " thr, VTK SMP " + backend);
-  const std::unique_ptr<flying_edges> fe = peer(*in.vol, in.isovalue);
+  const std::unique_ptr<flying_edges> fe = peer(vol, in.isovalue);
   extract_options options;  // full
   pair_stats s;
   int pair = 0;
@@ -165,7 +175,7 @@ void BM_peer_volume(benchmark::State& state) {
     };
     const auto run_mine = [&] {
       const auto t0 = clock_type::now();
-      const extract_result r = extract_isosurface_parallel(*in.vol, in.isovalue, options, threads);
+      const extract_result r = extract_isosurface_parallel(vol, in.isovalue, options, threads);
       mine_ms = ms_since(t0);
       s.range.push_back(r.range_build_seconds * 1e3);
       s.refine.push_back(r.refine_seconds * 1e3);
@@ -191,10 +201,11 @@ void BM_peer_volume(benchmark::State& state) {
 // ---- 2D: vtkFlyingEdges2D against progiso's contours (polylines in memory).
 
 void BM_peer_image(benchmark::State& state) {
-  const input& in = images()[static_cast<std::size_t>(state.range(0))];
+  input& in = images()[static_cast<std::size_t>(state.range(0))];
+  const volume& vol = in.get();
   (void)vtk_threads(1);
   state.SetLabel(in.name);
-  const std::unique_ptr<flying_edges> fe = peer(*in.vol, in.isovalue);
+  const std::unique_ptr<flying_edges> fe = peer(vol, in.isovalue);
   contour_options options;  // full
   pair_stats s;
   int pair = 0;
@@ -209,7 +220,7 @@ void BM_peer_image(benchmark::State& state) {
     };
     const auto run_mine = [&] {
       const auto t0 = clock_type::now();
-      const contour_result r = extract_contours(*in.vol, {in.isovalue}, options);
+      const contour_result r = extract_contours(vol, {in.isovalue}, options);
       mine_ms = ms_since(t0);
       s.mine_cells = static_cast<double>(r.contours.segment_count());
       benchmark::DoNotOptimize(r.contours.vertices.data());
