@@ -152,6 +152,35 @@ void report(benchmark::State& state, const pair_stats& s, const char* cells) {
   state.counters[std::string("progiso_") + cells] = s.mine_cells;
 }
 
+/// Runs Flying Edges and `mine` (which returns its milliseconds and records its own counters in
+/// `s`) in alternating pairs, one pair per benchmark iteration, the order flipping every pair;
+/// progiso's time is the iteration time.
+template <class Mine>
+void run_pairs(benchmark::State& state, flying_edges& fe, pair_stats& s, Mine&& mine) {
+  int pair = 0;
+  for (auto _ : state) {
+    double fe_ms = 0.0;
+    double mine_ms = 0.0;
+    const auto run_fe = [&] {
+      const auto t0 = clock_type::now();
+      const std::size_t cells = fe.run();
+      fe_ms = ms_since(t0);
+      s.fe_cells = static_cast<double>(cells);
+    };
+    if (pair++ % 2 == 0) {
+      run_fe();
+      mine_ms = mine();
+    } else {
+      mine_ms = mine();
+      run_fe();
+    }
+    s.fe.push_back(fe_ms);
+    s.mine.push_back(mine_ms);
+    s.ratio.push_back(mine_ms / fe_ms);
+    state.SetIterationTime(mine_ms / 1e3);
+  }
+}
+
 // ---- 3D: vtkFlyingEdges3D against the progiso pipeline.
 
 void BM_peer_volume(benchmark::State& state) {
@@ -163,38 +192,17 @@ void BM_peer_volume(benchmark::State& state) {
   const std::unique_ptr<flying_edges> fe = peer(vol, in.isovalue);
   extract_options options;  // full
   pair_stats s;
-  int pair = 0;
-  for (auto _ : state) {
-    double fe_ms = 0.0;
-    double mine_ms = 0.0;
-    const auto run_fe = [&] {
-      const auto t0 = clock_type::now();
-      const std::size_t cells = fe->run();
-      fe_ms = ms_since(t0);
-      s.fe_cells = static_cast<double>(cells);
-    };
-    const auto run_mine = [&] {
-      const auto t0 = clock_type::now();
-      const extract_result r = extract_isosurface_parallel(vol, in.isovalue, options, threads);
-      mine_ms = ms_since(t0);
-      s.range.push_back(r.range_build_seconds * 1e3);
-      s.refine.push_back(r.refine_seconds * 1e3);
-      s.extract.push_back(r.extract_seconds * 1e3);
-      s.mine_cells = static_cast<double>(r.mesh.triangles.size());
-      benchmark::DoNotOptimize(r.mesh.vertices.data());
-    };
-    if (pair++ % 2 == 0) {
-      run_fe();
-      run_mine();
-    } else {
-      run_mine();
-      run_fe();
-    }
-    s.fe.push_back(fe_ms);
-    s.mine.push_back(mine_ms);
-    s.ratio.push_back(mine_ms / fe_ms);
-    state.SetIterationTime(mine_ms / 1e3);
-  }
+  run_pairs(state, *fe, s, [&] {
+    const auto t0 = clock_type::now();
+    const extract_result r = extract_isosurface_parallel(vol, in.isovalue, options, threads);
+    const double ms = ms_since(t0);
+    s.range.push_back(r.range_build_seconds * 1e3);
+    s.refine.push_back(r.refine_seconds * 1e3);
+    s.extract.push_back(r.extract_seconds * 1e3);
+    s.mine_cells = static_cast<double>(r.mesh.triangles.size());
+    benchmark::DoNotOptimize(r.mesh.vertices.data());
+    return ms;
+  });
   report(state, s, "triangles");
 }
 
@@ -208,35 +216,14 @@ void BM_peer_image(benchmark::State& state) {
   const std::unique_ptr<flying_edges> fe = peer(vol, in.isovalue);
   contour_options options;  // full
   pair_stats s;
-  int pair = 0;
-  for (auto _ : state) {
-    double fe_ms = 0.0;
-    double mine_ms = 0.0;
-    const auto run_fe = [&] {
-      const auto t0 = clock_type::now();
-      const std::size_t cells = fe->run();
-      fe_ms = ms_since(t0);
-      s.fe_cells = static_cast<double>(cells);
-    };
-    const auto run_mine = [&] {
-      const auto t0 = clock_type::now();
-      const contour_result r = extract_contours(vol, {in.isovalue}, options);
-      mine_ms = ms_since(t0);
-      s.mine_cells = static_cast<double>(r.contours.segment_count());
-      benchmark::DoNotOptimize(r.contours.vertices.data());
-    };
-    if (pair++ % 2 == 0) {
-      run_fe();
-      run_mine();
-    } else {
-      run_mine();
-      run_fe();
-    }
-    s.fe.push_back(fe_ms);
-    s.mine.push_back(mine_ms);
-    s.ratio.push_back(mine_ms / fe_ms);
-    state.SetIterationTime(mine_ms / 1e3);
-  }
+  run_pairs(state, *fe, s, [&] {
+    const auto t0 = clock_type::now();
+    const contour_result r = extract_contours(vol, {in.isovalue}, options);
+    const double ms = ms_since(t0);
+    s.mine_cells = static_cast<double>(r.contours.segment_count());
+    benchmark::DoNotOptimize(r.contours.vertices.data());
+    return ms;
+  });
   report(state, s, "segments");
 }
 

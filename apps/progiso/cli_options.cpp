@@ -148,6 +148,19 @@ bool parse_mode(const std::string& f, const Value& value, const char* budget_fla
   return true;
 }
 
+/// What both commands do with any other argument: -h/--help (returns false: stop parsing), an
+/// unknown option (throws), the one INPUT (throws for a second one).
+bool take_other(const std::string& f, bool& help, std::optional<std::string>& input) {
+  if (f == "-h" || f == "--help") {
+    help = true;
+    return false;
+  }
+  if (!f.empty() && f[0] == '-') throw error("unknown option " + shown(f));
+  if (input) throw error("unexpected argument " + shown(f) + " (only one INPUT is allowed)");
+  input = f;
+  return true;
+}
+
 static_assert(static_cast<int>(extract_mode::triangles) == 2 &&
               static_cast<int>(extract_mode::time) == 3 &&
               static_cast<int>(contour_mode::segments) == 2 &&
@@ -214,15 +227,8 @@ extract_arguments parse_extract(const std::vector<std::string>& args) {
         throw error("--threads: expected an integer from 1 to 4096, found " + shown(t));
       }
       a.threads = static_cast<unsigned>(n);
-    } else if (f == "-h" || f == "--help") {
-      a.help = true;
+    } else if (!take_other(f, a.help, a.input)) {
       return a;
-    } else if (!f.empty() && f[0] == '-') {
-      throw error("unknown option " + shown(f));
-    } else if (!a.input) {
-      a.input = f;
-    } else {
-      throw error("unexpected argument " + shown(f) + " (only one INPUT is allowed)");
     }
   }
   if (modes > 1) throw error("choose at most one of --full, --error, --max-triangles, --time-ms");
@@ -266,15 +272,8 @@ contour_arguments parse_contour(const std::vector<std::string>& args) {
       if (a.stats_json->empty()) {
         throw error("--stats-json: expected a file name, found an empty one");
       }
-    } else if (f == "-h" || f == "--help") {
-      a.help = true;
+    } else if (!take_other(f, a.help, a.input)) {
       return a;
-    } else if (!f.empty() && f[0] == '-') {
-      throw error("unknown option " + shown(f));
-    } else if (!a.input) {
-      a.input = f;
-    } else {
-      throw error("unexpected argument " + shown(f) + " (only one INPUT is allowed)");
     }
   }
   if (modes > 1) throw error("choose at most one of --full, --error, --max-segments, --time-ms");
