@@ -8,7 +8,8 @@
 // vtkSMPTools runs on the same thread count as progiso.
 //
 // Each benchmark runs both sides in alternating pairs (the order flips every pair) and reports
-// medians: fe_ms, progiso_ms with its phases (range_ms, refine_ms, extract_ms), both triangle
+// medians: fe_ms, progiso_ms with its phases (range_ms, refine_ms, extract_ms; first_ms, the root
+// surface from the volume in memory; splits and visited diamonds), both triangle
 // (segment) counts, and `ratio`, the median of the per-pair ratios progiso / FE. The iteration
 // time Google Benchmark prints is progiso's. Built only when CMake finds VTK
 // (scripts/install-deps.sh --peers). Run:
@@ -134,7 +135,9 @@ std::unique_ptr<flying_edges> peer(const volume& v, double isovalue) {
 }
 
 struct pair_stats {
-  std::vector<double> fe, mine, ratio, range, refine, extract;
+  std::vector<double> fe, mine, ratio, range, refine, extract, first;
+  double splits = 0.0;
+  double visited = 0.0;
   double fe_cells = 0.0;
   double mine_cells = 0.0;
 };
@@ -147,6 +150,9 @@ void report(benchmark::State& state, const pair_stats& s, const char* cells) {
     state.counters["range_ms"] = median(s.range);
     state.counters["refine_ms"] = median(s.refine);
     state.counters["extract_ms"] = median(s.extract);
+    state.counters["first_ms"] = median(s.first);
+    state.counters["splits"] = s.splits;
+    state.counters["visited"] = s.visited;
   }
   state.counters[std::string("fe_") + cells] = s.fe_cells;
   state.counters[std::string("progiso_") + cells] = s.mine_cells;
@@ -199,6 +205,9 @@ void BM_peer_volume(benchmark::State& state) {
     s.range.push_back(r.range_build_seconds * 1e3);
     s.refine.push_back(r.refine_seconds * 1e3);
     s.extract.push_back(r.extract_seconds * 1e3);
+    s.first.push_back(r.first_surface_seconds * 1e3);
+    s.splits = static_cast<double>(r.stats.splits);
+    s.visited = static_cast<double>(r.stats.visited);
     s.mine_cells = static_cast<double>(r.mesh.triangles.size());
     benchmark::DoNotOptimize(r.mesh.vertices.data());
     return ms;

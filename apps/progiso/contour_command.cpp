@@ -63,6 +63,7 @@ std::string contour_stats_json(const contour_arguments& a, const progiso::volume
   o << "  \"range_build_ms\": " << json_number(r.range_build_seconds * 1e3) << ",\n";
   o << "  \"refine_ms\": " << json_number(r.refine_seconds * 1e3) << ",\n";
   o << "  \"total_ms\": " << json_number(r.total_seconds * 1e3) << ",\n";
+  o << "  \"pipeline_ms\": " << json_number(r.pipeline_seconds * 1e3) << ",\n";
   o << "  \"range_data_bytes\": " << r.range_bytes << ",\n  \"image_bytes\": " << img.byte_size()
     << ",\n";
   o << "  \"cases\": {";

@@ -76,6 +76,7 @@ std::string stats_json(const arguments& a, const std::string& input, double iso,
   o << "  \"refine_ms\": " << json_number(r.refine_seconds * 1e3) << ",\n";
   o << "  \"extract_ms\": " << json_number(r.extract_seconds * 1e3) << ",\n";
   o << "  \"total_ms\": " << json_number(r.total_seconds * 1e3) << ",\n";
+  o << "  \"pipeline_ms\": " << json_number(r.pipeline_seconds * 1e3) << ",\n";
   o << "  \"range_data_bytes\": " << r.range_bytes << ",\n";
   o << "  \"volume_bytes\": " << vol.byte_size() << ",\n";
   o << "  \"isovalue_outside_data\": " << (r.isovalue_outside_data ? "true" : "false") << ",\n";

@@ -325,6 +325,12 @@ contour_result extract_contours(const volume& image, const std::vector<double>& 
   };
   int stage = 0;
   std::uint64_t splits = 0;
+  clock::duration in_callbacks{};  // frames and sinks: not part of the pipeline
+  const auto timed = [&in_callbacks](auto&& call) {
+    const auto c0 = clock::now();
+    call();
+    in_callbacks += clock::now() - c0;
+  };
   std::uint64_t next_frame = 1;
   const auto frame = [&](const contour_refiner* current, bool last) {
     if (!options.frame) return;
@@ -332,7 +338,7 @@ contour_result extract_contours(const volume& image, const std::vector<double>& 
       contour_set all;
       for (const contour_set& c : finished) append(all, c);
       if (current != nullptr) append(all, current->extract());
-      options.frame(all, stage++);
+      timed([&] { options.frame(all, stage++); });
       while (next_frame <= splits) next_frame *= 2;
     }
   };
@@ -365,7 +371,7 @@ contour_result extract_contours(const volume& image, const std::vector<double>& 
     res.stats.push_back(r.statistics());
     if (options.frame) finished.push_back(c);
     if (options.sink) {
-      options.sink(c, k);
+      timed([&] { options.sink(c, k); });
     } else {
       append(res.contours, c);
     }
@@ -373,6 +379,7 @@ contour_result extract_contours(const volume& image, const std::vector<double>& 
   res.refine_seconds = seconds(clock::now() - t1);
   frame(nullptr, true);
   res.total_seconds = seconds(clock::now() - t0);
+  res.pipeline_seconds = res.total_seconds - seconds(in_callbacks);
   return res;
 }
 

@@ -64,8 +64,7 @@ using entry = detail::range_entry<T>;
 
 // The shape of a stencil: the subtree of the diamond centred at c, every vertex of every
 // descendant's tetrahedra and every descendant's split (centre, spine ends), as grid offsets
-// from c, sorted, without repeats. It depends only on c modulo 4 (scale 1) or 8 (scale-2 edge
-// midpoints), not on the volume, so it is found once per process by walking the subtree in a
+// from c, sorted, without repeats. It depends only on c modulo 4, not on the volume, so it is found once per process by walking the subtree in a
 // probe hierarchy (the walk costs milliseconds; every range_data used to repeat it).
 struct stencil_shape {
   bool used = false;
@@ -75,7 +74,6 @@ struct stencil_shape {
 
 struct stencil_shapes {
   std::array<stencil_shape, 64> scale1;  // by class_of(c): c mod 4 per axis
-  std::array<stencil_shape, 512> edge2;  // scale-2 edge midpoints, by c mod 8 per axis
 };
 
 stencil_shape walk_subtree(const hierarchy& probe, const ipoint& c) {
@@ -120,23 +118,32 @@ const stencil_shapes& stencil_shape_table() {
       if (((c[0] | c[1] | c[2]) & 1) == 0) continue;  // scale ≥ 2: stored, no stencil
       t.scale1[static_cast<std::size_t>(cls)] = walk_subtree(probe, c);
     }
-    for (std::int32_t cls = 0; cls < 512; ++cls) {
-      const ipoint c{16 + (cls & 7), 16 + ((cls >> 3) & 7), 16 + ((cls >> 6) & 7)};
-      if (((c[0] | c[1] | c[2]) & 1) != 0 || !probe.is_diamond(c)) continue;
-      if (probe.scale_of(c) != 2 || probe.make_diamond(c).type != 2) continue;
-      t.edge2[static_cast<std::size_t>(cls)] = walk_subtree(probe, c);
-    }
     return t;
   }();
   return table;
 }
 
-// One dense array of entries per scale, clipped to the part of the grid whose diamonds have a
-// descendant reaching into the data box. Per axis, the vertices of the subtree of a diamond of
-// scale h centred at c lie within c ± r h, with r = 3 for edge midpoints (own radius h/2 away
-// plus a half-scale cube centre's subtree), 4 for face and 5 for cube centres (one more step of
-// h each); a scale-1 cube centre's subtree stops at edge midpoints, radius 3. Centres with
-// c_q ≥ data_max_q + 5h (scale 1 cube centres: data_max_q + 3) therefore have empty ranges.
+// Diamonds of scale h ≥ 2: a min/max pyramid over bricks.
+//
+// Per axis, every vertex of every tetrahedron in the subtree of a diamond of scale h centred at c
+// lies within c ± R, R = r h - 2 with r = 5 for cube centres, 4 for face centres, 3 for edge
+// midpoints: the reach of a scale-1 edge midpoint is 1, and a face centre's children (edge
+// midpoints at ± h), a cube centre's (face centres at ± h) and an edge midpoint's (cube centres
+// at ± h/2, scale h/2) each add their offset, which solves to r h - 2. A child's box lies inside
+// its parent's (h/2 + 5h/2 - 2 = 3h - 2, h + 4h - 2 = 5h - 2, h + 3h - 2 = 4h - 2).
+//
+// Level 0 of the pyramid holds, for every brick of 4 × 4 × 4 grid vertices, the min and max of
+// the samples and the largest own split error |f(c) - (f(a) + f(b)) / 2| of the vertices in it
+// (every vertex but a root-cube corner is a diamond centre with spine a, b); level k + 1 merges
+// 2 × 2 × 2 bricks of level k. The bricks cover the grid and 4 vertices more on every side, with
+// clamped samples (the padding's values, and those the scale-1 stencils read near the boundary),
+// so the scale-1 stencils' ranges and errors lie inside every parent's. A diamond's range is the
+// merge of the bricks that meet its box, at the finest level whose bricks are at least 2R / 3
+// vertices wide (at most 4 bricks per axis, 64 in all). A superset of the subtree's values and
+// errors, so sound for culling; nested, because a child's box lies in its parent's and a
+// smaller box never takes a coarser level (each brick lies in one brick of every coarser
+// level). Bytes: 3 samples per 64 vertices, plus 1/7 for the coarser levels: about 5% of the
+// volume's. The build is one streaming pass, run in slabs of 4 planes by `parallel`.
 template <class T>
 class typed_range_data final : public range_data::impl {
   // Offsets of the samples and splits of a subtree of fixed shape (see make_stencils()).
@@ -146,35 +153,35 @@ class typed_range_data final : public range_data::impl {
     std::vector<ipoint> rel_points;                   // the same as grid offsets
     std::vector<std::array<ipoint, 3>> rel_splits;
   };
+  using error_t = error_type<T>;
+  struct brick {
+    T lo;
+    T hi;
+    error_t error;
+  };
+  struct level {
+    ipoint n{};  // bricks per axis
+    std::vector<brick> bricks;
+    [[nodiscard]] const brick& at(std::int32_t x, std::int32_t y, std::int32_t z) const noexcept {
+      return bricks[static_cast<std::size_t>(x) +
+                    static_cast<std::size_t>(n[0]) *
+                        (static_cast<std::size_t>(y) +
+                         static_cast<std::size_t>(n[1]) * static_cast<std::size_t>(z))];
+    }
+  };
+  static constexpr std::int32_t origin = -4;  // the bricks' first vertex on every axis
 
  public:
-  typed_range_data(const volume& v, const hierarchy& h) {
+  typed_range_data(const volume& v, const hierarchy& h, const range_data::parallel_loop& run) {
     vol = &v;
     hier = &h;
     samples_ = v.visit_samples([](const auto* p) { return reinterpret_cast<const T*>(p); });
-    const int levels = h.levels();
-    // Level k ≥ 1 holds scale 2^k, indexed by centre / h. Scale 1 (level 0) is not stored.
-    levels_.resize(static_cast<std::size_t>(std::max(levels, 1)));
-    for (int k = 1; k < levels; ++k) {
-      level& lv = levels_[static_cast<std::size_t>(k)];
-      for (std::size_t q = 0; q < 3; ++q) {
-        const std::int32_t dmax = h.data_max()[q];
-        const std::int32_t gmax = h.grid_max()[q];
-        const std::int32_t hh = std::int32_t{1} << k;
-        lv.n[q] = std::min((dmax + 5 * hh - 1) / hh, gmax / hh) + 1;
-      }
-      lv.entries.assign(static_cast<std::size_t>(lv.n[0]) * static_cast<std::size_t>(lv.n[1]) *
-                            static_cast<std::size_t>(lv.n[2]),
-                        empty_entry());
-    }
-    build();
+    make_stencils();
+    build(run);
   }
 
   [[nodiscard]] diamond_range get(const diamond& d) const noexcept override {
-    if (d.scale == 1) return scale1_at(d.centre);
-    const entry<T>* e = find(d.centre, d.scale);
-    if (e == nullptr) return {};
-    return decode(*e);
+    return get_at(d.centre, d.scale);
   }
 
   [[nodiscard]] diamond_range get_at(const ipoint& c) const noexcept override {
@@ -183,7 +190,15 @@ class typed_range_data final : public range_data::impl {
 
   [[nodiscard]] bool straddles_at(const ipoint& c, std::int32_t h,
                                   const detail::sample_threshold& w) const noexcept override {
-    if (h != 1) return get_at(c, h).straddles(w.w);
+    if (h != 1) {
+      bool high = false;
+      bool low = false;
+      return visit_box(c, h, [&](const brick& b) {
+        high = high || w.above(b.hi);
+        low = low || !w.above(b.lo);
+        return !(high && low);
+      }) == visit::stopped;
+    }
     const place where = scale1_place(c);
     if (where == place::outside) return false;  // empty: wholly in the padding
     const stencil& st = stencils_[class_of(c)];
@@ -196,176 +211,231 @@ class typed_range_data final : public range_data::impl {
 
   [[nodiscard]] bool empty_at(const ipoint& c, std::int32_t h) const noexcept override {
     if (h == 1) return scale1_place(c) == place::outside;
-    const entry<T>* e = find(c, h);
-    return e == nullptr || decode(*e).empty();
+    return outside(c, h);
   }
 
   [[nodiscard]] diamond_range get_at(const ipoint& c, std::int32_t h) const noexcept override {
     if (h == 1) return scale1_at(c);
-    const entry<T>* e = find(c, h);
-    if (e == nullptr) return {};
-    return decode(*e);
-  }
-
-  [[nodiscard]] std::size_t byte_size() const noexcept override {
-    std::size_t b = 0;
-    for (const auto& lv : levels_) b += lv.entries.size() * sizeof(entry<T>);
-    return b;
-  }
-
- private:
-  struct level {
-    ipoint n{};
-    std::vector<entry<T>> entries;
-  };
-
-  static entry<T> empty_entry() noexcept { return detail::empty_entry<T>(); }
-
-  [[nodiscard]] std::size_t slot(const ipoint& c, std::int32_t h, const level*& lv) const noexcept {
-    lv = &levels_[static_cast<std::size_t>(std::countr_zero(static_cast<std::uint32_t>(h)))];
-    const ipoint i{c[0] / h, c[1] / h, c[2] / h};
-    for (std::size_t q = 0; q < 3; ++q) {
-      if (i[q] >= lv->n[q]) return std::numeric_limits<std::size_t>::max();
-    }
-    return static_cast<std::size_t>(i[0]) +
-           static_cast<std::size_t>(lv->n[0]) *
-               (static_cast<std::size_t>(i[1]) +
-                static_cast<std::size_t>(lv->n[1]) * static_cast<std::size_t>(i[2]));
-  }
-
-  [[nodiscard]] const entry<T>* find(const ipoint& c, std::int32_t h) const noexcept {
-    const level* lv = nullptr;
-    const std::size_t s = slot(c, h, lv);
-    return s == std::numeric_limits<std::size_t>::max() ? nullptr : &lv->entries[s];
-  }
-
-  void store(const ipoint& c, std::int32_t h, const diamond_range& r) noexcept {
-    const level* lv = nullptr;
-    const std::size_t s = slot(c, h, lv);
-    if (s == std::numeric_limits<std::size_t>::max()) return;
-    entry<T>& e = const_cast<level*>(lv)->entries[s];
-    if (r.empty()) {
-      e = empty_entry();
-    } else {
-      e.lo = static_cast<T>(r.lo);
-      e.hi = static_cast<T>(r.hi);
-    }
-    e.error = quantize_error<error_type<T>>(r.error);
-  }
-
-  // Finest stored level first, then coarser scales; within a scale edge, face, then cube centres,
-  // so every diamond's children are done before it. Children of stored diamonds are stored
-  // themselves, except those of the scale-1 cube centres, which use the stencils below.
-  void build() {
-    const hierarchy& h = *hier;
-    const int levels = h.levels();
-    make_stencils();
-    for (int k = 1; k < levels; ++k) {
-      const level& lv = levels_[static_cast<std::size_t>(k)];
-      const std::int32_t hh = std::int32_t{1} << k;
-      for (int type = 2; type >= 0; --type) {
-        for (std::int32_t z = 0; z < lv.n[2]; ++z) {
-          for (std::int32_t y = 0; y < lv.n[1]; ++y) {
-            for (std::int32_t x = 0; x < lv.n[0]; ++x) {
-              const ipoint c{x * hh, y * hh, z * hh};
-              const int odd = (x & 1) + (y & 1) + (z & 1);
-              if (3 - odd != type || odd == 0) continue;
-              if (!h.is_diamond(c)) continue;
-              if (k == 1 && type == 2) {
-                const stencil& st = edge2_stencils_[static_cast<std::size_t>(
-                    (c[0] & 7) | ((c[1] & 7) << 3) | ((c[2] & 7) << 6))];
-                // Its subtree reaches 3 per axis; beyond that it is wholly in the padding.
-                const ipoint& dm = h.data_max();
-                const bool outside = c[0] - 3 >= dm[0] || c[1] - 3 >= dm[1] || c[2] - 3 >= dm[2];
-                store(c, hh,
-                      outside          ? diamond_range{}
-                      : interior(c, 3) ? read_stencil(st, c)
-                                       : read_stencil_clamped(st, c));
-                continue;
-              }
-              if (hh >= 2 && interior(c, hh)) {
-                store(c, hh, from_own_stencil(k, c));
-                continue;
-              }
-              const diamond d = h.make_diamond(c);
-              diamond_range r = own(d);
-              std::array<ipoint, 8> ch{};
-              const int n = h.children(d, ch);
-              const std::int32_t child_scale = d.type == 2 ? hh / 2 : hh;
-              for (int i = 0; i < n; ++i) {
-                const ipoint& cc = ch[static_cast<std::size_t>(i)];
-                if (child_scale == 1) {
-                  merge(r, scale1_at(cc));
-                } else if (const entry<T>* e = find(cc, child_scale)) {
-                  merge(r, decode(*e));
-                }
-              }
-              store(c, hh, r);
-            }
-          }
-        }
-      }
-    }
-  }
-
-  // Stored diamonds away from the data boundary: own samples and children's entries through
-  // offsets that depend only on the scale and (c / h) mod 4, made on first use per class.
-  struct own_stencil {
-    bool made = false;
-    std::vector<std::int64_t> points;  // spine ends first, then ring; centre implied
-    std::vector<ipoint> children;
-    std::int32_t child_scale = 0;
-  };
-
-  [[nodiscard]] diamond_range from_own_stencil(int k, const ipoint& c) {
-    const std::int32_t hh = std::int32_t{1} << k;
-    const std::size_t cls = static_cast<std::size_t>(((c[0] >> k) & 3) | (((c[1] >> k) & 3) << 2) |
-                                                     (((c[2] >> k) & 3) << 4));
-    own_stencil& st = own_stencils_[static_cast<std::size_t>(k)][cls];
-    if (!st.made) {
-      const diamond d = hier->make_diamond(c);
-      const auto& dims = vol->dims();
-      const auto lin = [&](const ipoint& p) {
-        return (p[0] - c[0]) + dims[0] * ((p[1] - c[1]) + dims[1] * std::int64_t{p[2] - c[2]});
-      };
-      st.points = {lin(d.spine[0]), lin(d.spine[1])};
-      for (int m = 0; m < d.ring_size; ++m)
-        st.points.push_back(lin(d.ring[static_cast<std::size_t>(m)]));
-      std::array<ipoint, 8> ch{};
-      const int n = hier->children(d, ch);
-      for (int i = 0; i < n; ++i) {
-        const ipoint& x = ch[static_cast<std::size_t>(i)];
-        st.children.push_back({x[0] - c[0], x[1] - c[1], x[2] - c[2]});
-      }
-      st.child_scale = d.type == 2 ? hh / 2 : hh;
-      st.made = true;
-    }
-    const T* base = samples_ + vol->linear(c[0], c[1], c[2]);
-    T lo = base[0];
-    T hi = base[0];
-    for (const std::int64_t o : st.points) {
-      const T v = base[o];
-      lo = v < lo ? v : lo;
-      hi = v > hi ? v : hi;
+    T lo = std::numeric_limits<T>::max();
+    T hi = std::numeric_limits<T>::lowest();
+    error_t err{};
+    if (visit_box(c, h, [&](const brick& b) {
+          lo = b.lo < lo ? b.lo : lo;
+          hi = b.hi > hi ? b.hi : hi;
+          err = b.error > err ? b.error : err;
+          return true;
+        }) == visit::empty) {
+      return {};
     }
     diamond_range r;
     r.lo = static_cast<double>(lo);
     r.hi = static_cast<double>(hi);
-    r.error =
-        std::abs(static_cast<double>(base[0]) - 0.5 * (static_cast<double>(base[st.points[0]]) +
-                                                       static_cast<double>(base[st.points[1]])));
-    for (const ipoint& o : st.children) {
-      const ipoint x{c[0] + o[0], c[1] + o[1], c[2] + o[2]};
-      if (st.child_scale == 1) {
-        merge(r, scale1_at(x));
-      } else if (const entry<T>* e = find(x, st.child_scale)) {
-        merge(r, decode(*e));
-      }
-    }
+    r.error = static_cast<double>(err);
     return r;
   }
 
-  std::vector<std::array<own_stencil, 64>> own_stencils_{32};
+  [[nodiscard]] std::size_t byte_size() const noexcept override {
+    std::size_t b = 0;
+    for (const auto& lv : levels_) b += lv.bricks.size() * sizeof(brick);
+    return b;
+  }
+
+ private:
+  // Box radius (see above) of the diamond centred at c of scale h ≥ 2.
+  [[nodiscard]] static std::int32_t reach(const ipoint& c, std::int32_t h) noexcept {
+    const int odd = ((c[0] / h) & 1) + ((c[1] / h) & 1) + ((c[2] / h) & 1);  // 3 - type
+    return (2 + odd) * h - 2;
+  }
+  [[nodiscard]] bool outside(const ipoint& c, std::int32_t h) const noexcept {
+    const std::int32_t r = reach(c, h);
+    const ipoint& dm = hier->data_max();
+    return c[0] - r >= dm[0] || c[1] - r >= dm[1] || c[2] - r >= dm[2];
+  }
+
+  enum class visit { empty, done, stopped };
+  // Calls f(brick) for the bricks that meet the box of the diamond centred at c (scale h ≥ 2)
+  // until f returns false.
+  template <class F>
+  visit visit_box(const ipoint& c, std::int32_t h, F&& f) const noexcept {
+    if (outside(c, h)) return visit::empty;
+    const std::int32_t r = reach(c, h);
+    std::size_t k = 0;
+    while (k + 1 < levels_.size() && 3 * (std::int32_t{4} << k) < 2 * r) ++k;
+    const level& lv = levels_[k];
+    const int shift = 2 + static_cast<int>(k);
+    ipoint b0{};
+    ipoint b1{};
+    for (std::size_t q = 0; q < 3; ++q) {
+      b0[q] = std::max(c[q] - r - origin, 0) >> shift;
+      b1[q] = std::min((c[q] + r - origin) >> shift, lv.n[q] - 1);
+    }
+    for (std::int32_t z = b0[2]; z <= b1[2]; ++z) {
+      for (std::int32_t y = b0[1]; y <= b1[1]; ++y) {
+        for (std::int32_t x = b0[0]; x <= b1[0]; ++x) {
+          if (!f(lv.at(x, y, z))) return visit::stopped;
+        }
+      }
+    }
+    return visit::done;
+  }
+
+  // ---- the build -----------------------------------------------------------------------------
+
+  // Sample at grid vertex p (any integer point), clamped into the data box.
+  [[nodiscard]] T clamped(std::int32_t x, std::int32_t y, std::int32_t z) const noexcept {
+    const ipoint& dm = hier->data_max();
+    return samples_[vol->linear(std::clamp(x, 0, dm[0]), std::clamp(y, 0, dm[1]),
+                                std::clamp(z, 0, dm[2]))];
+  }
+
+  // Own split error of the vertex p, from clamped samples; 0 for root-cube corners.
+  [[nodiscard]] double own_error(std::int32_t x, std::int32_t y, std::int32_t z) const noexcept {
+    const int cap = hier->levels();
+    const auto tz = [cap](std::int32_t v) {
+      return v == 0 ? cap : std::min(cap, std::countr_zero(static_cast<std::uint32_t>(v)));
+    };
+    const int lg = std::min({tz(x), tz(y), tz(z)});
+    if (lg >= cap) return 0.0;
+    const std::int32_t h = std::int32_t{1} << lg;
+    const ipoint c{x, y, z};
+    ipoint s{};
+    for (std::size_t q = 0; q < 3; ++q) {
+      s[q] = ((c[q] >> lg) & 1) == 0 ? 0 : (((c[q] + h) & (4 * h - 1)) == 0 ? h : -h);
+    }
+    const double fc = static_cast<double>(clamped(x, y, z));
+    const double fa = static_cast<double>(clamped(x - s[0], y - s[1], z - s[2]));
+    const double fb = static_cast<double>(clamped(x + s[0], y + s[1], z + s[2]));
+    return std::abs(fc - 0.5 * (fa + fb));
+  }
+
+  // Spine step of a scale-1 vertex along an axis where its coordinate is v: 0 when v is even,
+  // else +1 when v = 3 mod 4, -1 when v = 1 mod 4.
+  static std::int32_t unit_step(std::int32_t v) noexcept {
+    return (v & 1) == 0 ? 0 : ((v & 3) == 3 ? 1 : -1);
+  }
+
+  // Level 0 for the bricks of plane slab kz (brick z index), then the coarser levels.
+  void build(const range_data::parallel_loop& run) {
+    const ipoint& gm = hier->grid_max();
+    level l0;
+    for (std::size_t q = 0; q < 3; ++q) l0.n[q] = (gm[q] + 4 - origin) / 4 + 1;
+    l0.bricks.resize(static_cast<std::size_t>(l0.n[0]) * static_cast<std::size_t>(l0.n[1]) *
+                     static_cast<std::size_t>(l0.n[2]));
+    levels_.push_back(std::move(l0));
+    const auto slab = [this](std::size_t kz) { build_slab(static_cast<std::int32_t>(kz)); };
+    const auto slabs = static_cast<std::size_t>(levels_[0].n[2]);
+    if (run) {
+      run(slabs, slab);
+    } else {
+      for (std::size_t kz = 0; kz < slabs; ++kz) slab(kz);
+    }
+    while (levels_.back().n[0] > 1 || levels_.back().n[1] > 1 || levels_.back().n[2] > 1) {
+      const level& fine = levels_.back();
+      level coarse;
+      for (std::size_t q = 0; q < 3; ++q) coarse.n[q] = (fine.n[q] + 1) / 2;
+      coarse.bricks.reserve(static_cast<std::size_t>(coarse.n[0]) *
+                            static_cast<std::size_t>(coarse.n[1]) *
+                            static_cast<std::size_t>(coarse.n[2]));
+      for (std::int32_t z = 0; z < coarse.n[2]; ++z) {
+        for (std::int32_t y = 0; y < coarse.n[1]; ++y) {
+          for (std::int32_t x = 0; x < coarse.n[0]; ++x) {
+            brick m = fine.at(2 * x, 2 * y, 2 * z);
+            for (std::int32_t d = 1; d < 8; ++d) {
+              const std::int32_t fx = 2 * x + (d & 1);
+              const std::int32_t fy = 2 * y + ((d >> 1) & 1);
+              const std::int32_t fz = 2 * z + ((d >> 2) & 1);
+              if (fx >= fine.n[0] || fy >= fine.n[1] || fz >= fine.n[2]) continue;
+              const brick& b = fine.at(fx, fy, fz);
+              m.lo = b.lo < m.lo ? b.lo : m.lo;
+              m.hi = b.hi > m.hi ? b.hi : m.hi;
+              m.error = b.error > m.error ? b.error : m.error;
+            }
+            coarse.bricks.push_back(m);
+          }
+        }
+      }
+      levels_.push_back(std::move(coarse));
+    }
+  }
+
+  // One slab of level-0 bricks: 4 planes of vertices, row by row. Bricks whose vertices and
+  // spine ends all lie in the data box take fixed offsets, by the row's kind (which axes of y, z
+  // are odd) and x mod 4; the others, and vertices of scale ≥ 4, take own_error().
+  void build_slab(std::int32_t kz) {
+    level& l0 = levels_[0];
+    const ipoint& dm = hier->data_max();
+    const std::int32_t nx = l0.n[0];
+    std::vector<T> lo(static_cast<std::size_t>(nx) * static_cast<std::size_t>(l0.n[1]),
+                      std::numeric_limits<T>::max());
+    std::vector<T> hi(lo.size(), std::numeric_limits<T>::lowest());
+    std::vector<double> err(lo.size(), 0.0);
+    const auto row_of = [&](std::int32_t y, std::int32_t z) {
+      return samples_ + vol->linear(0, std::clamp(y, 0, dm[1]), std::clamp(z, 0, dm[2]));
+    };
+    // Bricks [x0, x0 + 3] with x0 - 2 ≥ 0 and x0 + 5 ≤ data_max: no clamping on x.
+    const std::int32_t fast_lo = std::max(0, (2 - origin + 3) / 4);
+    const std::int32_t fast_hi = std::min(nx - 1, (dm[0] - 5 - origin) / 4);
+    const bool scale2_rows = hier->levels() >= 2;  // else x = 2 mod 4 is a root corner
+    const auto d = [](T v) { return static_cast<double>(v); };
+    const auto e3 = [](double c, double a, double b) { return std::abs(c - 0.5 * (a + b)); };
+    for (std::int32_t z = origin + 4 * kz; z < origin + 4 * kz + 4; ++z) {
+      for (std::int32_t y = origin; y < origin + 4 * l0.n[1]; ++y) {
+        const T* own = row_of(y, z);
+        const std::size_t first =
+            static_cast<std::size_t>(nx) * static_cast<std::size_t>((y - origin) >> 2);
+        const std::int32_t sy = unit_step(y);
+        const std::int32_t sz = unit_step(z);
+        const bool odd_row = sy != 0 || sz != 0;  // every vertex of the row has scale 1
+        // Odd rows: the spine ends' rows. Even rows: those of the scale-2 vertices (x = 2 mod 4,
+        // and x = 0 mod 4 when y or z is 2 mod 4).
+        const std::int32_t sy2 = (y & 3) == 2 ? ((y & 7) == 6 ? 2 : -2) : 0;
+        const std::int32_t sz2 = (z & 3) == 2 ? ((z & 7) == 6 ? 2 : -2) : 0;
+        const T* a_row = odd_row ? row_of(y - sy, z - sz) : row_of(y - sy2, z - sz2);
+        const T* b_row = odd_row ? row_of(y + sy, z + sz) : row_of(y + sy2, z + sz2);
+        const bool x0_scale2 = sy2 != 0 || sz2 != 0;
+        for (std::int32_t bx = 0; bx < nx; ++bx) {
+          const std::int32_t x0 = origin + 4 * bx;
+          T l;
+          T u;
+          double e = 0.0;
+          if (bx >= fast_lo && bx <= fast_hi && (odd_row || scale2_rows)) {
+            const T* f = own + x0;
+            l = std::min(std::min(f[0], f[1]), std::min(f[2], f[3]));
+            u = std::max(std::max(f[0], f[1]), std::max(f[2], f[3]));
+            const T* a = a_row + x0;
+            const T* b = b_row + x0;
+            if (odd_row) {
+              // x0: spine (0, sy, sz); x0 + 1: (-1, ...); x0 + 2: (0, ...); x0 + 3: (+1, ...).
+              e = std::max(std::max(e3(d(f[0]), d(a[0]), d(b[0])), e3(d(f[1]), d(a[2]), d(b[0]))),
+                           std::max(e3(d(f[2]), d(a[2]), d(b[2])), e3(d(f[3]), d(a[2]), d(b[4]))));
+            } else {
+              const std::int32_t sx2 = ((x0 + 2) & 7) == 6 ? 2 : -2;
+              e = std::max(std::max(e3(d(f[1]), d(f[0]), d(f[2])), e3(d(f[3]), d(f[2]), d(f[4]))),
+                           e3(d(f[2]), d(a[2 - sx2]), d(b[2 + sx2])));
+              e = std::max(e, x0_scale2 ? e3(d(f[0]), d(a[0]), d(b[0])) : own_error(x0, y, z));
+            }
+          } else {
+            l = std::numeric_limits<T>::max();
+            u = std::numeric_limits<T>::lowest();
+            for (std::int32_t x = x0; x < x0 + 4; ++x) {
+              const T v = clamped(x, y, z);
+              l = v < l ? v : l;
+              u = v > u ? v : u;
+              e = std::max(e, own_error(x, y, z));
+            }
+          }
+          const std::size_t s = first + static_cast<std::size_t>(bx);
+          lo[s] = l < lo[s] ? l : lo[s];
+          hi[s] = u > hi[s] ? u : hi[s];
+          err[s] = std::max(err[s], e);
+        }
+      }
+    }
+    brick* out = l0.bricks.data() + static_cast<std::size_t>(kz) * lo.size();
+    for (std::size_t s = 0; s < lo.size(); ++s) {
+      out[s] = {lo[s], hi[s], quantize_error<error_t>(err[s])};
+    }
+  }
 
   // Nested range of a scale-1 diamond: a stencil read away from the data boundary, the
   // definition (own range and descendants') near it.
@@ -409,9 +479,8 @@ class typed_range_data final : public range_data::impl {
     return summarise(clamped_reader(c), st.rel_points, st.rel_splits);
   }
 
-  // Samples at c + o, o a stencil offset, with clamped coordinates. Offsets lie in [-3, 3] per
-  // axis (scale-2 edge midpoints reach 3, scale-1 stencils 2): the clamped coordinates' shares
-  // of the linear index, seven per axis, are computed once per diamond.
+  // Samples at c + o, o a stencil offset, with clamped coordinates. Offsets lie in [-2, 2] per
+  // axis: the clamped coordinates' shares of the linear index are computed once per diamond.
   struct clamped_samples {
     const T* samples;
     std::array<std::array<std::int64_t, 7>, 3> part;
@@ -527,9 +596,7 @@ class typed_range_data final : public range_data::impl {
     return st;
   }
 
-  // Scale-1 diamonds: one stencil per c mod 4. Scale-2 edge midpoints (whose children are the
-  // scale-1 cube centres, the costliest stencils): one per c mod 8, so the build reads each
-  // subtree once instead of once per parent. The shapes are made once per process.
+  // Scale-1 diamonds: one stencil per c mod 4. The shapes are made once per process.
   void make_stencils() {
     const stencil_shapes& shapes = stencil_shape_table();
     for (std::size_t cls = 0; cls < shapes.scale1.size(); ++cls) {
@@ -543,20 +610,6 @@ class typed_range_data final : public range_data::impl {
       }
 #endif
     }
-    for (std::size_t cls = 0; cls < shapes.edge2.size(); ++cls) {
-      if (shapes.edge2[cls].used) edge2_stencils_[cls] = make_stencil(shapes.edge2[cls]);
-    }
-  }
-
-  [[nodiscard]] bool interior(const ipoint& c, std::int32_t radius) const noexcept {
-    for (std::size_t q = 0; q < 3; ++q) {
-      if (c[q] < radius || c[q] + radius > hier->data_max()[q]) return false;
-    }
-    return true;
-  }
-
-  [[nodiscard]] diamond_range from_stencil(const ipoint& c) const noexcept {
-    return read_stencil(stencils_[class_of(c)], c);
   }
 
   [[nodiscard]] diamond_range read_stencil(const stencil& st, const ipoint& c) const noexcept {
@@ -565,17 +618,16 @@ class typed_range_data final : public range_data::impl {
   }
 
   std::array<stencil, 64> stencils_;
-  std::array<stencil, 512> edge2_stencils_;
   const T* samples_ = nullptr;
   std::vector<level> levels_;
 };
 
 }  // namespace
 
-range_data::range_data(const volume& vol, const hierarchy& hier) {
+range_data::range_data(const volume& vol, const hierarchy& hier, const parallel_loop& run) {
   vol.visit_samples([&](const auto* samples) {
     using T = std::remove_cv_t<std::remove_pointer_t<decltype(samples)>>;
-    impl_ = std::make_unique<typed_range_data<T>>(vol, hier);
+    impl_ = std::make_unique<typed_range_data<T>>(vol, hier, run);
   });
 }
 

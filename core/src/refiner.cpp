@@ -374,6 +374,7 @@ extract_result extract_isosurface(const volume& vol, double isovalue,
   const auto t3 = clock::now();
   res.extract_seconds = seconds(t3 - t2);
   res.total_seconds = seconds(t3 - t0);
+  res.pipeline_seconds = res.total_seconds;
   res.stats = ref.statistics();
   // A scan of every sample: after the timings, not inside "first surface".
   const auto [lo, hi] = vol.value_range();

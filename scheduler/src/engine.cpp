@@ -6,6 +6,7 @@
 #include <condition_variable>
 #include <cstring>
 #include <exception>
+#include <functional>
 #include <limits>
 #include <mutex>
 #include <optional>
@@ -15,6 +16,7 @@
 #include <vector>
 
 #include <tbb/flow_graph.h>
+#include <tbb/parallel_for.h>
 #include <tbb/task_arena.h>
 
 #include <progiso/concurrent/append_log.hpp>
@@ -102,6 +104,10 @@ struct engine_root : epoch_object {
   detail::zeroed_array<std::uint8_t> parents;
   // Root surface: set before the root is published, immutable afterwards.
   std::vector<owned_triangle> root_triangles;
+  // The root diamonds, queued (or culled) by the first run, once the range data exists: the root
+  // surface needs none, so it is published before any pass over the volume. Commit step only.
+  std::vector<ipoint> root_centres;
+  bool seeded = false;
 
   // Commit step only.
   std::vector<std::vector<packed_group>> buffers;
@@ -170,7 +176,6 @@ struct engine_impl {
         vol(v),
         opt(std::move(o)),
         hier(v.dims()),
-        ranges(build_ranges(v, hier, range_seconds)),
         threads(effective_threads(opt.threads)),
         domain(opt.reclamation),
         control_participant(domain),
@@ -186,11 +191,23 @@ struct engine_impl {
     });
   }
 
-  static range_data build_ranges(const volume& v, const hierarchy& h, double& seconds) {
-    const auto t0 = clock::now();
-    range_data r(v, h);
-    seconds = std::chrono::duration<double>(clock::now() - t0).count();
-    return r;
+  // The range data, built on first use (the first run, or engine::ranges()) with the engine's
+  // threads, one slab of bricks per task. Until then the engine publishes its root surfaces,
+  // which need none.
+  const range_data& ranges() const {
+    std::call_once(ranges_once, [this] {
+      const auto t0 = clock::now();
+      arena.execute([this] {
+        ranges_.emplace(vol, hier,
+                        [](std::size_t n, const std::function<void(std::size_t)>& body) {
+                          tbb::parallel_for(std::size_t{0}, n, [&body](std::size_t i) { body(i); });
+                        });
+      });
+      // relaxed: a statistic; call_once orders it for every later caller of ranges().
+      range_seconds.store(std::chrono::duration<double>(clock::now() - t0).count(),
+                          std::memory_order_relaxed);
+    });
+    return *ranges_;
   }
   // oneTBB's pool has default_concurrency() threads; asking an arena for more only warns.
   static unsigned effective_threads(unsigned requested) {
@@ -208,31 +225,38 @@ struct engine_impl {
   engine_root* make_root(double w, std::uint64_t gen) {
     auto* r = make_managed<engine_root>(domain, *this, w, gen, hier.vertex_count());
     std::vector<owned_triangle> tris;
-    std::uint64_t visited = 0;
-    std::uint64_t culled = 0;
     for (std::uint64_t q = 0; q < hier.root_count(); ++q) {
       const std::optional<ipoint> centre = compute_root(hier, vol, w, q, tris);
-      if (!centre) continue;
-      const diamond d = hier.make_diamond(*centre);
-      ++visited;
-      const diamond_range rr = ranges.get(d);
-      if (rr.straddles(w)) {
-        r->queue.push({rr.error, d.depth, hier.index(*centre)});
-      } else {
-        ++culled;
-      }
+      if (centre) r->root_centres.push_back(*centre);
     }
     r->cut_triangles = tris.size();
     r->records.push_back(
         {no_owner, nullptr, static_cast<std::uint32_t>(tris.size()), -1, 0, 0.0, tris.size()});
     r->root_triangles = std::move(tris);
     r->records.publish();
-    r->visited.set(visited);
-    r->culled.set(culled);
     r->triangles.set(r->cut_triangles);
     r->record_triangles.set(r->cut_triangles);
-    r->remaining.set(r->queue.size());
+    // Not known before the seeding: every root may still split.
+    r->remaining.set(r->root_centres.size());
     return r;
+  }
+
+  // Commit step (the first run on this root): queues the root diamonds whose range straddles.
+  void seed_roots(engine_root& r) {
+    if (r.seeded) return;
+    r.seeded = true;
+    const range_data& rd = ranges();
+    std::uint64_t culled = 0;
+    for (const ipoint& c : r.root_centres) {
+      const diamond_range rr = rd.get(c);
+      if (rr.straddles(r.isovalue)) {
+        r.queue.push({rr.error, hier.depth_of(c), hier.index(c)});
+      } else {
+        ++culled;
+      }
+    }
+    r.visited.add(r.root_centres.size());
+    r.culled.add(culled);
   }
 
   static void destroy_root(void* p) noexcept {
@@ -364,7 +388,7 @@ struct engine_impl {
                 .load(std::memory_order_relaxed);
         ci.known = split_parents + 1 >= ci.parents_needed;
         if (ci.known) {
-          const diamond_range cr = ranges.get(c, children.scale);
+          const diamond_range cr = ranges().get(c, children.scale);
           ci.straddles = cr.straddles(w);
           ci.error = cr.error;
         }
@@ -380,6 +404,7 @@ struct engine_impl {
     engine_root& r = *b->root;
     if (b->seed) {
       delete b;
+      seed_roots(r);
       dispatch(r);
       r.remaining.set(r.queue.size() + inflight_items);
       return;
@@ -433,7 +458,7 @@ struct engine_impl {
           bool straddles = ci.straddles;
           double error = ci.error;
           if (!ci.known) {
-            const diamond_range cr = ranges.get(hier.point(ci.index));
+            const diamond_range cr = ranges().get(hier.point(ci.index));
             straddles = cr.straddles(r.isovalue);
             error = cr.error;
           }
@@ -517,6 +542,7 @@ struct engine_impl {
     // The first dispatch goes through the serial commit node too: the queue belongs to it
     // (tasks started by the dispatch loop commit while it still runs).
     arena.execute([&] {
+      (void)ranges();  // in parallel, on this arena
       auto* seed = new batch;
       seed->root = r;
       seed->seed = true;
@@ -593,8 +619,9 @@ struct engine_impl {
   const volume& vol;
   engine_options opt;
   hierarchy hier;
-  double range_seconds = 0.0;
-  range_data ranges;
+  mutable std::once_flag ranges_once;
+  mutable std::optional<range_data> ranges_;
+  mutable std::atomic<double> range_seconds{0.0};
   unsigned threads;
   mutable epoch_domain domain;
   epoch_participant control_participant;  // retires roots; used under `control`
@@ -605,7 +632,7 @@ struct engine_impl {
   // epoch_guard::protect() of snapshot()).
   std::atomic<engine_root*> root{nullptr};
 
-  tbb::task_arena arena;
+  mutable tbb::task_arena arena;
   std::unique_ptr<tbb::flow::graph> graph;
   std::unique_ptr<tbb::flow::function_node<batch*, batch*>> compute;
   std::unique_ptr<tbb::flow::function_node<batch*>> commit;
@@ -807,9 +834,12 @@ engine_statistics engine::statistics() const {
 
 const volume& engine::field() const noexcept { return impl_->vol; }
 const hierarchy& engine::hierarchy_of() const noexcept { return impl_->hier; }
-const range_data& engine::ranges() const noexcept { return impl_->ranges; }
+const range_data& engine::ranges() const { return impl_->ranges(); }
 unsigned engine::threads() const noexcept { return impl_->threads; }
-double engine::range_build_seconds() const noexcept { return impl_->range_seconds; }
+double engine::range_build_seconds() const noexcept {
+  // relaxed: a statistic, written once by the build.
+  return impl_->range_seconds.load(std::memory_order_relaxed);
+}
 
 // ---------------------------------------------------------------------------------------------
 // surface_snapshot
@@ -864,6 +894,19 @@ triangle_mesh surface_snapshot::build(Take&& take, bool canonical, double max_er
   const engine& e = *owner_;
   detail::mesh_builder b(e.hierarchy_of(), e.field(), root_->isovalue,
                          static_cast<std::size_t>(triangle_count() / 2 + 16));
+  const auto add = [&b](std::uint64_t, const std::array<std::uint64_t, 3>& keys) { b.add(keys); };
+  walk_record(*root_, e.hierarchy_of(), 0, take, add);
+  const std::uint64_t vertices = e.hierarchy_of().vertex_count();
+  if (canonical && vertices <= 64 * published_) {
+    // Canonical order is diamond order: with this many records, one sequential pass over the
+    // per-vertex record index costs less than sorting them.
+    for (std::uint64_t v = 0; v < vertices; ++v) {
+      const std::uint32_t r = root_->record_index(v);
+      if (r == 0 || r >= published_ || !(root_->records[r].error > max_error)) continue;
+      walk_record(*root_, e.hierarchy_of(), r, take, add);
+    }
+    return b.finish();
+  }
   std::vector<std::pair<std::uint64_t, std::uint32_t>> order;
   order.reserve(published_);
   for (std::uint64_t r = 1; r < published_; ++r) {
@@ -871,8 +914,6 @@ triangle_mesh surface_snapshot::build(Take&& take, bool canonical, double max_er
     if (rec.error > max_error) order.emplace_back(rec.diamond, static_cast<std::uint32_t>(r));
   }
   if (canonical) std::sort(order.begin(), order.end());
-  const auto add = [&b](std::uint64_t, const std::array<std::uint64_t, 3>& keys) { b.add(keys); };
-  walk_record(*root_, e.hierarchy_of(), 0, take, add);
   for (const auto& [d, r] : order) walk_record(*root_, e.hierarchy_of(), r, take, add);
   return b.finish();
 }
@@ -934,15 +975,14 @@ extract_result extract_isosurface_parallel(const volume& vol, double isovalue,
       options.progress({p.splits, p.triangles, p.depth, max_depth});
     };
   }
-  const auto t0 = clock::now();
+  const auto t0 = clock::now();  // the volume is in memory
   engine eng(vol, isovalue, std::move(eo));
   max_depth = eng.hierarchy_of().max_depth();
-  res.range_build_seconds = eng.range_build_seconds();
-  res.range_bytes = eng.ranges().byte_size();
   {
+    // The root surface: no range data, no pass over the volume.
     const surface_snapshot first = eng.snapshot();
     const triangle_mesh m = first.mesh();
-    res.first_surface_seconds = seconds(clock::now() - t0) - res.range_build_seconds;
+    res.first_surface_seconds = seconds(clock::now() - t0);
   }
   const auto t1 = clock::now();
   switch (options.mode) {
@@ -956,15 +996,15 @@ extract_result extract_isosurface_parallel(const volume& vol, double isovalue,
       eng.refine(refine_goal::triangles(options.max_triangles));
       break;
     case extract_mode::time:
-      // The budget counts from the start of refinement, after range-data preprocessing.
-      eng.refine(refine_goal::until(
-          deadline_after(t0 + std::chrono::duration_cast<clock::duration>(
-                                  std::chrono::duration<double>(res.range_build_seconds)),
-                         options.time_budget)));
+      // The budget counts from the volume in memory: the range data is built inside it.
+      eng.refine(refine_goal::until(deadline_after(t0, options.time_budget)));
       break;
   }
   const auto t2 = clock::now();
-  res.refine_seconds = seconds(t2 - t1);
+  // The first run built the range data (in parallel); refinement is the rest of the run.
+  res.range_build_seconds = eng.range_build_seconds();
+  res.range_bytes = eng.ranges().byte_size();
+  res.refine_seconds = std::max(0.0, seconds(t2 - t1) - res.range_build_seconds);
   {
     const surface_snapshot s = eng.snapshot();
     res.mesh = s.mesh();
@@ -972,6 +1012,7 @@ extract_result extract_isosurface_parallel(const volume& vol, double isovalue,
   const auto t3 = clock::now();
   res.extract_seconds = seconds(t3 - t2);
   res.total_seconds = seconds(t3 - t0);
+  res.pipeline_seconds = res.total_seconds;
   res.stats = eng.statistics().refine;
   // A scan of every sample: after the timings, not inside "first surface".
   const auto [lo, hi] = vol.value_range();

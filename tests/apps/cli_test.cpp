@@ -5,6 +5,7 @@
 
 #include <sys/wait.h>
 
+#include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
@@ -104,6 +105,45 @@ TEST_F(Cli, demo_writes_a_ply_mesh_and_statistics) {
     EXPECT_NE(json.find(key), std::string::npos) << key;
   }
   EXPECT_NE(json.find("\"triangles\": " + std::to_string(m.triangles.size())), std::string::npos);
+}
+
+// The number after "key": in a stats file (NaN when the key is missing).
+double json_field(const std::string& json, const std::string& key) {
+  const std::size_t at = json.find("\"" + key + "\": ");
+  if (at == std::string::npos) return std::nan("");
+  return std::stod(json.substr(at + key.size() + 4));
+}
+
+TEST_F(Cli, pipeline_time_holds_the_phases_and_the_first_surface_comes_first) {
+  const fs::path stats = dir_ / "p.json";
+  ASSERT_EQ(run("extract --demo --full -o " + (dir_ / "p.ply").string() + " --stats-json " +
+                stats.string())
+                .status,
+            0);
+  const std::string json = slurp(stats);
+  const double pipeline = json_field(json, "pipeline_ms");
+  const double first = json_field(json, "time_to_first_surface_ms");
+  const double range = json_field(json, "range_build_ms");
+  const double refine = json_field(json, "refine_ms");
+  const double extract = json_field(json, "extract_ms");
+  ASSERT_GT(pipeline, 0.0) << json;
+  // The root surface is published before the range data exists (no pass over the volume).
+  EXPECT_LE(first + range, pipeline + 1e-6) << json;
+  EXPECT_LE(range + refine + extract, pipeline + 1e-6) << json;
+  EXPECT_LE(pipeline, json_field(json, "total_ms") + 1e-6) << json;
+
+  const auto data = test::shared_data_dir();
+  if (!data) GTEST_SKIP() << "shared data not found";
+  const fs::path cstats = dir_ / "c.json";
+  ASSERT_EQ(run("contour " + (*data / "camera_512x512.pgm").string() + " --iso 60,120 -o " +
+                (dir_ / "c.svg").string() + " --stats-json " + cstats.string())
+                .status,
+            0);
+  const std::string cjson = slurp(cstats);
+  const double cpipe = json_field(cjson, "pipeline_ms");
+  EXPECT_GT(cpipe, 0.0) << cjson;
+  EXPECT_LE(cpipe, json_field(cjson, "total_ms") + 1e-6) << cjson;
+  EXPECT_LE(json_field(cjson, "range_build_ms"), cpipe + 1e-6) << cjson;
 }
 
 TEST_F(Cli, raw_volume_with_spacing_gives_physical_coordinates_in_obj) {

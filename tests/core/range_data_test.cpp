@@ -4,7 +4,10 @@
 #include <progiso/core/range_data.hpp>
 
 #include <cmath>
+#include <functional>
 #include <map>
+#include <thread>
+#include <vector>
 
 #include <gtest/gtest.h>
 
@@ -115,13 +118,48 @@ TEST(RangeData, integer_volume_errors_are_rounded_up_not_down) {
 TEST(RangeData, memory_stays_below_the_volume_bytes) {
   const volume big = make_gaussian_blobs({129, 129, 129}, 4, 1u);
   const hierarchy h(big.dims());
-  EXPECT_LE(range_data(big, h).byte_size(), big.byte_size());
+  // The brick pyramid: 3 samples per 4 x 4 x 4 vertices and 1/7 more (plus a margin of bricks).
+  EXPECT_LE(range_data(big, h).byte_size(), big.byte_size() / 10);
   const auto dir = test::shared_data_dir();
   if (!dir) GTEST_SKIP() << "shared data not found";
   for (const auto& info : test::shared_volumes()) {
     const volume v = test::load_shared_volume(info, *dir);
     const hierarchy hv(v.dims());
     EXPECT_LE(range_data(v, hv).byte_size(), v.byte_size()) << info.name;
+  }
+}
+
+// The build's slabs run in any order and on any threads: every range and error is the same.
+TEST(RangeData, built_in_parallel_slabs_it_equals_the_sequential_build) {
+  for (const volume& v :
+       {make_gaussian_blobs({37, 29, 45}, 6, 5u), make_marschner_lobb({33, 33, 33})}) {
+    const hierarchy h(v.dims());
+    const range_data seq(v, h);
+    std::size_t slabs = 0;
+    const range_data par(v, h, [&slabs](std::size_t n, const std::function<void(std::size_t)>& f) {
+      slabs = n;
+      std::vector<std::thread> pool;
+      for (std::size_t t = 0; t < 3; ++t) {
+        pool.emplace_back([&f, n, t] {
+          for (std::size_t i = n; i-- > 0;) {
+            if (i % 3 == t) f(i);
+          }
+        });
+      }
+      for (auto& th : pool) th.join();
+    });
+    EXPECT_GT(slabs, 1u);
+    for (std::int32_t z = 0; z <= h.grid_max()[2]; ++z)
+      for (std::int32_t y = 0; y <= h.grid_max()[1]; ++y)
+        for (std::int32_t x = 0; x <= h.grid_max()[0]; ++x) {
+          const ipoint c{x, y, z};
+          if (!h.is_diamond(c)) continue;
+          const diamond_range a = seq.get(c);
+          const diamond_range b = par.get(c);
+          ASSERT_EQ(a.lo, b.lo);
+          ASSERT_EQ(a.hi, b.hi);
+          ASSERT_EQ(a.error, b.error);
+        }
   }
 }
 

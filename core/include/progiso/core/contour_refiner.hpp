@@ -162,6 +162,9 @@ struct contour_result {
   double first_contour_seconds = 0.0;
   double refine_seconds = 0.0;
   double total_seconds = 0.0;
+  /// Image in memory → every isovalue's polylines in memory: total_seconds less the time spent
+  /// in the frame and sink callbacks (writing files).
+  double pipeline_seconds = 0.0;
   std::size_t range_bytes = 0;
 };
 

@@ -1,8 +1,8 @@
 // progiso/core/range_data.hpp — per-diamond value ranges and nested errors, built once per volume.
 //
 // For every diamond D, range(D) = [lo, hi] covers the field values at every grid vertex of every
-// tetrahedron that D or any of its descendants ever has, and error(D) is the largest split error
-// |f(centre) - (f(spine0) + f(spine1)) / 2| over D and its descendants. Both are nested: they
+// tetrahedron that D or any of its descendants ever has, and error(D) is at least the largest
+// split error |f(centre) - (f(spine0) + f(spine1)) / 2| over D and its descendants. Both are nested: they
 // never grow from a diamond to its children, so "range(D) straddles w" and "error(D) > ε" each
 // select a parent-closed set of diamonds, a valid cut of the hierarchy. A diamond whose range
 // does not straddle w (lo <= w < hi fails) holds no surface now and never will, so refinement
@@ -12,21 +12,22 @@
 // Diamonds whose subtree lies wholly in the padding beyond the data box get an empty range
 // (their pieces of surface would all be clipped away).
 //
-// Storage: entries {lo, hi, error} in the volume's sample type (error as an unsigned integer of
-// the same width, rounded up, or as float for floating-point volumes) for every diamond of scale
-// h ≥ 2, in one dense array per scale clipped to the data box plus the margin a subtree can
-// reach. That is about 1/8 of the grid vertices: about 0.44× the volume's own bytes for large
-// volumes, up to ~0.86× for small ones where the margin counts. Diamonds of scale 1 (7/8 of
-// all) are computed on demand from fixed stencils of samples that depend only on the centre
-// mod 4 (about 60 reads for a cube centre, fewer for the others). Within 2 of the data
-// boundary the stencils read clamped samples, a superset of the exact range and error: still
-// sound for culling and still nested, because the build and every query use the same function.
+// Storage: diamonds of scale 1 (7/8 of all) are computed on demand from fixed stencils of
+// samples that depend only on the centre mod 4 (about 60 reads for a cube centre, fewer for the
+// others): exact away from the data boundary, read with clamped samples within 2 of it (a
+// superset, still sound and nested). Diamonds of scale h ≥ 2 take the merge of a min/max pyramid's
+// bricks that meet a box holding their subtree (range_data.cpp says which box and which level):
+// a superset of the subtree's values and errors, so culling stays sound and ranges stay nested,
+// at the price of refining some diamonds whose own subtree would have been culled. The pyramid
+// holds 3 samples per 4 × 4 × 4 grid vertices (about 5% of the volume's bytes) and is built in
+// one streaming pass, in slabs that the caller may run in parallel.
 //
 // Thread safety: immutable after construction; concurrent get() calls are safe.
 #pragma once
 
 #include <cstddef>
 #include <cstdint>
+#include <functional>
 #include <memory>
 
 #include <progiso/core/config.hpp>
@@ -52,17 +53,26 @@ struct diamond_range {
 /// The range data of one volume.
 class range_data {
  public:
-  /// Builds the data: one pass over the hierarchy, O(voxels).
-  range_data(const volume& vol, const hierarchy& hier);
+  /// How the build may run its independent pieces: run(n, body) calls body(i) once for every
+  /// i in [0, n), in any order and on any threads, and returns when all calls have returned.
+  using parallel_loop =
+      std::function<void(std::size_t, const std::function<void(std::size_t)>&)>;
+
+  /// Builds the data: one pass over the volume, O(voxels); pieces of it through `run` when
+  /// given, else one after another on this thread.
+  explicit range_data(const volume& vol, const hierarchy& hier, const parallel_loop& run = {});
   /// Refused at compile time: the range data keeps pointers to both (detail/borrow.hpp).
   template <class V, class H>
   requires detail::any_rvalue<V, H> range_data(V&&, H&&)
+  = delete;
+  template <class V, class H, class R>
+  requires detail::any_rvalue<V, H> range_data(V&&, H&&, R&&)
   = delete;
   ~range_data();
   range_data(range_data&&) noexcept;
   range_data& operator=(range_data&&) noexcept;
 
-  /// Nested range and error of diamond d. Cost O(1) for stored scales, ≤ 51 samples otherwise.
+  /// Nested range and error of diamond d: ≤ 64 bricks for scale ≥ 2, ≤ 60 samples for scale 1.
   [[nodiscard]] diamond_range get(const diamond& d) const noexcept;
   /// The same for the diamond centred at `centre` (a diamond of the hierarchy), without
   /// building the diamond when it is not needed.

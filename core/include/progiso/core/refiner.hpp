@@ -224,7 +224,9 @@ struct extract_options {
   extract_mode mode = extract_mode::full;
   double max_error = 0.0;                          ///< extract_mode::error
   std::uint64_t max_triangles = 0;                 ///< extract_mode::triangles
-  std::chrono::duration<double> time_budget{0.0};  ///< extract_mode::time, from refinement start
+  /// extract_mode::time: from the volume in memory (the engine's path) or from the start of
+  /// refinement, after the range data (extract_isosurface()).
+  std::chrono::duration<double> time_budget{0.0};
   /// Called about every 4096 splits.
   std::function<void(const extract_progress&)> progress;
 };
@@ -233,10 +235,15 @@ struct extract_result {
   triangle_mesh mesh;
   refine_statistics stats;
   double range_build_seconds = 0.0;
-  double first_surface_seconds = 0.0;  ///< refinement start → root surface extracted
+  /// Root surface extracted: from the volume in memory (the engine's path), from the start of
+  /// refinement (extract_isosurface()).
+  double first_surface_seconds = 0.0;
   double refine_seconds = 0.0;
   double extract_seconds = 0.0;
   double total_seconds = 0.0;
+  /// Volume in memory → indexed mesh of the cut in memory (range data, refinement, extraction;
+  /// no file I/O).
+  double pipeline_seconds = 0.0;
   std::size_t range_bytes = 0;
   bool isovalue_outside_data = false;  ///< empty because the isovalue misses the data range
 };

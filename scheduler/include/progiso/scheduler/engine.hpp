@@ -1,7 +1,8 @@
 // progiso/scheduler/engine.hpp — the concurrent progressive isosurface engine.
 //
-// What it is. An engine owns one volume's hierarchy and range data (built once, independent of
-// the isovalue) and the progressive surface of the current isovalue. Refinement runs as tasks on
+// What it is. An engine owns one volume's hierarchy and range data (built once, in parallel, by
+// the first run, independent of the isovalue; the root surface published at construction needs
+// none) and the progressive surface of the current isovalue. Refinement runs as tasks on
 // a oneTBB flow graph: split records of ready diamonds (all parents split) are computed in
 // parallel in batches — compute_split() is pure — and a serial commit step publishes them in
 // dependency order and makes their children ready. Ready diamonds wait in the engine's own
@@ -178,8 +179,9 @@ class surface_snapshot {
 /// The engine. See the file comment.
 class engine {
  public:
-  /// Builds the hierarchy and range data of `vol` (which must outlive the engine) and publishes
-  /// the root surface of `isovalue`. Throws progiso::error for a non-finite isovalue.
+  /// Builds the hierarchy of `vol` (which must outlive the engine) and publishes the root surface
+  /// of `isovalue`: no pass over the volume. The range data is built, in parallel, by the first
+  /// run (or the first call of ranges()). Throws progiso::error for a non-finite isovalue.
   engine(const volume& vol, double isovalue, engine_options options = {});
   /// The same for a volume the engine takes over (a temporary such as read_nrrd(…) or
   /// make_demo_volume(…) binds here, so it cannot dangle).
@@ -229,8 +231,10 @@ class engine {
 
   [[nodiscard]] const volume& field() const noexcept;
   [[nodiscard]] const hierarchy& hierarchy_of() const noexcept;
-  [[nodiscard]] const range_data& ranges() const noexcept;
+  /// The range data; builds it (on the engine's threads) if no run has yet. Any thread.
+  [[nodiscard]] const range_data& ranges() const;
   [[nodiscard]] unsigned threads() const noexcept;
+  /// Seconds the range data took to build; 0 until it is built.
   [[nodiscard]] double range_build_seconds() const noexcept;
 
  private:
