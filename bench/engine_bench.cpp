@@ -131,6 +131,43 @@ void BM_cancel_quiet(benchmark::State& state) {
 BENCHMARK(BM_cancel_quiet)->Iterations(300)->UseManualTime()->Unit(benchmark::kMicrosecond);
 
 // ---------------------------------------------------------------------------------------------
+// Isovalue change while refining: set_isovalue() stops the run, publishes the new isovalue's
+// root surface, retires the old root and resumes the goal. Measured: the call (an upper bound on
+// the time until a reader's snapshot shows the new surface), at a random moment 1–20 ms into a
+// full refinement of ML 257³; every sample checks that the snapshot right after it holds the new
+// isovalue's surface. Arg: threads.
+void BM_isovalue_change(benchmark::State& state) {
+  engine_options o;
+  o.threads = static_cast<unsigned>(state.range(0));
+  engine e(ml(257), 0.5, o);
+  e.refine(refine_goal::triangles(1));  // the range data, built once per volume, not per change
+  std::mt19937 rng(2);
+  std::uniform_int_distribution<int> delay_us(1000, 20000);
+  std::vector<double> samples;
+  std::uint64_t i = 0;
+  for (auto _ : state) {
+    e.start(refine_goal::full());
+    std::this_thread::sleep_for(std::chrono::microseconds(delay_us(rng)));
+    const double w = next_isovalue(++i);
+    const auto t0 = clock::now();
+    e.set_isovalue(w);
+    const auto t1 = clock::now();
+    const surface_snapshot s = e.snapshot();
+    if (s.isovalue() != w || s.triangle_count() == 0) state.SkipWithError("no new surface");
+    samples.push_back(us(t1 - t0));
+    state.SetIterationTime(std::chrono::duration<double>(t1 - t0).count());
+    e.cancel();
+  }
+  report_percentiles(state, samples, "change_");
+}
+BENCHMARK(BM_isovalue_change)
+    ->Arg(1)
+    ->Arg(2)
+    ->Iterations(100)
+    ->UseManualTime()
+    ->Unit(benchmark::kMicrosecond);
+
+// ---------------------------------------------------------------------------------------------
 // Deadline overshoot: refine_for(τ) returns at most this long after the deadline, with the
 // surface published by the deadline. Arg: τ in ms (ML 257³ never finishes within 33 ms).
 void BM_deadline_overshoot(benchmark::State& state) {
