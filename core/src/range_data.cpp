@@ -64,8 +64,9 @@ using entry = detail::range_entry<T>;
 
 // The shape of a stencil: the subtree of the diamond centred at c, every vertex of every
 // descendant's tetrahedra and every descendant's split (centre, spine ends), as grid offsets
-// from c, sorted, without repeats. It depends only on c modulo 4, not on the volume, so it is found once per process by walking the subtree in a
-// probe hierarchy (the walk costs milliseconds; every range_data used to repeat it).
+// from c, sorted, without repeats. It depends only on c modulo 4, not on the volume, so it is found
+// once per process by walking the subtree in a probe hierarchy (the walk costs milliseconds; every
+// range_data used to repeat it).
 struct stencil_shape {
   bool used = false;
   std::vector<ipoint> points;
@@ -194,10 +195,10 @@ class typed_range_data final : public range_data::impl {
       bool high = false;
       bool low = false;
       return visit_box(c, h, [&](const brick& b) {
-        high = high || w.above(b.hi);
-        low = low || !w.above(b.lo);
-        return !(high && low);
-      }) == visit::stopped;
+               high = high || w.above(b.hi);
+               low = low || !w.above(b.lo);
+               return !(high && low);
+             }) == visit::stopped;
     }
     const place where = scale1_place(c);
     if (where == place::outside) return false;  // empty: wholly in the padding

@@ -198,10 +198,9 @@ struct engine_impl {
     std::call_once(ranges_once, [this] {
       const auto t0 = clock::now();
       arena.execute([this] {
-        ranges_.emplace(vol, hier,
-                        [](std::size_t n, const std::function<void(std::size_t)>& body) {
-                          tbb::parallel_for(std::size_t{0}, n, [&body](std::size_t i) { body(i); });
-                        });
+        ranges_.emplace(vol, hier, [](std::size_t n, const std::function<void(std::size_t)>& body) {
+          tbb::parallel_for(std::size_t{0}, n, [&body](std::size_t i) { body(i); });
+        });
       });
       // relaxed: a statistic; call_once orders it for every later caller of ranges().
       range_seconds.store(std::chrono::duration<double>(clock::now() - t0).count(),

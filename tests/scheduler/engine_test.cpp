@@ -310,20 +310,21 @@ TEST(Engine, root_surface_is_published_before_any_pass_over_the_volume) {
   ASSERT_TRUE(e.refine_full());
   EXPECT_GT(e.range_build_seconds(), 0.0);
   EXPECT_TRUE(e.done());
-  EXPECT_TRUE(test::same_surface(e.snapshot().mesh(), test::reference_marching_tetrahedra(v, 0.5).mesh));
+  EXPECT_TRUE(
+      test::same_surface(e.snapshot().mesh(), test::reference_marching_tetrahedra(v, 0.5).mesh));
   // A new isovalue: its root surface at once, its roots queued by the next run.
   e.set_isovalue(0.3);
   EXPECT_FALSE(e.done());
   ASSERT_TRUE(e.refine_full());
-  EXPECT_TRUE(test::same_surface(e.snapshot().mesh(), test::reference_marching_tetrahedra(v, 0.3).mesh));
+  EXPECT_TRUE(
+      test::same_surface(e.snapshot().mesh(), test::reference_marching_tetrahedra(v, 0.3).mesh));
 }
 
 TEST(Engine, pipeline_reports_the_first_surface_before_the_range_data) {
   const volume v = make_marschner_lobb({65, 65, 65});
   const extract_result r = extract_isosurface_parallel(v, 0.5, extract_options{}, 2);
   EXPECT_GT(r.range_build_seconds, 0.0);
-  EXPECT_LE(r.first_surface_seconds + r.range_build_seconds + r.refine_seconds +
-                r.extract_seconds,
+  EXPECT_LE(r.first_surface_seconds + r.range_build_seconds + r.refine_seconds + r.extract_seconds,
             r.pipeline_seconds + 1e-9);
   EXPECT_GT(r.range_bytes, 0u);
   EXPECT_TRUE(test::same_surface(r.mesh, test::reference_marching_tetrahedra(v, 0.5).mesh));

@@ -2,10 +2,10 @@
 //
 // For every diamond D, range(D) = [lo, hi] covers the field values at every grid vertex of every
 // tetrahedron that D or any of its descendants ever has, and error(D) is at least the largest
-// split error |f(centre) - (f(spine0) + f(spine1)) / 2| over D and its descendants. Both are nested: they
-// never grow from a diamond to its children, so "range(D) straddles w" and "error(D) > ε" each
-// select a parent-closed set of diamonds, a valid cut of the hierarchy. A diamond whose range
-// does not straddle w (lo <= w < hi fails) holds no surface now and never will, so refinement
+// split error |f(centre) - (f(spine0) + f(spine1)) / 2| over D and its descendants. Both are
+// nested: they never grow from a diamond to its children, so "range(D) straddles w" and "error(D) >
+// ε" each select a parent-closed set of diamonds, a valid cut of the hierarchy. A diamond whose
+// range does not straddle w (lo <= w < hi fails) holds no surface now and never will, so refinement
 // never visits it: extraction is output sensitive. Neither depends on the isovalue, so a new
 // isovalue reuses the same data.
 //
@@ -55,8 +55,7 @@ class range_data {
  public:
   /// How the build may run its independent pieces: run(n, body) calls body(i) once for every
   /// i in [0, n), in any order and on any threads, and returns when all calls have returned.
-  using parallel_loop =
-      std::function<void(std::size_t, const std::function<void(std::size_t)>&)>;
+  using parallel_loop = std::function<void(std::size_t, const std::function<void(std::size_t)>&)>;
 
   /// Builds the data: one pass over the volume, O(voxels); pieces of it through `run` when
   /// given, else one after another on this thread.

@@ -222,8 +222,8 @@ struct extract_progress {
 
 struct extract_options {
   extract_mode mode = extract_mode::full;
-  double max_error = 0.0;                          ///< extract_mode::error
-  std::uint64_t max_triangles = 0;                 ///< extract_mode::triangles
+  double max_error = 0.0;           ///< extract_mode::error
+  std::uint64_t max_triangles = 0;  ///< extract_mode::triangles
   /// extract_mode::time: from the volume in memory (the engine's path) or from the start of
   /// refinement, after the range data (extract_isosurface()).
   std::chrono::duration<double> time_budget{0.0};
