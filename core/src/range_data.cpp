@@ -48,19 +48,12 @@ struct range_data::impl {
     r.error = std::abs(fc - 0.5 * (f0 + f1));
     return r;
   }
-
-  static void merge(diamond_range& into, const diamond_range& r) noexcept {
-    detail::merge(into, r);
-  }
 };
 
 namespace {
 
-using detail::decode;
 using detail::error_type;
 using detail::quantize_error;
-template <class T>
-using entry = detail::range_entry<T>;
 
 // The shape of a stencil: the subtree of the diamond centred at c, every vertex of every
 // descendant's tetrahedra and every descendant's split (centre, spine ends), as grid offsets

@@ -354,6 +354,7 @@ struct engine_impl {
   // commit step needs to know about their children.
   batch* compute_batch(batch* b) {
     const double w = b->root->isovalue;
+    const range_data& rd = ranges();  // built before the run's first task
     for (batch_item& it : b->items) {
       if (stopping() || past_deadline()) break;
       const ipoint centre = hier.point(it.item.index);
@@ -387,7 +388,7 @@ struct engine_impl {
                 .load(std::memory_order_relaxed);
         ci.known = split_parents + 1 >= ci.parents_needed;
         if (ci.known) {
-          const diamond_range cr = ranges().get(c, children.scale);
+          const diamond_range cr = rd.get(c, children.scale);
           ci.straddles = cr.straddles(w);
           ci.error = cr.error;
         }
@@ -408,6 +409,7 @@ struct engine_impl {
       r.remaining.set(r.queue.size() + inflight_items);
       return;
     }
+    const range_data& rd = ranges();
     --inflight;
     inflight_items -= b->items.size();
     std::size_t published = 0;
@@ -457,7 +459,7 @@ struct engine_impl {
           bool straddles = ci.straddles;
           double error = ci.error;
           if (!ci.known) {
-            const diamond_range cr = ranges().get(hier.point(ci.index));
+            const diamond_range cr = rd.get(hier.point(ci.index));
             straddles = cr.straddles(r.isovalue);
             error = cr.error;
           }
