@@ -12,6 +12,8 @@
 // At shutdown every root (one per isovalue) has been reclaimed exactly once.
 // Runs PROGISO_STRESS_SECONDS (default 1).
 #include <progiso/core/analytic.hpp>
+#include <progiso/core/hierarchy.hpp>
+#include <progiso/core/range_data.hpp>
 #include <progiso/core/refiner.hpp>
 #include <progiso/scheduler/engine.hpp>
 
@@ -51,6 +53,7 @@ struct reader_counts {
 };
 
 TEST(EngineStress, readers_walk_snapshots_while_runs_are_cancelled_and_the_isovalue_changes) {
+  const test::stall_watchdog watchdog("the reader/control stress test", test::stall_limit());
   const volume v = make_gaussian_blobs({41, 37, 39}, 7, 19u);
   const auto box = test::data_box(v);
   const std::vector<double> isovalues{0.35, 0.4, 0.5, 0.6, 0.45};
@@ -169,6 +172,46 @@ TEST(EngineStress, readers_walk_snapshots_while_runs_are_cancelled_and_the_isova
       static_cast<unsigned long long>(violations));
   RecordProperty("snapshots", std::to_string(snapshots));
   RecordProperty("violations", std::to_string(violations));
+}
+
+// The range data is built once, on first use, by whichever thread asks first: readers calling
+// engine::ranges() race a run's driver for it on fresh engines with one and two threads. Every
+// race ends (no thread waits for the build while it holds an arena slot the build needs), every
+// caller sees the same data, equal to a sequential build, and the run reaches its goal.
+TEST(EngineStress, the_first_range_build_raced_by_readers_and_a_run_ends_with_one_build) {
+  const test::stall_watchdog watchdog("the range build race", test::stall_limit());
+  const volume v = make_gaussian_blobs({57, 49, 53}, 9, 5u);
+  const hierarchy h(v.dims());
+  const range_data sequential(v, h);
+  const auto end = clock::now() + test::stress_duration();
+  std::uint64_t races = 0;
+  std::uint64_t mismatches = 0;
+  for (unsigned threads = 1; clock::now() < end || races < 4; threads = 3 - threads, ++races) {
+    engine_options o;
+    o.threads = threads;
+    engine e(v, 0.4, o);
+    test::phase_signal go;
+    std::vector<const range_data*> seen(3, nullptr);
+    std::vector<std::thread> readers;
+    for (std::size_t t = 0; t < seen.size(); ++t) {
+      readers.emplace_back([&, t] {
+        go.wait_for(1);
+        seen[t] = &e.ranges();
+      });
+    }
+    go.advance_to(1);
+    const bool reached = e.refine_full();
+    for (auto& r : readers) r.join();
+    for (const range_data* r : seen) {
+      if (r != &e.ranges()) ++mismatches;
+    }
+    EXPECT_EQ(e.ranges().byte_size(), sequential.byte_size());
+    EXPECT_EQ(e.ranges().get(h.point(0)).error, sequential.get(h.point(0)).error);
+    EXPECT_TRUE(reached);
+    EXPECT_TRUE(e.done());
+  }
+  EXPECT_EQ(mismatches, 0u) << "every caller sees the one build";
+  std::printf("range build races: %llu\n", static_cast<unsigned long long>(races));
 }
 
 }  // namespace

@@ -193,19 +193,33 @@ struct engine_impl {
 
   // The range data, built on first use (the first run, or engine::ranges()) with the engine's
   // threads, one slab of bricks per task. Until then the engine publishes its root surfaces,
-  // which need none.
+  // which need none. Called only by threads outside the arena (the driver before it enters,
+  // users): a thread that held an arena slot while it waited in call_once for another thread's
+  // build would keep that build from the slot it needs (a deadlock with one slot, seen in the
+  // stress test). Tasks read the data through built_ranges().
   const range_data& ranges() const {
     std::call_once(ranges_once, [this] {
       const auto t0 = clock::now();
+      // isolate: while it waits for its slabs, the building thread runs only slab tasks, never
+      // another caller's delegated work.
       arena.execute([this] {
-        ranges_.emplace(vol, hier, [](std::size_t n, const std::function<void(std::size_t)>& body) {
-          tbb::parallel_for(std::size_t{0}, n, [&body](std::size_t i) { body(i); });
+        tbb::this_task_arena::isolate([this] {
+          ranges_.emplace(
+              vol, hier, [](std::size_t n, const std::function<void(std::size_t)>& body) {
+                tbb::parallel_for(std::size_t{0}, n, [&body](std::size_t i) { body(i); });
+              });
         });
       });
       // relaxed: a statistic; call_once orders it for every later caller of ranges().
       range_seconds.store(std::chrono::duration<double>(clock::now() - t0).count(),
                           std::memory_order_relaxed);
     });
+    return *ranges_;
+  }
+  // The range data inside a run's tasks: the driver built it (ranges()) before the run's first
+  // task, and the task graph's start orders that build before every task.
+  const range_data& built_ranges() const noexcept {
+    PROGISO_ASSERT(ranges_.has_value());
     return *ranges_;
   }
   // oneTBB's pool has default_concurrency() threads; asking an arena for more only warns.
@@ -244,7 +258,7 @@ struct engine_impl {
   void seed_roots(engine_root& r) {
     if (r.seeded) return;
     r.seeded = true;
-    const range_data& rd = ranges();
+    const range_data& rd = built_ranges();
     std::uint64_t culled = 0;
     for (const ipoint& c : r.root_centres) {
       const diamond_range rr = rd.get(c);
@@ -354,7 +368,7 @@ struct engine_impl {
   // commit step needs to know about their children.
   batch* compute_batch(batch* b) {
     const double w = b->root->isovalue;
-    const range_data& rd = ranges();  // built before the run's first task
+    const range_data& rd = built_ranges();
     for (batch_item& it : b->items) {
       if (stopping() || past_deadline()) break;
       const ipoint centre = hier.point(it.item.index);
@@ -409,7 +423,7 @@ struct engine_impl {
       r.remaining.set(r.queue.size() + inflight_items);
       return;
     }
-    const range_data& rd = ranges();
+    const range_data& rd = built_ranges();
     --inflight;
     inflight_items -= b->items.size();
     std::size_t published = 0;
@@ -542,8 +556,8 @@ struct engine_impl {
   void drive(engine_root* r) {
     // The first dispatch goes through the serial commit node too: the queue belongs to it
     // (tasks started by the dispatch loop commit while it still runs).
+    (void)ranges();  // in parallel, on this arena; outside it while it waits (see ranges())
     arena.execute([&] {
-      (void)ranges();  // in parallel, on this arena
       auto* seed = new batch;
       seed->root = r;
       seed->seed = true;
