@@ -318,11 +318,7 @@ class typed_range_data final : public range_data::impl {
     levels_.push_back(std::move(l0));
     const auto slab = [this](std::size_t kz) { build_slab(static_cast<std::int32_t>(kz)); };
     const auto slabs = static_cast<std::size_t>(levels_[0].n[2]);
-    if (run) {
-      run(slabs, slab);
-    } else {
-      for (std::size_t kz = 0; kz < slabs; ++kz) slab(kz);
-    }
+    run_loop(run, slabs, slab);
     while (levels_.back().n[0] > 1 || levels_.back().n[1] > 1 || levels_.back().n[2] > 1) {
       const level& fine = levels_.back();
       level coarse;

@@ -904,33 +904,75 @@ void surface_snapshot::for_each_triangle(
   }
 }
 
+// The records in canonical order (diamond order), cut into consecutive parts, each fed to its
+// own builder on the engine's thread count, then joined into the mesh one builder fed them all
+// would make (mesh_builder::join): the same mesh, vertex for vertex, for every thread count. One
+// part per 16 K records, up to 8 per thread (the records gather where the surface is, so parts of
+// equal vertex ranges differ in size). A fresh arena per call: the caller (any thread) takes its
+// reserved slot at once, whatever the engine's own arena is doing.
 template <class Take>
 triangle_mesh surface_snapshot::build(Take&& take, bool canonical, double max_error) const {
   const engine& e = *owner_;
-  detail::mesh_builder b(e.hierarchy_of(), e.field(), root_->isovalue,
-                         static_cast<std::size_t>(triangle_count() / 2 + 16));
-  const auto add = [&b](std::uint64_t, const std::array<std::uint64_t, 3>& keys) { b.add(keys); };
-  walk_record(*root_, e.hierarchy_of(), 0, take, add);
-  const std::uint64_t vertices = e.hierarchy_of().vertex_count();
-  if (canonical && vertices <= 64 * published_) {
-    // Canonical order is diamond order: with this many records, one sequential pass over the
-    // per-vertex record index costs less than sorting them.
-    for (std::uint64_t v = 0; v < vertices; ++v) {
-      const std::uint32_t r = root_->record_index(v);
-      if (r == 0 || r >= published_ || !(root_->records[r].error > max_error)) continue;
-      walk_record(*root_, e.hierarchy_of(), r, take, add);
-    }
-    return b.finish();
-  }
+  const hierarchy& hier = e.hierarchy_of();
+  const std::uint64_t vertices = hier.vertex_count();
+  const std::size_t threads = e.threads();
+  const std::size_t parts =
+      threads <= 1
+          ? 1
+          : std::clamp<std::size_t>(static_cast<std::size_t>(published_ / 16384), 1, 8 * threads);
+  // Canonical order is diamond order: with this many records, one sequential pass over the
+  // per-vertex record index costs less than sorting them.
+  const bool scan = canonical && vertices <= 64 * published_;
   std::vector<std::pair<std::uint64_t, std::uint32_t>> order;
-  order.reserve(published_);
-  for (std::uint64_t r = 1; r < published_; ++r) {
-    const detail::engine_record& rec = root_->records[r];
-    if (rec.error > max_error) order.emplace_back(rec.diamond, static_cast<std::uint32_t>(r));
+  if (!scan) {
+    order.reserve(published_);
+    for (std::uint64_t r = 1; r < published_; ++r) {
+      const detail::engine_record& rec = root_->records[r];
+      if (rec.error > max_error) order.emplace_back(rec.diamond, static_cast<std::uint32_t>(r));
+    }
+    if (canonical) std::sort(order.begin(), order.end());
   }
-  if (canonical) std::sort(order.begin(), order.end());
-  for (const auto& [d, r] : order) walk_record(*root_, e.hierarchy_of(), r, take, add);
-  return b.finish();
+  // Part k of n items: [first(k), first(k + 1)).
+  const auto first = [parts](std::uint64_t items, std::size_t k) {
+    return k * (items / parts) + std::min<std::uint64_t>(k, items % parts);
+  };
+  const auto expected = static_cast<std::size_t>(triangle_count() / 2 + 16);
+  std::vector<detail::mesh_builder> builders;
+  builders.reserve(parts);
+  for (std::size_t k = 0; k < parts; ++k) {
+    builders.emplace_back(hier, e.field(), root_->isovalue, expected / parts + 16);
+  }
+  const auto feed = [&](std::size_t k) {
+    detail::mesh_builder& b = builders[k];
+    const auto add = [&b](std::uint64_t, const std::array<std::uint64_t, 3>& keys) { b.add(keys); };
+    if (k == 0) walk_record(*root_, hier, 0, take, add);
+    if (scan) {
+      for (std::uint64_t v = first(vertices, k), end = first(vertices, k + 1); v < end; ++v) {
+        const std::uint32_t r = root_->record_index(v);
+        if (r == 0 || r >= published_ || !(root_->records[r].error > max_error)) continue;
+        walk_record(*root_, hier, r, take, add);
+      }
+    } else {
+      for (std::uint64_t i = first(order.size(), k), end = first(order.size(), k + 1); i < end;
+           ++i) {
+        walk_record(*root_, hier, order[i].second, take, add);
+      }
+    }
+  };
+  if (parts == 1) {
+    feed(0);
+    return builders[0].finish();
+  }
+  triangle_mesh m;
+  tbb::task_arena arena(static_cast<int>(std::min(threads, parts)));
+  arena.execute([&] {
+    const parallel_loop run = [](std::size_t n, const std::function<void(std::size_t)>& body) {
+      tbb::parallel_for(std::size_t{0}, n, [&body](std::size_t i) { body(i); });
+    };
+    run(parts, feed);
+    m = detail::mesh_builder::join(builders, run);
+  });
+  return m;
 }
 
 triangle_mesh surface_snapshot::mesh() const {

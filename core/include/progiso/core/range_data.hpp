@@ -35,6 +35,7 @@
 #include <progiso/core/detail/sample_threshold.hpp>
 #include <progiso/core/error.hpp>
 #include <progiso/core/hierarchy.hpp>
+#include <progiso/core/parallel_loop.hpp>
 #include <progiso/core/volume.hpp>
 
 namespace progiso {
@@ -53,9 +54,8 @@ struct diamond_range {
 /// The range data of one volume.
 class range_data {
  public:
-  /// How the build may run its independent pieces: run(n, body) calls body(i) once for every
-  /// i in [0, n), in any order and on any threads, and returns when all calls have returned.
-  using parallel_loop = std::function<void(std::size_t, const std::function<void(std::size_t)>&)>;
+  /// How the build may run its independent pieces (progiso::parallel_loop).
+  using parallel_loop = progiso::parallel_loop;
 
   /// Builds the data: one pass over the volume, O(voxels); pieces of it through `run` when
   /// given, else one after another on this thread.

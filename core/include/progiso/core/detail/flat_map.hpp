@@ -66,6 +66,14 @@ class flat_map {
 
   [[nodiscard]] std::size_t size() const noexcept { return size_; }
 
+  /// Calls f(key, value) for every entry, in slot order.
+  template <class F>
+  void for_each(F&& f) const {
+    for (const slot& s : slots_) {
+      if (s.key != empty_key) f(s.key, s.value);
+    }
+  }
+
  private:
   struct slot {
     std::uint64_t key;

@@ -6,7 +6,8 @@
 // vertices only clipped-away triangles used, and maps to physical coordinates.
 //
 // Shared by the sequential refiner and the engine's snapshots. Not thread-safe: one builder per
-// extraction. Cost: O(triangles added) expected.
+// extraction, or one per part of an extraction with join() (parts on their own threads).
+// Cost: O(triangles added) expected.
 #pragma once
 
 #include <array>
@@ -18,6 +19,7 @@
 #include <progiso/core/detail/flat_map.hpp>
 #include <progiso/core/hierarchy.hpp>
 #include <progiso/core/mesh.hpp>
+#include <progiso/core/parallel_loop.hpp>
 #include <progiso/core/volume.hpp>
 
 namespace progiso::detail {
@@ -51,6 +53,12 @@ class mesh_builder {
   }
   /// The mesh; the builder is spent.
   triangle_mesh finish();
+  /// Parts fed consecutive runs of one triangle sequence (each part may be fed on its own
+  /// thread): the mesh one builder fed the whole sequence in order would give, vertex for vertex
+  /// and triangle for triangle. A vertex belongs to the first part that uses it; the others find
+  /// it in that part's key map (only parts whose keys' z range holds the key are asked). Pieces
+  /// of the join run through `run`. The parts are spent.
+  static triangle_mesh join(std::vector<mesh_builder>& parts, const parallel_loop& run);
 
  private:
   // Vertex ids are below 2^31 (a mesh has fewer than 2^31 vertices: positions alone would take
@@ -68,6 +76,10 @@ class mesh_builder {
     return *stored;
   }
   std::uint32_t new_vertex(std::uint64_t key);
+  // Physical coordinates of a grid position.
+  [[nodiscard]] vec3 physical(const vec3& p) const noexcept;
+  // Drops the vertices that no triangle uses, when one of `suspects` is among them.
+  static void drop_unused(triangle_mesh& m, const std::vector<std::uint32_t>& suspects);
   std::uint32_t clip_vertex(const vec3& p);
   void clip(const std::array<std::uint32_t, 3>& ids);
 
