@@ -33,6 +33,11 @@ namespace {
 
 using clock = std::chrono::steady_clock;
 
+// Core's pieces of work (range slabs, mesh parts) as oneTBB tasks in the calling arena.
+void tbb_loop(std::size_t n, const std::function<void(std::size_t)>& body) {
+  tbb::parallel_for(std::size_t{0}, n, [&body](std::size_t i) { body(i); });
+}
+
 // One published split: the new triangles of the split as packed groups (in a buffer the root
 // owns; unpacked with the diamond's centre and scale), the diamond, its nested error and the
 // cut's triangle count once it is published. Record 0 is the root surface: its triangles are
@@ -203,12 +208,7 @@ struct engine_impl {
       // isolate: while it waits for its slabs, the building thread runs only slab tasks, never
       // another caller's delegated work.
       arena.execute([this] {
-        tbb::this_task_arena::isolate([this] {
-          ranges_.emplace(
-              vol, hier, [](std::size_t n, const std::function<void(std::size_t)>& body) {
-                tbb::parallel_for(std::size_t{0}, n, [&body](std::size_t i) { body(i); });
-              });
-        });
+        tbb::this_task_arena::isolate([this] { ranges_.emplace(vol, hier, tbb_loop); });
       });
       // relaxed: a statistic; call_once orders it for every later caller of ranges().
       range_seconds.store(std::chrono::duration<double>(clock::now() - t0).count(),
@@ -966,11 +966,8 @@ triangle_mesh surface_snapshot::build(Take&& take, bool canonical, double max_er
   triangle_mesh m;
   tbb::task_arena arena(static_cast<int>(std::min(threads, parts)));
   arena.execute([&] {
-    const parallel_loop run = [](std::size_t n, const std::function<void(std::size_t)>& body) {
-      tbb::parallel_for(std::size_t{0}, n, [&body](std::size_t i) { body(i); });
-    };
-    run(parts, feed);
-    m = detail::mesh_builder::join(builders, run);
+    detail::tbb_loop(parts, feed);
+    m = detail::mesh_builder::join(builders, detail::tbb_loop);
   });
   return m;
 }
