@@ -236,6 +236,94 @@ BENCHMARK(BM_full_refine)
     ->MinTime(1.0);
 
 // ---------------------------------------------------------------------------------------------
+// Refinement by priority against full refinement (issue 12, target 8): splits per second of a
+// run that takes the largest error first (a deadline, an error target, a triangle budget),
+// over splits per second of full refinement (depth first), on one engine, the same isovalue
+// and a fresh root for each run; pairs alternate which runs first, and the counter is the
+// median of the per-pair ratios. Mode 0: a deadline at half the pair's full time. Mode 1: the
+// error target that leaves about half of the full splits (found once by bisection). Mode 2: a
+// budget of half the full surface's triangles. Args: threads, mode.
+void BM_priority_over_full(benchmark::State& state) {
+  engine_options o;
+  o.threads = static_cast<unsigned>(state.range(0));
+  const int mode = static_cast<int>(state.range(1));
+  engine e(ml(257), 0.5, o);
+  e.refine(refine_goal::triangles(1));  // the range data, built once per volume
+  e.refine_full();
+  const std::uint64_t full_splits = e.statistics().refine.splits;
+  const std::uint64_t full_triangles = e.statistics().refine.triangles;
+  double epsilon = 0.0;
+  if (mode == 1) {
+    double lo = 1e-9;
+    double hi = 1e3;
+    for (int k = 0; k < 30; ++k) {
+      const double mid = std::sqrt(lo * hi);
+      e.set_isovalue(0.5);
+      e.refine(refine_goal::error(mid));
+      (e.statistics().refine.splits > full_splits / 2 ? lo : hi) = mid;
+    }
+    epsilon = hi;
+  }
+  std::vector<double> ratios;
+  double priority_splits = 0.0;
+  double priority_seconds = 0.0;
+  double full_seconds = 0.0;
+  for (auto _ : state) {
+    double t_full = 0.0;
+    double rate_full = 0.0;
+    double rate_priority = 0.0;
+    const auto run_full = [&] {
+      e.set_isovalue(0.5);
+      const auto t0 = clock::now();
+      e.refine_full();
+      t_full = std::chrono::duration<double>(clock::now() - t0).count();
+      rate_full = static_cast<double>(e.statistics().refine.splits) / t_full;
+      full_seconds += t_full;
+    };
+    const auto run_priority = [&](double budget_seconds) {
+      e.set_isovalue(0.5);
+      const auto t0 = clock::now();
+      if (mode == 0) {
+        e.refine(refine_goal::until(t0 + std::chrono::duration_cast<clock::duration>(
+                                             std::chrono::duration<double>(budget_seconds))));
+      } else if (mode == 1) {
+        e.refine(refine_goal::error(epsilon));
+      } else {
+        e.refine(refine_goal::triangles(full_triangles / 2));
+      }
+      const double t = std::chrono::duration<double>(clock::now() - t0).count();
+      const auto splits = static_cast<double>(e.statistics().refine.splits);
+      rate_priority = splits / t;
+      priority_splits += splits;
+      priority_seconds += t;
+    };
+    if (state.iterations() % 2 == 0) {
+      run_full();
+      run_priority(t_full / 2);
+    } else {
+      // The deadline of a pair that starts with the priority run comes from the last full run.
+      run_priority(full_seconds > 0.0 ? full_seconds / static_cast<double>(state.iterations()) / 2
+                                      : 0.2);
+      run_full();
+    }
+    ratios.push_back(rate_priority / rate_full);
+  }
+  std::sort(ratios.begin(), ratios.end());
+  state.counters["threads"] = e.threads();
+  state.counters["ratio_median"] = ratios[ratios.size() / 2];
+  state.counters["priority_Msplits_s"] = priority_splits / priority_seconds / 1e6;
+  state.counters["full_Msplits_s"] = static_cast<double>(full_splits) *
+                                     static_cast<double>(state.iterations()) / full_seconds / 1e6;
+  state.counters["priority_splits"] = priority_splits / static_cast<double>(state.iterations());
+  state.counters["full_splits"] = static_cast<double>(full_splits);
+}
+BENCHMARK(BM_priority_over_full)
+    ->ArgsProduct({{1, 2}, {0, 1, 2}})
+    ->Iterations(8)
+    ->Unit(benchmark::kMillisecond)
+    ->UseRealTime();
+
+// ---------------------------------------------------------------------------------------------
 // Writer throughput (splits per second of a full refinement) with one reader taking and walking
 // snapshots (every triangle of the cut) continuously, against none. Paired: every iteration
 // refines twice, once with the reader walking and once with it asleep, in alternating order, so

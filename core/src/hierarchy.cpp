@@ -66,13 +66,8 @@ hierarchy::hierarchy(const index3& data_dims) {
   stride_y_ = static_cast<std::uint64_t>(grid_max_[0]) + 1;
   stride_z_ = stride_y_ * (static_cast<std::uint64_t>(grid_max_[1]) + 1);
   vertex_count_ = stride_z_ * (static_cast<std::uint64_t>(grid_max_[2]) + 1);
-}
-
-ipoint hierarchy::point(std::uint64_t i) const noexcept {
-  const auto z = i / stride_z_;
-  const auto r = i % stride_z_;
-  return {static_cast<std::int32_t>(r % stride_y_), static_cast<std::int32_t>(r / stride_y_),
-          static_cast<std::int32_t>(z)};
+  inverse_y_ = 1.0 / static_cast<double>(stride_y_);
+  inverse_z_ = 1.0 / static_cast<double>(stride_z_);
 }
 
 std::int32_t hierarchy::scale_of(const ipoint& p) const noexcept {

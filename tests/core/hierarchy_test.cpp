@@ -286,5 +286,29 @@ TEST(Hierarchy, root_size_is_the_largest_power_of_two_with_little_padding) {
       }
 }
 
+TEST(Hierarchy, point_inverts_index_on_every_row_and_slab_boundary_up_to_the_largest_grid) {
+  // point() divides by reciprocal multiplication; the quotient must be exact where it is an
+  // integer or one below (the first and last vertex of every row and slab), up to the largest
+  // grid the hierarchy accepts (32769 samples per axis: indices near 2^45).
+  for (const index3 d :
+       {index3{2, 2, 2}, index3{257, 257, 257}, index3{93, 64, 301}, index3{32769, 32769, 32769},
+        index3{32769, 3, 32769}, index3{5, 32769, 17}}) {
+    const hierarchy h(d);
+    const ipoint g = h.grid_max();
+    const auto check = [&](const ipoint& p) {
+      ASSERT_EQ(h.point(h.index(p)), p) << d[0] << "x" << d[1] << "x" << d[2];
+    };
+    const int step_z = std::max(1, g[2] / 97);
+    const int step_y = std::max(1, g[1] / 89);
+    for (int z = 0; z <= g[2]; z += step_z)
+      for (int y = 0; y <= g[1]; y += step_y) {
+        for (const int x : {0, 1, g[0] - 1, g[0]}) check({std::max(x, 0), y, z});
+        check({g[0], std::max(y - 1, 0), z});
+      }
+    check(g);
+    EXPECT_EQ(h.index(g) + 1, h.vertex_count());
+  }
+}
+
 }  // namespace
 }  // namespace progiso

@@ -204,6 +204,42 @@ TEST(Engine, isovalue_change_publishes_the_new_root_at_once_and_resumes_refining
   EXPECT_EQ(reclaimed, (std::multiset<std::uint64_t>{0, 1})) << "each root reclaimed exactly once";
 }
 
+TEST(Engine, a_root_on_a_reclaimed_roots_cleared_arrays_refines_exactly_as_a_fresh_engine) {
+  // Each isovalue change hands the old root's per-vertex arrays, cleared on a thread of their
+  // own, to a later root: entry by entry after a small cut, whole after a large one. A missed entry
+  // would make a child ready too early or never, or put a stale record index in a reader's lookup:
+  // the surfaces would differ from a fresh engine's. A sphere in 97³ (912 673 vertices: entry by
+  // entry below ~14 K records): radii 5.5–12.7 leave 5–17 K records, 30.2 and 41.1 leave 39–125 K;
+  // eps < 0 is the full goal.
+  const volume v = make_sphere_field({97, 97, 97}, {48.3, 47.6, 48.9});
+  engine e(v, 5.5, with_threads(2));
+  const std::vector<std::pair<double, double>> steps = {
+      {5.5, -1.0}, {30.2, -1.0}, {9.3, 0.1}, {41.1, 0.5}, {12.7, 0.5}, {9.3, -1.0}, {30.2, 0.5}};
+  for (const auto& [w, eps] : steps) {
+    SCOPED_TRACE(testing::Message() << "w " << w << " eps " << eps);
+    std::this_thread::sleep_for(20ms);  // time for the cleaner; the surfaces hold either way
+    e.set_isovalue(w);
+    engine fresh(v, w, with_threads(2));
+    if (eps < 0) {
+      EXPECT_TRUE(e.refine_full());
+      EXPECT_TRUE(fresh.refine_full());
+    } else {
+      EXPECT_TRUE(e.refine_until(eps));
+      EXPECT_TRUE(fresh.refine_until(eps));
+    }
+    const surface_snapshot s = e.snapshot();
+    const surface_snapshot f = fresh.snapshot();
+    EXPECT_EQ(s.split_count(), f.split_count());
+    EXPECT_TRUE(s.check_integrity());
+    const triangle_mesh m = s.mesh();
+    const triangle_mesh mf = f.mesh();
+    EXPECT_EQ(m.vertices, mf.vertices);
+    EXPECT_EQ(m.triangles, mf.triangles);
+  }
+  EXPECT_GE(e.statistics().recycled_roots, 1u) << "no root took a reclaimed root's arrays";
+  EXPECT_LT(e.statistics().recycled_roots, steps.size());
+}
+
 TEST(Engine, a_held_snapshot_keeps_its_root_readable_across_isovalue_changes) {
   const volume v = make_sphere_field({33, 33, 33}, {16.2, 15.7, 16.4});
   engine_options o = with_threads(2);

@@ -84,7 +84,15 @@ class hierarchy {
     return static_cast<std::uint64_t>(p[0]) + stride_y_ * static_cast<std::uint64_t>(p[1]) +
            stride_z_ * static_cast<std::uint64_t>(p[2]);
   }
-  [[nodiscard]] ipoint point(std::uint64_t index) const noexcept;
+  /// The grid vertex of a linear index (the inverse of index()): two divisions by reciprocal
+  /// multiplication, corrected to the exact quotient (a hot path of the refiners).
+  [[nodiscard]] ipoint point(std::uint64_t index) const noexcept {
+    const std::uint64_t z = divide(index, stride_z_, inverse_z_);
+    const std::uint64_t r = index - z * stride_z_;
+    const std::uint64_t y = divide(r, stride_y_, inverse_y_);
+    return {static_cast<std::int32_t>(r - y * stride_y_), static_cast<std::int32_t>(y),
+            static_cast<std::int32_t>(z)};
+  }
 
   /// True when p is a grid vertex that is the centre of a diamond (not a root-cube corner).
   [[nodiscard]] bool is_diamond(const ipoint& p) const noexcept;
@@ -157,7 +165,21 @@ class hierarchy {
   ipoint data_max_{};
   std::uint64_t stride_y_ = 0;
   std::uint64_t stride_z_ = 0;
+  double inverse_y_ = 0.0;  // 1 / stride_y_
+  double inverse_z_ = 0.0;  // 1 / stride_z_
   std::uint64_t vertex_count_ = 0;
+
+  // floor(i / d) from a product with inv ≈ 1/d: exact for i < 2^53 (the double quotient is
+  // within 2^-20 of the true one for quotients below 2^32, so one step up or down corrects it).
+  static std::uint64_t divide(std::uint64_t i, std::uint64_t d, double inv) noexcept {
+    auto q = static_cast<std::uint64_t>(static_cast<double>(i) * inv);
+    if (q * d > i) {
+      --q;
+    } else if ((q + 1) * d <= i) {
+      ++q;
+    }
+    return q;
+  }
 };
 
 }  // namespace progiso

@@ -128,6 +128,9 @@ struct engine_statistics {
   std::uint64_t root_bytes = 0;          ///< records and triangles of the current root
   std::uint64_t retired_bytes = 0;       ///< of retired roots not yet reclaimed
   std::uint64_t peak_retired_bytes = 0;  ///< the largest retired_bytes so far
+  /// Roots (isovalues) that took the cleared per-vertex arrays of a reclaimed root instead of
+  /// mapping fresh ones (engine life).
+  std::uint64_t recycled_roots = 0;
 };
 
 /// An immutable view of one published cut of one isovalue. Cheap to take, O(cut records) to

@@ -32,7 +32,7 @@ class ready_queue {
     head_ = 0;
     discipline_ = d;
     if (d == queue_discipline::largest_error) {
-      std::make_heap(items_.begin(), items_.end(), ranks_below);
+      std::make_heap(items_.begin(), items_.end(), ranks_below{});
     }
   }
   [[nodiscard]] const Item& top() const noexcept {
@@ -62,7 +62,7 @@ class ready_queue {
   void push(const Item& item) {
     items_.push_back(item);
     if (discipline_ == queue_discipline::largest_error) {
-      std::push_heap(items_.begin(), items_.end(), ranks_below);
+      std::push_heap(items_.begin(), items_.end(), ranks_below{});
     }
   }
   void pop() {
@@ -83,18 +83,21 @@ class ready_queue {
         items_.pop_back();
         return;
       case queue_discipline::largest_error:
-        std::pop_heap(items_.begin(), items_.end(), ranks_below);
+        std::pop_heap(items_.begin(), items_.end(), ranks_below{});
         items_.pop_back();
         return;
     }
   }
 
  private:
-  static bool ranks_below(const Item& a, const Item& b) noexcept {
-    if (a.error != b.error) return a.error < b.error;
-    if (a.depth != b.depth) return a.depth > b.depth;
-    return a.index > b.index;
-  }
+  // A function object, not a function: the heap algorithms inline it.
+  struct ranks_below {
+    bool operator()(const Item& a, const Item& b) const noexcept {
+      if (a.error != b.error) return a.error < b.error;
+      if (a.depth != b.depth) return a.depth > b.depth;
+      return a.index > b.index;
+    }
+  };
 
   queue_discipline discipline_;
   std::vector<Item> items_;

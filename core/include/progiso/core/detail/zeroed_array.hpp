@@ -7,16 +7,21 @@
 // anonymous mapping is zeroed lazily by the kernel, page by page, on first touch. Small arrays
 // (up to 4 MiB) come from calloc() all the same: zeroing them costs tens of microseconds, while
 // the page faults of a fresh mapping, which a refinement touching most pages pays on every run,
-// cost about a microsecond per 4 KiB page. Not thread-safe to create or destroy; elements follow
-// T's own rules.
+// cost about a microsecond per 4 KiB page. A page first read, then written, costs more: the read
+// maps the shared zero page and the write replaces it, which flushes the TLB of every core running
+// the process (an interrupt each). Owners that touch many pages on every use keep the array and
+// zero() it, or clear what they wrote, instead of mapping a fresh one. Not thread-safe to create or
+// destroy; elements follow T's own rules.
 #pragma once
 
 #include <sys/mman.h>
 
 #include <cstddef>
 #include <cstdlib>
+#include <cstring>
 #include <new>
 #include <type_traits>
+#include <utility>
 
 namespace progiso::detail {
 
@@ -40,19 +45,37 @@ class zeroed_array {
   }
   zeroed_array(const zeroed_array&) = delete;
   zeroed_array& operator=(const zeroed_array&) = delete;
-  ~zeroed_array() {
-    if (data_ == nullptr) return;
-    if (bytes_ <= heap_max_bytes) {
-      std::free(data_);
-    } else {
-      munmap(data_, bytes_);
-    }
+  zeroed_array(zeroed_array&& o) noexcept : bytes_(o.bytes_), data_(o.data_) {
+    o.bytes_ = 0;
+    o.data_ = nullptr;
+  }
+  zeroed_array& operator=(zeroed_array&& o) noexcept {
+    std::swap(bytes_, o.bytes_);
+    std::swap(data_, o.data_);
+    return *this;
+  }
+  ~zeroed_array() { release(); }
+
+  [[nodiscard]] std::size_t size() const noexcept { return bytes_ / sizeof(T); }
+  /// Zeroes every element (touches every page).
+  void zero() noexcept {
+    if (data_ != nullptr) std::memset(static_cast<void*>(data_), 0, bytes_);
   }
 
   [[nodiscard]] T* get() const noexcept { return data_; }
   T& operator[](std::size_t i) const noexcept { return data_[i]; }
 
  private:
+  void release() noexcept {
+    if (data_ == nullptr) return;
+    if (bytes_ <= heap_max_bytes) {
+      std::free(data_);
+    } else {
+      munmap(data_, bytes_);
+    }
+    data_ = nullptr;
+  }
+
   std::size_t bytes_;
   T* data_ = nullptr;
 };
