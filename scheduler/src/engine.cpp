@@ -23,8 +23,8 @@
 #include <progiso/core/assert.hpp>
 #include <progiso/core/detail/mesh_builder.hpp>
 #include <progiso/core/detail/ready_queue.hpp>
-#include <progiso/core/detail/zeroed_array.hpp>
 #include <progiso/core/error.hpp>
+#include <progiso/core/zeroed_array.hpp>
 #include <progiso/scheduler/tbb_environment.hpp>
 
 namespace progiso {

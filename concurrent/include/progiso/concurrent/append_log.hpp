@@ -33,7 +33,7 @@
 #include <type_traits>
 
 #include <progiso/core/config.hpp>
-#include <progiso/core/detail/zeroed_array.hpp>
+#include <progiso/core/zeroed_array.hpp>
 
 namespace progiso {
 
@@ -90,7 +90,7 @@ class append_log {
   }
 
  private:
-  detail::zeroed_array<T*> chunks_;
+  zeroed_array<T*> chunks_;
   std::size_t size_ = 0;
   alignas(64) std::atomic<std::size_t> published_{0};
 };

@@ -28,11 +28,11 @@
 #include <progiso/core/contour.hpp>
 #include <progiso/core/contour_split.hpp>
 #include <progiso/core/detail/borrow.hpp>
-#include <progiso/core/detail/zeroed_array.hpp>
 #include <progiso/core/error.hpp>
 #include <progiso/core/hierarchy2d.hpp>
 #include <progiso/core/range_data2d.hpp>
 #include <progiso/core/volume.hpp>
+#include <progiso/core/zeroed_array.hpp>
 
 namespace progiso {
 
@@ -120,12 +120,12 @@ class contour_refiner {
   double isovalue_;
   std::array<double, 2> origin_{};  // copied so that extraction never reads the image
   std::array<double, 2> spacing_{};
-  detail::zeroed_array<std::uint8_t> state_;  // per grid vertex: split flag, split parents
+  zeroed_array<std::uint8_t> state_;  // per grid vertex: split flag, split parents
   std::vector<placed_segment> segments_;
   std::vector<owned_segment> scratch_;
   std::vector<record> records_;
   // Record of each split diamond, by grid index (untouched pages cost nothing).
-  detail::zeroed_array<std::uint32_t> record_of_;
+  zeroed_array<std::uint32_t> record_of_;
   std::unique_ptr<queue> queue_;
   contour_statistics stats_;
   contour_split_summary last_;

@@ -33,13 +33,13 @@
 
 #include <progiso/core/config.hpp>
 #include <progiso/core/detail/borrow.hpp>
-#include <progiso/core/detail/zeroed_array.hpp>
 #include <progiso/core/error.hpp>
 #include <progiso/core/hierarchy.hpp>
 #include <progiso/core/mesh.hpp>
 #include <progiso/core/range_data.hpp>
 #include <progiso/core/split_record.hpp>
 #include <progiso/core/volume.hpp>
+#include <progiso/core/zeroed_array.hpp>
 
 namespace progiso {
 
@@ -143,7 +143,7 @@ class refiner {
   const hierarchy& hier_;
   const range_data& ranges_;
   double isovalue_;
-  detail::zeroed_array<std::uint8_t> state_;  // per grid vertex: split flag, split parents
+  zeroed_array<std::uint8_t> state_;  // per grid vertex: split flag, split parents
   // Append-only storage in fixed chunks (a power of two, 4 K to 64 K elements, chosen from the
   // volume's size): growth never moves what is stored (no reallocation copy of tens or hundreds
   // of megabytes, no second set of fresh pages), and a small volume's refinement stays small

@@ -1,5 +1,6 @@
-// progiso/core/detail/zeroed_array.hpp — a large zero-filled array whose pages cost nothing until
-// touched.
+// progiso/core/zeroed_array.hpp — a large zero-filled array whose pages cost nothing until
+// touched. Public (not core/detail) because concurrent/append_log.hpp keeps its chunk table in
+// one, and concurrent/ depends only on core's public headers.
 //
 // The refiners keep a few bytes per grid vertex but touch only the vertices near the surface.
 // calloc() zero-fills eagerly once glibc has raised its mmap threshold (it does after large frees),
@@ -23,7 +24,7 @@
 #include <type_traits>
 #include <utility>
 
-namespace progiso::detail {
+namespace progiso {
 
 template <class T>
 class zeroed_array {
@@ -80,4 +81,4 @@ class zeroed_array {
   T* data_ = nullptr;
 };
 
-}  // namespace progiso::detail
+}  // namespace progiso
