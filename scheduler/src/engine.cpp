@@ -85,10 +85,6 @@ constexpr unsigned char poison_byte = 0xdb;
 
 }  // namespace
 
-// One isovalue's progressive surface. Readers reach it through engine_impl::root (protected by
-// an epoch guard) and read the published prefix of `records` and `record_of`; everything under
-// "commit step only" belongs to whichever thread runs the serial commit (or the control thread
-// while no run is active).
 // A root's per-grid-vertex arrays (engine_root::record_of and parents), all zero when handed to
 // a root. A reclaimed root gives them back to its engine, cleared, for the next root: a fresh
 // mapping would pay a page fault for every page the next refinement touches, and a TLB flush
@@ -99,6 +95,10 @@ struct vertex_state {
   zeroed_array<std::uint8_t> parents;
 };
 
+// One isovalue's progressive surface. Readers reach it through engine_impl::root (protected by
+// an epoch guard) and read the published prefix of `records` and `record_of`; everything under
+// "commit step only" belongs to whichever thread runs the serial commit (or the control thread
+// while no run is active).
 struct engine_root : epoch_object {
   engine_root(engine_impl& owner, double w, std::uint64_t gen, vertex_state&& state)
       : impl(&owner),
