@@ -3,7 +3,12 @@
 
 #include <cmath>
 #include <cstdio>
+#include <sstream>
 #include <string>
+
+#include <progiso/core/detail/subdivision.hpp>
+#include <progiso/core/smoothing.hpp>
+#include <progiso/core/volume.hpp>
 
 namespace progiso::cli {
 
@@ -29,6 +34,33 @@ inline std::string json_escape(const std::string& s) {
     }
   }
   return o;
+}
+
+/// The "smoothing" object of --stats-json: the parameters, the data's and the field's dims, the
+/// subdivision levels applied (K + S, 0 without smoothing) and the fine samples the rule computed.
+inline std::string smoothing_json(const smoothing& s, const volume& data, const volume& field) {
+  std::ostringstream o;
+  const auto dims = [&o](const volume& v) {
+    o << "[" << v.dims()[0] << ", " << v.dims()[1] << ", " << v.dims()[2] << "]";
+  };
+  const detail::subdivision* sub = field.subdivided();
+  o << "{\"enabled\": " << (sub != nullptr ? "true" : "false") << ", \"levels\": " << s.levels
+    << ", \"from\": " << s.from << ", \"alpha\": " << json_number(s.alpha) << ", \"region\": ";
+  if (s.region) {
+    o << "[";
+    for (std::size_t k = 0; k < 6; ++k) o << (k ? ", " : "") << (*s.region)[k];
+    o << "]";
+  } else {
+    o << "null";
+  }
+  o << ", \"subdivision_levels\": " << (sub != nullptr ? s.levels + s.from : 0)
+    << ", \"data_dims\": ";
+  dims(data);
+  o << ", \"field_dims\": ";
+  dims(field);
+  o << ", \"subdivided_samples\": " << (sub != nullptr ? sub->evaluations() : 0)
+    << ", \"overshoot_bound\": " << json_number(sub != nullptr ? sub->overshoot() : 0.0) << "}";
+  return o.str();
 }
 
 }  // namespace progiso::cli

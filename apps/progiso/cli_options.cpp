@@ -17,10 +17,12 @@ const char* const usage_text =
     "          [--dims NX,NY,NZ --type u8|i8|u16|i16|u32|i32|f32|f64 [--big-endian]]\n"
     "          [--spacing SX,SY,SZ] [--full | --error E | --max-triangles K | --time-ms T]\n"
     "          [--stats-json FILE] [--threads N]\n"
+    "          [--smooth S] [--smooth-from K] [--smooth-region X0,Y0,Z0,X1,Y1,Z1] [--alpha A]\n"
     "  progiso extract --demo -o OUT.ply [--iso W] [--threads N]\n"
     "  progiso contour INPUT.pgm|INPUT.png -o OUT.obj|OUT.svg --iso W[,W2,...]\n"
     "          [--full | --error E | --max-segments K | --time-ms T] [--frames DIR]\n"
     "          [--stats-json FILE]\n"
+    "          [--smooth S] [--smooth-from K] [--smooth-region X0,Y0,X1,Y1] [--alpha A]\n"
     "\n"
     "INPUT is a .nrrd/.nhdr file, or a headerless raw file described by --dims and --type\n"
     "(x fastest, little-endian unless --big-endian). --demo uses a built-in 129^3\n"
@@ -34,6 +36,12 @@ const char* const usage_text =
     "comma-separated and refined one after the other (a budget or deadline is shared);\n"
     "OBJ gets 'v x y 0' and 'l ...' polylines, SVG draws them over the image;\n"
     "--frames DIR writes one SVG per refinement stage.\n"
+    "Smoothing (both commands): the values refinement inserts come from the 4-point\n"
+    "subdivision rule (mask [-A, 8+A, 8+A, -A]/16, 0 < A < 2.4721, default 1) instead of\n"
+    "the data. --smooth S (0..3) refines S levels below the data's resolution; --smooth-from\n"
+    "K (>= 1) uses the data only on every 2^K-th sample and smooths everything finer;\n"
+    "--smooth-region smooths inside a box of data index coordinates (inclusive) and keeps\n"
+    "the data's values outside it. Written coordinates stay physical.\n"
     "Outputs appear only when everything succeeded; an output that names an input or\n"
     "another output is refused.\n";
 
@@ -166,6 +174,60 @@ static_assert(static_cast<int>(extract_mode::triangles) == 2 &&
               static_cast<int>(contour_mode::segments) == 2 &&
               static_cast<int>(contour_mode::time) == 3);
 
+/// The smoothing options shared by both commands: --smooth S, --smooth-from K,
+/// --smooth-region (2·axes integers: lows then highs), --alpha A. Returns false when `f` is none
+/// of them. Limits that depend on the input (K against its extent, the region inside it) are
+/// checked once it is read (check_smoothing()).
+template <class Value>
+bool parse_smoothing(const std::string& f, const Value& value, smoothing& s, std::size_t axes) {
+  if (f == "--smooth") {
+    const std::string t = value();
+    const std::uint64_t n = parse_count(f, t);
+    if (n > 3) throw error("--smooth: expected an integer from 0 to 3, found " + shown(t));
+    s.levels = static_cast<int>(n);
+  } else if (f == "--smooth-from") {
+    const std::string t = value();
+    const std::uint64_t n = parse_count(f, t);
+    if (n < 1 || n > 14)
+      throw error("--smooth-from: expected an integer from 1 to 14, found " + shown(t));
+    s.from = static_cast<int>(n);
+  } else if (f == "--smooth-region") {
+    const std::string t = value();
+    const char* form = axes == 3 ? "X0,Y0,Z0,X1,Y1,Z1" : "X0,Y0,X1,Y1";
+    const auto parts = t.empty() ? std::vector<std::string>{} : split_list(f, t);
+    if (parts.size() != 2 * axes) {
+      throw error("--smooth-region: expected " + std::to_string(2 * axes) +
+                  " comma-separated integers " + form + ", found " + shown(t));
+    }
+    std::array<std::int64_t, 6> r{0, 0, 0, 0, 0, 0};
+    for (std::size_t k = 0; k < parts.size(); ++k) {
+      const std::uint64_t v = parse_count(f, parts[k]);
+      if (v > (std::uint64_t{1} << 31)) {
+        throw error("--smooth-region: expected sample indices, found " + shown(parts[k]));
+      }
+      r[(k / axes) * 3 + k % axes] = static_cast<std::int64_t>(v);
+    }
+    for (std::size_t q = 0; q < axes; ++q) {
+      if (r[q] > r[q + 3]) {
+        throw error("--smooth-region: expected each low corner <= its high corner (" +
+                    std::string(form) + "), found " + shown(t));
+      }
+    }
+    s.region = r;
+  } else if (f == "--alpha") {
+    const std::string t = value();
+    const double a = parse_number(f, t);
+    if (!(a > 0.0 && a < max_smoothing_alpha)) {
+      throw error("--alpha: expected a number with 0 < A < 2(sqrt 5 - 1) = 2.4721, found " +
+                  shown(t));
+    }
+    s.alpha = a;
+  } else {
+    return false;
+  }
+  return true;
+}
+
 }  // namespace
 
 extract_arguments parse_extract(const std::vector<std::string>& args) {
@@ -181,7 +243,8 @@ extract_arguments parse_extract(const std::vector<std::string>& args) {
     const std::string& f = args[i];
     const auto value = [&] { return next_value(args, i, f); };
     if (parse_mode(f, value, "--max-triangles", &extract_options::max_triangles, a.options,
-                   modes)) {
+                   modes) ||
+        parse_smoothing(f, value, a.smooth, 3)) {
       continue;
     }
     if (f == "-o" || f == "--output") {
@@ -257,7 +320,8 @@ contour_arguments parse_contour(const std::vector<std::string>& args) {
   for (std::size_t i = 1; i < args.size(); ++i) {
     const std::string& f = args[i];
     const auto value = [&] { return next_value(args, i, f); };
-    if (parse_mode(f, value, "--max-segments", &contour_options::max_segments, a.options, modes)) {
+    if (parse_mode(f, value, "--max-segments", &contour_options::max_segments, a.options, modes) ||
+        parse_smoothing(f, value, a.smooth, 2)) {
       continue;
     }
     if (f == "-o" || f == "--output") {

@@ -12,6 +12,7 @@
 
 #include <progiso/core/contour_refiner.hpp>
 #include <progiso/core/refiner.hpp>
+#include <progiso/core/smoothing.hpp>
 #include <progiso/core/volume.hpp>
 
 namespace progiso::cli {
@@ -41,6 +42,7 @@ struct extract_arguments {
   extract_options options;
   std::optional<std::string> stats_json;
   unsigned threads = 0;  // 0: all cores
+  smoothing smooth;
 };
 
 struct contour_arguments {
@@ -51,6 +53,7 @@ struct contour_arguments {
   contour_options options;
   std::optional<std::string> frames;
   std::optional<std::string> stats_json;
+  smoothing smooth;  // region: X0, Y0, 0, X1, Y1, 0
 };
 
 /// `args` is argv without the program name, starting with "extract". Throws progiso::error.

@@ -11,6 +11,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <iostream>
+#include <memory>
 #include <optional>
 #include <sstream>
 #include <string>
@@ -21,6 +22,7 @@
 #include <progiso/core/detail/file_output.hpp>
 #include <progiso/core/error.hpp>
 #include <progiso/core/image_io.hpp>
+#include <progiso/core/smoothing.hpp>
 
 #include "cli_common.hpp"
 #include "cli_options.hpp"
@@ -33,8 +35,8 @@ using namespace progiso::cli;
 namespace fs = std::filesystem;
 
 std::string contour_stats_json(const contour_arguments& a, const progiso::volume& img,
-                               const progiso::contour_result& r, std::size_t polylines,
-                               std::size_t segments, std::size_t closed) {
+                               const progiso::volume& field, const progiso::contour_result& r,
+                               std::size_t polylines, std::size_t segments, std::size_t closed) {
   const char* mode_names[] = {"full", "error", "segments", "time"};
   std::uint64_t splits = 0, visited = 0, culled = 0;
   std::array<std::uint64_t, progiso::contour_case_count> cases{};
@@ -66,6 +68,7 @@ std::string contour_stats_json(const contour_arguments& a, const progiso::volume
   o << "  \"pipeline_ms\": " << json_number(r.pipeline_seconds * 1e3) << ",\n";
   o << "  \"range_data_bytes\": " << r.range_bytes << ",\n  \"image_bytes\": " << img.byte_size()
     << ",\n";
+  o << "  \"smoothing\": " << smoothing_json(a.smooth, img, field) << ",\n";
   o << "  \"cases\": {";
   for (std::size_t i = 0; i < cases.size(); ++i) {
     o << (i ? ", " : "") << '"' << progiso::to_string(static_cast<progiso::contour_case>(i))
@@ -102,9 +105,27 @@ int run_contour(const std::vector<std::string>& args) {
   std::optional<progiso::detail::staged_directory> frames;
   if (a.frames) frames.emplace(*a.frames);
 
-  const progiso::volume img = progiso::read_image(*a.input);
+  const auto data = std::make_shared<const progiso::volume>(progiso::read_image(*a.input));
+  const progiso::volume& img = *data;
+  // The field contoured: the image, or its smoothed field (samples computed on demand). SVG
+  // backgrounds show the image itself; coordinates are physical either way.
+  std::shared_ptr<const progiso::volume> field = data;
+  if (a.smooth.active()) {
+    try {
+      progiso::check_smoothing(img.dims(), a.smooth);
+    } catch (const progiso::error& e) {
+      throw error(*a.input + ": " + e.what());
+    }
+    field = std::make_shared<const progiso::volume>(progiso::smooth(data, a.smooth));
+  }
   std::cerr << "progiso: " << *a.input << ", " << img.dims()[0] << "x" << img.dims()[1] << " "
-            << progiso::to_string(img.type()) << ", " << a.isovalues.size() << " isovalue(s)\n";
+            << progiso::to_string(img.type()) << ", " << a.isovalues.size() << " isovalue(s)";
+  if (a.smooth.active()) {
+    std::cerr << ", smoothed to " << field->dims()[0] << "x" << field->dims()[1] << " (S "
+              << a.smooth.levels << ", K " << a.smooth.from << ", alpha " << a.smooth.alpha
+              << (a.smooth.region ? ", in a region" : "") << ")";
+  }
+  std::cerr << "\n";
   if (frames) {
     a.options.frame = [&](const progiso::contour_set& c, int stage) {
       char name[32];
@@ -124,8 +145,8 @@ int run_contour(const std::vector<std::string>& args) {
     segments += c.segment_count();
     for (const auto& p : c.polylines) closed += p.closed ? 1 : 0;
   };
-  const progiso::contour_result r = progiso::extract_contours(img, a.isovalues, a.options);
-  const auto [lo, hi] = img.value_range();
+  const progiso::contour_result r = progiso::extract_contours(*field, a.isovalues, a.options);
+  const auto [lo, hi] = field->value_range();
   for (const double w : a.isovalues) {
     if (!(lo <= w && w < hi)) {
       std::cerr << "progiso: isovalue " << w << " is outside the data range [" << lo << ", " << hi
@@ -134,7 +155,7 @@ int run_contour(const std::vector<std::string>& args) {
   }
   writer.finish();
   if (stats_out) {
-    stats_out->write(contour_stats_json(a, img, r, polylines, segments, closed));
+    stats_out->write(contour_stats_json(a, img, *field, r, polylines, segments, closed));
     stats_out->finish();
   }
   // Everything is written: publish the outputs together.

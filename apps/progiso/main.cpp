@@ -30,6 +30,7 @@
 #include <progiso/core/error.hpp>
 #include <progiso/core/mesh_io.hpp>
 #include <progiso/core/refiner.hpp>
+#include <progiso/core/smoothing.hpp>
 #include <progiso/core/volume_io.hpp>
 #include <progiso/scheduler/engine.hpp>
 #include <progiso/scheduler/tbb_environment.hpp>
@@ -55,7 +56,8 @@ std::vector<std::string> argument_list(int argc, char** argv) {
 }
 
 std::string stats_json(const arguments& a, const std::string& input, double iso,
-                       const progiso::volume& vol, const progiso::extract_result& r) {
+                       const progiso::volume& data, const progiso::volume& vol,
+                       const progiso::extract_result& r) {
   const char* mode_names[] = {"full", "error", "triangles", "time"};
   std::ostringstream o;
   o << "{\n";
@@ -78,7 +80,8 @@ std::string stats_json(const arguments& a, const std::string& input, double iso,
   o << "  \"total_ms\": " << json_number(r.total_seconds * 1e3) << ",\n";
   o << "  \"pipeline_ms\": " << json_number(r.pipeline_seconds * 1e3) << ",\n";
   o << "  \"range_data_bytes\": " << r.range_bytes << ",\n";
-  o << "  \"volume_bytes\": " << vol.byte_size() << ",\n";
+  o << "  \"volume_bytes\": " << data.byte_size() << ",\n";
+  o << "  \"smoothing\": " << smoothing_json(a.smooth, data, vol) << ",\n";
   o << "  \"isovalue_outside_data\": " << (r.isovalue_outside_data ? "true" : "false") << ",\n";
   o << "  \"cases\": {";
   for (std::size_t i = 0; i < progiso::tet_case_count; ++i) {
@@ -164,19 +167,34 @@ int run(const std::vector<std::string>& args) {
   if (a.stats_json) stats_out.emplace(*a.stats_json);
 
   const std::string input = a.demo ? std::string("demo: Marschner-Lobb 129^3") : *a.input;
-  std::optional<progiso::volume> vol;
+  std::shared_ptr<const progiso::volume> data;
   double iso = 0.0;
   if (a.demo) {
-    vol.emplace(progiso::make_demo_volume());
+    data = std::make_shared<const progiso::volume>(progiso::make_demo_volume());
     iso = a.iso.value_or(progiso::demo_isovalue);
   } else {
-    vol.emplace(progiso::read_volume(*a.input, raw, a.spacing));
+    data = std::make_shared<const progiso::volume>(progiso::read_volume(*a.input, raw, a.spacing));
     iso = *a.iso;
   }
+  // The field refined: the data, or its smoothed field (samples computed on demand).
+  std::shared_ptr<const progiso::volume> vol = data;
+  if (a.smooth.active()) {
+    try {
+      progiso::check_smoothing(data->dims(), a.smooth);
+    } catch (const progiso::error& e) {
+      throw error(input + ": " + e.what());
+    }
+    vol = std::make_shared<const progiso::volume>(progiso::smooth(data, a.smooth));
+  }
   check_ply_range(*a.output, *vol);
-  std::cerr << "progiso: " << input << ", " << vol->dims()[0] << "x" << vol->dims()[1] << "x"
-            << vol->dims()[2] << " " << progiso::to_string(vol->type()) << ", isovalue " << iso
-            << "\n";
+  std::cerr << "progiso: " << input << ", " << data->dims()[0] << "x" << data->dims()[1] << "x"
+            << data->dims()[2] << " " << progiso::to_string(data->type()) << ", isovalue " << iso;
+  if (a.smooth.active()) {
+    std::cerr << ", smoothed to " << vol->dims()[0] << "x" << vol->dims()[1] << "x"
+              << vol->dims()[2] << " (S " << a.smooth.levels << ", K " << a.smooth.from
+              << ", alpha " << a.smooth.alpha << (a.smooth.region ? ", in a region" : "") << ")";
+  }
+  std::cerr << "\n";
   progress_bar bar;
   a.options.progress = [&bar](const progiso::extract_progress& p) { bar.update(p); };
   const progiso::extract_result r =
@@ -188,7 +206,7 @@ int run(const std::vector<std::string>& args) {
               << "): the surface is empty\n";
   }
   progiso::detail::write_mesh_to(mesh_out, r.mesh);
-  if (stats_out) stats_out->write(stats_json(a, input, iso, *vol, r));
+  if (stats_out) stats_out->write(stats_json(a, input, iso, *data, *vol, r));
   // Everything is written: publish the outputs together.
   mesh_out.finish();
   if (stats_out) stats_out->finish();

@@ -2,6 +2,7 @@
 
 #include <progiso/core/assert.hpp>
 #include <progiso/core/detail/range_entry.hpp>
+#include <progiso/core/detail/subdivision.hpp>
 
 #include <algorithm>
 #include <cmath>
@@ -612,9 +613,75 @@ class typed_range_data final : public range_data::impl {
   std::vector<level> levels_;
 };
 
+// Smoothed volumes (smoothing.hpp): the fine samples exist only on demand, so the range of a
+// diamond is bounded from the data. Its subtree lies in the box c ± R (R = r h − 2 as above, which
+// holds at h = 1 too: r − 2 ≥ the scale-1 reach); the fine samples of that box are made from the
+// data samples their rows reach (subdivision::reach), so they lie within the data's [m, M] there,
+// widened by λ (M − m) where the box meets the smoothed region (detail::subdivided_range, over a
+// min/max pyramid of the data). Nested: a child's box lies in its parent's, so its data box lies
+// in its parent's and the pyramid answers from bricks inside its parent's. The error bound is hi −
+// lo: every split error |f(c) − (f(a) + f(b)) / 2| of the subtree lies between values within [lo,
+// hi].
+class subdivided_range_data final : public range_data::impl {
+ public:
+  subdivided_range_data(const volume& v, const hierarchy& h, const range_data::parallel_loop& run)
+      : sub_(*v.subdivided()), data_(sub_.data(), run) {
+    vol = &v;
+    hier = &h;
+  }
+
+  [[nodiscard]] diamond_range get(const diamond& d) const noexcept override {
+    return get_at(d.centre, d.scale);
+  }
+  [[nodiscard]] diamond_range get_at(const ipoint& c) const noexcept override {
+    return get_at(c, hier->scale_of(c));
+  }
+  [[nodiscard]] diamond_range get_at(const ipoint& c, std::int32_t h) const noexcept override {
+    if (empty_at(c, h)) return {};
+    const std::int32_t r = reach(c, h);
+    const ipoint& dm = hier->data_max();
+    ipoint b0{};
+    ipoint b1{};
+    for (std::size_t q = 0; q < 3; ++q) {
+      b0[q] = std::max(c[q] - r, 0);
+      b1[q] = std::min(c[q] + r, dm[q]);
+    }
+    const auto [lo, hi] = detail::subdivided_range(sub_, data_, b0, b1);
+    diamond_range out;
+    out.lo = lo;
+    out.hi = hi;
+    out.error = hi - lo;
+    return out;
+  }
+  [[nodiscard]] bool empty_at(const ipoint& c, std::int32_t h) const noexcept override {
+    const std::int32_t r = reach(c, h);
+    const ipoint& dm = hier->data_max();
+    return c[0] - r >= dm[0] || c[1] - r >= dm[1] || c[2] - r >= dm[2];
+  }
+  [[nodiscard]] bool straddles_at(const ipoint& c, std::int32_t h,
+                                  const detail::sample_threshold& w) const noexcept override {
+    return get_at(c, h).straddles(w.w);
+  }
+  [[nodiscard]] std::size_t byte_size() const noexcept override {
+    return sub_.byte_size() + data_.byte_size();
+  }
+
+ private:
+  [[nodiscard]] static std::int32_t reach(const ipoint& c, std::int32_t h) noexcept {
+    const int odd = ((c[0] / h) & 1) + ((c[1] / h) & 1) + ((c[2] / h) & 1);
+    return (2 + odd) * h - 2;
+  }
+  const detail::subdivision& sub_;
+  detail::data_pyramid data_;
+};
+
 }  // namespace
 
 range_data::range_data(const volume& vol, const hierarchy& hier, const parallel_loop& run) {
+  if (vol.subdivided() != nullptr) {
+    impl_ = std::make_unique<subdivided_range_data>(vol, hier, run);
+    return;
+  }
   vol.visit_samples([&](const auto* samples) {
     using T = std::remove_cv_t<std::remove_pointer_t<decltype(samples)>>;
     impl_ = std::make_unique<typed_range_data<T>>(vol, hier, run);

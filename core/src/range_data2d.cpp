@@ -1,6 +1,7 @@
 #include <progiso/core/range_data2d.hpp>
 
 #include <progiso/core/detail/range_entry.hpp>
+#include <progiso/core/detail/subdivision.hpp>
 
 #include <algorithm>
 #include <bit>
@@ -274,6 +275,48 @@ class typed_range_data2d final : public range_data2d::impl {
   std::vector<level> levels_;  // indexed by log2(scale); levels below first_stored_ are empty
 };
 
+// A smoothed image (smoothing.hpp): ranges bounded from the data, as for smoothed volumes
+// (range_data.cpp). The subtree of a diamond lies in c ± subtree_reach(type, h) per axis; its
+// fine samples are bounded by the data over what their rows reach, widened by the overshoot bound
+// in the smoothed region. Nested, since a child's box lies in its parent's (type 1 → type 0 at
+// h/2: h/2 + 3h/2 − 1 = 2h − 1; type 0 → type 1 at h: h + 2h − 1 = 3h − 1). Error: hi − lo.
+class subdivided_range_data2d final : public range_data2d::impl {
+ public:
+  subdivided_range_data2d(const volume& v, const hierarchy2d& h)
+      : sub_(*v.subdivided()), data_(sub_.data(), {}) {
+    image = &v;
+    hier = &h;
+  }
+  [[nodiscard]] diamond_range get(const diamond2& d) const noexcept override {
+    return get_at(d.centre);
+  }
+  [[nodiscard]] diamond_range get_at(const ipoint2& c) const noexcept override {
+    const std::int32_t h = hier->scale_of(c);
+    const int odd = ((c[0] / h) & 1) + ((c[1] / h) & 1);
+    const std::int32_t r = range_data2d::subtree_reach(2 - odd, h);
+    const ipoint2& dm = hier->data_max();
+    if (c[0] - r >= dm[0] || c[1] - r >= dm[1]) return {};
+    const ipoint b0{std::max(c[0] - r, 0), std::max(c[1] - r, 0), 0};
+    const ipoint b1{std::min(c[0] + r, dm[0]), std::min(c[1] + r, dm[1]), 0};
+    const auto [lo, hi] = detail::subdivided_range(sub_, data_, b0, b1);
+    diamond_range out;
+    out.lo = lo;
+    out.hi = hi;
+    out.error = hi - lo;
+    return out;
+  }
+  [[nodiscard]] std::size_t byte_size() const noexcept override {
+    return sub_.byte_size() + data_.byte_size();
+  }
+  [[nodiscard]] std::int32_t finest_stored_scale() const noexcept override {
+    return std::int32_t{1} << 30;  // nothing stored
+  }
+
+ private:
+  const detail::subdivision& sub_;
+  detail::data_pyramid data_;
+};
+
 }  // namespace
 
 range_data2d::range_data2d(const volume& image, const hierarchy2d& hier) {
@@ -284,6 +327,10 @@ range_data2d::range_data2d(const volume& image, const hierarchy2d& hier) {
                 " samples does not match the hierarchy's " +
                 std::to_string(hier.data_max()[0] + 1) + "x" +
                 std::to_string(hier.data_max()[1] + 1) + "x1");
+  }
+  if (image.subdivided() != nullptr) {
+    impl_ = std::make_unique<subdivided_range_data2d>(image, hier);
+    return;
   }
   image.visit_samples([&](const auto* samples) {
     using T = std::remove_cv_t<std::remove_pointer_t<decltype(samples)>>;

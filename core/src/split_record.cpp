@@ -8,6 +8,7 @@
 #include <progiso/core/assert.hpp>
 #include <progiso/core/detail/sample_threshold.hpp>
 #include <progiso/core/detail/split_classify.hpp>
+#include <progiso/core/detail/subdivision.hpp>
 #include <progiso/core/marching.hpp>
 
 namespace progiso {
@@ -404,8 +405,9 @@ const split_summary& interior_summary(const colours& k) noexcept {
   return interior_table()[first[static_cast<std::size_t>(k.n / 2 - 2)] + key];
 }
 
-template <class T>
-split_summary split_packed(const hierarchy& hier, const volume& vol, const T* samples,
+// Samples: a typed sample pointer, or detail::lazy_samples for a smoothed volume.
+template <class Samples>
+split_summary split_packed(const hierarchy& hier, const volume& vol, Samples samples,
                            const detail::sample_threshold& threshold, const ipoint& c,
                            std::int32_t h, std::vector<packed_group>& out) {
   split_summary s;
@@ -432,12 +434,12 @@ split_summary split_packed(const hierarchy& hier, const volume& vol, const T* sa
       if (hier.in_grid(point(shape.ring[static_cast<std::size_t>(m)]))) k.ring_in_grid |= 1u << m;
     }
   }
-  const auto above = [&threshold](T v) { return threshold.above(v); };
+  const auto above = [&threshold](auto v) { return threshold.above(v); };
   if (in_data) {
     const index3& dims = vol.dims();
     const std::int64_t sy = dims[0];
     const std::int64_t sz = dims[0] * dims[1];
-    const T* base = samples + vol.linear(c[0], c[1], c[2]);
+    const auto base = samples + static_cast<std::int64_t>(vol.linear(c[0], c[1], c[2]));
     const auto at = [&](const offset& o) {
       return above(base[h * (o[0] + o[1] * sy + o[2] * sz)]);
     };
@@ -565,7 +567,7 @@ split_summary compute_split(const hierarchy& hier, const volume& vol, double w,
   PROGISO_ASSERT(hier.is_diamond(centre));
   PROGISO_ASSERT(hier.scale_of(centre) == scale);
   const detail::sample_threshold threshold(w);
-  return vol.visit_samples([&](const auto* samples) {
+  return detail::visit_field(vol, [&](auto samples) {
     return split_packed(hier, vol, samples, threshold, centre, scale, out);
   });
 }

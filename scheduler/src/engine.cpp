@@ -805,7 +805,17 @@ void engine::init(std::shared_ptr<const volume> owned, const volume& vol, double
   if (!std::isfinite(isovalue)) {
     throw error("isovalue: expected a finite number, found " + std::to_string(isovalue));
   }
-  impl_ = std::make_unique<detail::engine_impl>(std::move(owned), vol, std::move(options));
+  if (options.smooth.active()) {
+    // The engine refines the smoothed field; it keeps the data alive through it when it owns
+    // the data, and borrows it (as for any volume given by reference) otherwise.
+    std::shared_ptr<const volume> data =
+        owned ? std::move(owned) : std::shared_ptr<const volume>(std::shared_ptr<void>(), &vol);
+    auto field = std::make_shared<const volume>(smooth(std::move(data), options.smooth));
+    const volume& f = *field;
+    impl_ = std::make_unique<detail::engine_impl>(std::move(field), f, std::move(options));
+  } else {
+    impl_ = std::make_unique<detail::engine_impl>(std::move(owned), vol, std::move(options));
+  }
   // release: pairs with the acquire in epoch_guard::protect() (snapshot()).
   impl_->root.store(impl_->make_root(isovalue, 0), std::memory_order_release);
 }

@@ -227,6 +227,84 @@ TEST_F(Cli, full_output_is_identical_for_every_thread_count) {
   }
 }
 
+// A 17³ u8 ball: distance to the centre, scaled.
+std::string ball_bytes() {
+  std::string s(17 * 17 * 17, '\0');
+  for (int z = 0; z < 17; ++z)
+    for (int y = 0; y < 17; ++y)
+      for (int x = 0; x < 17; ++x) {
+        const double d =
+            std::sqrt((x - 8.3) * (x - 8.3) + (y - 7.6) * (y - 7.6) + (z - 8.1) * (z - 8.1));
+        s[static_cast<std::size_t>(x + 17 * (y + 17 * z))] =
+            static_cast<char>(std::min(250.0, d * 20));
+      }
+  return s;
+}
+
+TEST_F(Cli, smoothing_options_refine_the_smoothed_field_on_every_thread_count) {
+  const std::string in =
+      write_file("ball.raw", ball_bytes()).string() + " --dims 17,17,17 --type u8 --iso 111";
+  const auto extract = [&](const std::string& name, const std::string& extra) {
+    const fs::path out = dir_ / (name + ".ply");
+    const fs::path stats = dir_ / (name + ".json");
+    const run_result r = run("extract " + in + " " + extra + " -o " + out.string() +
+                             " --stats-json " + stats.string());
+    EXPECT_EQ(r.status, 0) << r.err;
+    return std::pair{slurp(out), slurp(stats)};
+  };
+  const auto [plain, plain_stats] = extract("plain", "--full");
+  const auto [one, one_stats] = extract("s1t1", "--full --smooth 1 --threads 1");
+  const auto [two, two_stats] = extract("s1t2", "--full --smooth 1 --threads 2 --alpha 1");
+  EXPECT_TRUE(one == two) << "--smooth 1 --full differs between 1 and 2 threads";
+  EXPECT_NE(one, plain);
+  EXPECT_NE(one_stats.find("\"field_dims\": [33, 33, 33]"), std::string::npos) << one_stats;
+  EXPECT_NE(one_stats.find("\"subdivision_levels\": 1"), std::string::npos) << one_stats;
+  EXPECT_GT(json_field(one_stats, "subdivided_samples"), 1000.0) << one_stats;
+  EXPECT_EQ(json_field(plain_stats, "subdivided_samples"), 0.0) << plain_stats;
+  EXPECT_GT(json_field(one_stats, "triangles"), 3 * json_field(plain_stats, "triangles"));
+  // Written coordinates stay physical: the smoothed surface spans the same box as the data's.
+  const triangle_mesh a = read_ply(dir_ / "plain.ply");
+  const triangle_mesh b = read_ply(dir_ / "s1t1.ply");
+  for (std::size_t q = 0; q < 3; ++q) {
+    const auto lo = [q](const triangle_mesh& m) {
+      double v = 1e300;
+      for (const vec3& p : m.vertices) v = std::min(v, p[q]);
+      return v;
+    };
+    EXPECT_NEAR(lo(a), lo(b), 0.5) << q;
+  }
+  // From a coarse level, by region, with α; every mode.
+  const auto [coarse, coarse_stats] =
+      extract("k", "--smooth-from 2 --smooth-region 0,0,0,10,16,16 --alpha 0.5 --error 4");
+  EXPECT_NE(coarse_stats.find("\"region\": [0, 0, 0, 10, 16, 16]"), std::string::npos);
+  EXPECT_NE(coarse_stats.find("\"from\": 2"), std::string::npos);
+  for (const std::string mode : {"--max-triangles 3000", "--time-ms 5", "--error 2"}) {
+    const auto [mesh, stats] = extract("m", "--smooth 2 --threads 2 " + mode);
+    EXPECT_NE(stats.find("\"field_dims\": [65, 65, 65]"), std::string::npos) << mode;
+    const triangle_mesh m = read_ply(dir_ / "m.ply");
+    EXPECT_GT(m.triangles.size(), 0u) << mode;
+    EXPECT_TRUE(test::edge_manifold(m)) << mode;
+    EXPECT_TRUE(test::consistently_oriented(m)) << mode;
+  }
+}
+
+TEST_F(Cli, bad_smoothing_values_exit_2_with_one_clear_line_and_no_output) {
+  const std::string g =
+      write_file("b.raw", cube_bytes(8)).string() + " --dims 8,8,8 --type u8 --iso 1 ";
+  expect_bad_input("extract " + g + "--smooth 4", "--smooth: expected an integer from 0 to 3");
+  expect_bad_input("extract " + g + "--smooth -1", "--smooth");
+  expect_bad_input("extract " + g + "--smooth 1.5", "--smooth");
+  expect_bad_input("extract " + g + "--smooth-from 0", "--smooth-from");
+  expect_bad_input("extract " + g + "--smooth-from 3", "K = 3");
+  expect_bad_input("extract " + g + "--smooth 1 --alpha 0", "--alpha");
+  expect_bad_input("extract " + g + "--smooth 1 --alpha 2.5", "--alpha");
+  expect_bad_input("extract " + g + "--smooth 1 --alpha nan", "--alpha");
+  expect_bad_input("extract " + g + "--smooth 1 --smooth-region 1,2,3", "--smooth-region");
+  expect_bad_input("extract " + g + "--smooth 1 --smooth-region 4,0,0,3,7,7", "--smooth-region");
+  expect_bad_input("extract " + g + "--smooth 1 --smooth-region 0,0,0,8,7,7", "region");
+  expect_bad_input("extract " + g + "--smooth-region", "--smooth-region");
+}
+
 TEST_F(Cli, time_budget_returns_a_partial_valid_surface) {
   const fs::path out = dir_ / "t.ply";
   const run_result r = run("extract --demo --time-ms 5 --threads 2 -o " + out.string());
@@ -300,6 +378,29 @@ TEST_F(Cli, contour_writes_svg_obj_frames_and_statistics) {
   EXPECT_NE(text.find(" 0\n"), std::string::npos);  // v x y 0
 }
 
+TEST_F(Cli, contour_smoothing_grows_stage_by_stage_into_frames) {
+  const fs::path in = write_file("img.pgm", pgm_bytes(40, 30));
+  const fs::path frames = dir_ / "frames";
+  const fs::path stats = dir_ / "c.json";
+  const fs::path obj = dir_ / "c.obj";
+  const run_result r =
+      run("contour " + in.string() + " -o " + (dir_ / "c.svg").string() +
+          " --iso 100 --smooth 1 --frames " + frames.string() + " --stats-json " + stats.string());
+  ASSERT_EQ(r.status, 0) << r.err;
+  std::size_t n = 0;
+  for (const auto& e : fs::directory_iterator(frames))
+    n += e.path().extension() == ".svg" ? 1u : 0u;
+  EXPECT_GE(n, 3u);
+  const std::string json = slurp(stats);
+  EXPECT_NE(json.find("\"field_dims\": [79, 59, 1]"), std::string::npos) << json;
+  EXPECT_GT(json_field(json, "subdivided_samples"), 100.0) << json;
+  ASSERT_EQ(run("contour " + in.string() + " -o " + obj.string() +
+                " --iso 100 --smooth-from 1 --smooth-region 0,0,20,29 --alpha 1.5")
+                .status,
+            0);
+  EXPECT_NE(slurp(obj).find("\nl "), std::string::npos);
+}
+
 TEST_F(Cli, contour_bad_inputs_exit_2_with_one_clear_line_and_no_output) {
   const fs::path good = write_file("img.pgm", pgm_bytes(20, 20));
   const std::string g = good.string();
@@ -318,6 +419,11 @@ TEST_F(Cli, contour_bad_inputs_exit_2_with_one_clear_line_and_no_output) {
   bad(g + " --iso 10,", "--iso");
   bad(g, "--iso");
   bad(g + " --iso 10 --full --max-segments 5", "at most one");
+  bad(g + " --iso 10 --smooth 9", "--smooth");
+  bad(g + " --iso 10 --smooth-from 5", "K = 5");
+  bad(g + " --iso 10 --smooth 1 --alpha -1", "--alpha");
+  bad(g + " --iso 10 --smooth 1 --smooth-region 0,0,0,5,5,5", "--smooth-region");
+  bad(g + " --iso 10 --smooth 1 --smooth-region 0,0,20,5", "region");
   const run_result r = run("contour " + g + " --iso 10 -o " + (dir_ / "c.ply").string());
   EXPECT_EQ(r.status, 2);
   EXPECT_NE(r.err.find(".obj or .svg"), std::string::npos) << r.err;

@@ -2,10 +2,12 @@
 // tetrahedron in the diamond's subtree), sound for culling, and within the volume's own bytes.
 #include <progiso/core/analytic.hpp>
 #include <progiso/core/range_data.hpp>
+#include <progiso/core/smoothing.hpp>
 
 #include <cmath>
 #include <functional>
 #include <map>
+#include <memory>
 #include <thread>
 #include <vector>
 
@@ -107,6 +109,17 @@ TEST(RangeData, ranges_cover_every_subtree_and_are_nested_on_a_padded_grid) {
 TEST(RangeData, ranges_cover_every_subtree_with_padding_of_many_small_scales) {
   check_all_diamonds(make_gaussian_blobs({26, 21, 19}, 6, 3u));
   check_all_diamonds(make_gaussian_blobs({35, 10, 12}, 6, 4u));
+}
+
+TEST(RangeData, ranges_of_smoothed_fields_cover_every_subtree_and_are_nested) {
+  // The derived field's ranges are bounds from the data (smoothing.hpp): checked against its
+  // fine samples by brute force, below the data, from a coarse level, by region, padded.
+  const auto blobs = std::make_shared<const volume>(make_gaussian_blobs({9, 9, 9}, 4, 2u));
+  check_all_diamonds(smooth(blobs, {1, 0, std::nullopt, 1.0}));
+  check_all_diamonds(smooth(blobs, {0, 2, std::nullopt, 2.2}));
+  const auto odd = std::make_shared<const volume>(make_gaussian_blobs({7, 10, 6}, 3, 5u));
+  check_all_diamonds(smooth(odd, {1, 1, std::nullopt, 1.0}));
+  check_all_diamonds(smooth(odd, {1, 0, std::array<std::int64_t, 6>{1, 2, 0, 4, 9, 3}, 1.0}));
 }
 
 TEST(RangeData, integer_volume_errors_are_rounded_up_not_down) {

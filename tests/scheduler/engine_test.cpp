@@ -2,6 +2,7 @@
 #include <progiso/core/analytic.hpp>
 #include <progiso/core/error.hpp>
 #include <progiso/core/refiner.hpp>
+#include <progiso/core/smoothing.hpp>
 #include <progiso/scheduler/engine.hpp>
 
 #include <atomic>
@@ -108,6 +109,56 @@ TEST(Engine, quality_driven_splits_exactly_the_sequential_set) {
     // and the coarser cuts by error agree with the sequential ones
     EXPECT_TRUE(test::same_surface(s.mesh_cut(eps * 4), r.extract_cut(eps * 4)));
   }
+}
+
+TEST(Engine, smoothed_field_refines_to_the_sequential_surface_on_every_thread_count) {
+  // engine_options::smooth: the engine refines the smoothed field (smoothing.hpp); full
+  // refinement gives the sequential path's surface on the same field, byte for byte across
+  // thread counts; budgets, deadlines and an isovalue change give valid cuts.
+  const auto data = std::make_shared<const volume>(make_gaussian_blobs({21, 19, 20}, 5, 4u));
+  for (const smoothing& sm :
+       {smoothing{1, 0, std::nullopt, 1.0}, smoothing{1, 1, std::nullopt, 0.8},
+        smoothing{2, 0, std::array<std::int64_t, 6>{3, 3, 3, 12, 15, 10}, 1.0}}) {
+    SCOPED_TRACE(sm.levels * 10 + sm.from);
+    const volume field = smooth(data, sm);
+    const hierarchy h(field.dims());
+    const range_data ranges(field, h);
+    refiner r(field, h, ranges, 0.4);
+    r.refine_full();
+    const triangle_mesh sequential = r.extract();
+    std::vector<triangle_mesh> meshes;
+    for (const unsigned n : {1u, 2u, 3u}) {
+      engine_options o = with_threads(n);
+      o.smooth = sm;
+      engine e(*data, 0.4, o);
+      EXPECT_EQ(e.field().dims(), field.dims());
+      EXPECT_TRUE(e.refine_full());
+      meshes.push_back(e.snapshot().mesh());
+      EXPECT_TRUE(test::same_surface(meshes.back(), sequential));
+    }
+    for (std::size_t i = 1; i < meshes.size(); ++i) {
+      EXPECT_EQ(meshes[i].vertices, meshes[0].vertices) << i;
+      EXPECT_EQ(meshes[i].triangles, meshes[0].triangles) << i;
+    }
+    const auto box = test::data_box(field);
+    engine_options o = with_threads(2);
+    o.smooth = sm;
+    engine e(data, 0.4, o);
+    EXPECT_TRUE(e.refine(refine_goal::triangles(2000)));
+    EXPECT_LE(e.snapshot().triangle_count(), 2000u);
+    EXPECT_TRUE(test::check_valid_cut(e.snapshot().mesh(), box[0], box[1]));
+    (void)e.refine_for(3ms);
+    EXPECT_TRUE(test::check_valid_cut(e.snapshot().mesh(), box[0], box[1]));
+    e.set_isovalue(0.3);
+    EXPECT_TRUE(e.refine(refine_goal::triangles(5000)));
+    const surface_snapshot s = e.snapshot();
+    EXPECT_EQ(s.isovalue(), 0.3);
+    EXPECT_TRUE(test::check_valid_cut(s.mesh(), box[0], box[1]));
+    EXPECT_TRUE(test::same_surface(s.mesh(), replay(e, s)));
+  }
+  engine_options bad;
+  bad.smooth = {1, 0, std::nullopt, 3.0};
+  EXPECT_THROW(engine(*data, 0.4, bad), error);
 }
 
 TEST(Engine, triangle_budget_is_respected) {

@@ -71,7 +71,8 @@ class range_data2d {
   /// Own (not nested) range and split error of d: centre, spine ends and in-grid apexes;
   /// empty with error 0 when d lies wholly beyond the data box.
   [[nodiscard]] diamond_range own(const diamond2& d) const noexcept;
-  /// Bytes held by the stored entries; never more than the image's byte_size().
+  /// Bytes held by the stored entries; never more than the image's byte_size() (for a
+  /// smoothed image, smoothing.hpp: its rows and a min/max pyramid of the data).
   [[nodiscard]] std::size_t byte_size() const noexcept;
   /// The smallest stored scale (2 except for tiny padded images; larger than any diamond's
   /// scale when nothing is stored).

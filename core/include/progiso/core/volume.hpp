@@ -12,12 +12,18 @@
 // Reading costs one predictable switch on the sample type; code that scans every voxel uses
 // visit_samples() to run on the typed array instead.
 //
+// A volume is also the field refinement reads: either data, or the smoothed field of another
+// volume (smooth(), smoothing.hpp), whose samples are computed on demand by the 4-point rule.
+// Everything that refines or extracts reads samples through at(), value() or
+// detail::visit_field(), so both kinds run through the same code.
+//
 // Thread safety: a volume is immutable after construction; concurrent reads are safe.
 #pragma once
 
 #include <array>
 #include <cstddef>
 #include <cstdint>
+#include <memory>
 #include <optional>
 #include <string_view>
 #include <vector>
@@ -39,6 +45,17 @@ enum class sample_type : std::uint8_t { u8, i8, u16, i16, u32, i32, f32, f64 };
 [[nodiscard]] std::optional<sample_type> parse_sample_type(std::string_view name) noexcept;
 
 using index3 = std::array<std::int64_t, 3>;
+
+namespace detail {
+class subdivision;
+// The fine sample at a linear index of a smoothed volume (subdivision.hpp), out of line so that
+// volume.hpp does not need the subdivision's definition.
+[[nodiscard]] double subdivided_at(const subdivision& s, std::size_t linear) noexcept;
+}  // namespace detail
+
+struct smoothing;
+class volume;
+[[nodiscard]] volume smooth(std::shared_ptr<const volume> data, const smoothing& s);
 
 /// A scalar field on a regular grid.
 class volume {
@@ -77,12 +94,22 @@ class volume {
   }
   /// Smallest and largest sample.
   [[nodiscard]] std::array<double, 2> value_range() const noexcept { return range_; }
+  /// The subdivision behind a smoothed volume (smooth(), smoothing.hpp), or null for data. A
+  /// smoothed volume has no sample array: bytes() is null, byte_size() 0, type() f64, its
+  /// samples are computed by at() and value(), value_range() is a bound on them, and
+  /// visit_samples() must not be called (detail::visit_field() serves both kinds).
+  [[nodiscard]] const detail::subdivision* subdivided() const noexcept { return sub_.get(); }
 
   /// Calls f(const T* samples) with the typed sample array.
   template <class F>
   decltype(auto) visit_samples(F&& f) const;
 
  private:
+  friend volume smooth(std::shared_ptr<const volume> data, const smoothing& s);
+  volume(std::shared_ptr<const detail::subdivision> sub, const volume& data, index3 dims,
+         std::array<double, 2> range);
+
+  std::shared_ptr<const detail::subdivision> sub_;
   index3 dims_;
   sample_type type_;
   std::vector<std::byte> samples_;
@@ -95,6 +122,9 @@ class volume {
 // Implementation of the inline parts.
 
 inline double volume::at(std::size_t i) const noexcept {
+  if (sub_ != nullptr) [[unlikely]] {
+    return detail::subdivided_at(*sub_, i);
+  }
   const std::byte* p = samples_.data();
   switch (type_) {
     case sample_type::u8:
@@ -119,6 +149,7 @@ inline double volume::at(std::size_t i) const noexcept {
 
 template <class F>
 decltype(auto) volume::visit_samples(F&& f) const {
+  PROGISO_ASSERT(sub_ == nullptr);
   const std::byte* p = samples_.data();
   switch (type_) {
     case sample_type::u8:

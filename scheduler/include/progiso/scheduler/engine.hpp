@@ -54,6 +54,7 @@
 #include <progiso/core/mesh.hpp>
 #include <progiso/core/range_data.hpp>
 #include <progiso/core/refiner.hpp>
+#include <progiso/core/smoothing.hpp>
 #include <progiso/core/split_record.hpp>
 #include <progiso/core/volume.hpp>
 
@@ -95,6 +96,10 @@ struct engine_options {
   /// run and is rethrown by wait() / refine().
   std::function<void(const engine_progress&)> progress;
   std::uint64_t progress_interval = 4096;
+  /// Refine the smoothed field of the volume (smoothing.hpp) instead of the data itself, when
+  /// active(). field() is then the smoothed volume; the constructor throws progiso::error on
+  /// bad parameters (as smooth() does).
+  smoothing smooth;
 };
 
 /// What a run refines towards.
