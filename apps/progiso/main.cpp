@@ -4,6 +4,7 @@
 //           [--dims NX,NY,NZ --type u8|i8|u16|i16|u32|i32|f32|f64 [--big-endian]]
 //           [--spacing SX,SY,SZ] [--full | --error E | --max-triangles K | --time-ms T]
 //           [--stats-json FILE] [--threads N]
+//           [--smooth S] [--smooth-from K] [--smooth-region X0,Y0,Z0,X1,Y1,Z1] [--alpha A]
 //   progiso extract --demo -o OUT.ply [--iso W] [--threads N]
 //
 // Exit status: 0 on success, 2 on bad input or usage (one line on stderr, no output file).
