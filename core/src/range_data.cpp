@@ -646,12 +646,7 @@ class subdivided_range_data final : public range_data::impl {
       b0[q] = std::max(c[q] - r, 0);
       b1[q] = std::min(c[q] + r, dm[q]);
     }
-    const auto [lo, hi] = detail::subdivided_range(sub_, data_, b0, b1);
-    diamond_range out;
-    out.lo = lo;
-    out.hi = hi;
-    out.error = hi - lo;
-    return out;
+    return detail::subdivided_range(sub_, data_, b0, b1);
   }
   [[nodiscard]] bool empty_at(const ipoint& c, std::int32_t h) const noexcept override {
     const std::int32_t r = reach(c, h);

@@ -298,12 +298,7 @@ class subdivided_range_data2d final : public range_data2d::impl {
     if (c[0] - r >= dm[0] || c[1] - r >= dm[1]) return {};
     const ipoint b0{std::max(c[0] - r, 0), std::max(c[1] - r, 0), 0};
     const ipoint b1{std::min(c[0] + r, dm[0]), std::min(c[1] + r, dm[1]), 0};
-    const auto [lo, hi] = detail::subdivided_range(sub_, data_, b0, b1);
-    diamond_range out;
-    out.lo = lo;
-    out.hi = hi;
-    out.error = hi - lo;
-    return out;
+    return detail::subdivided_range(sub_, data_, b0, b1);
   }
   [[nodiscard]] std::size_t byte_size() const noexcept override {
     return sub_.byte_size() + data_.byte_size();

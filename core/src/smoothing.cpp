@@ -330,8 +330,8 @@ std::size_t data_pyramid::byte_size() const noexcept {
   return b;
 }
 
-std::array<double, 2> subdivided_range(const subdivision& sub, const data_pyramid& data,
-                                       const ipoint& b0, const ipoint& b1) noexcept {
+diamond_range subdivided_range(const subdivision& sub, const data_pyramid& data, const ipoint& b0,
+                               const ipoint& b1) noexcept {
   const subdivision::reach_box box = sub.reach(b0, b1);
   auto [lo, hi] = data.range(box.lo, box.hi);
   if (box.smoothed) {
@@ -339,7 +339,11 @@ std::array<double, 2> subdivided_range(const subdivision& sub, const data_pyrami
     lo -= widen;
     hi += widen;
   }
-  return {lo, hi};
+  diamond_range r;
+  r.lo = lo;
+  r.hi = hi;
+  r.error = hi - lo;
+  return r;
 }
 
 }  // namespace detail

@@ -15,6 +15,7 @@
 
 #include <progiso/core/hierarchy.hpp>
 #include <progiso/core/parallel_loop.hpp>
+#include <progiso/core/range_data.hpp>
 #include <progiso/core/smoothing.hpp>
 #include <progiso/core/volume.hpp>
 
@@ -156,12 +157,12 @@ class data_pyramid {
   std::vector<level> levels_;
 };
 
-/// The range of the fine samples in the box [b0, b1] of a smoothed volume (inclusive, inside
-/// its grid): the data's min and max over what their rows reach, widened by the overshoot bound
-/// where the box meets the smoothed region. Nested for nested boxes.
-[[nodiscard]] std::array<double, 2> subdivided_range(const subdivision& sub,
-                                                     const data_pyramid& data, const ipoint& b0,
-                                                     const ipoint& b1) noexcept;
+/// The nested range of a diamond of a smoothed volume whose subtree lies in the box [b0, b1]
+/// (inclusive, inside its grid): the data's min and max over what the fine samples' rows reach,
+/// widened by the overshoot bound where the box meets the smoothed region; error hi − lo (every
+/// split error between values in [lo, hi] is at most that). Nested for nested boxes.
+[[nodiscard]] diamond_range subdivided_range(const subdivision& sub, const data_pyramid& data,
+                                             const ipoint& b0, const ipoint& b1) noexcept;
 
 /// Samples of a smoothed volume seen like a typed array: s[i] is the fine sample at linear
 /// index base + i, and s + k shifts the base (the split code reads data through either).
