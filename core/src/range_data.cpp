@@ -65,6 +65,7 @@ struct stencil_shape {
   bool used = false;
   std::vector<ipoint> points;
   std::vector<std::array<ipoint, 3>> splits;
+  std::vector<std::array<std::uint8_t, 3>> split_index;  // the splits as indices into points
 };
 
 struct stencil_shapes {
@@ -100,7 +101,17 @@ stencil_shape walk_subtree(const hierarchy& probe, const ipoint& c) {
   shape.points.erase(std::unique(shape.points.begin(), shape.points.end()), shape.points.end());
   std::sort(shape.splits.begin(), shape.splits.end());
   shape.splits.erase(std::unique(shape.splits.begin(), shape.splits.end()), shape.splits.end());
+  const auto index = [&](const ipoint& p) {
+    const auto at = std::lower_bound(shape.points.begin(), shape.points.end(), p);
+    return static_cast<std::uint8_t>(at - shape.points.begin());
+  };
+  for (const auto& t : shape.splits)
+    shape.split_index.push_back({index(t[0]), index(t[1]), index(t[2])});
   return shape;
+}
+
+std::size_t class_of(const ipoint& c) noexcept {
+  return static_cast<std::size_t>((c[0] & 3) | ((c[1] & 3) << 2) | ((c[2] & 3) << 4));
 }
 
 const stencil_shapes& stencil_shape_table() {
@@ -564,10 +575,6 @@ class typed_range_data final : public range_data::impl {
   // depends only on c mod 4, so its vertices and split errors are read through offset tables
   // built once from the hierarchy itself, straight from the typed samples.
 
-  static std::size_t class_of(const ipoint& c) noexcept {
-    return static_cast<std::size_t>((c[0] & 3) | ((c[1] & 3) << 2) | ((c[2] & 3) << 4));
-  }
-
   // A stencil in this volume's layout: the class's relative offsets (stencil_shapes()) as
   // linear offsets, sorted and without repeats (on a thin volume two grid offsets can share one).
   [[nodiscard]] stencil make_stencil(const stencil_shape& shape) const {
@@ -638,6 +645,26 @@ class subdivided_range_data final : public range_data::impl {
   }
   [[nodiscard]] diamond_range get_at(const ipoint& c, std::int32_t h) const noexcept override {
     if (empty_at(c, h)) return {};
+    if (h == 1 && scale1_inside(c)) return scale1_exact(c);
+    return bound(c, h);
+  }
+  [[nodiscard]] bool empty_at(const ipoint& c, std::int32_t h) const noexcept override {
+    const std::int32_t r = reach(c, h);
+    const ipoint& dm = hier->data_max();
+    return c[0] - r >= dm[0] || c[1] - r >= dm[1] || c[2] - r >= dm[2];
+  }
+  [[nodiscard]] bool straddles_at(const ipoint& c, std::int32_t h,
+                                  const detail::sample_threshold& w) const noexcept override {
+    if (empty_at(c, h) || !bound(c, h).straddles(w.w)) return false;
+    return h != 1 || !scale1_inside(c) || scale1_exact(c).straddles(w.w);
+  }
+  [[nodiscard]] std::size_t byte_size() const noexcept override {
+    return sub_.byte_size() + data_.byte_size();
+  }
+
+ private:
+  // The bound from the data over the subtree's box (see above).
+  [[nodiscard]] diamond_range bound(const ipoint& c, std::int32_t h) const noexcept {
     const std::int32_t r = reach(c, h);
     const ipoint& dm = hier->data_max();
     ipoint b0{};
@@ -648,20 +675,44 @@ class subdivided_range_data final : public range_data::impl {
     }
     return detail::subdivided_range(sub_, data_, b0, b1);
   }
-  [[nodiscard]] bool empty_at(const ipoint& c, std::int32_t h) const noexcept override {
-    const std::int32_t r = reach(c, h);
-    const ipoint& dm = hier->data_max();
-    return c[0] - r >= dm[0] || c[1] - r >= dm[1] || c[2] - r >= dm[2];
-  }
-  [[nodiscard]] bool straddles_at(const ipoint& c, std::int32_t h,
-                                  const detail::sample_threshold& w) const noexcept override {
-    return get_at(c, h).straddles(w.w);
-  }
-  [[nodiscard]] std::size_t byte_size() const noexcept override {
-    return sub_.byte_size() + data_.byte_size();
-  }
 
- private:
+  // Scale-1 diamonds whose subtree lies in the grid: the exact range and largest split error of
+  // the subtree's own fine samples (the stencil's points, within ± 2 per axis), computed from the
+  // rows like any sample. The bound is loosest here (the rows of a few fine samples reach 6 or
+  // more data samples per axis, and the pyramid rounds out to bricks), and scale-1 diamonds are 7
+  // in 8 of all. Sound: they are the subtree's values. Nested: a subset of the values that every
+  // ancestor's bound covers, and the split errors lie between two of them.
+  [[nodiscard]] bool scale1_inside(const ipoint& c) const noexcept {
+    const ipoint& dm = hier->data_max();
+    const int odd = (c[0] & 1) + (c[1] & 1) + (c[2] & 1);
+    for (std::size_t q = 0; q < 3; ++q) {
+      const std::int32_t r = odd == 1 ? 1 : (odd == 3 ? 2 : ((c[q] & 1) ? 2 : 1));
+      if (c[q] - r < 0 || c[q] + r > dm[q]) return false;
+    }
+    return true;
+  }
+  [[nodiscard]] diamond_range scale1_exact(const ipoint& c) const noexcept {
+    const stencil_shape& st = stencil_shape_table().scale1[class_of(c)];
+    std::array<double, 125> v{};
+    PROGISO_ASSERT(st.points.size() <= v.size());
+    double lo = std::numeric_limits<double>::infinity();
+    double hi = -lo;
+    for (std::size_t i = 0; i < st.points.size(); ++i) {
+      const ipoint& o = st.points[i];
+      v[i] = sub_.at(c[0] + o[0], c[1] + o[1], c[2] + o[2]);
+      lo = std::min(lo, v[i]);
+      hi = std::max(hi, v[i]);
+    }
+    double err = 0.0;
+    for (const auto& s : st.split_index) {
+      err = std::max(err, std::abs(v[s[0]] - 0.5 * (v[s[1]] + v[s[2]])));
+    }
+    diamond_range r;
+    r.lo = lo;
+    r.hi = hi;
+    r.error = err;
+    return r;
+  }
   [[nodiscard]] static std::int32_t reach(const ipoint& c, std::int32_t h) noexcept {
     const int odd = ((c[0] / h) & 1) + ((c[1] / h) & 1) + ((c[2] / h) & 1);
     return (2 + odd) * h - 2;

@@ -278,8 +278,9 @@ class typed_range_data2d final : public range_data2d::impl {
 // A smoothed image (smoothing.hpp): ranges bounded from the data, as for smoothed volumes
 // (range_data.cpp). The subtree of a diamond lies in c ± subtree_reach(type, h) per axis; its
 // fine samples are bounded by the data over what their rows reach, widened by the overshoot bound
-// in the smoothed region. Nested, since a child's box lies in its parent's (type 1 → type 0 at
-// h/2: h/2 + 3h/2 − 1 = 2h − 1; type 0 → type 1 at h: h + 2h − 1 = 3h − 1). Error: hi − lo.
+// in the smoothed region; scale 1 takes the exact range of its own fine samples. Nested, since a
+// child's box lies in its parent's (type 1 → type 0 at h/2: h/2 + 3h/2 − 1 = 2h − 1; type 0 → type
+// 1 at h: h + 2h − 1 = 3h − 1). Error: hi − lo.
 class subdivided_range_data2d final : public range_data2d::impl {
  public:
   subdivided_range_data2d(const volume& v, const hierarchy2d& h)
@@ -296,6 +297,7 @@ class subdivided_range_data2d final : public range_data2d::impl {
     const std::int32_t r = range_data2d::subtree_reach(2 - odd, h);
     const ipoint2& dm = hier->data_max();
     if (c[0] - r >= dm[0] || c[1] - r >= dm[1]) return {};
+    if (h == 1) return scale1(c);
     const ipoint b0{std::max(c[0] - r, 0), std::max(c[1] - r, 0), 0};
     const ipoint b1{std::min(c[0] + r, dm[0]), std::min(c[1] + r, dm[1]), 0};
     return detail::subdivided_range(sub_, data_, b0, b1);
@@ -308,6 +310,18 @@ class subdivided_range_data2d final : public range_data2d::impl {
   }
 
  private:
+  // Scale 1 (3/4 of all diamonds, and where the bound is loosest): the definition, from the
+  // subtree's own fine samples (at most 13, clamped into the grid as every reader clamps them).
+  // Sound: the subtree's values; nested: a subset of what every ancestor's bound covers.
+  [[nodiscard]] diamond_range scale1(const ipoint2& c) const noexcept {
+    const diamond2 d = hier->make_diamond(c);
+    diamond_range r = own(d);
+    std::array<ipoint2, 4> ch{};
+    const int n = hier->children(d, ch);
+    for (int i = 0; i < n; ++i) merge(r, own(hier->make_diamond(ch[static_cast<std::size_t>(i)])));
+    return r;
+  }
+
   const detail::subdivision& sub_;
   detail::data_pyramid data_;
 };

@@ -1,8 +1,10 @@
 #include <progiso/core/smoothing.hpp>
 
 #include <algorithm>
+#include <atomic>
 #include <cmath>
 #include <limits>
+#include <memory>
 #include <string>
 #include <utility>
 
@@ -66,6 +68,7 @@ subdivision_axis::subdivision_axis(std::int64_t n, int levels, int from, double 
     cur.push_back(unit(0));
   } else {
     const std::int64_t step = std::int64_t{1} << from;
+    stride_ = static_cast<std::int32_t>(step);
     const std::int64_t controls = (n - 1 + step - 1) / step + 1;
     for (std::int64_t i = 0; i < controls; ++i) {
       if (i * step <= n - 1) {
@@ -97,7 +100,7 @@ subdivision_axis::subdivision_axis(std::int64_t n, int levels, int from, double 
   }
   PROGISO_ASSERT(static_cast<std::int64_t>(cur.size()) >= fine);
   const auto count = static_cast<std::size_t>(fine);
-  index_.assign(count * max_taps, 0);
+  first_.assign(count, 0);
   weights_.assign(count * max_taps, 0.0);
   taps_.assign(count, 0);
   ghost_free_.assign(count, 1);
@@ -105,19 +108,22 @@ subdivision_axis::subdivision_axis(std::int64_t n, int levels, int from, double 
   reach_hi_.assign(count, 0);
   for (std::size_t x = 0; x < count; ++x) {
     const combination& c = cur[x];
-    if (c.terms.size() > max_taps) {
-      throw error("smoothing: a row of the composed rule has " + std::to_string(c.terms.size()) +
-                  " taps, more than the " + std::to_string(max_taps) + " supported");
-    }
     PROGISO_ASSERT(!c.terms.empty());
+    const std::int32_t lo = c.terms.front().first;
+    const auto span = static_cast<std::size_t>((c.terms.back().first - lo) / stride_ + 1);
+    if (span > max_taps) {
+      throw error("smoothing: a row of the composed rule spans " + std::to_string(span) +
+                  " control samples, more than the " + std::to_string(max_taps) + " supported");
+    }
     double abs_sum = 0.0;
-    for (std::size_t k = 0; k < c.terms.size(); ++k) {
-      index_[x * max_taps + k] = c.terms[k].first;
-      weights_[x * max_taps + k] = c.terms[k].second;
-      abs_sum += std::fabs(c.terms[k].second);
+    for (const auto& [i, w] : c.terms) {
+      PROGISO_ASSERT((i - lo) % stride_ == 0);
+      weights_[x * max_taps + static_cast<std::size_t>((i - lo) / stride_)] = w;
+      abs_sum += std::fabs(w);
     }
     max_abs_sum_ = std::max(max_abs_sum_, abs_sum);
-    taps_[x] = static_cast<std::uint8_t>(c.terms.size());
+    first_[x] = lo;
+    taps_[x] = static_cast<std::uint8_t>(span);
     ghost_free_[x] = c.ghost ? 0 : 1;
     reach_lo_[x] = c.terms.front().first;
     reach_hi_[x] = c.terms.back().first;
@@ -129,7 +135,7 @@ subdivision_axis::subdivision_axis(std::int64_t n, int levels, int from, double 
 }
 
 std::size_t subdivision_axis::byte_size() const noexcept {
-  return index_.size() * sizeof(std::int32_t) + weights_.size() * sizeof(double) + taps_.size() +
+  return first_.size() * sizeof(std::int32_t) + weights_.size() * sizeof(double) + taps_.size() +
          ghost_free_.size() + (reach_lo_.size() + reach_hi_.size()) * sizeof(std::int32_t);
 }
 
@@ -142,8 +148,17 @@ subdivision_axis make_axis(const index3& dims, std::size_t q, const smoothing& s
 
 }  // namespace
 
+namespace {
+std::uint64_t next_subdivision_id() noexcept {
+  static std::atomic<std::uint64_t> next{1};
+  // relaxed: only uniqueness matters, which fetch_add gives in any order.
+  return next.fetch_add(1, std::memory_order_relaxed);
+}
+}  // namespace
+
 subdivision::subdivision(std::shared_ptr<const volume> data, const smoothing& s)
     : data_(std::move(data)),
+      id_(next_subdivision_id()),
       spec_(s),
       smooth_{make_axis(data_->dims(), 0, s, true), make_axis(data_->dims(), 1, s, true),
               make_axis(data_->dims(), 2, s, true)},
@@ -171,8 +186,9 @@ bool subdivision::ghost_free(std::int64_t x, std::int64_t y, std::int64_t z) con
   return a[0].ghost_free(x) && a[1].ghost_free(y) && a[2].ghost_free(z);
 }
 
-// Σ_z w_z Σ_y w_y Σ_x w_x f: the three rows applied one axis at a time.
-template <class T>
+// Σ_z w_z Σ_y w_y Σ_x w_x f: the three rows applied one axis at a time, the x rows (TX taps)
+// unrolled at compile time.
+template <unsigned TX, class T>
 double subdivision::evaluate(const T* f, const std::array<const subdivision_axis*, 3>& axes,
                              const index3& p) const noexcept {
   const index3& n = data_->dims();
@@ -181,22 +197,23 @@ double subdivision::evaluate(const T* f, const std::array<const subdivision_axis
   const subdivision_axis& ax = *axes[0];
   const subdivision_axis& ay = *axes[1];
   const subdivision_axis& az = *axes[2];
-  const unsigned tx = ax.taps(p[0]);
   const unsigned ty = ay.taps(p[1]);
   const unsigned tz = az.taps(p[2]);
   const double* wx = ax.weights(p[0]);
   const double* wy = ay.weights(p[1]);
   const double* wz = az.weights(p[2]);
+  const T* base = f + ax.first(p[0]) + ay.first(p[1]) * sy + az.first(p[2]) * sz;
+  const std::int64_t dx = ax.stride();
+  const std::int64_t dy = ay.stride() * sy;
+  const std::int64_t dz = az.stride() * sz;
   double vz = 0.0;
   for (unsigned kz = 0; kz < tz; ++kz) {
-    const T* fz = f + az.index(p[2], kz) * sz;
+    const T* fz = base + kz * dz;
     double vy = 0.0;
     for (unsigned ky = 0; ky < ty; ++ky) {
-      const T* fy = fz + ay.index(p[1], ky) * sy;
+      const T* fx = fz + ky * dy;
       double vx = 0.0;
-      for (unsigned kx = 0; kx < tx; ++kx) {
-        vx += wx[kx] * static_cast<double>(fy[ax.index(p[0], kx)]);
-      }
+      for (unsigned kx = 0; kx < TX; ++kx) vx += wx[kx] * static_cast<double>(fx[kx * dx]);
       vy += wy[ky] * vx;
     }
     vz += wz[kz] * vy;
@@ -204,18 +221,49 @@ double subdivision::evaluate(const T* f, const std::array<const subdivision_axis
   return vz;
 }
 
-void subdivision::count() const noexcept {
-  // Each thread counts on a shard of its own (by a slot taken once per thread), so threads do not
-  // contend on one cache line.
-  static std::atomic<unsigned> next_slot{0};
-  // relaxed: the slot only spreads threads over shards; any value is correct.
-  thread_local const unsigned slot = next_slot.fetch_add(1, std::memory_order_relaxed);
-  // relaxed: a statistic; evaluations() sums the shards after the work it reports on.
-  evaluations_[slot % evaluations_.size()].n.fetch_add(1, std::memory_order_relaxed);
+template <class T>
+double subdivision::evaluate(const T* f, const std::array<const subdivision_axis*, 3>& axes,
+                             const index3& p) const noexcept {
+  switch (axes[0]->taps(p[0])) {
+    case 1:
+      return evaluate<1>(f, axes, p);
+    case 2:
+      return evaluate<2>(f, axes, p);
+    case 3:
+      return evaluate<3>(f, axes, p);
+    case 4:
+      return evaluate<4>(f, axes, p);
+    case 5:
+      return evaluate<5>(f, axes, p);
+    case 6:
+      return evaluate<6>(f, axes, p);
+    case 7:
+      return evaluate<7>(f, axes, p);
+    default:
+      return evaluate<8>(f, axes, p);
+  }
 }
 
-double subdivision::at(std::int64_t x, std::int64_t y, std::int64_t z) const noexcept {
-  PROGISO_ASSERT(x >= 0 && y >= 0 && z >= 0 && x < dims_[0] && y < dims_[1] && z < dims_[2]);
+void subdivision::count() const noexcept {
+  // The k-th thread that ever counts owns shard k (k < 63) and adds by a plain load and store,
+  // with no read-modify-write; later threads share the last shard through fetch_add.
+  static std::atomic<unsigned> next_slot{0};
+  static constexpr auto shared_slot =
+      static_cast<unsigned>(std::tuple_size_v<decltype(evaluations_)> - 1);
+  // relaxed: the slot only needs to be unique per thread, which fetch_add gives in any order.
+  thread_local const unsigned slot =
+      std::min(next_slot.fetch_add(1, std::memory_order_relaxed), shared_slot);
+  std::atomic<std::uint64_t>& n = evaluations_[slot].n;
+  // relaxed (all three): a statistic; evaluations() sums the shards after the work it reports on
+  // (the caller's join or snapshot orders them). An owned shard has this thread as its only writer.
+  if (slot == shared_slot) {
+    n.fetch_add(1, std::memory_order_relaxed);
+  } else {
+    n.store(n.load(std::memory_order_relaxed) + 1, std::memory_order_relaxed);
+  }
+}
+
+double subdivision::compute(std::int64_t x, std::int64_t y, std::int64_t z) const noexcept {
   count();
   const bool rule = smoothed_at(x, y, z);
   const auto& a = rule ? smooth_ : linear_;
@@ -239,6 +287,62 @@ subdivision::reach_box subdivision::reach(const ipoint& b0, const ipoint& b1) co
     }
   }
   return r;
+}
+
+namespace {
+
+// The sample cache: refinement reads each fine sample many times (the vertices a split and its
+// neighbours share, the stencils of the ranges, extraction), each read 5 to 30 multiply-adds from
+// scattered data. Every thread keeps the last samples it read in a direct-mapped table of its own
+// (no sharing, no locks), tagged with the subdivision's unique id so tables never mix fields:
+// 4096 entries of 24 bytes, 96 KiB per thread that reads a smoothed field, allocated on its first
+// read, whatever the field's size.
+struct sample_cache {
+  static constexpr std::size_t size = 4096;
+  struct entry {
+    std::uint64_t id = 0;  // 0: empty (ids start at 1)
+    std::uint64_t linear = 0;
+    double value = 0.0;
+  };
+  std::array<entry, size> entries{};
+};
+
+sample_cache& thread_sample_cache() {
+  thread_local std::unique_ptr<sample_cache> cache;
+  if (!cache) cache = std::make_unique<sample_cache>();
+  return *cache;
+}
+
+sample_cache::entry& cache_entry(std::size_t linear) noexcept {
+  // Fibonacci hashing: neighbouring samples of all three axes spread over the table.
+  static_assert(sample_cache::size == std::size_t{1} << 12);
+  const auto slot = static_cast<std::size_t>((linear * 0x9E3779B97F4A7C15ULL) >> 52);
+  return thread_sample_cache().entries[slot];
+}
+
+}  // namespace
+
+double subdivision::at(std::size_t linear) const noexcept {
+  sample_cache::entry& e = cache_entry(linear);
+  if (e.id == id_ && e.linear == linear) return e.value;
+  const auto i = static_cast<std::int64_t>(linear);
+  const std::int64_t xy = dims_[0] * dims_[1];
+  const std::int64_t z = i / xy;
+  const std::int64_t r = i - z * xy;
+  const std::int64_t y = r / dims_[0];
+  const double v = compute(r - y * dims_[0], y, z);
+  e = {id_, linear, v};
+  return v;
+}
+
+double subdivision::at(std::int64_t x, std::int64_t y, std::int64_t z) const noexcept {
+  PROGISO_ASSERT(x >= 0 && y >= 0 && z >= 0 && x < dims_[0] && y < dims_[1] && z < dims_[2]);
+  const auto linear = static_cast<std::size_t>(x + dims_[0] * (y + dims_[1] * z));
+  sample_cache::entry& e = cache_entry(linear);
+  if (e.id == id_ && e.linear == linear) return e.value;
+  const double v = compute(x, y, z);
+  e = {id_, linear, v};
+  return v;
 }
 
 std::uint64_t subdivision::evaluations() const noexcept {

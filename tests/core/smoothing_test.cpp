@@ -12,10 +12,12 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstring>
 #include <map>
 #include <memory>
+#include <thread>
 #include <vector>
 
 #include "support/contour_checks.hpp"
@@ -229,6 +231,52 @@ TEST(Smoothing, the_field_equals_a_literal_level_by_level_materialisation) {
   // By region (inclusive box in data coordinates), with and without K.
   expect_field_equals_reference(data, {1, 0, std::array<std::int64_t, 6>{2, 1, 3, 7, 8, 9}, 1.0});
   expect_field_equals_reference(data, {2, 1, std::array<std::int64_t, 6>{0, 0, 0, 4, 4, 4}, 1.5});
+}
+
+// Every thread keeps recently read fine samples in a table of its own, tagged by field: reads of
+// two fields of the same shape, interleaved, from several threads, and of a field made after
+// another was destroyed (its memory reused), each see their own field's values; a repeated read
+// is answered without a new computation.
+TEST(Smoothing, the_sample_cache_answers_each_field_with_its_own_values) {
+  const auto a = shared(quantised_sphere({9, 8, 7}, {4.1, 3.2, 3.3}, 20.0));
+  const auto b = shared(quantised_sphere({9, 8, 7}, {2.0, 5.1, 2.7}, 30.0));
+  const smoothing s{1, 0, std::nullopt, 1.0};
+  const grid ra = materialise(*a, s);
+  const grid rb = materialise(*b, s);
+  ASSERT_NE(ra.v, rb.v);
+  const auto check_interleaved = [&](const volume& fa, const volume& fb) {
+    std::size_t differ = 0;
+    for (int pass = 0; pass < 2; ++pass) {
+      for (std::size_t i = 0; i < ra.v.size(); ++i) {
+        differ += fa.at(i) != ra.v[i];
+        differ += fb.at(i) != rb.v[i];
+      }
+    }
+    return differ;
+  };
+  {
+    const volume fa = smooth(a, s);
+    const volume fb = smooth(b, s);
+    EXPECT_EQ(check_interleaved(fa, fb), 0u);
+    std::vector<std::thread> readers;
+    std::array<std::size_t, 3> differ{};
+    for (std::size_t t = 0; t < differ.size(); ++t) {
+      readers.emplace_back([&, t] { differ[t] = check_interleaved(fa, fb); });
+    }
+    for (auto& r : readers) r.join();
+    EXPECT_EQ(differ, (std::array<std::size_t, 3>{}));
+  }
+  // The same shapes again, the data swapped: new fields, quite possibly at the old addresses.
+  const volume fb = smooth(b, s);
+  const volume fa = smooth(a, s);
+  EXPECT_EQ(check_interleaved(fa, fb), 0u);
+  // A repeated read costs no computation; a read of a sample not read before costs one.
+  const volume fresh = smooth(a, s);
+  const std::uint64_t e0 = fresh.subdivided()->evaluations();
+  const double v = fresh.at(std::size_t{37});
+  EXPECT_EQ(fresh.subdivided()->evaluations(), e0 + 1);
+  EXPECT_EQ(fresh.at(std::size_t{37}), v);
+  EXPECT_EQ(fresh.subdivided()->evaluations(), e0 + 1);
 }
 
 TEST(Smoothing, the_data_samples_used_as_control_points_are_unchanged) {

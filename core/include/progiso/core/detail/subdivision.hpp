@@ -21,7 +21,10 @@
 
 namespace progiso::detail {
 
-/// One axis of the composed rule: fine sample x is Σ_k weights(x)[k] · data[index(x, k)].
+/// One axis of the composed rule: fine sample x is Σ_k weights(x)[k] · data[first(x) + k ·
+/// stride()], k < taps(x). Every data sample a row uses is a control sample (a multiple of 2^K),
+/// so a row is a run of consecutive control samples (zero weights fill its gaps): with K = 0 a
+/// fine sample reads short contiguous runs of the data.
 class subdivision_axis {
  public:
   static constexpr std::size_t max_taps = 8;
@@ -37,10 +40,12 @@ class subdivision_axis {
   [[nodiscard]] const double* weights(std::int64_t x) const noexcept {
     return &weights_[static_cast<std::size_t>(x) * max_taps];
   }
-  /// Data index of tap k of row x (k < taps(x)).
-  [[nodiscard]] std::int32_t index(std::int64_t x, unsigned k) const noexcept {
-    return index_[static_cast<std::size_t>(x) * max_taps + k];
+  /// Data index of tap 0 of row x.
+  [[nodiscard]] std::int32_t first(std::int64_t x) const noexcept {
+    return first_[static_cast<std::size_t>(x)];
   }
+  /// Data indices between taps: 2^K.
+  [[nodiscard]] std::int32_t stride() const noexcept { return stride_; }
   /// Whether row x used no ghost sample (its stencils stayed inside the axis at every level).
   [[nodiscard]] bool ghost_free(std::int64_t x) const noexcept {
     return ghost_free_[static_cast<std::size_t>(x)] != 0;
@@ -58,13 +63,14 @@ class subdivision_axis {
   [[nodiscard]] std::size_t byte_size() const noexcept;
 
  private:
-  std::vector<std::int32_t> index_;
+  std::vector<std::int32_t> first_;
   std::vector<std::uint8_t> taps_;
   std::vector<double> weights_;
   std::vector<std::uint8_t> ghost_free_;
   std::vector<std::int32_t> reach_lo_;
   std::vector<std::int32_t> reach_hi_;
   double max_abs_sum_ = 1.0;
+  std::int32_t stride_ = 1;
 };
 
 class subdivision {
@@ -80,15 +86,8 @@ class subdivision {
 
   /// The fine sample at (x, y, z), each inside the fine grid.
   [[nodiscard]] double at(std::int64_t x, std::int64_t y, std::int64_t z) const noexcept;
-  /// The fine sample at a linear index (x fastest).
-  [[nodiscard]] double at(std::size_t linear) const noexcept {
-    const auto i = static_cast<std::int64_t>(linear);
-    const std::int64_t xy = dims_[0] * dims_[1];
-    const std::int64_t z = i / xy;
-    const std::int64_t r = i - z * xy;
-    const std::int64_t y = r / dims_[0];
-    return at(r - y * dims_[0], y, z);
-  }
+  /// The fine sample at a linear index (x fastest), through the calling thread's sample cache.
+  [[nodiscard]] double at(std::size_t linear) const noexcept;
   /// Whether (x, y, z) takes the rule (inside the region, or everywhere without one).
   [[nodiscard]] bool smoothed_at(std::int64_t x, std::int64_t y, std::int64_t z) const noexcept;
   /// Whether no ghost sample entered the fine sample at (x, y, z).
@@ -108,18 +107,24 @@ class subdivision {
   /// max over the samples its rows reach; λ = (Π_q L_q − 1) / 2 for the rule, 0 outside the
   /// region (linear interpolation has no negative weights).
   [[nodiscard]] double overshoot() const noexcept { return lambda_; }
-  /// Fine samples computed so far (each read of one counts).
+  /// Fine samples computed so far (each computation counts; a read the cache answers does not).
   [[nodiscard]] std::uint64_t evaluations() const noexcept;
   /// Bytes held beside the data: the rows.
   [[nodiscard]] std::size_t byte_size() const noexcept;
 
  private:
+  template <unsigned TX, class T>
+  double evaluate(const T* f, const std::array<const subdivision_axis*, 3>& axes,
+                  const index3& p) const noexcept;
   template <class T>
   double evaluate(const T* f, const std::array<const subdivision_axis*, 3>& axes,
                   const index3& p) const noexcept;
   void count() const noexcept;
+  // The fine sample at (x, y, z), computed from the data (at() looks in the cache first).
+  [[nodiscard]] double compute(std::int64_t x, std::int64_t y, std::int64_t z) const noexcept;
 
   std::shared_ptr<const volume> data_;
+  std::uint64_t id_;  // unique per subdivision in this process: the sample caches' key
   smoothing spec_;
   index3 dims_{};
   std::array<subdivision_axis, 3> smooth_;   // the rule (K, S, α)
@@ -127,10 +132,12 @@ class subdivision {
   std::array<std::int64_t, 3> region_lo_{};  // fine coordinates, inclusive
   std::array<std::int64_t, 3> region_hi_{};
   double lambda_ = 0.0;
+  // Evaluation counts: shard k < 63 is written by one thread only (the k-th thread that ever
+  // counted, see count()), the last one by all later threads.
   struct alignas(64) shard {
     std::atomic<std::uint64_t> n{0};
   };
-  mutable std::array<shard, 16> evaluations_{};
+  mutable std::array<shard, 64> evaluations_{};
 };
 
 /// Min and max of a data volume over boxes of samples: level k holds bricks of (4 << k)³
