@@ -14,6 +14,7 @@
 
 #include <benchmark/benchmark.h>
 
+#include "bench_common.hpp"
 #include "steady_allocator.hpp"
 
 #include "plain_mtri.hpp"
@@ -26,11 +27,6 @@ struct input {
   std::unique_ptr<volume> img;
   double isovalue;
 };
-
-std::filesystem::path data_dir() {
-  if (const char* env = std::getenv("PROGISO_DATA_DIR")) return env;
-  return std::filesystem::path(PROGISO_SOURCE_DIR) / ".." / "shared" / "data";
-}
 
 std::unique_ptr<volume> generated(std::int64_t n) {
   std::vector<std::byte> b(static_cast<std::size_t>(n * n) * sizeof(float));

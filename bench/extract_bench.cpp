@@ -20,6 +20,7 @@
 
 #include <benchmark/benchmark.h>
 
+#include "bench_common.hpp"
 #include "steady_allocator.hpp"
 
 #include "plain_mt.hpp"
@@ -32,11 +33,6 @@ struct input {
   std::unique_ptr<volume> vol;
   double isovalue;
 };
-
-std::filesystem::path data_dir() {
-  if (const char* env = std::getenv("PROGISO_DATA_DIR")) return env;
-  return std::filesystem::path(PROGISO_SOURCE_DIR) / ".." / "shared" / "data";
-}
 
 std::unique_ptr<volume> load_raw(const std::string& file, index3 dims, sample_type t,
                                  std::array<double, 3> spacing) {

@@ -35,27 +35,12 @@
 
 #include <benchmark/benchmark.h>
 
+#include "bench_common.hpp"
 #include "steady_allocator.hpp"
 #include "vtk_peer.hpp"
 
 namespace progiso::bench {
 namespace {
-
-using clock_type = std::chrono::steady_clock;
-
-double ms_since(clock_type::time_point t0) {
-  return std::chrono::duration<double, std::milli>(clock_type::now() - t0).count();
-}
-
-double median(std::vector<double> v) {
-  std::sort(v.begin(), v.end());
-  return v.empty() ? 0.0 : v[v.size() / 2];
-}
-
-std::filesystem::path data_dir() {
-  if (const char* env = std::getenv("PROGISO_DATA_DIR")) return env;
-  return std::filesystem::path(PROGISO_SOURCE_DIR) / ".." / "shared" / "data";
-}
 
 /// One input: made when its first benchmark runs (a filtered run builds only what it uses;
 /// the 513³ fields alone take seconds and 0.5–1 GB).
@@ -261,11 +246,5 @@ void register_all() {
 }  // namespace progiso::bench
 
 int main(int argc, char** argv) {
-  progiso::bench::steady_allocator();
-  benchmark::Initialize(&argc, argv);
-  if (benchmark::ReportUnrecognizedArguments(argc, argv)) return 1;
-  progiso::bench::register_all();
-  benchmark::RunSpecifiedBenchmarks();
-  benchmark::Shutdown();
-  return 0;
+  return progiso::bench::run_benchmarks(argc, argv, progiso::bench::register_all);
 }

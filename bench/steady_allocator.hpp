@@ -26,11 +26,14 @@ inline void steady_allocator() {
   mallopt(M_TRIM_THRESHOLD, 1024 * 1024 * 1024);
 }
 
-/// main() of a benchmark program: the steady allocator, then Google Benchmark.
-inline int run_benchmarks(int argc, char** argv) {
+/// main() of a benchmark program: the steady allocator, then Google Benchmark, with the
+/// benchmarks `register_all` registers at run time (after the flags are parsed) besides the
+/// static ones.
+inline int run_benchmarks(int argc, char** argv, void (*register_all)() = nullptr) {
   steady_allocator();
   benchmark::Initialize(&argc, argv);
   if (benchmark::ReportUnrecognizedArguments(argc, argv)) return 1;
+  if (register_all != nullptr) register_all();
   benchmark::RunSpecifiedBenchmarks();
   benchmark::Shutdown();
   return 0;
