@@ -32,6 +32,7 @@
 #include <gtest/gtest.h>
 
 #include "support/mesh_checks.hpp"
+#include "support/reference_mt.hpp"
 #include "support/stress_support.hpp"
 
 namespace progiso {
@@ -175,9 +176,11 @@ TEST(EngineStress, readers_walk_snapshots_while_runs_are_cancelled_and_the_isova
 }
 
 // The range data is built once, on first use, by whichever thread asks first: readers calling
-// engine::ranges() race a run's driver for it on fresh engines with one and two threads. Every
-// race ends (no thread waits for the build while it holds an arena slot the build needs), every
-// caller sees the same data, equal to a sequential build, and the run reaches its goal.
+// engine::ranges() race a run's driver for it on fresh engines with one and two threads (half of
+// the races with deadline runs first, which build it in pieces between slices of refinement).
+// Every race ends (no thread waits for the build while it holds an arena slot the build needs),
+// every caller sees the same data, equal to a sequential build, and the run reaches its goal,
+// the full surface.
 TEST(EngineStress, the_first_range_build_raced_by_readers_and_a_run_ends_with_one_build) {
   const test::stall_watchdog watchdog("the range build race", test::stall_limit());
   const volume v = make_gaussian_blobs({57, 49, 53}, 9, 5u);
@@ -200,6 +203,11 @@ TEST(EngineStress, the_first_range_build_raced_by_readers_and_a_run_ends_with_on
       });
     }
     go.advance_to(1);
+    // Every other race starts with deadline runs, which build the data piece by piece between
+    // slices of unculled refinement, while the readers' ranges() build what is left.
+    if (races % 2 == 1) {
+      for (int k = 0; k < 3; ++k) (void)e.refine_for(std::chrono::milliseconds(1 + k));
+    }
     const bool reached = e.refine_full();
     for (auto& r : readers) r.join();
     for (const range_data* r : seen) {
@@ -209,6 +217,10 @@ TEST(EngineStress, the_first_range_build_raced_by_readers_and_a_run_ends_with_on
     EXPECT_EQ(e.ranges().get(h.point(0)).error, sequential.get(h.point(0)).error);
     EXPECT_TRUE(reached);
     EXPECT_TRUE(e.done());
+    if (races < 2) {
+      EXPECT_TRUE(test::same_surface(e.snapshot().mesh(),
+                                     test::reference_marching_tetrahedra(v, 0.4).mesh));
+    }
   }
   EXPECT_EQ(mismatches, 0u) << "every caller sees the one build";
   std::printf("range build races: %llu\n", static_cast<unsigned long long>(races));

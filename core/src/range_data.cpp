@@ -22,6 +22,10 @@ struct range_data::impl {
   [[nodiscard]] virtual bool straddles_at(const ipoint& c, std::int32_t h,
                                           const detail::sample_threshold& w) const noexcept = 0;
   [[nodiscard]] virtual std::size_t byte_size() const noexcept = 0;
+  // The staged build (range_data(…, staged)): independent pieces, then finish().
+  [[nodiscard]] virtual std::size_t piece_count() const noexcept = 0;
+  virtual void build_pieces(std::size_t first, std::size_t last, const parallel_loop& run) = 0;
+  virtual void finish() = 0;
   const volume* vol = nullptr;
   const hierarchy* hier = nullptr;
 
@@ -178,12 +182,22 @@ class typed_range_data final : public range_data::impl {
   static constexpr std::int32_t origin = -4;  // the bricks' first vertex on every axis
 
  public:
-  typed_range_data(const volume& v, const hierarchy& h, const range_data::parallel_loop& run) {
+  // Allocates the pyramid's finest level; build_pieces() and finish() fill it.
+  typed_range_data(const volume& v, const hierarchy& h) {
     vol = &v;
     hier = &h;
     samples_ = v.visit_samples([](const auto* p) { return reinterpret_cast<const T*>(p); });
     make_stencils();
-    build(run);
+    allocate();
+  }
+
+  [[nodiscard]] std::size_t piece_count() const noexcept override {
+    return static_cast<std::size_t>(levels_[0].n[2]);
+  }
+  void build_pieces(std::size_t first, std::size_t last,
+                    const range_data::parallel_loop& run) override {
+    run_loop(run, last - first,
+             [this, first](std::size_t k) { build_slab(static_cast<std::int32_t>(first + k)); });
   }
 
   [[nodiscard]] diamond_range get(const diamond& d) const noexcept override {
@@ -320,17 +334,19 @@ class typed_range_data final : public range_data::impl {
     return (v & 1) == 0 ? 0 : ((v & 3) == 3 ? 1 : -1);
   }
 
-  // Level 0 for the bricks of plane slab kz (brick z index), then the coarser levels.
-  void build(const range_data::parallel_loop& run) {
+  // Level 0 (the bricks of plane slab kz are build_slab(kz)), then the coarser levels (finish).
+  void allocate() {
     const ipoint& gm = hier->grid_max();
     level l0;
     for (std::size_t q = 0; q < 3; ++q) l0.n[q] = (gm[q] + 4 - origin) / 4 + 1;
     l0.bricks.resize(static_cast<std::size_t>(l0.n[0]) * static_cast<std::size_t>(l0.n[1]) *
                      static_cast<std::size_t>(l0.n[2]));
     levels_.push_back(std::move(l0));
-    const auto slab = [this](std::size_t kz) { build_slab(static_cast<std::int32_t>(kz)); };
-    const auto slabs = static_cast<std::size_t>(levels_[0].n[2]);
-    run_loop(run, slabs, slab);
+  }
+
+ public:
+  void finish() override {
+    PROGISO_ASSERT(levels_.size() == 1);
     while (levels_.back().n[0] > 1 || levels_.back().n[1] > 1 || levels_.back().n[2] > 1) {
       const level& fine = levels_.back();
       level coarse;
@@ -360,6 +376,7 @@ class typed_range_data final : public range_data::impl {
     }
   }
 
+ private:
   // One slab of level-0 bricks: 4 planes of vertices, row by row. Bricks whose vertices and
   // spine ends all lie in the data box take fixed offsets, by the row's kind (which axes of y, z
   // are odd) and x mod 4; the others, and vertices of scale ≥ 4, take own_error().
@@ -631,11 +648,17 @@ class typed_range_data final : public range_data::impl {
 // hi].
 class subdivided_range_data final : public range_data::impl {
  public:
-  subdivided_range_data(const volume& v, const hierarchy& h, const range_data::parallel_loop& run)
-      : sub_(*v.subdivided()), data_(sub_.data(), run) {
+  subdivided_range_data(const volume& v, const hierarchy& h)
+      : sub_(*v.subdivided()), data_(sub_.data()) {
     vol = &v;
     hier = &h;
   }
+  [[nodiscard]] std::size_t piece_count() const noexcept override { return data_.slab_count(); }
+  void build_pieces(std::size_t first, std::size_t last,
+                    const range_data::parallel_loop& run) override {
+    data_.build_slabs(first, last, run);
+  }
+  void finish() override { data_.finish(); }
 
   [[nodiscard]] diamond_range get(const diamond& d) const noexcept override {
     return get_at(d.centre, d.scale);
@@ -723,15 +746,32 @@ class subdivided_range_data final : public range_data::impl {
 
 }  // namespace
 
-range_data::range_data(const volume& vol, const hierarchy& hier, const parallel_loop& run) {
+range_data::range_data(const volume& vol, const hierarchy& hier, const parallel_loop& run)
+    : range_data(vol, hier, staged) {
+  build_pieces(0, piece_count(), run);
+  finish();
+}
+
+range_data::range_data(const volume& vol, const hierarchy& hier, staged_t /*unused*/) {
   if (vol.subdivided() != nullptr) {
-    impl_ = std::make_unique<subdivided_range_data>(vol, hier, run);
+    impl_ = std::make_unique<subdivided_range_data>(vol, hier);
     return;
   }
   vol.visit_samples([&](const auto* samples) {
     using T = std::remove_cv_t<std::remove_pointer_t<decltype(samples)>>;
-    impl_ = std::make_unique<typed_range_data<T>>(vol, hier, run);
+    impl_ = std::make_unique<typed_range_data<T>>(vol, hier);
   });
+}
+
+std::size_t range_data::piece_count() const noexcept { return impl_->piece_count(); }
+void range_data::build_pieces(std::size_t first, std::size_t last, const parallel_loop& run) {
+  PROGISO_ASSERT(!complete_ && first <= last && last <= piece_count());
+  impl_->build_pieces(first, last, run);
+}
+void range_data::finish() {
+  PROGISO_ASSERT(!complete_);
+  impl_->finish();
+  complete_ = true;
 }
 
 range_data::~range_data() = default;

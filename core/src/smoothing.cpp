@@ -360,23 +360,40 @@ std::size_t subdivision::byte_size() const noexcept {
 
 double subdivided_at(const subdivision& s, std::size_t linear) noexcept { return s.at(linear); }
 
-data_pyramid::data_pyramid(const volume& data, const parallel_loop& run) {
+data_pyramid::data_pyramid(const volume& data, const parallel_loop& run) : data_pyramid(data) {
+  build_slabs(0, slab_count(), run);
+  finish();
+}
+
+data_pyramid::data_pyramid(const volume& data) : data_(&data) {
   const index3& dims = data.dims();
   level base;
   for (std::size_t q = 0; q < 3; ++q) base.n[q] = (dims[q] + 3) / 4;
   const auto count = static_cast<std::size_t>(base.n[0] * base.n[1] * base.n[2]);
   base.lo.assign(count, std::numeric_limits<double>::infinity());
   base.hi.assign(count, -std::numeric_limits<double>::infinity());
+  levels_.push_back(std::move(base));
+}
+
+std::size_t data_pyramid::slab_count() const noexcept {
+  return static_cast<std::size_t>(levels_.front().n[2]);
+}
+
+void data_pyramid::build_slabs(std::size_t first, std::size_t last, const parallel_loop& run) {
+  const volume& data = *data_;
+  const index3& dims = data.dims();
+  level& base = levels_.front();
   // One slab of bricks (4 planes of data) per piece: the pieces write disjoint bricks.
   data.visit_samples([&](const auto* f) {
-    run_loop(run, static_cast<std::size_t>(base.n[2]), [&](std::size_t bz) {
-      const auto z0 = static_cast<std::int64_t>(bz) * 4;
+    run_loop(run, last - first, [&](std::size_t k) {
+      const auto bz = static_cast<std::int64_t>(first + k);
+      const std::int64_t z0 = bz * 4;
       const std::int64_t z1 = std::min(z0 + 4, dims[2]);
       for (std::int64_t z = z0; z < z1; ++z) {
         for (std::int64_t y = 0; y < dims[1]; ++y) {
           const auto* row = f + data.linear(0, y, z);
           for (std::int64_t x = 0; x < dims[0]; ++x) {
-            const std::size_t b = base.at(x / 4, y / 4, static_cast<std::int64_t>(bz));
+            const std::size_t b = base.at(x / 4, y / 4, bz);
             const auto value = static_cast<double>(row[x]);
             base.lo[b] = std::min(base.lo[b], value);
             base.hi[b] = std::max(base.hi[b], value);
@@ -385,7 +402,10 @@ data_pyramid::data_pyramid(const volume& data, const parallel_loop& run) {
       }
     });
   });
-  levels_.push_back(std::move(base));
+}
+
+void data_pyramid::finish() {
+  PROGISO_ASSERT(levels_.size() == 1);
   while (levels_.back().n[0] > 1 || levels_.back().n[1] > 1 || levels_.back().n[2] > 1) {
     const level& fine = levels_.back();
     level up;

@@ -127,6 +127,10 @@ struct engine_root : epoch_object {
   // surface needs none, so it is published before any pass over the volume. Commit step only.
   std::vector<ipoint> root_centres;
   bool seeded = false;
+  // Some queued diamond was made ready without the range data (a deadline run before it was
+  // built): queued by placeholder, never culled. The driver re-queues them by their ranges once
+  // the data is built (requeue_by_ranges), between graph runs. Commit step and driver.
+  bool unranged = false;
 
   // Commit step only.
   std::vector<std::vector<packed_group>> buffers;
@@ -210,31 +214,83 @@ struct engine_impl {
     });
   }
 
-  // The range data, built on first use (the first run, or engine::ranges()) with the engine's
-  // threads, one slab of bricks per task. Until then the engine publishes its root surfaces,
-  // which need none. Called only by threads outside the arena (the driver before it enters,
-  // users): a thread that held an arena slot while it waited in call_once for another thread's
-  // build would keep that build from the slot it needs (a deadlock with one slot, seen in the
-  // stress test). Tasks read the data through built_ranges().
+  // The range data: a staged build (range_data::staged), its pieces built with the engine's
+  // threads, one slab of bricks per task. Until it is complete the engine publishes its root
+  // surfaces (they need none), and a deadline run refines without culling while it builds pieces
+  // in between (drive()); every other run, and engine::ranges(), build what is left first.
+  // Building happens only on threads outside the arena, under `build_mutex` (the driver between
+  // its graph runs, users): a thread that held an arena slot while it waited for another
+  // thread's build would keep that build from the slot it needs (a deadlock with one slot, seen
+  // in the stress test). Tasks read the data through built_ranges().
   const range_data& ranges() const {
-    std::call_once(ranges_once, [this] {
-      const auto t0 = clock::now();
-      // isolate: while it waits for its slabs, the building thread runs only slab tasks, never
-      // another caller's delegated work.
-      arena.execute([this] {
-        tbb::this_task_arena::isolate([this] { ranges_.emplace(vol, hier, tbb_loop); });
-      });
-      // relaxed: a statistic; call_once orders it for every later caller of ranges().
-      range_seconds.store(std::chrono::duration<double>(clock::now() - t0).count(),
-                          std::memory_order_relaxed);
-    });
+    // acquire: pairs with the release in build_ranges(); the data is then complete.
+    if (ranges_ready.load(std::memory_order_acquire)) return *ranges_;
+    if (in_own_callback()) {
+      throw error(
+          "engine: ranges() cannot build the range data from the engine's progress callback "
+          "(it would wait for the run that calls it); call it outside the callback");
+    }
+    const std::lock_guard lock(build_mutex);
+    build_ranges(clock::time_point::max());
     return *ranges_;
   }
-  // The range data inside a run's tasks: the driver built it (ranges()) before the run's first
-  // task, and the task graph's start orders that build before every task.
-  const range_data& built_ranges() const noexcept {
+  // Builds pieces until done or `until` (or a stop request, when `stop_requests`: a cancelled
+  // deadline run returns within one step); finishes the data when the last piece is built.
+  // Caller holds build_mutex and is outside the arena. Returns whether the data is complete.
+  bool build_ranges(clock::time_point until, bool stop_requests = false) const {
+    if (ranges_ready.load(std::memory_order_relaxed)) return true;  // relaxed: under the mutex
+    const auto t0 = clock::now();
+    if (!ranges_) ranges_.emplace(vol, hier, range_data::staged);
+    const std::size_t n = ranges_->piece_count();
+    // isolate: while it waits for its slabs, the building thread runs only slab tasks, never
+    // another caller's delegated work. Steps of one slab per thread, the clock between them.
+    arena.execute([&] {
+      tbb::this_task_arena::isolate([&] {
+        while (pieces_built < n && !(stop_requests && stopping())) {
+          const std::size_t step = std::min<std::size_t>(n - pieces_built, threads);
+          // No step that is expected to end past `until` (the first has no estimate yet).
+          const auto expected =
+              std::chrono::duration<double>(seconds_per_piece() * static_cast<double>(step));
+          if (clock::now() + std::chrono::duration_cast<clock::duration>(expected) >= until) break;
+          const auto p0 = clock::now();
+          ranges_->build_pieces(pieces_built, pieces_built + step, tbb_loop);
+          piece_seconds += std::chrono::duration<double>(clock::now() - p0).count();
+          pieces_built += step;
+        }
+        if (pieces_built == n) ranges_->finish();
+      });
+    });
+    const double spent = std::chrono::duration<double>(clock::now() - t0).count();
+    // relaxed: a statistic; writers hold build_mutex, readers take any value.
+    range_seconds.store(range_seconds.load(std::memory_order_relaxed) + spent,
+                        std::memory_order_relaxed);
+    if (pieces_built < n) return false;
+    // release: pairs with the acquire loads in ranges(), built_ranges() and the driver.
+    ranges_ready.store(true, std::memory_order_release);
+    return true;
+  }
+  // Wall seconds per piece so far, steps of `threads` pieces in parallel, not counting the
+  // data's allocation (0 before the first). Caller holds build_mutex.
+  [[nodiscard]] double seconds_per_piece() const {
+    return pieces_built == 0 ? 0.0 : piece_seconds / static_cast<double>(pieces_built);
+  }
+  // The range data inside a run's tasks when it is complete, else null (a deadline run that
+  // refines before it is built): then only ranges_for_empty() may be asked.
+  const range_data* built_ranges() const noexcept {
+    // acquire: pairs with the release in build_ranges().
+    return ranges_ready.load(std::memory_order_acquire) ? &*ranges_ : nullptr;
+  }
+  // The staged data's empty() needs no piece: the driver made it before the run's first task,
+  // and the task graph's start orders that.
+  const range_data& ranges_for_empty() const noexcept {
     PROGISO_ASSERT(ranges_.has_value());
     return *ranges_;
+  }
+  // The queue key and record error of a diamond made ready without its range: above every
+  // error the data can have, halving with depth, so coarse diamonds go first and every cut by
+  // error stays parent-closed (a placeholder parent is never below its children).
+  static double unranged_error(int depth) noexcept {
+    return std::ldexp(std::numeric_limits<double>::max(), -std::min(depth, 60));
   }
   // oneTBB's pool has default_concurrency() threads; asking an arena for more only warns.
   static unsigned effective_threads(unsigned requested) {
@@ -268,22 +324,62 @@ struct engine_impl {
     return r;
   }
 
-  // Commit step (the first run on this root): queues the root diamonds whose range straddles.
+  // Commit step (the first run on this root): queues the root diamonds whose range straddles
+  // (every one not wholly in the padding, by placeholder, before the range data is built).
   void seed_roots(engine_root& r) {
     if (r.seeded) return;
     r.seeded = true;
-    const range_data& rd = built_ranges();
     std::uint64_t culled = 0;
     for (const ipoint& c : r.root_centres) {
-      const diamond_range rr = rd.get(c);
-      if (rr.straddles(r.isovalue)) {
-        r.queue.push({rr.error, hier.depth_of(c), hier.index(c)});
-      } else {
+      if (!queue_if_straddles(r, c, hier.scale_of(c), hier.depth_of(c), hier.index(c),
+                              built_ranges())) {
         ++culled;
       }
     }
     r.visited.add(r.root_centres.size());
     r.culled.add(culled);
+  }
+
+  // Queues the diamond centred at c (scale h) by its range, or by placeholder when `rd` is null
+  // and its subtree is not wholly in the padding; returns whether it was queued. Commit step,
+  // or the driver between graph runs.
+  bool queue_if_straddles(engine_root& r, const ipoint& c, std::int32_t h, int depth,
+                          std::uint64_t index, const range_data* rd) {
+    if (rd == nullptr) {
+      if (ranges_for_empty().empty(c, h)) return false;
+      r.queue.push({unranged_error(depth), depth, index});
+      r.unranged = true;
+      return true;
+    }
+    const diamond_range cr = rd->get(c, h);
+    if (!cr.straddles(r.isovalue)) return false;
+    r.queue.push({cr.error, depth, index});
+    return true;
+  }
+
+  // Driver, between graph runs, once the range data is built: the diamonds queued by
+  // placeholder are queued again by their ranges, or culled.
+  void requeue_by_ranges(engine_root& r) {
+    if (!r.unranged) return;
+    const range_data* rd = built_ranges();
+    PROGISO_ASSERT(rd != nullptr);
+    std::vector<ready_item> items;
+    items.reserve(r.queue.size());
+    while (!r.queue.empty()) {
+      items.push_back(r.queue.top());
+      r.queue.pop();
+    }
+    std::uint64_t culled = 0;
+    for (const ready_item& it : items) {
+      if (it.error < unranged_error(60)) {  // already by its range
+        r.queue.push(it);
+        continue;
+      }
+      const ipoint c = hier.point(it.index);
+      if (!queue_if_straddles(r, c, hier.scale_of(c), it.depth, it.index, rd)) ++culled;
+    }
+    r.culled.add(culled);
+    r.unranged = false;
   }
 
   // The cleared arrays of a reclaimed root if there are any, else fresh ones. Control thread.
@@ -412,7 +508,7 @@ struct engine_impl {
     return true;
   }
   [[nodiscard]] bool past_deadline() const noexcept {
-    return goal.what == refine_goal::kind::deadline && clock::now() >= goal.deadline;
+    return goal.what == refine_goal::kind::deadline && clock::now() >= slice_end;
   }
   [[nodiscard]] bool stopping() const noexcept {
     // relaxed: a request flag; the data the run publishes is ordered by records.publish().
@@ -446,7 +542,7 @@ struct engine_impl {
   // commit step needs to know about their children.
   batch* compute_batch(batch* b) {
     const double w = b->root->isovalue;
-    const range_data& rd = built_ranges();
+    const range_data* rd = built_ranges();
     for (std::size_t j = 0; j < b->items.size(); ++j) {
       // The clock every fourth split (~2 µs): a clock read costs ~4% of a split.
       if (stopping() || (j % 4 == 0 && past_deadline())) break;
@@ -480,9 +576,9 @@ struct engine_impl {
                 // relaxed: a hint only; the commit step, the sole writer, decides readiness,
                 // and a stale count just moves the lookup to the commit step or repeats it.
                 .load(std::memory_order_relaxed);
-        ci.known = split_parents + 1 >= ci.parents_needed;
+        ci.known = rd != nullptr && split_parents + 1 >= ci.parents_needed;
         if (ci.known) {
-          const diamond_range cr = rd.get(c, children.scale);
+          const diamond_range cr = rd->get(c, children.scale);
           ci.straddles = cr.straddles(w);
           ci.error = cr.error;
         }
@@ -503,7 +599,7 @@ struct engine_impl {
       r.remaining.set(r.queue.size() + inflight_items);
       return;
     }
-    const range_data& rd = built_ranges();
+    const range_data* rd = built_ranges();
     --inflight;
     inflight_items -= b->items.size();
     std::size_t published = 0;
@@ -559,17 +655,18 @@ struct engine_impl {
           slot.store(count, std::memory_order_relaxed);  // relaxed: as the load above
           if (count != ci.parents_needed) continue;
           ++visited;
-          bool straddles = ci.straddles;
-          double error = ci.error;
-          if (!ci.known) {
-            const diamond_range cr = rd.get(hier.point(ci.index));
-            straddles = cr.straddles(r.isovalue);
-            error = cr.error;
-          }
-          if (straddles) {
-            r.queue.push({error, it.item.depth + 1, ci.index});
+          if (ci.known) {
+            if (ci.straddles) {
+              r.queue.push({ci.error, it.item.depth + 1, ci.index});
+            } else {
+              ++culled;
+            }
           } else {
-            ++culled;
+            const ipoint centre = hier.point(ci.index);
+            if (!queue_if_straddles(r, centre, hier.scale_of(centre), it.item.depth + 1, ci.index,
+                                    rd)) {
+              ++culled;
+            }
           }
         }
         last_depth = it.item.depth;
@@ -641,11 +738,9 @@ struct engine_impl {
     std::rethrow_exception(e);
   }
 
-  // The driver thread of one run.
-  void drive(engine_root* r) {
-    // The first dispatch goes through the serial commit node too: the queue belongs to it
-    // (tasks started by the dispatch loop commit while it still runs).
-    (void)ranges();  // in parallel, on this arena; outside it while it waits (see ranges())
+  // One graph run: the first dispatch goes through the serial commit node too (the queue
+  // belongs to it: tasks started by the dispatch loop commit while it still runs).
+  void run_graph(engine_root* r) {
     arena.execute([&] {
       auto* seed = new batch;
       seed->root = r;
@@ -653,7 +748,80 @@ struct engine_impl {
       commit->try_put(seed);
       graph->wait_for_all();
     });
-    r->remaining.set(r->queue.size());
+  }
+
+  // After a graph run that stopped at the end of its slice (not at the goal's deadline): clears
+  // the stop request and returns true, unless the user or the progress callback stopped the run
+  // (then the run ends). Under `control`, so that a cancel() is either seen here or made after.
+  bool continue_after_slice() {
+    const std::lock_guard lock(control);
+    if (user_cancelled || callback_cancel || callback_error != nullptr) return false;
+    if (clock::now() >= goal.deadline) return false;
+    stop.store(false, std::memory_order_relaxed);  // relaxed: the next graph run orders it
+    return true;
+  }
+
+  // A deadline run before the range data is complete (DESIGN §7, "the first surface needs no
+  // preprocessing"): slices of the build alternate with slices of refinement without culling
+  // (placeholder order: coarse first), each twice as long as the one before, from 1 ms, a build
+  // slice never more than half the time left and never a step expected to end past its slice;
+  // once the pieces left are estimated to fit in the time left, the build runs to the end. When the
+  // data is complete the queue is culled and ordered by it, and the run goes on as usual. What the
+  // build did is kept for the next run; what refinement did is a valid cut. Only the first step of
+  // all, which has no estimate, can overrun a deadline (by one slab per thread). Deadlines shorter
+  // than a step refine without building: the data is then built by the first run with time for it,
+  // or by any other kind of run. Why the build wins whenever it fits: refinement culled by the data
+  // buys far more surface per millisecond than refinement without it (brainsmall, 1 thread: 40 ms
+  // gave 118 K triangles with the data built after 10.5 ms; 20 ms spent half on each gave 5 K).
+  void drive_unranged(engine_root* r) {
+    auto slice = std::chrono::duration_cast<clock::duration>(std::chrono::milliseconds(1));
+    for (;;) {
+      {
+        const std::lock_guard lock(build_mutex);
+        const auto now = clock::now();
+        const double left = std::chrono::duration<double>(goal.deadline - now).count();
+        const std::size_t pieces_left = ranges_->piece_count() - pieces_built;
+        const double estimate = seconds_per_piece() * static_cast<double>(pieces_left);
+        const bool to_the_end = pieces_built > 0 && estimate <= left;
+        // A slice of the build takes at most half the time left, so that a short deadline
+        // still refines.
+        const auto half_left = std::chrono::duration_cast<clock::duration>(
+            std::chrono::duration<double>(0.5 * std::max(left, 0.0)));
+        const clock::time_point until =
+            to_the_end ? goal.deadline : now + std::min(slice, half_left);
+        if (build_ranges(until, true) || clock::now() >= goal.deadline || stopping()) return;
+      }
+      slice_end = std::min(goal.deadline, clock::now() + slice);
+      run_graph(r);
+      if (!continue_after_slice()) return;
+      slice *= 2;
+    }
+  }
+
+  // The driver thread of one run.
+  void drive(engine_root* r) {
+    slice_end = goal.deadline;
+    if (!ranges_ready.load(std::memory_order_acquire)) {  // acquire: see build_ranges()
+      if (goal.what == refine_goal::kind::deadline) {
+        {
+          const std::lock_guard lock(build_mutex);
+          if (!ranges_) ranges_.emplace(vol, hier, range_data::staged);
+        }
+        drive_unranged(r);
+      } else {
+        (void)ranges();  // in parallel, on this arena; outside it while it waits (see ranges())
+      }
+    }
+    // A stopped run still seeds a fresh root (the seed batch queues its roots, dispatches
+    // nothing), so that done() tells an unrefined root from a finished one.
+    // acquire: see build_ranges().
+    if (ranges_ready.load(std::memory_order_acquire)) {
+      slice_end = goal.deadline;
+      requeue_by_ranges(*r);
+      run_graph(r);
+    }
+    // Unseeded (a deadline passed inside the first build step): every root may still split.
+    if (r->seeded) r->remaining.set(r->queue.size());
     root_bytes.set(r->bytes());
     {
       const std::lock_guard lock(control);
@@ -674,7 +842,7 @@ struct engine_impl {
             reached = budget_hit || r->queue.empty();
             break;
           case refine_goal::kind::deadline:
-            reached = r->queue.empty();
+            reached = r->seeded && r->queue.empty();
             break;
         }
       }
@@ -723,8 +891,13 @@ struct engine_impl {
   const volume& vol;
   engine_options opt;
   hierarchy hier;
-  mutable std::once_flag ranges_once;
+  // The range data (see ranges()): made, built piece by piece and finished under build_mutex;
+  // complete once ranges_ready is set.
+  mutable std::mutex build_mutex;
   mutable std::optional<range_data> ranges_;
+  mutable std::size_t pieces_built = 0;  // guarded by build_mutex
+  mutable double piece_seconds = 0.0;    // in build_pieces only (no allocation): guarded too
+  mutable std::atomic<bool> ranges_ready{false};
   mutable std::atomic<double> range_seconds{0.0};
   unsigned threads;
   // The per-vertex arrays of the last reclaimed root, cleared by `cleaner` (keep_vertex_state),
@@ -753,6 +926,9 @@ struct engine_impl {
   // tasks; inflight, inflight_items, budget_hit, last_depth, since_progress belong to the
   // commit step.
   refine_goal goal;
+  // Deadline runs stop here: the goal's deadline, or the end of a slice of refinement while the
+  // range data is built (drive_unranged). Written by the driver between graph runs.
+  clock::time_point slice_end{};
   std::atomic<bool> stop{false};
   std::size_t inflight = 0;
   std::size_t inflight_items = 0;
@@ -964,8 +1140,13 @@ const hierarchy& engine::hierarchy_of() const noexcept { return impl_->hier; }
 const range_data& engine::ranges() const { return impl_->ranges(); }
 unsigned engine::threads() const noexcept { return impl_->threads; }
 double engine::range_build_seconds() const noexcept {
-  // relaxed: a statistic, written once by the build.
+  // relaxed: a statistic, added to by each step of the build.
   return impl_->range_seconds.load(std::memory_order_relaxed);
+}
+
+bool engine::ranges_built() const noexcept {
+  // acquire: pairs with the release in build_ranges() (a caller may then read ranges()).
+  return impl_->ranges_ready.load(std::memory_order_acquire);
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -1169,7 +1350,9 @@ extract_result extract_isosurface_parallel(const volume& vol, double isovalue,
   const auto t2 = clock::now();
   // The first run built the range data (in parallel); refinement is the rest of the run.
   res.range_build_seconds = eng.range_build_seconds();
-  res.range_bytes = eng.ranges().byte_size();
+  // A deadline run may end before the range data is complete: its bytes are not counted then
+  // (completing it here would put the build after the deadline into the pipeline).
+  res.range_bytes = eng.ranges_built() ? eng.ranges().byte_size() : 0;
   res.refine_seconds = std::max(0.0, seconds(t2 - t1) - res.range_build_seconds);
   {
     const surface_snapshot s = eng.snapshot();

@@ -176,5 +176,50 @@ TEST(RangeData, built_in_parallel_slabs_it_equals_the_sequential_build) {
   }
 }
 
+// The staged build (the engine's, spread over runs): pieces built in any grouping and order,
+// then finish(), give the one-pass data exactly; empty() answers before any piece is built.
+TEST(RangeData, a_staged_build_in_any_order_equals_the_one_pass_build) {
+  const volume blobs = make_gaussian_blobs({37, 29, 45}, 6, 5u);
+  const auto data = std::make_shared<const volume>(make_marschner_lobb({21, 19, 23}));
+  const volume smoothed = smooth(data, {1, 0, std::nullopt, 1.0});
+  for (const volume* v : {&blobs, &smoothed}) {
+    const hierarchy h(v->dims());
+    const range_data whole(*v, h);
+    range_data staged(*v, h, range_data::staged);
+    EXPECT_FALSE(staged.complete());
+    const std::size_t n = staged.piece_count();
+    ASSERT_GT(n, 2u);
+    // empty() needs no piece: the same answers as the complete data's.
+    for (std::int32_t z = 0; z <= h.grid_max()[2]; ++z)
+      for (std::int32_t y = 0; y <= h.grid_max()[1]; ++y)
+        for (std::int32_t x = 0; x <= h.grid_max()[0]; ++x) {
+          const ipoint c{x, y, z};
+          if (!h.is_diamond(c)) continue;
+          ASSERT_EQ(staged.empty(c, h.scale_of(c)), whole.empty(c, h.scale_of(c)));
+        }
+    // The last pieces first, in groups of three, the rest one by one.
+    std::size_t end = n;
+    while (end > n / 2) {
+      const std::size_t first = end >= 3 ? end - 3 : 0;
+      staged.build_pieces(first, end);
+      end = first;
+    }
+    for (std::size_t k = 0; k < end; ++k) staged.build_pieces(k, k + 1);
+    staged.finish();
+    EXPECT_TRUE(staged.complete());
+    for (std::int32_t z = 0; z <= h.grid_max()[2]; ++z)
+      for (std::int32_t y = 0; y <= h.grid_max()[1]; ++y)
+        for (std::int32_t x = 0; x <= h.grid_max()[0]; ++x) {
+          const ipoint c{x, y, z};
+          if (!h.is_diamond(c)) continue;
+          const diamond_range a = whole.get(c);
+          const diamond_range b = staged.get(c);
+          ASSERT_EQ(a.lo, b.lo);
+          ASSERT_EQ(a.hi, b.hi);
+          ASSERT_EQ(a.error, b.error);
+        }
+  }
+}
+
 }  // namespace
 }  // namespace progiso

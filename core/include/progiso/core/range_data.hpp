@@ -22,7 +22,8 @@
 // holds 3 samples per 4 × 4 × 4 grid vertices (about 5% of the volume's bytes) and is built in
 // one streaming pass, in slabs that the caller may run in parallel.
 //
-// Thread safety: immutable after construction; concurrent get() calls are safe.
+// Thread safety: immutable after construction (after finish() when staged); concurrent get() calls
+// are safe. Pieces of a staged build may be built concurrently; finish() runs alone.
 #pragma once
 
 #include <cstddef>
@@ -60,6 +61,21 @@ class range_data {
   /// Builds the data: one pass over the volume, O(voxels); pieces of it through `run` when
   /// given, else one after another on this thread.
   explicit range_data(const volume& vol, const hierarchy& hier, const parallel_loop& run = {});
+
+  /// The staged build, for a caller that spreads the pass over time (the engine refines while
+  /// it builds): range_data(vol, hier, staged) reads nothing; build_pieces() over [0,
+  /// piece_count()) in any order and grouping, then finish(), make the same data as the
+  /// constructor above. Until complete(), only empty() may be asked (it reads no samples).
+  struct staged_t {};
+  static constexpr staged_t staged{};
+  range_data(const volume& vol, const hierarchy& hier, staged_t);
+  /// Independent pieces of the pass (slabs of bricks): two calls may build different pieces at
+  /// the same time.
+  [[nodiscard]] std::size_t piece_count() const noexcept;
+  void build_pieces(std::size_t first, std::size_t last, const parallel_loop& run = {});
+  /// The coarser levels, once every piece is built; then complete().
+  void finish();
+  [[nodiscard]] bool complete() const noexcept { return complete_; }
   /// Refused at compile time: the range data keeps pointers to both (detail/borrow.hpp).
   template <class V, class H>
   requires detail::any_rvalue<V, H> range_data(V&&, H&&)
@@ -94,6 +110,7 @@ class range_data {
 
  private:
   std::unique_ptr<impl> impl_;
+  bool complete_ = false;
 };
 
 }  // namespace progiso

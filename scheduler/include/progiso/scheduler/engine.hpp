@@ -189,7 +189,8 @@ class engine {
  public:
   /// Builds the hierarchy of `vol` (which must outlive the engine) and publishes the root surface
   /// of `isovalue`: no pass over the volume. The range data is built, in parallel, by the first
-  /// run (or the first call of ranges()). Throws progiso::error for a non-finite isovalue.
+  /// run (a deadline run builds it between slices of refinement; see ranges_built()) or the first
+  /// call of ranges(). Throws progiso::error for a non-finite isovalue.
   engine(const volume& vol, double isovalue, engine_options options = {});
   /// The same for a volume the engine takes over (a temporary such as read_nrrd(…) or
   /// make_demo_volume(…) binds here, so it cannot dangle).
@@ -239,11 +240,17 @@ class engine {
 
   [[nodiscard]] const volume& field() const noexcept;
   [[nodiscard]] const hierarchy& hierarchy_of() const noexcept;
-  /// The range data; builds it (on the engine's threads) if no run has yet. Any thread.
+  /// The range data; builds what no run has built yet (on the engine's threads). Any thread but
+  /// the progress callback's (throws there when the data is not complete).
   [[nodiscard]] const range_data& ranges() const;
   [[nodiscard]] unsigned threads() const noexcept;
   /// Seconds the range data took to build; 0 until it is built.
   [[nodiscard]] double range_build_seconds() const noexcept;
+  /// Whether the range data is complete. A deadline run that starts before it is refines
+  /// without culling while it builds pieces of it in between (coarse levels first), so that a
+  /// deadline shorter than the build still buys surface; every other run builds it first. Any
+  /// thread.
+  [[nodiscard]] bool ranges_built() const noexcept;
 
  private:
   friend class surface_snapshot;

@@ -148,6 +148,14 @@ class subdivision {
 class data_pyramid {
  public:
   data_pyramid(const volume& data, const parallel_loop& run);
+  /// Staged: nothing built yet; build_slabs() over [0, slab_count()), then finish().
+  explicit data_pyramid(const volume& data);
+  [[nodiscard]] std::size_t slab_count() const noexcept;
+  /// Bricks of slabs [first, last) (4 planes of data each; slabs write disjoint bricks, so
+  /// different slabs may be built at the same time), through `run`.
+  void build_slabs(std::size_t first, std::size_t last, const parallel_loop& run);
+  /// The coarser levels, once every slab is built.
+  void finish();
   /// [min, max] of a superset of the samples in [d0, d1] (inclusive, inside the data).
   [[nodiscard]] std::array<double, 2> range(const index3& d0, const index3& d1) const noexcept;
   [[nodiscard]] std::size_t byte_size() const noexcept;
@@ -161,6 +169,7 @@ class data_pyramid {
       return static_cast<std::size_t>(x + n[0] * (y + n[1] * z));
     }
   };
+  const volume* data_ = nullptr;
   std::vector<level> levels_;
 };
 
