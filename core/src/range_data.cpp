@@ -5,6 +5,7 @@
 #include <progiso/core/detail/subdivision.hpp>
 
 #include <algorithm>
+#include <atomic>
 #include <cmath>
 #include <cstdint>
 #include <limits>
@@ -22,10 +23,22 @@ struct range_data::impl {
   [[nodiscard]] virtual bool straddles_at(const ipoint& c, std::int32_t h,
                                           const detail::sample_threshold& w) const noexcept = 0;
   [[nodiscard]] virtual std::size_t byte_size() const noexcept = 0;
-  // The staged build (range_data(…, staged)): independent pieces, then finish().
+  // The staged build (range_data(…, staged)): independent pieces of the min/max pass, then
+  // finish(); then those of the error pass, then finish_errors(), which sets errors_exact.
   [[nodiscard]] virtual std::size_t piece_count() const noexcept = 0;
   virtual void build_pieces(std::size_t first, std::size_t last, const parallel_loop& run) = 0;
   virtual void finish() = 0;
+  [[nodiscard]] virtual std::size_t error_piece_count() const noexcept = 0;
+  virtual void build_error_pieces(std::size_t first, std::size_t last,
+                                  const parallel_loop& run) = 0;
+  virtual void finish_errors() = 0;
+  // Both passes for pieces [first, last) (one task per piece reads its slab once into cache).
+  virtual void build_both(std::size_t first, std::size_t last, const parallel_loop& run) {
+    build_pieces(first, last, run);
+    build_error_pieces(first, last, run);
+  }
+  // Set (release) once the error pass is finished; until then errors of scale ≥ 2 are hi − lo.
+  std::atomic<bool> errors_exact{false};
   const volume* vol = nullptr;
   const hierarchy* hier = nullptr;
 
@@ -196,8 +209,23 @@ class typed_range_data final : public range_data::impl {
   }
   void build_pieces(std::size_t first, std::size_t last,
                     const range_data::parallel_loop& run) override {
-    run_loop(run, last - first,
-             [this, first](std::size_t k) { build_slab(static_cast<std::int32_t>(first + k)); });
+    run_loop(run, last - first, [this, first](std::size_t k) {
+      build_minmax_slab(static_cast<std::int32_t>(first + k));
+    });
+  }
+  [[nodiscard]] std::size_t error_piece_count() const noexcept override { return piece_count(); }
+  void build_both(std::size_t first, std::size_t last,
+                  const range_data::parallel_loop& run) override {
+    run_loop(run, last - first, [this, first](std::size_t k) {
+      build_minmax_slab(static_cast<std::int32_t>(first + k));
+      build_error_slab(static_cast<std::int32_t>(first + k));
+    });
+  }
+  void build_error_pieces(std::size_t first, std::size_t last,
+                          const range_data::parallel_loop& run) override {
+    run_loop(run, last - first, [this, first](std::size_t k) {
+      build_error_slab(static_cast<std::int32_t>(first + k));
+    });
   }
 
   [[nodiscard]] diamond_range get(const diamond& d) const noexcept override {
@@ -239,10 +267,12 @@ class typed_range_data final : public range_data::impl {
     T lo = std::numeric_limits<T>::max();
     T hi = std::numeric_limits<T>::lowest();
     error_t err{};
+    // acquire: pairs with the release in finish_errors(); the bricks' errors are then written.
+    const bool exact = errors_exact.load(std::memory_order_acquire);
     if (visit_box(c, h, [&](const brick& b) {
           lo = b.lo < lo ? b.lo : lo;
           hi = b.hi > hi ? b.hi : hi;
-          err = b.error > err ? b.error : err;
+          if (exact) err = b.error > err ? b.error : err;
           return true;
         }) == visit::empty) {
       return {};
@@ -250,7 +280,9 @@ class typed_range_data final : public range_data::impl {
     diamond_range r;
     r.lo = static_cast<double>(lo);
     r.hi = static_cast<double>(hi);
-    r.error = static_cast<double>(err);
+    // Before the error pass: hi − lo, a bound on every split error between values in [lo, hi],
+    // still nested (a child's range lies in its parent's).
+    r.error = exact ? static_cast<double>(err) : r.hi - r.lo;
     return r;
   }
 
@@ -358,6 +390,7 @@ class typed_range_data final : public range_data::impl {
         for (std::int32_t y = 0; y < coarse.n[1]; ++y) {
           for (std::int32_t x = 0; x < coarse.n[0]; ++x) {
             brick m = fine.at(2 * x, 2 * y, 2 * z);
+            m.error = error_t{};
             for (std::int32_t d = 1; d < 8; ++d) {
               const std::int32_t fx = 2 * x + (d & 1);
               const std::int32_t fy = 2 * y + ((d >> 1) & 1);
@@ -366,7 +399,6 @@ class typed_range_data final : public range_data::impl {
               const brick& b = fine.at(fx, fy, fz);
               m.lo = b.lo < m.lo ? b.lo : m.lo;
               m.hi = b.hi > m.hi ? b.hi : m.hi;
-              m.error = b.error > m.error ? b.error : m.error;
             }
             coarse.bricks.push_back(m);
           }
@@ -376,18 +408,41 @@ class typed_range_data final : public range_data::impl {
     }
   }
 
+  // The coarser levels' errors, from level 0's (finish() made the levels).
+  void finish_errors() override {
+    PROGISO_ASSERT(levels_.size() > 1 || levels_[0].bricks.size() == 1);
+    for (std::size_t k = 1; k < levels_.size(); ++k) {
+      const level& fine = levels_[k - 1];
+      level& coarse = levels_[k];
+      for (std::int32_t z = 0; z < fine.n[2]; ++z) {
+        for (std::int32_t y = 0; y < fine.n[1]; ++y) {
+          for (std::int32_t x = 0; x < fine.n[0]; ++x) {
+            const error_t e = fine.at(x, y, z).error;
+            error_t& m = coarse
+                             .bricks[static_cast<std::size_t>(x / 2) +
+                                     static_cast<std::size_t>(coarse.n[0]) *
+                                         (static_cast<std::size_t>(y / 2) +
+                                          static_cast<std::size_t>(coarse.n[1]) *
+                                              static_cast<std::size_t>(z / 2))]
+                             .error;
+            m = e > m ? e : m;
+          }
+        }
+      }
+    }
+    // release: pairs with the acquire in get_at(); the errors above are written before it.
+    errors_exact.store(true, std::memory_order_release);
+  }
+
  private:
-  // One slab of level-0 bricks: 4 planes of vertices, row by row. Bricks whose vertices and
-  // spine ends all lie in the data box take fixed offsets, by the row's kind (which axes of y, z
-  // are odd) and x mod 4; the others, and vertices of scale ≥ 4, take own_error().
-  void build_slab(std::int32_t kz) {
+  // One slab of level-0 bricks' errors: 4 planes of vertices, row by row. Bricks whose vertices
+  // and spine ends all lie in the data box take fixed offsets, by the row's kind (which axes of y,
+  // z are odd) and x mod 4; the others, and vertices of scale ≥ 4, take own_error().
+  void build_error_slab(std::int32_t kz) {
     level& l0 = levels_[0];
     const ipoint& dm = hier->data_max();
     const std::int32_t nx = l0.n[0];
-    std::vector<T> lo(static_cast<std::size_t>(nx) * static_cast<std::size_t>(l0.n[1]),
-                      std::numeric_limits<T>::max());
-    std::vector<T> hi(lo.size(), std::numeric_limits<T>::lowest());
-    std::vector<double> err(lo.size(), 0.0);
+    std::vector<double> err(static_cast<std::size_t>(nx) * static_cast<std::size_t>(l0.n[1]), 0.0);
     const auto row_of = [&](std::int32_t y, std::int32_t z) {
       return samples_ + vol->linear(0, std::clamp(y, 0, dm[1]), std::clamp(z, 0, dm[2]));
     };
@@ -414,13 +469,9 @@ class typed_range_data final : public range_data::impl {
         const bool x0_scale2 = sy2 != 0 || sz2 != 0;
         for (std::int32_t bx = 0; bx < nx; ++bx) {
           const std::int32_t x0 = origin + 4 * bx;
-          T l;
-          T u;
           double e = 0.0;
           if (bx >= fast_lo && bx <= fast_hi && (odd_row || scale2_rows)) {
             const T* f = own + x0;
-            l = std::min(std::min(f[0], f[1]), std::min(f[2], f[3]));
-            u = std::max(std::max(f[0], f[1]), std::max(f[2], f[3]));
             const T* a = a_row + x0;
             const T* b = b_row + x0;
             if (odd_row) {
@@ -434,25 +485,61 @@ class typed_range_data final : public range_data::impl {
               e = std::max(e, x0_scale2 ? e3(d(f[0]), d(a[0]), d(b[0])) : own_error(x0, y, z));
             }
           } else {
-            l = std::numeric_limits<T>::max();
-            u = std::numeric_limits<T>::lowest();
-            for (std::int32_t x = x0; x < x0 + 4; ++x) {
-              const T v = clamped(x, y, z);
-              l = v < l ? v : l;
-              u = v > u ? v : u;
-              e = std::max(e, own_error(x, y, z));
-            }
+            for (std::int32_t x = x0; x < x0 + 4; ++x) e = std::max(e, own_error(x, y, z));
           }
           const std::size_t s = first + static_cast<std::size_t>(bx);
-          lo[s] = l < lo[s] ? l : lo[s];
-          hi[s] = u > hi[s] ? u : hi[s];
           err[s] = std::max(err[s], e);
         }
       }
     }
-    brick* out = l0.bricks.data() + static_cast<std::size_t>(kz) * lo.size();
-    for (std::size_t s = 0; s < lo.size(); ++s) {
-      out[s] = {lo[s], hi[s], quantize_error<error_t>(err[s])};
+    brick* out = l0.bricks.data() + static_cast<std::size_t>(kz) * err.size();
+    for (std::size_t s = 0; s < err.size(); ++s) out[s].error = quantize_error<error_t>(err[s]);
+  }
+
+  // One slab of level-0 bricks' min and max: per row of bricks, the 16 sample rows (4 y × 4 z,
+  // clamped into the data box) reduced element by element in the sample type (vectorised by
+  // the compiler), then each brick's 4 columns (clamped the same way).
+  void build_minmax_slab(std::int32_t kz) {
+    level& l0 = levels_[0];
+    const ipoint& dm = hier->data_max();
+    const auto width = static_cast<std::size_t>(dm[0]) + 1;
+    std::vector<T> rlo(width);
+    std::vector<T> rhi(width);
+    for (std::int32_t by = 0; by < l0.n[1]; ++by) {
+      std::fill(rlo.begin(), rlo.end(), std::numeric_limits<T>::max());
+      std::fill(rhi.begin(), rhi.end(), std::numeric_limits<T>::lowest());
+      // Distinct clamped rows only (beyond the data box they repeat its last one).
+      const std::int32_t y0 = std::clamp(origin + 4 * by, 0, dm[1]);
+      const std::int32_t y1 = std::clamp(origin + 4 * by + 3, 0, dm[1]);
+      const std::int32_t z0 = std::clamp(origin + 4 * kz, 0, dm[2]);
+      const std::int32_t z1 = std::clamp(origin + 4 * kz + 3, 0, dm[2]);
+      for (std::int32_t z = z0; z <= z1; ++z) {
+        for (std::int32_t y = y0; y <= y1; ++y) {
+          const T* row = samples_ + vol->linear(0, y, z);
+          T* lo = rlo.data();
+          T* hi = rhi.data();
+          for (std::size_t x = 0; x < width; ++x) {
+            const T v = row[x];
+            lo[x] = v < lo[x] ? v : lo[x];
+            hi[x] = v > hi[x] ? v : hi[x];
+          }
+        }
+      }
+      brick* out = &l0.bricks[static_cast<std::size_t>(l0.n[0]) *
+                              (static_cast<std::size_t>(by) +
+                               static_cast<std::size_t>(l0.n[1]) * static_cast<std::size_t>(kz))];
+      for (std::int32_t bx = 0; bx < l0.n[0]; ++bx) {
+        const std::int32_t x0 = std::clamp(origin + 4 * bx, 0, dm[0]);
+        const std::int32_t x1 = std::clamp(origin + 4 * bx + 3, 0, dm[0]);
+        T l = std::numeric_limits<T>::max();
+        T u = std::numeric_limits<T>::lowest();
+        for (std::int32_t x = x0; x <= x1; ++x) {
+          l = rlo[static_cast<std::size_t>(x)] < l ? rlo[static_cast<std::size_t>(x)] : l;
+          u = rhi[static_cast<std::size_t>(x)] > u ? rhi[static_cast<std::size_t>(x)] : u;
+        }
+        out[bx].lo = l;
+        out[bx].hi = u;
+      }
     }
   }
 
@@ -659,6 +746,13 @@ class subdivided_range_data final : public range_data::impl {
     data_.build_slabs(first, last, run);
   }
   void finish() override { data_.finish(); }
+  // The error bound is hi − lo from the start: no error pass.
+  [[nodiscard]] std::size_t error_piece_count() const noexcept override { return 0; }
+  void build_error_pieces(std::size_t /*first*/, std::size_t /*last*/,
+                          const range_data::parallel_loop& /*run*/) override {}
+  void finish_errors() override {
+    errors_exact.store(true, std::memory_order_release);  // release: as in typed_range_data
+  }
 
   [[nodiscard]] diamond_range get(const diamond& d) const noexcept override {
     return get_at(d.centre, d.scale);
@@ -748,8 +842,14 @@ class subdivided_range_data final : public range_data::impl {
 
 range_data::range_data(const volume& vol, const hierarchy& hier, const parallel_loop& run)
     : range_data(vol, hier, staged) {
-  build_pieces(0, piece_count(), run);
+  PROGISO_ASSERT(error_piece_count() == 0 || error_piece_count() == piece_count());
+  if (error_piece_count() == piece_count()) {
+    build_pieces_with_errors(0, piece_count(), run);
+  } else {
+    build_pieces(0, piece_count(), run);
+  }
   finish();
+  finish_errors();
 }
 
 range_data::range_data(const volume& vol, const hierarchy& hier, staged_t /*unused*/) {
@@ -772,6 +872,25 @@ void range_data::finish() {
   PROGISO_ASSERT(!complete_);
   impl_->finish();
   complete_ = true;
+}
+std::size_t range_data::error_piece_count() const noexcept { return impl_->error_piece_count(); }
+void range_data::build_pieces_with_errors(std::size_t first, std::size_t last,
+                                          const parallel_loop& run) {
+  PROGISO_ASSERT(!complete_ && error_piece_count() == piece_count() && first <= last &&
+                 last <= piece_count());
+  impl_->build_both(first, last, run);
+}
+void range_data::build_error_pieces(std::size_t first, std::size_t last, const parallel_loop& run) {
+  PROGISO_ASSERT(complete_ && !errors_exact() && first <= last && last <= error_piece_count());
+  impl_->build_error_pieces(first, last, run);
+}
+void range_data::finish_errors() {
+  PROGISO_ASSERT(complete_ && !errors_exact());
+  impl_->finish_errors();
+}
+bool range_data::errors_exact() const noexcept {
+  // acquire: pairs with the release in the impl's finish_errors().
+  return impl_->errors_exact.load(std::memory_order_acquire);
 }
 
 range_data::~range_data() = default;

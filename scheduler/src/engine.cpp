@@ -131,6 +131,9 @@ struct engine_root : epoch_object {
   // built): queued by placeholder, never culled. The driver re-queues them by their ranges once
   // the data is built (requeue_by_ranges), between graph runs. Commit step and driver.
   bool unranged = false;
+  // Some queued diamond was keyed by an error bound (hi − lo: the range data's error pass was
+  // not done); re-keyed by the exact errors once they exist. Commit step and driver.
+  bool bounded = false;
 
   // Commit step only.
   std::vector<std::vector<packed_group>> buffers;
@@ -224,55 +227,78 @@ struct engine_impl {
   // in the stress test). Tasks read the data through built_ranges().
   const range_data& ranges() const {
     // acquire: pairs with the release in build_ranges(); the data is then complete.
-    if (ranges_ready.load(std::memory_order_acquire)) return *ranges_;
+    if (ranges_ready.load(std::memory_order_acquire) && ranges_->errors_exact()) return *ranges_;
     if (in_own_callback()) {
       throw error(
           "engine: ranges() cannot build the range data from the engine's progress callback "
           "(it would wait for the run that calls it); call it outside the callback");
     }
     const std::lock_guard lock(build_mutex);
-    build_ranges(clock::time_point::max());
+    build_ranges(clock::time_point::max(), false, true);
     return *ranges_;
   }
   // Builds pieces until done or `until` (or a stop request, when `stop_requests`: a cancelled
-  // deadline run returns within one step); finishes the data when the last piece is built.
-  // Caller holds build_mutex and is outside the arena. Returns whether the data is complete.
-  bool build_ranges(clock::time_point until, bool stop_requests = false) const {
-    if (ranges_ready.load(std::memory_order_relaxed)) return true;  // relaxed: under the mutex
+  // deadline run returns within one step): the min/max pass, then (when `errors`) the error
+  // pass, fused with the first where neither has started (each slab read once); finishes each
+  // pass after its last piece. Caller holds build_mutex and is outside the arena. Returns
+  // whether what was asked for is complete.
+  bool build_ranges(clock::time_point until, bool stop_requests, bool errors) const {
     const auto t0 = clock::now();
     if (!ranges_) ranges_.emplace(vol, hier, range_data::staged);
-    const std::size_t n = ranges_->piece_count();
+    range_data& rd = *ranges_;
+    const std::size_t n = rd.piece_count();
+    const std::size_t m = rd.error_piece_count();
+    const bool fuse = errors && m == n;
+    // No step that is expected to end past `until` (the first has no estimate yet).
+    const auto fits = [&](std::size_t step) {
+      const auto expected =
+          std::chrono::duration<double>(seconds_per_piece() * static_cast<double>(step));
+      return clock::now() + std::chrono::duration_cast<clock::duration>(expected) < until &&
+             !(stop_requests && stopping());
+    };
     // isolate: while it waits for its slabs, the building thread runs only slab tasks, never
     // another caller's delegated work. Steps of one slab per thread, the clock between them.
     arena.execute([&] {
       tbb::this_task_arena::isolate([&] {
-        while (pieces_built < n && !(stop_requests && stopping())) {
+        while (pieces_built < n) {
           const std::size_t step = std::min<std::size_t>(n - pieces_built, threads);
-          // No step that is expected to end past `until` (the first has no estimate yet).
-          const auto expected =
-              std::chrono::duration<double>(seconds_per_piece() * static_cast<double>(step));
-          if (clock::now() + std::chrono::duration_cast<clock::duration>(expected) >= until) break;
+          if (!fits(step)) break;
           const auto p0 = clock::now();
-          ranges_->build_pieces(pieces_built, pieces_built + step, tbb_loop);
-          piece_seconds += std::chrono::duration<double>(clock::now() - p0).count();
+          if (fuse && error_pieces_built == pieces_built) {
+            rd.build_pieces_with_errors(pieces_built, pieces_built + step, tbb_loop);
+            error_pieces_built += step;
+          } else {
+            rd.build_pieces(pieces_built, pieces_built + step, tbb_loop);
+            piece_seconds += std::chrono::duration<double>(clock::now() - p0).count();
+            min_max_pieces += step;
+          }
           pieces_built += step;
         }
-        if (pieces_built == n) ranges_->finish();
+        if (pieces_built == n && !rd.complete()) rd.finish();
+        if (!errors || !rd.complete()) return;
+        while (error_pieces_built < m) {
+          const std::size_t step = std::min<std::size_t>(m - error_pieces_built, threads);
+          if (!fits(0)) break;
+          rd.build_error_pieces(error_pieces_built, error_pieces_built + step, tbb_loop);
+          error_pieces_built += step;
+        }
+        if (error_pieces_built == m && !rd.errors_exact()) rd.finish_errors();
       });
     });
     const double spent = std::chrono::duration<double>(clock::now() - t0).count();
     // relaxed: a statistic; writers hold build_mutex, readers take any value.
     range_seconds.store(range_seconds.load(std::memory_order_relaxed) + spent,
                         std::memory_order_relaxed);
-    if (pieces_built < n) return false;
-    // release: pairs with the acquire loads in ranges(), built_ranges() and the driver.
-    ranges_ready.store(true, std::memory_order_release);
-    return true;
+    if (rd.complete() && !ranges_ready.load(std::memory_order_relaxed)) {
+      // release: pairs with the acquire loads in ranges(), built_ranges() and the driver.
+      ranges_ready.store(true, std::memory_order_release);
+    }
+    return rd.complete() && (!errors || rd.errors_exact());
   }
-  // Wall seconds per piece so far, steps of `threads` pieces in parallel, not counting the
-  // data's allocation (0 before the first). Caller holds build_mutex.
+  // Wall seconds per piece of the min/max pass so far, steps of `threads` pieces in parallel,
+  // not counting the data's allocation (0 before the first). Caller holds build_mutex.
   [[nodiscard]] double seconds_per_piece() const {
-    return pieces_built == 0 ? 0.0 : piece_seconds / static_cast<double>(pieces_built);
+    return min_max_pieces == 0 ? 0.0 : piece_seconds / static_cast<double>(min_max_pieces);
   }
   // The range data inside a run's tasks when it is complete, else null (a deadline run that
   // refines before it is built): then only ranges_for_empty() may be asked.
@@ -354,15 +380,17 @@ struct engine_impl {
     const diamond_range cr = rd->get(c, h);
     if (!cr.straddles(r.isovalue)) return false;
     r.queue.push({cr.error, depth, index});
+    r.bounded = r.bounded || !rd->errors_exact();
     return true;
   }
 
   // Driver, between graph runs, once the range data is built: the diamonds queued by
-  // placeholder are queued again by their ranges, or culled.
+  // placeholder are queued again by their ranges, or culled; those queued by error bounds (a
+  // deadline run before the error pass) by their exact errors once they exist.
   void requeue_by_ranges(engine_root& r) {
-    if (!r.unranged) return;
     const range_data* rd = built_ranges();
     PROGISO_ASSERT(rd != nullptr);
+    if (!r.unranged && !(r.bounded && rd->errors_exact())) return;
     std::vector<ready_item> items;
     items.reserve(r.queue.size());
     while (!r.queue.empty()) {
@@ -370,8 +398,10 @@ struct engine_impl {
       r.queue.pop();
     }
     std::uint64_t culled = 0;
+    const bool all = r.bounded && rd->errors_exact();
+    r.bounded = false;
     for (const ready_item& it : items) {
-      if (it.error < unranged_error(60)) {  // already by its range
+      if (!all && it.error < unranged_error(60)) {  // already by its range
         r.queue.push(it);
         continue;
       }
@@ -658,6 +688,7 @@ struct engine_impl {
           if (ci.known) {
             if (ci.straddles) {
               r.queue.push({ci.error, it.item.depth + 1, ci.index});
+              r.bounded = r.bounded || !rd->errors_exact();
             } else {
               ++culled;
             }
@@ -789,7 +820,9 @@ struct engine_impl {
             std::chrono::duration<double>(0.5 * std::max(left, 0.0)));
         const clock::time_point until =
             to_the_end ? goal.deadline : now + std::min(slice, half_left);
-        if (build_ranges(until, true) || clock::now() >= goal.deadline || stopping()) return;
+        if (build_ranges(until, true, false) || clock::now() >= goal.deadline || stopping()) {
+          return;
+        }
       }
       slice_end = std::min(goal.deadline, clock::now() + slice);
       run_graph(r);
@@ -801,16 +834,19 @@ struct engine_impl {
   // The driver thread of one run.
   void drive(engine_root* r) {
     slice_end = goal.deadline;
-    if (!ranges_ready.load(std::memory_order_acquire)) {  // acquire: see build_ranges()
-      if (goal.what == refine_goal::kind::deadline) {
-        {
-          const std::lock_guard lock(build_mutex);
-          if (!ranges_) ranges_.emplace(vol, hier, range_data::staged);
-        }
-        drive_unranged(r);
-      } else {
-        (void)ranges();  // in parallel, on this arena; outside it while it waits (see ranges())
+    if (goal.what == refine_goal::kind::full) {
+      // Full refinement splits every straddling diamond whatever the errors: ranges only.
+      const std::lock_guard lock(build_mutex);
+      (void)build_ranges(clock::time_point::max(), false, false);
+    } else if (goal.what != refine_goal::kind::deadline) {
+      (void)ranges();  // ranges and exact errors: what is not built yet, in parallel
+    } else if (!ranges_ready.load(std::memory_order_acquire)) {  // acquire: see build_ranges()
+      // A deadline run needs only the ranges (errors of scale ≥ 2 are then bounds).
+      {
+        const std::lock_guard lock(build_mutex);
+        if (!ranges_) ranges_.emplace(vol, hier, range_data::staged);
       }
+      drive_unranged(r);
     }
     // A stopped run still seeds a fresh root (the seed batch queues its roots, dispatches
     // nothing), so that done() tells an unrefined root from a finished one.
@@ -895,8 +931,12 @@ struct engine_impl {
   // complete once ranges_ready is set.
   mutable std::mutex build_mutex;
   mutable std::optional<range_data> ranges_;
-  mutable std::size_t pieces_built = 0;  // guarded by build_mutex
-  mutable double piece_seconds = 0.0;    // in build_pieces only (no allocation): guarded too
+  // Guarded by build_mutex: pieces of the min/max pass built (min_max_pieces of them alone,
+  // in piece_seconds), pieces of the error pass built.
+  mutable std::size_t pieces_built = 0;
+  mutable std::size_t min_max_pieces = 0;
+  mutable double piece_seconds = 0.0;
+  mutable std::size_t error_pieces_built = 0;
   mutable std::atomic<bool> ranges_ready{false};
   mutable std::atomic<double> range_seconds{0.0};
   unsigned threads;
@@ -1144,6 +1184,16 @@ double engine::range_build_seconds() const noexcept {
   return impl_->range_seconds.load(std::memory_order_relaxed);
 }
 
+bool engine::errors_built() const noexcept {
+  // acquire: see ranges_built(); ranges_ is then made and never replaced.
+  return impl_->ranges_ready.load(std::memory_order_acquire) && impl_->ranges_->errors_exact();
+}
+
+std::size_t engine::range_bytes() const {
+  const std::lock_guard lock(impl_->build_mutex);
+  return impl_->ranges_ ? impl_->ranges_->byte_size() : 0;
+}
+
 bool engine::ranges_built() const noexcept {
   // acquire: pairs with the release in build_ranges() (a caller may then read ranges()).
   return impl_->ranges_ready.load(std::memory_order_acquire);
@@ -1350,9 +1400,9 @@ extract_result extract_isosurface_parallel(const volume& vol, double isovalue,
   const auto t2 = clock::now();
   // The first run built the range data (in parallel); refinement is the rest of the run.
   res.range_build_seconds = eng.range_build_seconds();
-  // A deadline run may end before the range data is complete: its bytes are not counted then
-  // (completing it here would put the build after the deadline into the pipeline).
-  res.range_bytes = eng.ranges_built() ? eng.ranges().byte_size() : 0;
+  // What is built so far (completing the data here would put a build after the deadline into
+  // the pipeline).
+  res.range_bytes = eng.range_bytes();
   res.refine_seconds = std::max(0.0, seconds(t2 - t1) - res.range_build_seconds);
   {
     const surface_snapshot s = eng.snapshot();

@@ -54,9 +54,18 @@ nested subtree_values(const hierarchy& h, const volume& v, const diamond& d,
   return r;
 }
 
-void check_all_diamonds(const volume& v) {
+// With `exact_errors` false the data stops after the min/max pass (errors of scale ≥ 2 are then
+// the bound hi − lo): the same checks hold.
+void check_all_diamonds(const volume& v, bool exact_errors = true) {
   const hierarchy h(v.dims());
-  const range_data rd(v, h);
+  range_data rd(v, h, range_data::staged);
+  rd.build_pieces(0, rd.piece_count());
+  rd.finish();
+  if (exact_errors) {
+    rd.build_error_pieces(0, rd.error_piece_count());
+    rd.finish_errors();
+  }
+  ASSERT_EQ(rd.errors_exact(), exact_errors);
   std::map<ipoint, nested> memo;
   for (std::int32_t z = 0; z <= h.grid_max()[2]; ++z)
     for (std::int32_t y = 0; y <= h.grid_max()[1]; ++y)
@@ -109,6 +118,13 @@ TEST(RangeData, ranges_cover_every_subtree_and_are_nested_on_a_padded_grid) {
 TEST(RangeData, ranges_cover_every_subtree_with_padding_of_many_small_scales) {
   check_all_diamonds(make_gaussian_blobs({26, 21, 19}, 6, 3u));
   check_all_diamonds(make_gaussian_blobs({35, 10, 12}, 6, 4u));
+}
+
+// Before the error pass (what a deadline run refines by while it saves the pass for later).
+TEST(RangeData, before_the_error_pass_ranges_and_error_bounds_cover_every_subtree_and_nest) {
+  check_all_diamonds(make_gaussian_blobs({17, 17, 17}, 5, 1u), false);
+  check_all_diamonds(make_gaussian_blobs({20, 14, 23}, 5, 2u), false);
+  check_all_diamonds(make_gaussian_blobs({35, 10, 12}, 6, 4u), false);
 }
 
 TEST(RangeData, ranges_of_smoothed_fields_cover_every_subtree_and_are_nested) {
@@ -177,7 +193,9 @@ TEST(RangeData, built_in_parallel_slabs_it_equals_the_sequential_build) {
 }
 
 // The staged build (the engine's, spread over runs): pieces built in any grouping and order,
-// then finish(), give the one-pass data exactly; empty() answers before any piece is built.
+// then finish(), then the error pass's pieces and finish_errors(), give the one-pass data
+// exactly; empty() answers before any piece is built; between the passes the ranges are final
+// and the errors bounds.
 TEST(RangeData, a_staged_build_in_any_order_equals_the_one_pass_build) {
   const volume blobs = make_gaussian_blobs({37, 29, 45}, 6, 5u);
   const auto data = std::make_shared<const volume>(make_marschner_lobb({21, 19, 23}));
@@ -207,6 +225,29 @@ TEST(RangeData, a_staged_build_in_any_order_equals_the_one_pass_build) {
     for (std::size_t k = 0; k < end; ++k) staged.build_pieces(k, k + 1);
     staged.finish();
     EXPECT_TRUE(staged.complete());
+    // Ranges final; errors of scale ≥ 2 the bound hi − lo until the error pass (sound and
+    // nested: RangeData.before_the_error_pass_* checks them against every subtree).
+    if (!staged.errors_exact()) {
+      std::size_t checked = 0;
+      for (std::int32_t z = 0; z <= h.grid_max()[2]; ++z)
+        for (std::int32_t y = 0; y <= h.grid_max()[1]; ++y)
+          for (std::int32_t x = 0; x <= h.grid_max()[0]; ++x) {
+            const ipoint c{x, y, z};
+            if (!h.is_diamond(c) || h.scale_of(c) < 2) continue;
+            const diamond_range a = whole.get(c);
+            const diamond_range b = staged.get(c);
+            ASSERT_EQ(a.lo, b.lo);
+            ASSERT_EQ(a.hi, b.hi);
+            if (b.empty()) continue;
+            ASSERT_EQ(b.error, b.hi - b.lo);
+            ++checked;
+          }
+      EXPECT_GT(checked, 0u);
+      const std::size_t m = staged.error_piece_count();
+      for (std::size_t k = m; k-- > 0;) staged.build_error_pieces(k, k + 1);
+      staged.finish_errors();
+    }
+    EXPECT_TRUE(staged.errors_exact());
     for (std::int32_t z = 0; z <= h.grid_max()[2]; ++z)
       for (std::int32_t y = 0; y <= h.grid_max()[1]; ++y)
         for (std::int32_t x = 0; x <= h.grid_max()[0]; ++x) {

@@ -64,7 +64,8 @@ class range_data {
 
   /// The staged build, for a caller that spreads the pass over time (the engine refines while
   /// it builds): range_data(vol, hier, staged) reads nothing; build_pieces() over [0,
-  /// piece_count()) in any order and grouping, then finish(), make the same data as the
+  /// piece_count()) in any order and grouping, then finish() (the ranges: a min/max pass at
+  /// memory speed), then the same for the errors (below), make the same data as the
   /// constructor above. Until complete(), only empty() may be asked (it reads no samples).
   struct staged_t {};
   static constexpr staged_t staged{};
@@ -73,9 +74,20 @@ class range_data {
   /// the same time.
   [[nodiscard]] std::size_t piece_count() const noexcept;
   void build_pieces(std::size_t first, std::size_t last, const parallel_loop& run = {});
-  /// The coarser levels, once every piece is built; then complete().
+  /// The coarser levels, once every piece is built; then complete(): ranges are final, and
+  /// errors of scale ≥ 2 are the bound hi − lo (sound and nested, but coarser) until the error
+  /// pass is finished too.
   void finish();
   [[nodiscard]] bool complete() const noexcept { return complete_; }
+  /// The error pass, after finish(): pieces in any order and grouping (concurrently with get()
+  /// calls from other threads), then finish_errors(); errors_exact() from then on.
+  [[nodiscard]] std::size_t error_piece_count() const noexcept;
+  void build_error_pieces(std::size_t first, std::size_t last, const parallel_loop& run = {});
+  void finish_errors();
+  [[nodiscard]] bool errors_exact() const noexcept;
+  /// Both passes of pieces [first, last) at once, each piece's samples read into cache once;
+  /// only when error_piece_count() == piece_count() (no error pass counts as already done).
+  void build_pieces_with_errors(std::size_t first, std::size_t last, const parallel_loop& run = {});
   /// Refused at compile time: the range data keeps pointers to both (detail/borrow.hpp).
   template <class V, class H>
   requires detail::any_rvalue<V, H> range_data(V&&, H&&)

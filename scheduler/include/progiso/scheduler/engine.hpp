@@ -246,11 +246,20 @@ class engine {
   [[nodiscard]] unsigned threads() const noexcept;
   /// Seconds the range data took to build; 0 until it is built.
   [[nodiscard]] double range_build_seconds() const noexcept;
-  /// Whether the range data is complete. A deadline run that starts before it is refines
-  /// without culling while it builds pieces of it in between (coarse levels first), so that a
-  /// deadline shorter than the build still buys surface; every other run builds it first. Any
-  /// thread.
+  /// Whether the ranges are complete. A deadline run that starts before they are refines
+  /// without culling while it builds pieces of them in between (coarse levels first), so that a
+  /// deadline shorter than the build still buys surface. Deadline and full runs need no exact
+  /// errors: they order by error bounds (hi − lo; full refinement splits the same set either
+  /// way) until an error or budget run, or ranges(), makes the exact errors (a second pass,
+  /// about 4× the first), and the splits they make record those bounds (so mesh_cut() of their
+  /// cut is valid but finer than exact errors would make it: call ranges() first for those).
+  /// Any thread.
   [[nodiscard]] bool ranges_built() const noexcept;
+  /// Whether the range data's exact errors exist (ranges(), error and budget runs make them).
+  /// Any thread.
+  [[nodiscard]] bool errors_built() const noexcept;
+  /// Bytes of the range data as far as it is built (no build). Any thread.
+  [[nodiscard]] std::size_t range_bytes() const;
 
  private:
   friend class surface_snapshot;
