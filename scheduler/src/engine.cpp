@@ -260,8 +260,11 @@ struct engine_impl {
     // another caller's delegated work. Steps of one slab per thread, the clock between them.
     arena.execute([&] {
       tbb::this_task_arena::isolate([&] {
+        // Without a time limit, one parallel loop over everything left (no step barriers).
+        const bool unlimited = until == clock::time_point::max() && !stop_requests;
         while (pieces_built < n) {
-          const std::size_t step = std::min<std::size_t>(n - pieces_built, threads);
+          const std::size_t step =
+              unlimited ? n - pieces_built : std::min<std::size_t>(n - pieces_built, threads);
           if (!fits(step)) break;
           const auto p0 = clock::now();
           if (fuse && error_pieces_built == pieces_built) {
@@ -277,7 +280,9 @@ struct engine_impl {
         if (pieces_built == n && !rd.complete()) rd.finish();
         if (!errors || !rd.complete()) return;
         while (error_pieces_built < m) {
-          const std::size_t step = std::min<std::size_t>(m - error_pieces_built, threads);
+          const std::size_t step = unlimited
+                                       ? m - error_pieces_built
+                                       : std::min<std::size_t>(m - error_pieces_built, threads);
           if (!fits(0)) break;
           rd.build_error_pieces(error_pieces_built, error_pieces_built + step, tbb_loop);
           error_pieces_built += step;
