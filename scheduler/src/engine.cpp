@@ -294,8 +294,10 @@ struct engine_impl {
     // relaxed: a statistic; writers hold build_mutex, readers take any value.
     range_seconds.store(range_seconds.load(std::memory_order_relaxed) + spent,
                         std::memory_order_relaxed);
+    // relaxed: this thread holds build_mutex, and only holders of it store the flag.
     if (rd.complete() && !ranges_ready.load(std::memory_order_relaxed)) {
-      // release: pairs with the acquire loads in ranges(), built_ranges() and the driver.
+      // release: pairs with the acquire loads in ranges(), built_ranges(), the driver and
+      // engine::ranges_built() / errors_built().
       ranges_ready.store(true, std::memory_order_release);
     }
     return rd.complete() && (!errors || rd.errors_exact());
