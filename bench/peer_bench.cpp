@@ -177,13 +177,25 @@ void run_pairs(benchmark::State& state, flying_edges& fe, pair_stats& s, Mine&& 
 
 // ---- 3D: vtkFlyingEdges3D against the progiso pipeline.
 
-void BM_peer_volume(benchmark::State& state) {
+// A 3D benchmark's setup: its input (args 0) and thread count (arg 1), VTK's SMP on that count,
+// the label, and Flying Edges on the input.
+struct volume_case {
+  input& in;
+  const volume& vol;
+  unsigned threads;
+  std::unique_ptr<flying_edges> fe;
+};
+volume_case volume_setup(benchmark::State& state) {
   input& in = volumes()[static_cast<std::size_t>(state.range(0))];
   const volume& vol = in.get();
   const auto threads = static_cast<unsigned>(state.range(1));
   const std::string backend = vtk_threads(static_cast<int>(threads));
   state.SetLabel(in.name + " " + std::to_string(threads) + " thr, VTK SMP " + backend);
-  const std::unique_ptr<flying_edges> fe = peer(vol, in.isovalue);
+  return {in, vol, threads, peer(vol, in.isovalue)};
+}
+
+void BM_peer_volume(benchmark::State& state) {
+  auto [in, vol, threads, fe] = volume_setup(state);
   extract_options options;  // full
   pair_stats s;
   run_pairs(state, *fe, s, [&] {
@@ -211,12 +223,7 @@ void BM_peer_volume(benchmark::State& state) {
 // the cut's triangles.
 
 void BM_deadline_quality(benchmark::State& state) {
-  input& in = volumes()[static_cast<std::size_t>(state.range(0))];
-  const volume& vol = in.get();
-  const auto threads = static_cast<unsigned>(state.range(1));
-  const std::string backend = vtk_threads(static_cast<int>(threads));
-  state.SetLabel(in.name + " " + std::to_string(threads) + " thr, VTK SMP " + backend);
-  const std::unique_ptr<flying_edges> fe = peer(vol, in.isovalue);
+  auto [in, vol, threads, fe] = volume_setup(state);
   const auto& sp = vol.spacing();
   const double voxel = std::max({sp[0], sp[1], sp[2]});
   static constexpr std::array<int, 4> divisors{8, 4, 2, 1};

@@ -363,14 +363,21 @@ struct engine_impl {
     if (r.seeded) return;
     r.seeded = true;
     std::uint64_t culled = 0;
+    const range_data* rd = built_ranges();
+    note_keys(r, rd);
     for (const ipoint& c : r.root_centres) {
-      if (!queue_if_straddles(r, c, hier.scale_of(c), hier.depth_of(c), hier.index(c),
-                              built_ranges())) {
+      if (!queue_if_straddles(r, c, hier.scale_of(c), hier.depth_of(c), hier.index(c), rd)) {
         ++culled;
       }
     }
     r.visited.add(r.root_centres.size());
     r.culled.add(culled);
+  }
+
+  // Marks the root when keys made with `rd` are error bounds (the error pass not done): once per
+  // batch, not per queued diamond (an acquire load and a pointer chase on the commit path).
+  static void note_keys(engine_root& r, const range_data* rd) noexcept {
+    if (rd != nullptr && !rd->errors_exact()) r.bounded = true;
   }
 
   // Queues the diamond centred at c (scale h) by its range, or by placeholder when `rd` is null
@@ -387,7 +394,6 @@ struct engine_impl {
     const diamond_range cr = rd->get(c, h);
     if (!cr.straddles(r.isovalue)) return false;
     r.queue.push({cr.error, depth, index});
-    r.bounded = r.bounded || !rd->errors_exact();
     return true;
   }
 
@@ -407,6 +413,7 @@ struct engine_impl {
     std::uint64_t culled = 0;
     const bool all = r.bounded && rd->errors_exact();
     r.bounded = false;
+    note_keys(r, rd);
     for (const ready_item& it : items) {
       if (!all && it.error < unranged_error(60)) {  // already by its range
         r.queue.push(it);
@@ -637,6 +644,7 @@ struct engine_impl {
       return;
     }
     const range_data* rd = built_ranges();
+    note_keys(r, rd);
     --inflight;
     inflight_items -= b->items.size();
     std::size_t published = 0;
@@ -695,7 +703,6 @@ struct engine_impl {
           if (ci.known) {
             if (ci.straddles) {
               r.queue.push({ci.error, it.item.depth + 1, ci.index});
-              r.bounded = r.bounded || !rd->errors_exact();
             } else {
               ++culled;
             }
