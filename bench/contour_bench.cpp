@@ -1,9 +1,9 @@
 // Benchmarks of 2D progressive contouring (issue 3): full progressive contouring against plain
 // marching triangles in the same binary, and time to first contour on a 4097² generated field.
 //   build/release/bench/progiso_contour_bench --benchmark_counters_tabular=true
-#include <progiso/core/contour_refiner.hpp>
-#include <progiso/core/error.hpp>
-#include <progiso/core/image_io.hpp>
+#include <progiso/core/base/error.hpp>
+#include <progiso/core/contour/contour_refiner.hpp>
+#include <progiso/core/io/image_io.hpp>
 
 #include <cmath>
 #include <cstdlib>

@@ -4,8 +4,8 @@
 // as p50/p99 counters (µs); wall-clock tails on small machines are dominated by the scheduler
 // tick, so p99.9 is reported but not a target. Ratios (speedup, throughput with a reader) come
 // from runs in this same binary.
-#include <progiso/core/analytic.hpp>
-#include <progiso/core/refiner.hpp>
+#include <progiso/core/field/analytic.hpp>
+#include <progiso/core/refine/refiner.hpp>
 #include <progiso/scheduler/engine.hpp>
 #include <progiso/scheduler/tbb_environment.hpp>
 

@@ -3,8 +3,8 @@
 // voxels, and range-data build time and bytes; the progressive/plain ratio also in alternating
 // pairs (BM_progressive_over_plain). Run:
 //   build/release/bench/progiso_bench --benchmark_counters_tabular=true
-#include <progiso/core/analytic.hpp>
-#include <progiso/core/refiner.hpp>
+#include <progiso/core/field/analytic.hpp>
+#include <progiso/core/refine/refiner.hpp>
 
 #include <algorithm>
 #include <array>

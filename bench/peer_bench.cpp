@@ -15,11 +15,11 @@
 // time Google Benchmark prints is progiso's. Built only when CMake finds VTK
 // (scripts/install-deps.sh --peers). Run:
 //   build/release/bench/progiso_peer_bench --benchmark_counters_tabular=true
-#include <progiso/core/analytic.hpp>
-#include <progiso/core/contour_refiner.hpp>
-#include <progiso/core/image_io.hpp>
-#include <progiso/core/refiner.hpp>
-#include <progiso/core/volume_io.hpp>
+#include <progiso/core/contour/contour_refiner.hpp>
+#include <progiso/core/field/analytic.hpp>
+#include <progiso/core/io/image_io.hpp>
+#include <progiso/core/io/volume_io.hpp>
+#include <progiso/core/refine/refiner.hpp>
 #include <progiso/scheduler/engine.hpp>
 #include <progiso/scheduler/tbb_environment.hpp>
 

@@ -4,10 +4,10 @@
 // what the benchmarks compare against, in the same binary.
 #pragma once
 
-#include <progiso/core/detail/flat_map.hpp>
-#include <progiso/core/marching.hpp>
-#include <progiso/core/mesh.hpp>
-#include <progiso/core/volume.hpp>
+#include <progiso/core/base/detail/flat_map.hpp>
+#include <progiso/core/field/volume.hpp>
+#include <progiso/core/surface/marching.hpp>
+#include <progiso/core/surface/mesh.hpp>
 
 namespace progiso::bench {
 

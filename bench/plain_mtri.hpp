@@ -3,10 +3,10 @@
 // segments chained into polylines — the same output as full progressive contouring.
 #pragma once
 
-#include <progiso/core/contour.hpp>
-#include <progiso/core/contour_split.hpp>
-#include <progiso/core/detail/flat_map.hpp>
-#include <progiso/core/volume.hpp>
+#include <progiso/core/base/detail/flat_map.hpp>
+#include <progiso/core/contour/contour.hpp>
+#include <progiso/core/contour/contour_split.hpp>
+#include <progiso/core/field/volume.hpp>
 
 namespace progiso::bench {
 

@@ -20,11 +20,11 @@
 // - BM_smoothed_contours/<image>/<field>: the 2D pipeline (extract_contours) on smoothed images.
 // Fields: data (S 0, K 0), S1, S2, K1 (--smooth-from 1), S1K1. Run:
 //   build/release/bench/progiso_smoothing_bench --benchmark_counters_tabular=true
-#include <progiso/core/contour_refiner.hpp>
-#include <progiso/core/detail/subdivision.hpp>
-#include <progiso/core/image_io.hpp>
-#include <progiso/core/smoothing.hpp>
-#include <progiso/core/volume_io.hpp>
+#include <progiso/core/contour/contour_refiner.hpp>
+#include <progiso/core/field/detail/subdivision.hpp>
+#include <progiso/core/field/smoothing.hpp>
+#include <progiso/core/io/image_io.hpp>
+#include <progiso/core/io/volume_io.hpp>
 #include <progiso/scheduler/engine.hpp>
 
 #include <algorithm>

@@ -5,7 +5,7 @@
 #include <cstddef>
 #include <cstdint>
 
-#include <progiso/core/mesh.hpp>
+#include <progiso/core/surface/mesh.hpp>
 
 namespace progiso::bench {
 

@@ -11,10 +11,10 @@
 //   - cuts of one root only grow.
 // At shutdown every root (one per isovalue) has been reclaimed exactly once.
 // Runs PROGISO_STRESS_SECONDS (default 1).
-#include <progiso/core/analytic.hpp>
-#include <progiso/core/hierarchy.hpp>
-#include <progiso/core/range_data.hpp>
-#include <progiso/core/refiner.hpp>
+#include <progiso/core/field/analytic.hpp>
+#include <progiso/core/hierarchy/hierarchy.hpp>
+#include <progiso/core/ranges/range_data.hpp>
+#include <progiso/core/refine/refiner.hpp>
 #include <progiso/scheduler/engine.hpp>
 
 #include <atomic>

@@ -6,9 +6,9 @@
 #include <sstream>
 #include <string>
 
-#include <progiso/core/detail/subdivision.hpp>
-#include <progiso/core/smoothing.hpp>
-#include <progiso/core/volume.hpp>
+#include <progiso/core/field/detail/subdivision.hpp>
+#include <progiso/core/field/smoothing.hpp>
+#include <progiso/core/field/volume.hpp>
 
 namespace progiso::cli {
 

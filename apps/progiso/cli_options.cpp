@@ -5,9 +5,9 @@
 #include <string_view>
 #include <system_error>
 
-#include <progiso/core/detail/file_input.hpp>
-#include <progiso/core/detail/file_output.hpp>
-#include <progiso/core/error.hpp>
+#include <progiso/core/base/error.hpp>
+#include <progiso/core/io/detail/file_input.hpp>
+#include <progiso/core/io/detail/file_output.hpp>
 
 namespace progiso::cli {
 

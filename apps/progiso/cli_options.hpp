@@ -10,10 +10,10 @@
 #include <string>
 #include <vector>
 
-#include <progiso/core/contour_refiner.hpp>
-#include <progiso/core/refiner.hpp>
-#include <progiso/core/smoothing.hpp>
-#include <progiso/core/volume.hpp>
+#include <progiso/core/contour/contour_refiner.hpp>
+#include <progiso/core/field/smoothing.hpp>
+#include <progiso/core/field/volume.hpp>
+#include <progiso/core/refine/refiner.hpp>
 
 namespace progiso::cli {
 

@@ -6,8 +6,8 @@
 #include <optional>
 #include <system_error>
 
-#include <progiso/core/detail/file_output.hpp>
-#include <progiso/core/error.hpp>
+#include <progiso/core/base/error.hpp>
+#include <progiso/core/io/detail/file_output.hpp>
 
 namespace progiso::cli {
 

@@ -17,12 +17,12 @@
 #include <string>
 #include <vector>
 
-#include <progiso/core/contour_io.hpp>
-#include <progiso/core/contour_refiner.hpp>
-#include <progiso/core/detail/file_output.hpp>
-#include <progiso/core/error.hpp>
-#include <progiso/core/image_io.hpp>
-#include <progiso/core/smoothing.hpp>
+#include <progiso/core/base/error.hpp>
+#include <progiso/core/contour/contour_refiner.hpp>
+#include <progiso/core/field/smoothing.hpp>
+#include <progiso/core/io/contour_io.hpp>
+#include <progiso/core/io/detail/file_output.hpp>
+#include <progiso/core/io/image_io.hpp>
 
 #include "cli_common.hpp"
 #include "cli_options.hpp"

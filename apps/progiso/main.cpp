@@ -25,14 +25,14 @@
 #include <string>
 #include <vector>
 
-#include <progiso/core/analytic.hpp>
-#include <progiso/core/detail/file_output.hpp>
-#include <progiso/core/detail/writers.hpp>
-#include <progiso/core/error.hpp>
-#include <progiso/core/mesh_io.hpp>
-#include <progiso/core/refiner.hpp>
-#include <progiso/core/smoothing.hpp>
-#include <progiso/core/volume_io.hpp>
+#include <progiso/core/base/error.hpp>
+#include <progiso/core/field/analytic.hpp>
+#include <progiso/core/field/smoothing.hpp>
+#include <progiso/core/io/detail/file_output.hpp>
+#include <progiso/core/io/detail/writers.hpp>
+#include <progiso/core/io/mesh_io.hpp>
+#include <progiso/core/io/volume_io.hpp>
+#include <progiso/core/refine/refiner.hpp>
 #include <progiso/scheduler/engine.hpp>
 #include <progiso/scheduler/tbb_environment.hpp>
 

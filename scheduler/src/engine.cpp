@@ -20,11 +20,11 @@
 #include <tbb/task_arena.h>
 
 #include <progiso/concurrent/append_log.hpp>
-#include <progiso/core/assert.hpp>
-#include <progiso/core/detail/mesh_builder.hpp>
-#include <progiso/core/detail/ready_queue.hpp>
-#include <progiso/core/error.hpp>
-#include <progiso/core/zeroed_array.hpp>
+#include <progiso/core/base/assert.hpp>
+#include <progiso/core/base/error.hpp>
+#include <progiso/core/base/zeroed_array.hpp>
+#include <progiso/core/refine/detail/ready_queue.hpp>
+#include <progiso/core/surface/detail/mesh_builder.hpp>
 #include <progiso/scheduler/tbb_environment.hpp>
 
 namespace progiso {

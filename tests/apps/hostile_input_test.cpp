@@ -24,8 +24,8 @@
 #include <gtest/gtest.h>
 #include <zlib.h>
 
-#include <progiso/core/contour_io.hpp>
-#include <progiso/core/mesh_io.hpp>
+#include <progiso/core/io/contour_io.hpp>
+#include <progiso/core/io/mesh_io.hpp>
 
 #include "support/bounded_run.hpp"
 #include "support/scratch_dir.hpp"

@@ -2,7 +2,7 @@
 // static libraries (whole archives, so every object must be position-independent).
 #include <cstddef>
 
-#include <progiso/core/analytic.hpp>
+#include <progiso/core/field/analytic.hpp>
 #include <progiso/scheduler/engine.hpp>
 
 extern "C" __attribute__((visibility("default"))) std::size_t progiso_plugin_triangles() {

@@ -1,5 +1,5 @@
 // Analytic fields: values at known points, ranges, argument checks, determinism.
-#include <progiso/core/analytic.hpp>
+#include <progiso/core/field/analytic.hpp>
 
 #include <cmath>
 #include <cstring>
@@ -8,7 +8,7 @@
 
 #include <gtest/gtest.h>
 
-#include <progiso/core/error.hpp>
+#include <progiso/core/base/error.hpp>
 
 namespace progiso {
 namespace {

@@ -1,8 +1,8 @@
-// Tests for progiso/core/contour_io.hpp: the OBJ text and its exact round trip (open and closed
+// Tests for progiso/core/io/contour_io.hpp: the OBJ text and its exact round trip (open and closed
 // polylines, isovalues), read_contour_obj's rejection of everything else, the SVG document
 // (frame, one element per polyline, colours per isovalue, the embedded PNG decoded back to the
 // image), dispatch by extension, and all-or-nothing writes.
-#include <progiso/core/contour_io.hpp>
+#include <progiso/core/io/contour_io.hpp>
 
 #include <gtest/gtest.h>
 
@@ -22,9 +22,9 @@
 #include <utility>
 #include <vector>
 
-#include <progiso/core/error.hpp>
-#include <progiso/core/image_io.hpp>
-#include <progiso/core/volume.hpp>
+#include <progiso/core/base/error.hpp>
+#include <progiso/core/field/volume.hpp>
+#include <progiso/core/io/image_io.hpp>
 
 namespace {
 

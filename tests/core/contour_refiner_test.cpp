@@ -2,8 +2,8 @@
 // reference on the finest mesh, directed segments included), valid at every cut, equal to the
 // marching-triangles contour of each cut's conforming mesh, traversable without the image, and
 // the one-shot modes with several isovalues.
-#include <progiso/core/contour_refiner.hpp>
-#include <progiso/core/contour_split.hpp>
+#include <progiso/core/contour/contour_refiner.hpp>
+#include <progiso/core/contour/contour_split.hpp>
 
 #include <cmath>
 #include <map>

@@ -3,14 +3,14 @@
 // the paper's text says, and executing its primitive sequence on the old segments yields exactly
 // the marching-triangles segments of the new triangles. Hand-built configurations pin the exact
 // sequence of each case.
-#include <progiso/core/contour_split.hpp>
-#include <progiso/core/error.hpp>
+#include <progiso/core/base/error.hpp>
+#include <progiso/core/contour/contour_split.hpp>
 
 #include <algorithm>
 #include <set>
 
-#include <progiso/core/contour_refiner.hpp>
-#include <progiso/core/range_data2d.hpp>
+#include <progiso/core/contour/contour_refiner.hpp>
+#include <progiso/core/ranges/range_data2d.hpp>
 
 #include <gtest/gtest.h>
 

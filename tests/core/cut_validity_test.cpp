@@ -2,9 +2,9 @@
 // consistently oriented, no degenerate triangle, no self-intersection (CGAL exact predicates) —
 // for many random budgets and thresholds; and a cut's surface is exactly the marching-tetrahedra
 // surface of the conforming bisection mesh that the cut defines.
-#include <progiso/core/analytic.hpp>
-#include <progiso/core/marching.hpp>
-#include <progiso/core/refiner.hpp>
+#include <progiso/core/field/analytic.hpp>
+#include <progiso/core/refine/refiner.hpp>
+#include <progiso/core/surface/marching.hpp>
 
 #include <map>
 #include <random>

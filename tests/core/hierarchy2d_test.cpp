@@ -1,8 +1,8 @@
 // The 2D diamond hierarchy's arithmetic against a brute-force longest-edge bisection written here:
 // uniformly bisect the root squares, group the triangles split at each step by the midpoint of
 // their longest edge, and compare with what hierarchy2d computes from the centre alone.
-#include <progiso/core/error.hpp>
-#include <progiso/core/hierarchy2d.hpp>
+#include <progiso/core/base/error.hpp>
+#include <progiso/core/hierarchy/hierarchy2d.hpp>
 
 #include <algorithm>
 #include <map>

@@ -1,7 +1,7 @@
 // The diamond hierarchy's arithmetic against a brute-force longest-edge bisection written here:
 // uniformly bisect the root tetrahedra, group the tetrahedra split at each step by the midpoint
 // of their longest edge, and compare with what hierarchy computes from the centre alone.
-#include <progiso/core/hierarchy.hpp>
+#include <progiso/core/hierarchy/hierarchy.hpp>
 
 #include <algorithm>
 #include <map>

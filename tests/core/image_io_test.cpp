@@ -1,8 +1,8 @@
-// Tests for progiso/core/image_io.hpp: binary PGM (8 and 16-bit, comments, maxval, every
+// Tests for progiso/core/io/image_io.hpp: binary PGM (8 and 16-bit, comments, maxval, every
 // malformed header and raster), grayscale PNG written here with libpng (8, 16 and sub-byte
 // depths, alpha, interlacing), rejection of colour, truncated and corrupt PNGs, dispatch by
 // extension, and the shared real images.
-#include <progiso/core/image_io.hpp>
+#include <progiso/core/io/image_io.hpp>
 
 #include <gtest/gtest.h>
 
@@ -22,8 +22,8 @@
 #include <utility>
 #include <vector>
 
-#include <progiso/core/error.hpp>
-#include <progiso/core/volume.hpp>
+#include <progiso/core/base/error.hpp>
+#include <progiso/core/field/volume.hpp>
 
 #include "support/test_data.hpp"
 

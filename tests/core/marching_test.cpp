@@ -1,5 +1,5 @@
 // The per-tetrahedron marching rules that make neighbouring pieces fit exactly.
-#include <progiso/core/marching.hpp>
+#include <progiso/core/surface/marching.hpp>
 
 #include <cstring>
 

@@ -1,6 +1,6 @@
-// Tests for progiso/core/mesh_io.hpp: PLY and OBJ content, the PLY round trip, dispatch by
+// Tests for progiso/core/io/mesh_io.hpp: PLY and OBJ content, the PLY round trip, dispatch by
 // extension, all-or-nothing writes, and read_ply's rejection of everything it does not read.
-#include <progiso/core/mesh_io.hpp>
+#include <progiso/core/io/mesh_io.hpp>
 
 #include <gtest/gtest.h>
 
@@ -19,7 +19,7 @@
 #include <utility>
 #include <vector>
 
-#include <progiso/core/error.hpp>
+#include <progiso/core/base/error.hpp>
 
 namespace {
 

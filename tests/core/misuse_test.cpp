@@ -20,16 +20,16 @@
 
 #include <gtest/gtest.h>
 
-#include <progiso/core/analytic.hpp>
-#include <progiso/core/contour_io.hpp>
-#include <progiso/core/contour_refiner.hpp>
-#include <progiso/core/deadline.hpp>
-#include <progiso/core/detail/file_input.hpp>
-#include <progiso/core/detail/file_output.hpp>
-#include <progiso/core/image_io.hpp>
-#include <progiso/core/mesh_io.hpp>
-#include <progiso/core/range_data2d.hpp>
-#include <progiso/core/refiner.hpp>
+#include <progiso/core/contour/contour_refiner.hpp>
+#include <progiso/core/field/analytic.hpp>
+#include <progiso/core/io/contour_io.hpp>
+#include <progiso/core/io/detail/file_input.hpp>
+#include <progiso/core/io/detail/file_output.hpp>
+#include <progiso/core/io/image_io.hpp>
+#include <progiso/core/io/mesh_io.hpp>
+#include <progiso/core/ranges/range_data2d.hpp>
+#include <progiso/core/refine/deadline.hpp>
+#include <progiso/core/refine/refiner.hpp>
 
 #include "support/contour_checks.hpp"
 #include "support/io_test_helpers.hpp"

@@ -11,7 +11,7 @@
 // Hostile: printf conversions in data file patterns, huge headers, declared sizes far beyond
 // the data, corrupt and truncated gzip, FIFOs and devices as data files, numbers out of every
 // range, malformed lines. Each must fail quickly with one line that names the right file.
-#include <progiso/core/volume_io.hpp>
+#include <progiso/core/io/volume_io.hpp>
 
 #include <gtest/gtest.h>
 
@@ -40,8 +40,8 @@
 #include <utility>
 #include <vector>
 
-#include <progiso/core/error.hpp>
-#include <progiso/core/volume.hpp>
+#include <progiso/core/base/error.hpp>
+#include <progiso/core/field/volume.hpp>
 
 namespace {
 

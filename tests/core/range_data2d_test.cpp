@@ -1,9 +1,9 @@
 // 2D range data: equal to the definition (nested min/max over every vertex of every triangle of
 // the diamond's subtree, nested split error, rounded up only where stored), nested, empty beyond
 // the subtree reach, and never larger than the image itself.
-#include <progiso/core/error.hpp>
-#include <progiso/core/hierarchy2d.hpp>
-#include <progiso/core/range_data2d.hpp>
+#include <progiso/core/base/error.hpp>
+#include <progiso/core/hierarchy/hierarchy2d.hpp>
+#include <progiso/core/ranges/range_data2d.hpp>
 
 #include <algorithm>
 #include <cmath>

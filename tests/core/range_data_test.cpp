@@ -1,8 +1,8 @@
 // Range data: nested (never grows toward children), covering (contains every value of every
 // tetrahedron in the diamond's subtree), sound for culling, and within the volume's own bytes.
-#include <progiso/core/analytic.hpp>
-#include <progiso/core/range_data.hpp>
-#include <progiso/core/smoothing.hpp>
+#include <progiso/core/field/analytic.hpp>
+#include <progiso/core/field/smoothing.hpp>
+#include <progiso/core/ranges/range_data.hpp>
 
 #include <cmath>
 #include <functional>

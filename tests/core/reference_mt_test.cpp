@@ -13,8 +13,8 @@
 
 #include <gtest/gtest.h>
 
-#include <progiso/core/analytic.hpp>
-#include <progiso/core/error.hpp>
+#include <progiso/core/base/error.hpp>
+#include <progiso/core/field/analytic.hpp>
 #include <support/mesh_checks.hpp>
 #include <support/test_data.hpp>
 

@@ -1,8 +1,8 @@
 // The 2D reference extractor on fields whose contours are known: closed loops with the stated
 // orientation, open chains ending on the border, vertices on their edges, no degenerate
 // segments when samples equal the isovalue, and valid contours on the shared images.
-#include <progiso/core/error.hpp>
-#include <progiso/core/hierarchy2d.hpp>
+#include <progiso/core/base/error.hpp>
+#include <progiso/core/hierarchy/hierarchy2d.hpp>
 
 #include <cmath>
 #include <cstring>

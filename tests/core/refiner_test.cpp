@@ -1,7 +1,7 @@
 // The refiner's modes, statistics, output sensitivity and determinism.
-#include <progiso/core/analytic.hpp>
-#include <progiso/core/error.hpp>
-#include <progiso/core/refiner.hpp>
+#include <progiso/core/base/error.hpp>
+#include <progiso/core/field/analytic.hpp>
+#include <progiso/core/refine/refiner.hpp>
 
 #include <cmath>
 #include <limits>

@@ -3,11 +3,11 @@
 // centres from 4 × 4 in their plane, cube centres from 4 × 4 × 4), interpolation of the control
 // samples, cubic precision at α = 1, the full surface against marching tetrahedra over the
 // materialised field, validity of cuts, and measured smoothness.
-#include <progiso/core/analytic.hpp>
-#include <progiso/core/contour_refiner.hpp>
-#include <progiso/core/detail/subdivision.hpp>
-#include <progiso/core/refiner.hpp>
-#include <progiso/core/smoothing.hpp>
+#include <progiso/core/contour/contour_refiner.hpp>
+#include <progiso/core/field/analytic.hpp>
+#include <progiso/core/field/detail/subdivision.hpp>
+#include <progiso/core/field/smoothing.hpp>
+#include <progiso/core/refine/refiner.hpp>
 
 #include <gtest/gtest.h>
 

@@ -1,7 +1,7 @@
 // The compact form of split records (packed_group) against the plain one (owned_triangle).
-#include <progiso/core/split_record.hpp>
+#include <progiso/core/surface/split_record.hpp>
 
-#include <progiso/core/detail/split_classify.hpp>
+#include <progiso/core/surface/detail/split_classify.hpp>
 
 #include <cstring>
 #include <random>

@@ -1,8 +1,8 @@
-// Tests for progiso/core/volume_io.hpp: raw files of every sample type and byte order, NRRD
+// Tests for progiso/core/io/volume_io.hpp: raw files of every sample type and byte order, NRRD
 // files (raw and gzip encodings, attached and detached data, spacing and origin from the
 // header), dispatch by read_volume(), and the messages for every kind of bad input. The NRRD
 // reader's comparison with Teem and its hostile inputs are in nrrd_reader_test.cpp.
-#include <progiso/core/volume_io.hpp>
+#include <progiso/core/io/volume_io.hpp>
 
 #include <gtest/gtest.h>
 
@@ -25,7 +25,7 @@
 #include <type_traits>
 #include <vector>
 
-#include <progiso/core/error.hpp>
+#include <progiso/core/base/error.hpp>
 
 namespace {
 

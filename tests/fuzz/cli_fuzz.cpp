@@ -5,7 +5,7 @@
 #include <string>
 #include <vector>
 
-#include <progiso/core/error.hpp>
+#include <progiso/core/base/error.hpp>
 
 #include "cli_options.hpp"
 #include "fuzz_support.hpp"

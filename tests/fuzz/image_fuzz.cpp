@@ -2,8 +2,8 @@
 // contouring of what they hold is fuzzed by the `extract` harness (raw_fuzz.cpp).
 #include <cstdint>
 
-#include <progiso/core/error.hpp>
-#include <progiso/core/image_io.hpp>
+#include <progiso/core/base/error.hpp>
+#include <progiso/core/io/image_io.hpp>
 
 #include "fuzz_support.hpp"
 

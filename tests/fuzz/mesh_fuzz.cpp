@@ -2,9 +2,9 @@
 // build: PROGISO_FUZZ_READER is "ply" or "obj").
 #include <cstdint>
 
-#include <progiso/core/contour_io.hpp>
-#include <progiso/core/error.hpp>
-#include <progiso/core/mesh_io.hpp>
+#include <progiso/core/base/error.hpp>
+#include <progiso/core/io/contour_io.hpp>
+#include <progiso/core/io/mesh_io.hpp>
 
 #include "fuzz_support.hpp"
 

@@ -7,8 +7,8 @@
 #include <cstdint>
 #include <string_view>
 
-#include <progiso/core/error.hpp>
-#include <progiso/core/volume_io.hpp>
+#include <progiso/core/base/error.hpp>
+#include <progiso/core/io/volume_io.hpp>
 
 #include "fuzz_support.hpp"
 

@@ -10,10 +10,10 @@
 #include <string>
 #include <vector>
 
-#include <progiso/core/contour_refiner.hpp>
-#include <progiso/core/error.hpp>
-#include <progiso/core/refiner.hpp>
-#include <progiso/core/volume_io.hpp>
+#include <progiso/core/base/error.hpp>
+#include <progiso/core/contour/contour_refiner.hpp>
+#include <progiso/core/io/volume_io.hpp>
+#include <progiso/core/refine/refiner.hpp>
 
 #include "fuzz_support.hpp"
 

@@ -1,7 +1,7 @@
 // The engine as an embedder might misuse it (issue 11): a temporary volume, control calls from
 // inside the progress callback, a callback that throws, budgets beyond the clock's range.
-#include <progiso/core/analytic.hpp>
-#include <progiso/core/error.hpp>
+#include <progiso/core/base/error.hpp>
+#include <progiso/core/field/analytic.hpp>
 #include <progiso/scheduler/engine.hpp>
 
 #include <atomic>

@@ -1,8 +1,8 @@
 // The concurrent engine: the four scenarios, snapshots, determinism, reclamation of roots.
-#include <progiso/core/analytic.hpp>
-#include <progiso/core/error.hpp>
-#include <progiso/core/refiner.hpp>
-#include <progiso/core/smoothing.hpp>
+#include <progiso/core/base/error.hpp>
+#include <progiso/core/field/analytic.hpp>
+#include <progiso/core/field/smoothing.hpp>
+#include <progiso/core/refine/refiner.hpp>
 #include <progiso/scheduler/engine.hpp>
 
 #include <atomic>

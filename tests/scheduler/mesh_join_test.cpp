@@ -2,8 +2,8 @@
 // thread, joined, give exactly the mesh of one builder fed the whole sequence (vertex order,
 // positions, triangles), whatever the number of parts and however far apart the parts' shared
 // vertices lie. Covers clipped (padded) coarse cuts, whose clip vertices are shared by position.
-#include <progiso/core/analytic.hpp>
-#include <progiso/core/detail/mesh_builder.hpp>
+#include <progiso/core/field/analytic.hpp>
+#include <progiso/core/surface/detail/mesh_builder.hpp>
 #include <progiso/scheduler/engine.hpp>
 
 #include <algorithm>

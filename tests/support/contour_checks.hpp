@@ -26,8 +26,8 @@
 
 #include <gtest/gtest.h>
 
-#include <progiso/core/contour.hpp>
-#include <progiso/core/volume.hpp>
+#include <progiso/core/contour/contour.hpp>
+#include <progiso/core/field/volume.hpp>
 
 namespace progiso::test {
 

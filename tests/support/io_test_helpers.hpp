@@ -8,7 +8,7 @@
 
 #include <gtest/gtest.h>
 
-#include <progiso/core/error.hpp>
+#include <progiso/core/base/error.hpp>
 
 namespace progiso::test {
 

@@ -25,8 +25,8 @@
 
 #include <gtest/gtest.h>
 
-#include <progiso/core/mesh.hpp>
-#include <progiso/core/volume.hpp>
+#include <progiso/core/field/volume.hpp>
+#include <progiso/core/surface/mesh.hpp>
 
 namespace progiso::test {
 

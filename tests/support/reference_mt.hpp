@@ -4,7 +4,7 @@
 // unit cell inside the data box is cut into 6 tetrahedra around the diagonal that joins its
 // all-even corner to its all-odd corner (DESIGN.md §2, checked by diamond_check.py), and each
 // tetrahedron is marched on its own. The rules for colours, vertex positions, quad diagonals and
-// orientation are those stated in progiso/core/marching.hpp, re-implemented here from that
+// orientation are those stated in progiso/core/surface/marching.hpp, re-implemented here from that
 // text alone: nothing of progiso's extraction code is called, so a bug there cannot hide in the
 // oracle. The fully refined progressive surface must equal this one vertex for vertex (same
 // positions, bit for bit) and triangle for triangle (same oriented triangles, in any order).
@@ -17,8 +17,8 @@
 #include <cstdint>
 #include <vector>
 
-#include <progiso/core/mesh.hpp>
-#include <progiso/core/volume.hpp>
+#include <progiso/core/field/volume.hpp>
+#include <progiso/core/surface/mesh.hpp>
 
 namespace progiso::test {
 

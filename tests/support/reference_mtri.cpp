@@ -10,8 +10,8 @@
 #include <unordered_map>
 #include <utility>
 
-#include <progiso/core/assert.hpp>
-#include <progiso/core/error.hpp>
+#include <progiso/core/base/assert.hpp>
+#include <progiso/core/base/error.hpp>
 
 namespace progiso::test {
 namespace {

@@ -29,8 +29,8 @@
 #include <string_view>
 #include <vector>
 
-#include <progiso/core/contour.hpp>
-#include <progiso/core/volume.hpp>
+#include <progiso/core/contour/contour.hpp>
+#include <progiso/core/field/volume.hpp>
 
 namespace progiso::test {
 

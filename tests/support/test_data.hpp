@@ -26,8 +26,8 @@
 #include <utility>
 #include <vector>
 
-#include <progiso/core/error.hpp>
-#include <progiso/core/volume.hpp>
+#include <progiso/core/base/error.hpp>
+#include <progiso/core/field/volume.hpp>
 
 #ifndef PROGISO_SOURCE_DIR
 #error "test_data.hpp needs PROGISO_SOURCE_DIR (link progiso_test_support)"

@@ -32,8 +32,8 @@
 #include <stdexcept>
 #include <type_traits>
 
-#include <progiso/core/config.hpp>
-#include <progiso/core/zeroed_array.hpp>
+#include <progiso/core/base/config.hpp>
+#include <progiso/core/base/zeroed_array.hpp>
 
 namespace progiso {
 

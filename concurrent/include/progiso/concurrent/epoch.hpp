@@ -79,8 +79,8 @@
 
 #include <progiso/concurrent/detail/epoch_record.hpp>
 #include <progiso/concurrent/detail/memory_order.hpp>
-#include <progiso/core/assert.hpp>
-#include <progiso/core/config.hpp>
+#include <progiso/core/base/assert.hpp>
+#include <progiso/core/base/config.hpp>
 
 namespace progiso {
 

@@ -47,16 +47,16 @@
 #include <memory>
 
 #include <progiso/concurrent/epoch.hpp>
-#include <progiso/core/config.hpp>
-#include <progiso/core/deadline.hpp>
-#include <progiso/core/error.hpp>
-#include <progiso/core/hierarchy.hpp>
-#include <progiso/core/mesh.hpp>
-#include <progiso/core/range_data.hpp>
-#include <progiso/core/refiner.hpp>
-#include <progiso/core/smoothing.hpp>
-#include <progiso/core/split_record.hpp>
-#include <progiso/core/volume.hpp>
+#include <progiso/core/base/config.hpp>
+#include <progiso/core/base/error.hpp>
+#include <progiso/core/field/smoothing.hpp>
+#include <progiso/core/field/volume.hpp>
+#include <progiso/core/hierarchy/hierarchy.hpp>
+#include <progiso/core/ranges/range_data.hpp>
+#include <progiso/core/refine/deadline.hpp>
+#include <progiso/core/refine/refiner.hpp>
+#include <progiso/core/surface/mesh.hpp>
+#include <progiso/core/surface/split_record.hpp>
 
 namespace progiso {
 

@@ -9,8 +9,8 @@
 // mask, cgroup limits) on first use, so keep it out of hot paths.
 #pragma once
 
-#include <progiso/core/config.hpp>
-#include <progiso/core/error.hpp>
+#include <progiso/core/base/config.hpp>
+#include <progiso/core/base/error.hpp>
 
 namespace progiso::scheduler {
 

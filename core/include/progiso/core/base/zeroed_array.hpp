@@ -1,0 +1,84 @@
+// progiso/core/base/zeroed_array.hpp — a large zero-filled array whose pages cost nothing until
+// touched. Public (not core/detail) because concurrent/append_log.hpp keeps its chunk table in
+// one, and concurrent/ depends only on core's public headers.
+//
+// The refiners keep a few bytes per grid vertex but touch only the vertices near the surface.
+// calloc() zero-fills eagerly once glibc has raised its mmap threshold (it does after large frees),
+// which costs milliseconds for a 257³ grid and would spoil the time to first surface; an
+// anonymous mapping is zeroed lazily by the kernel, page by page, on first touch. Small arrays
+// (up to 4 MiB) come from calloc() all the same: zeroing them costs tens of microseconds, while
+// the page faults of a fresh mapping, which a refinement touching most pages pays on every run,
+// cost about a microsecond per 4 KiB page. A page first read, then written, costs more: the read
+// maps the shared zero page and the write replaces it, which flushes the TLB of every core running
+// the process (an interrupt each). Owners that touch many pages on every use keep the array and
+// zero() it, or clear what they wrote, instead of mapping a fresh one. Not thread-safe to create or
+// destroy; elements follow T's own rules.
+#pragma once
+
+#include <sys/mman.h>
+
+#include <cstddef>
+#include <cstdlib>
+#include <cstring>
+#include <new>
+#include <type_traits>
+#include <utility>
+
+namespace progiso {
+
+template <class T>
+class zeroed_array {
+  static_assert(std::is_trivially_copyable_v<T> && std::is_trivially_destructible_v<T>);
+
+ public:
+  static constexpr std::size_t heap_max_bytes = std::size_t{4} << 20;
+
+  explicit zeroed_array(std::size_t n) : bytes_(n * sizeof(T)) {
+    if (bytes_ == 0) return;
+    if (bytes_ <= heap_max_bytes) {
+      data_ = static_cast<T*>(std::calloc(n, sizeof(T)));
+      if (data_ == nullptr) throw std::bad_alloc();
+      return;
+    }
+    void* p = mmap(nullptr, bytes_, PROT_READ | PROT_WRITE, MAP_PRIVATE | MAP_ANONYMOUS, -1, 0);
+    if (p == MAP_FAILED) throw std::bad_alloc();
+    data_ = static_cast<T*>(p);
+  }
+  zeroed_array(const zeroed_array&) = delete;
+  zeroed_array& operator=(const zeroed_array&) = delete;
+  zeroed_array(zeroed_array&& o) noexcept : bytes_(o.bytes_), data_(o.data_) {
+    o.bytes_ = 0;
+    o.data_ = nullptr;
+  }
+  zeroed_array& operator=(zeroed_array&& o) noexcept {
+    std::swap(bytes_, o.bytes_);
+    std::swap(data_, o.data_);
+    return *this;
+  }
+  ~zeroed_array() { release(); }
+
+  [[nodiscard]] std::size_t size() const noexcept { return bytes_ / sizeof(T); }
+  /// Zeroes every element (touches every page).
+  void zero() noexcept {
+    if (data_ != nullptr) std::memset(static_cast<void*>(data_), 0, bytes_);
+  }
+
+  [[nodiscard]] T* get() const noexcept { return data_; }
+  T& operator[](std::size_t i) const noexcept { return data_[i]; }
+
+ private:
+  void release() noexcept {
+    if (data_ == nullptr) return;
+    if (bytes_ <= heap_max_bytes) {
+      std::free(data_);
+    } else {
+      munmap(data_, bytes_);
+    }
+    data_ = nullptr;
+  }
+
+  std::size_t bytes_;
+  T* data_ = nullptr;
+};
+
+}  // namespace progiso

@@ -1,0 +1,21 @@
+// progiso/core/io/detail/writers.hpp — the mesh writers onto an output the caller created.
+//
+// write_ply(), write_obj() and write_mesh() (mesh_io.hpp) create their own atomic_output; these
+// write into one that exists already, so the command can create every output's temporary
+// before computing anything and publish them all at the end (file_output.hpp).
+#pragma once
+
+#include <progiso/core/io/detail/file_output.hpp>
+#include <progiso/core/surface/mesh.hpp>
+
+namespace progiso::detail {
+
+/// Binary PLY, as write_ply(). Throws progiso::error (naming out.target()) for more than
+/// 2^31 − 1 vertices or a coordinate beyond the float range.
+void write_ply_to(atomic_output& out, const triangle_mesh& mesh);
+/// OBJ, as write_obj().
+void write_obj_to(atomic_output& out, const triangle_mesh& mesh);
+/// PLY or OBJ by the extension of out.target(), as write_mesh().
+void write_mesh_to(atomic_output& out, const triangle_mesh& mesh);
+
+}  // namespace progiso::detail

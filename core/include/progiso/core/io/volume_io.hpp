@@ -1,0 +1,82 @@
+// progiso/core/io/volume_io.hpp — reading volumes from headerless raw files and NRRD files.
+//
+// Two sources are supported. A headerless raw file holds nothing but the samples, x varying
+// fastest, then y, then z; its layout (dims, sample type, byte order) comes from the caller,
+// usually the command line's --dims and --type, and the file size must match it exactly.
+// NRRD files (.nrrd with attached data, .nhdr with detached data files) describe themselves;
+// progiso reads them with its own bounded parser (detail/nrrd_reader.hpp): raw, gzip, ascii
+// and hex encodings, either byte order, one data file, a LIST of them or a %d pattern.
+// read_volume() picks the reader the way the command-line tool does: an explicit raw layout
+// wins, otherwise the file extension decides. volume_input_files() names the files a read
+// would open, from the header alone.
+//
+// Every reader returns a volume whose samples are in host byte order. Every file is opened
+// through detail::input_file, so only regular files are read (never a FIFO, a directory or a
+// device). Every failure caused by the input — a missing file, a size that does not match the
+// layout, a malformed, hostile or unsupported header, data that is short or corrupt — throws
+// progiso::error with one line that names the file, what was expected and what was found.
+// Nothing here aborts on malformed input.
+//
+// Cost: one pass over the file; raw and gzip data are read or inflated straight into the
+// volume's buffer, then swapped in place when the byte order differs. Memory follows the data
+// present, never the size a header declares: the buffer is allocated only once the data files
+// are known to be able to hold it. A header is parsed in time linear in its size.
+//
+// Thread safety: the functions may be called concurrently; they share no state.
+#pragma once
+
+#include <array>
+#include <filesystem>
+#include <optional>
+#include <vector>
+
+#include <progiso/core/base/config.hpp>
+#include <progiso/core/base/error.hpp>
+#include <progiso/core/field/volume.hpp>
+
+namespace progiso {
+
+/// The layout of a headerless raw file: grid dims (x fastest), sample type and byte order.
+struct raw_layout {
+  index3 dims;
+  sample_type type;
+  bool big_endian = false;
+};
+
+/// Reads a headerless raw volume with the given layout and converts it to host byte order.
+/// Throws progiso::error when the file is missing or unreadable, when a dim is < 2, or when
+/// the file size differs from dims × sample_size(layout.type) (the message gives both byte
+/// counts, the dims and the type), or when spacing/origin are rejected by the volume.
+[[nodiscard]] volume read_raw(const std::filesystem::path& file, const raw_layout& layout,
+                              std::array<double, 3> spacing = {1.0, 1.0, 1.0},
+                              std::array<double, 3> origin = {0.0, 0.0, 0.0});
+
+/// Reads a NRRD file (.nrrd, or a .nhdr header with its detached data files). The array must
+/// have exactly 3 axes of 2 to 32769 samples each, and one of the sample types u8 i8 u16 i16
+/// u32 i32 f32 f64 (every NRRD spelling of them); the encoding raw, gzip, ascii or hex.
+/// Spacing per axis is the length of the axis' "space directions" vector when present, else
+/// the magnitude of its "spacings" entry; an unknown, zero or non-finite spacing becomes 1.
+/// The origin is the "space origin" (its finite first three components) when present, else
+/// 0. Throws progiso::error naming the file (the data file for detached data) on any failure:
+/// a header that does not parse, data that cannot hold the declared size, data that ends
+/// early or is corrupt. See docs/ARCHITECTURE.md "Reading NRRD" for the accepted features and
+/// the bounds.
+[[nodiscard]] volume read_nrrd(const std::filesystem::path& file);
+
+/// Reads a volume the way the command-line tool does: with a raw layout, read_raw(); else, for
+/// the extensions .nrrd and .nhdr (case-insensitive), read_nrrd(). A given `spacing` replaces
+/// the one from the header (or the default 1,1,1 for raw files). Throws progiso::error
+/// "FILE: unknown volume format (…)" for any other file, and whatever the chosen reader
+/// throws.
+[[nodiscard]] volume read_volume(const std::filesystem::path& file,
+                                 const std::optional<raw_layout>& raw,
+                                 std::optional<std::array<double, 3>> spacing);
+
+/// The files read_volume(file, raw, …) would read: `file` itself, then, for a NRRD header,
+/// every detached data file in order (patterns expanded, paths resolved against the header's
+/// directory). Parses only the header; the data files need not exist. Throws progiso::error
+/// like read_volume() for an unknown format and for header errors.
+[[nodiscard]] std::vector<std::filesystem::path> volume_input_files(
+    const std::filesystem::path& file, const std::optional<raw_layout>& raw);
+
+}  // namespace progiso

@@ -1,0 +1,260 @@
+// progiso/core/refine/refiner.hpp — sequential progressive isosurface refinement and cut
+// extraction.
+//
+// A refiner holds one isovalue's progressive surface over a volume: the set of split diamonds
+// (always parent-closed: a diamond is split only after all its parents) and the split records
+// produced so far. The surface of the current cut is the marching-tetrahedra surface of the
+// conforming bisection mesh it defines, so every surface a refiner returns is crack-free and free
+// of self-intersections, and the fully refined one equals marching tetrahedra on the finest mesh.
+//
+// Work is output sensitive: only diamonds whose nested range straddles the isovalue are ever
+// split (range_data.hpp). The first surface, from the root tetrahedra, needs no split at all.
+// Ready diamonds (all parents split) wait in a queue ordered breadth first (full refinement) or
+// by largest nested error (quality-, budget- and time-driven refinement).
+//
+// Records: the root record holds the surface pieces of the root tetrahedra; each split appends
+// the pieces of its children tetrahedra, each tagged with the diamond that owns it. A piece is
+// in a cut exactly when its record is in the cut and its owner is not, so extract() and
+// extract_cut() walk records without touching the field except to place vertices.
+//
+// extract_isosurface() is the one-shot entry point used by the command-line tool.
+//
+// Thread safety: a refiner is a single-threaded object; distinct refiners over the same
+// volume, hierarchy and range data may run concurrently.
+#pragma once
+
+#include <algorithm>
+#include <array>
+#include <chrono>
+#include <cstdint>
+#include <functional>
+#include <limits>
+#include <memory>
+#include <vector>
+
+#include <progiso/core/base/config.hpp>
+#include <progiso/core/base/detail/borrow.hpp>
+#include <progiso/core/base/error.hpp>
+#include <progiso/core/base/zeroed_array.hpp>
+#include <progiso/core/field/volume.hpp>
+#include <progiso/core/hierarchy/hierarchy.hpp>
+#include <progiso/core/ranges/range_data.hpp>
+#include <progiso/core/surface/mesh.hpp>
+#include <progiso/core/surface/split_record.hpp>
+
+namespace progiso {
+
+/// Counters of a refinement.
+struct refine_statistics {
+  std::uint64_t splits = 0;            ///< diamonds split
+  std::uint64_t visited = 0;           ///< diamonds examined (became ready), split or not
+  std::uint64_t culled = 0;            ///< examined and rejected by their range
+  std::uint64_t triangles = 0;         ///< triangles in the current cut (before box clipping)
+  std::uint64_t record_triangles = 0;  ///< triangles held by all records
+  std::array<std::uint64_t, tet_case_count> cases{};
+  std::array<std::uint64_t, primitive_count> primitives{};
+  std::array<std::uint64_t, split_configuration_count> configurations{};
+};
+
+/// Order in which ready diamonds are split. The split set reached by refining fully is the
+/// same in every order; depth first keeps the working set local (fastest full refinement),
+/// breadth first refines coarse to fine, largest error first serves quality and budgets.
+enum class refine_order { breadth_first, depth_first, largest_error_first };
+
+/// Sequential progressive refinement at one isovalue.
+class refiner {
+ public:
+  /// Starts at the root cut. The volume, hierarchy and range data must outlive the refiner.
+  /// Throws progiso::error when the isovalue is not finite.
+  refiner(const volume& vol, const hierarchy& hier, const range_data& ranges, double isovalue,
+          refine_order order = refine_order::largest_error_first);
+  /// Refused at compile time: the refiner keeps references to all three (detail/borrow.hpp).
+  template <class V, class H, class R>
+  requires detail::any_rvalue<V, H, R> refiner(V&&, H&&, R&&, double,
+                                               refine_order = refine_order::largest_error_first)
+  = delete;
+  ~refiner();
+  refiner(const refiner&) = delete;
+  refiner& operator=(const refiner&) = delete;
+
+  [[nodiscard]] double isovalue() const noexcept { return isovalue_; }
+  /// True when no split can change the surface any more (the cut is full resolution).
+  [[nodiscard]] bool done() const noexcept;
+  /// Nested error of the next diamond to split (0 when done).
+  [[nodiscard]] double next_error() const noexcept;
+  /// Depth of the next diamond to split (-1 when done).
+  [[nodiscard]] int next_depth() const noexcept;
+
+  /// Splits the next ready diamond. Returns false when none is left.
+  bool split_next();
+  /// Splits the next ready diamond only if the cut then has at most max_triangles triangles.
+  bool split_next_within(std::uint64_t max_triangles);
+
+  /// Splits until done.
+  void refine_full();
+  /// Splits, largest error first, until every remaining error is ≤ max_error.
+  void refine_to_error(double max_error);
+  /// Splits while the cut stays within max_triangles.
+  void refine_to_triangles(std::uint64_t max_triangles);
+  /// Splits until the deadline; checked between splits.
+  void refine_until(std::chrono::steady_clock::time_point deadline);
+  /// Splits every ready diamond whose grid index satisfies `in_set`, until none is left; the
+  /// others are dropped from the queue. Given a parent-closed set of diamonds, this splits
+  /// exactly that set (sequential replay of a concurrent engine's cut).
+  void refine_set(const std::function<bool(std::uint64_t)>& in_set);
+
+  [[nodiscard]] std::uint64_t triangle_count() const noexcept { return stats_.triangles; }
+  [[nodiscard]] const refine_statistics& statistics() const noexcept;
+  [[nodiscard]] bool is_split(const ipoint& centre) const noexcept;
+
+  /// The surface of the current cut: indexed, clipped to the data box, physical coordinates.
+  [[nodiscard]] triangle_mesh extract() const;
+  /// The coarser cut made of the split diamonds whose nested error exceeds max_error.
+  [[nodiscard]] triangle_mesh extract_cut(double max_error) const;
+
+ private:
+  // One split: its groups are groups_[first, first + count). Record 0 is the root surface,
+  // kept in root_triangles_.
+  struct record {
+    std::uint64_t centre_key;  // edge_key(centre, centre), or no_owner for the root record
+    std::uint64_t first;
+    std::uint32_t count;
+    std::int32_t scale;  // the diamond's h (packed_group's unit)
+    double error;        // NaN: not computed (see errors_needed_)
+  };
+  struct ready {
+    double error;
+    std::uint64_t index;
+    ipoint centre;
+    std::int32_t scale;  // h and type of the diamond, known from its parent
+    std::int16_t type;
+    std::int16_t depth;
+  };
+  struct queue;
+
+  bool split(std::uint64_t max_triangles);
+  static constexpr std::size_t prefetch_distance = 8;
+  // Volumes this small stay in the cache: prefetching their samples only costs instructions.
+  static constexpr std::size_t prefetch_min_bytes = std::size_t{1} << 20;
+  void prefetch_samples(const ready& item) const noexcept;
+  template <class InCut, class Take>
+  triangle_mesh build_mesh(InCut&& in_cut, Take&& take) const;
+
+  const volume& vol_;
+  const hierarchy& hier_;
+  const range_data& ranges_;
+  double isovalue_;
+  zeroed_array<std::uint8_t> state_;  // per grid vertex: split flag, split parents
+  // Append-only storage in fixed chunks (a power of two, 4 K to 64 K elements, chosen from the
+  // volume's size): growth never moves what is stored (no reallocation copy of tens or hundreds
+  // of megabytes, no second set of fresh pages), and a small volume's refinement stays small
+  // enough for the allocator to keep reusing its memory.
+  template <class T>
+  class chunked_store {
+   public:
+    explicit chunked_store(int chunk_bits) noexcept
+        : bits_(chunk_bits), mask_((std::size_t{1} << chunk_bits) - 1) {}
+    [[nodiscard]] std::size_t size() const noexcept { return size_; }
+    void push_back(const T& v) {
+      if ((size_ & mask_) == 0 && (size_ >> bits_) == chunks_.size()) {
+        chunks_.push_back(std::make_unique_for_overwrite<T[]>(mask_ + 1));
+      }
+      chunks_[size_ >> bits_][size_ & mask_] = v;
+      ++size_;
+    }
+    void append(const T* v, std::size_t n) {
+      while (n > 0) {
+        if ((size_ & mask_) == 0 && (size_ >> bits_) == chunks_.size()) {
+          chunks_.push_back(std::make_unique_for_overwrite<T[]>(mask_ + 1));
+        }
+        const std::size_t room = mask_ + 1 - (size_ & mask_);
+        const std::size_t k = n < room ? n : room;
+        std::copy(v, v + k, chunks_[size_ >> bits_].get() + (size_ & mask_));
+        size_ += k;
+        v += k;
+        n -= k;
+      }
+    }
+    [[nodiscard]] const T& operator[](std::size_t i) const noexcept {
+      return chunks_[i >> bits_][i & mask_];
+    }
+
+   private:
+    int bits_;
+    std::size_t mask_;
+    std::vector<std::unique_ptr<T[]>> chunks_;
+    std::size_t size_ = 0;
+  };
+  static int chunk_bits_for(const volume& vol) noexcept;
+
+  std::vector<owned_triangle> root_triangles_;
+  chunked_store<packed_group> groups_;  // packed_group: 16 bytes for one or two triangles
+  std::vector<packed_group> scratch_;
+  chunked_store<record> records_;
+  std::unique_ptr<queue> queue_;
+  bool prefetch_;  // prefetch_samples() pays off (the volume is larger than the cache)
+  // The queue orders by error (largest_error_first). In the other orders a ready diamond's
+  // error is left unknown when the range lookup is skipped (one of its tetrahedra holds
+  // surface: see surface_bit in refiner.cpp).
+  bool errors_needed_;
+  static constexpr double unknown_error = std::numeric_limits<double>::quiet_NaN();
+  detail::sample_threshold threshold_;  // the isovalue, for range_data::straddles()
+  // Case, primitive and configuration counts of interior splits are kept per classification
+  // (split_summary::classification) and added into stats_ when statistics() is read: one
+  // increment per split instead of twenty.
+  mutable refine_statistics stats_;
+  mutable std::array<std::uint64_t, interior_classification_count> pending_{};
+  mutable bool any_pending_ = false;
+  void add_classification(const split_summary& s, std::uint64_t times) const noexcept;
+};
+
+// -------------------------------------------------------------------------------------------
+// One-shot extraction (what the command-line tool runs).
+
+enum class extract_mode { full, error, triangles, time };
+
+/// Progress of a running extraction.
+struct extract_progress {
+  std::uint64_t splits = 0;
+  std::uint64_t triangles = 0;
+  int depth = 0;      ///< depth being refined
+  int max_depth = 0;  ///< deepest level of the hierarchy
+};
+
+struct extract_options {
+  extract_mode mode = extract_mode::full;
+  double max_error = 0.0;           ///< extract_mode::error
+  std::uint64_t max_triangles = 0;  ///< extract_mode::triangles
+  /// extract_mode::time: from the volume in memory (the engine's path) or from the start of
+  /// refinement, after the range data (extract_isosurface()).
+  std::chrono::duration<double> time_budget{0.0};
+  /// Called about every 4096 splits.
+  std::function<void(const extract_progress&)> progress;
+};
+
+struct extract_result {
+  triangle_mesh mesh;
+  refine_statistics stats;
+  double range_build_seconds = 0.0;
+  /// Root surface extracted: from the volume in memory (the engine's path), from the start of
+  /// refinement (extract_isosurface()).
+  double first_surface_seconds = 0.0;
+  double refine_seconds = 0.0;
+  double extract_seconds = 0.0;
+  double total_seconds = 0.0;
+  /// Volume in memory → indexed mesh of the cut in memory (range data, refinement, extraction;
+  /// no file I/O).
+  double pipeline_seconds = 0.0;
+  std::size_t range_bytes = 0;
+  bool isovalue_outside_data = false;  ///< empty because the isovalue misses the data range
+};
+
+/// Throws progiso::error for a non-finite isovalue or invalid options (shared by every entry).
+void check_extract_inputs(double isovalue, const extract_options& options);
+
+/// Builds the hierarchy and range data, refines in the requested mode and extracts the cut.
+/// Throws progiso::error for a non-finite isovalue or invalid options.
+[[nodiscard]] extract_result extract_isosurface(const volume& vol, double isovalue,
+                                                const extract_options& options);
+
+}  // namespace progiso

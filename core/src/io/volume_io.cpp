@@ -1,0 +1,126 @@
+#include <progiso/core/io/volume_io.hpp>
+
+#include <array>
+#include <bit>
+#include <cstddef>
+#include <cstdint>
+#include <limits>
+#include <optional>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include <progiso/core/base/error.hpp>
+#include <progiso/core/io/detail/file_input.hpp>
+#include <progiso/core/io/detail/file_output.hpp>
+#include <progiso/core/io/detail/nrrd_reader.hpp>
+
+namespace progiso {
+namespace {
+
+namespace fs = std::filesystem;
+
+std::string dims_text(const index3& dims) {
+  return std::to_string(dims[0]) + "," + std::to_string(dims[1]) + "," + std::to_string(dims[2]);
+}
+
+using detail::lower_extension;
+
+/// a × b, or nullopt when it does not fit in 64 bits.
+std::optional<std::uint64_t> checked_mul(std::uint64_t a, std::uint64_t b) {
+  if (a != 0 && b > std::numeric_limits<std::uint64_t>::max() / a) return std::nullopt;
+  return a * b;
+}
+
+/// Builds the volume, prefixing the volume's own complaints (bad spacing, dims too large) with
+/// the file name so that every message names its file.
+volume make_volume(const fs::path& file, const index3& dims, sample_type type,
+                   std::vector<std::byte> samples, const std::array<double, 3>& spacing,
+                   const std::array<double, 3>& origin) {
+  try {
+    return volume(dims, type, std::move(samples), spacing, origin);
+  } catch (const error& e) {
+    throw error(file.string() + ": " + e.what());
+  }
+}
+
+/// Throws "FILE: unknown volume format (…)" unless the extension names a NRRD file.
+void require_nrrd_extension(const fs::path& file) {
+  const std::string ext = lower_extension(file);
+  if (ext == ".nrrd" || ext == ".nhdr") return;
+  throw error(file.string() +
+              ": unknown volume format (expected .nrrd, .nhdr, or a raw file with --dims and "
+              "--type)");
+}
+
+volume read_nrrd_with(const fs::path& file, const std::optional<std::array<double, 3>>& spacing) {
+  detail::input_file in(file, "NRRD");
+  const detail::nrrd_header header = detail::parse_nrrd_header(in);
+  std::vector<std::byte> samples = detail::read_nrrd_samples(header, in);
+  return make_volume(file, header.dims, header.type, std::move(samples),
+                     spacing.value_or(header.spacing), header.origin);
+}
+
+}  // namespace
+
+// ---------------------------------------------------------------------------------------------
+// Raw files.
+
+volume read_raw(const std::filesystem::path& file, const raw_layout& layout,
+                std::array<double, 3> spacing, std::array<double, 3> origin) {
+  const std::string name = file.string();
+  const index3& dims = layout.dims;
+  if (dims[0] < 2 || dims[1] < 2 || dims[2] < 2) {
+    throw error(name + ": dims must be at least 2 per axis, found " + dims_text(dims));
+  }
+  detail::input_file in(file, "volume");
+  const std::uint64_t size = in.size();
+  const std::size_t item = sample_size(layout.type);
+
+  std::optional<std::uint64_t> expected = static_cast<std::uint64_t>(item);
+  for (std::int64_t d : dims) {
+    if (expected) expected = checked_mul(*expected, static_cast<std::uint64_t>(d));
+  }
+  if (!expected || *expected != size) {
+    throw error(name + ": size " + std::to_string(size) + " bytes does not match dims " +
+                dims_text(dims) + " × " + std::string(to_string(layout.type)) + " = " +
+                (expected ? std::to_string(*expected) : std::string("more than 2^64")) + " bytes");
+  }
+
+  std::vector<std::byte> samples(static_cast<std::size_t>(*expected));
+  const std::size_t got = in.read(samples.data(), samples.size());
+  if (got != samples.size()) {
+    throw error(name + ": read only " + std::to_string(got) + " of " +
+                std::to_string(samples.size()) + " bytes");
+  }
+  const bool host_big = std::endian::native == std::endian::big;
+  if (item > 1 && layout.big_endian != host_big) detail::swap_sample_bytes(samples, item);
+  return make_volume(file, dims, layout.type, std::move(samples), spacing, origin);
+}
+
+// ---------------------------------------------------------------------------------------------
+// NRRD files and dispatch.
+
+volume read_nrrd(const std::filesystem::path& file) { return read_nrrd_with(file, std::nullopt); }
+
+volume read_volume(const std::filesystem::path& file, const std::optional<raw_layout>& raw,
+                   std::optional<std::array<double, 3>> spacing) {
+  if (raw) return read_raw(file, *raw, spacing.value_or(std::array<double, 3>{1.0, 1.0, 1.0}));
+  require_nrrd_extension(file);
+  return read_nrrd_with(file, spacing);
+}
+
+std::vector<std::filesystem::path> volume_input_files(const std::filesystem::path& file,
+                                                      const std::optional<raw_layout>& raw) {
+  if (raw) return {file};
+  require_nrrd_extension(file);
+  detail::input_file in(file, "NRRD");
+  detail::nrrd_header header = detail::parse_nrrd_header(in);
+  std::vector<std::filesystem::path> files;
+  files.reserve(1 + header.data_files.size());
+  files.push_back(file);
+  for (std::filesystem::path& p : header.data_files) files.push_back(std::move(p));
+  return files;
+}
+
+}  // namespace progiso

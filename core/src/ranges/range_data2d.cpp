@@ -1,0 +1,364 @@
+#include <progiso/core/ranges/range_data2d.hpp>
+
+#include <progiso/core/field/detail/subdivision.hpp>
+#include <progiso/core/ranges/detail/range_entry.hpp>
+
+#include <algorithm>
+#include <bit>
+#include <cmath>
+#include <limits>
+#include <string>
+#include <type_traits>
+#include <vector>
+
+#include <progiso/core/base/assert.hpp>
+#include <progiso/core/base/error.hpp>
+
+namespace progiso {
+
+struct range_data2d::impl {
+  virtual ~impl() = default;
+  [[nodiscard]] virtual diamond_range get(const diamond2& d) const noexcept = 0;
+  [[nodiscard]] virtual diamond_range get_at(const ipoint2& c) const noexcept = 0;
+  [[nodiscard]] virtual std::size_t byte_size() const noexcept = 0;
+  [[nodiscard]] virtual std::int32_t finest_stored_scale() const noexcept = 0;
+  const volume* image = nullptr;
+  const hierarchy2d* hier = nullptr;
+
+  [[nodiscard]] double value(const ipoint2& p) const noexcept {
+    return image->value(p[0], p[1], 0);
+  }
+
+  // The definition: centre, spine ends and in-grid apexes; empty when wholly beyond the data.
+  [[nodiscard]] diamond_range own(const diamond2& d) const noexcept {
+    diamond_range r;
+    if (hier->outside_data(d.centre, d.scale)) return r;
+    const double fc = value(d.centre);
+    const double f0 = value(d.spine[0]);
+    const double f1 = value(d.spine[1]);
+    r.lo = std::min({fc, f0, f1});
+    r.hi = std::max({fc, f0, f1});
+    for (std::size_t m = 0; m < 2; ++m) {
+      if (!((d.ring_in_grid >> m) & 1u)) continue;
+      const double f = value(d.ring[m]);
+      r.lo = std::min(r.lo, f);
+      r.hi = std::max(r.hi, f);
+    }
+    r.error = std::abs(fc - 0.5 * (f0 + f1));
+    return r;
+  }
+
+  static void merge(diamond_range& into, const diamond_range& r) noexcept {
+    detail::merge(into, r);
+  }
+};
+
+namespace {
+
+using detail::decode;
+using detail::error_type;
+using detail::quantize_error;
+template <class T>
+using entry = detail::range_entry<T>;
+
+// One array per stored scale h = 2^k holding the centres of that scale only: with i = c / h,
+// the rows i_y odd hold every i_x, the rows i_y even only odd i_x (the others are coarser
+// centres). Rows and columns stop at n = min((data_max + subtree_reach(0, h) − 1) / h,
+// grid_max / h) + 1: beyond, every descendant lies outside the data box.
+struct level_shape {
+  ipoint2 n{};
+  std::size_t even_row = 0;  // entries in a row with i_y even
+  std::size_t odd_row = 0;   // entries in a row with i_y odd
+
+  level_shape() = default;
+  level_shape(const hierarchy2d& hier, std::int32_t h) {
+    for (std::size_t q = 0; q < 2; ++q) {
+      const std::int32_t reach = range_data2d::subtree_reach(0, h);
+      n[q] = std::min((hier.data_max()[q] + reach - 1) / h, hier.grid_max()[q] / h) + 1;
+    }
+    even_row = static_cast<std::size_t>(n[0] / 2);
+    odd_row = static_cast<std::size_t>(n[0]);
+  }
+  [[nodiscard]] std::size_t size() const noexcept {
+    return static_cast<std::size_t>((n[1] + 1) / 2) * even_row +
+           static_cast<std::size_t>(n[1] / 2) * odd_row;
+  }
+  // Slot of centre c (c / h has an odd coordinate); size() when beyond the clipped extent.
+  [[nodiscard]] std::size_t slot(const ipoint2& c, int k) const noexcept {
+    const std::int32_t i = c[0] >> k;
+    const std::int32_t j = c[1] >> k;
+    if (i >= n[0] || j >= n[1]) return size();
+    PROGISO_ASSERT(((i | j) & 1) != 0);
+    const std::size_t row = static_cast<std::size_t>((j + 1) / 2) * even_row +
+                            static_cast<std::size_t>(j / 2) * odd_row;
+    return row + static_cast<std::size_t>((j & 1) != 0 ? i : i / 2);
+  }
+};
+
+template <class T>
+class typed_range_data2d final : public range_data2d::impl {
+ public:
+  typed_range_data2d(const volume& v, const hierarchy2d& h) {
+    image = &v;
+    hier = &h;
+    samples_ = v.visit_samples([](const auto* p) { return reinterpret_cast<const T*>(p); });
+    width_ = v.dims()[0];
+    const int levels = h.levels();
+    // Finest stored level: 1 (scale 2), raised for tiny padded images until the arrays fit.
+    std::vector<level_shape> shapes(static_cast<std::size_t>(std::max(levels, 1)));
+    std::vector<std::size_t> bytes_from(static_cast<std::size_t>(std::max(levels, 1)) + 1, 0);
+    for (int k = levels - 1; k >= 1; --k) {
+      const auto ku = static_cast<std::size_t>(k);
+      shapes[ku] = level_shape(h, std::int32_t{1} << k);
+      bytes_from[ku] = bytes_from[ku + 1] + shapes[ku].size() * sizeof(entry<T>);
+    }
+    first_stored_ = std::max(levels, 1);
+    for (int k = 1; k < levels; ++k) {
+      if (bytes_from[static_cast<std::size_t>(k)] <= v.byte_size()) {
+        first_stored_ = k;
+        break;
+      }
+    }
+    levels_.resize(static_cast<std::size_t>(std::max(levels, 1)));
+    for (int k = first_stored_; k < levels; ++k) {
+      level& lv = levels_[static_cast<std::size_t>(k)];
+      lv.shape = shapes[static_cast<std::size_t>(k)];
+      lv.entries.assign(lv.shape.size(), empty_entry());
+    }
+    build();
+  }
+
+  [[nodiscard]] diamond_range get(const diamond2& d) const noexcept override {
+    if (d.scale == 1) return scale1(d.centre);
+    const int k = std::countr_zero(static_cast<std::uint32_t>(d.scale));
+    if (k < first_stored_) return on_demand(d);
+    return stored(d.centre, k);
+  }
+
+  [[nodiscard]] diamond_range get_at(const ipoint2& c) const noexcept override {
+    const std::int32_t h = hier->scale_of(c);
+    if (h == 1) return scale1(c);
+    const int k = std::countr_zero(static_cast<std::uint32_t>(h));
+    if (k < first_stored_) return on_demand(hier->make_diamond(c));
+    return stored(c, k);
+  }
+
+  [[nodiscard]] std::size_t byte_size() const noexcept override {
+    std::size_t b = 0;
+    for (const level& lv : levels_) b += lv.entries.size() * sizeof(entry<T>);
+    return b;
+  }
+
+  [[nodiscard]] std::int32_t finest_stored_scale() const noexcept override {
+    return std::int32_t{1} << first_stored_;
+  }
+
+ private:
+  struct level {
+    level_shape shape;
+    std::vector<entry<T>> entries;
+  };
+
+  static entry<T> empty_entry() noexcept { return detail::empty_entry<T>(); }
+
+  static entry<T> encode(const diamond_range& r) noexcept {
+    entry<T> e = empty_entry();
+    if (!r.empty()) {
+      e.lo = static_cast<T>(r.lo);
+      e.hi = static_cast<T>(r.hi);
+    }
+    e.error = quantize_error<error_type<T>>(r.error);
+    return e;
+  }
+
+  [[nodiscard]] diamond_range stored(const ipoint2& c, int k) const noexcept {
+    const level& lv = levels_[static_cast<std::size_t>(k)];
+    const std::size_t s = lv.shape.slot(c, k);
+    if (s == lv.entries.size()) return {};
+    return decode(lv.entries[s]);
+  }
+
+  // The definition for a diamond of an unstored scale ≥ 2: own range and children's.
+  [[nodiscard]] diamond_range on_demand(const diamond2& d) const noexcept {
+    diamond_range r = own(d);
+    std::array<ipoint2, 4> ch{};
+    const int n = hier->children(d, ch);
+    for (int i = 0; i < n; ++i) merge(r, get_at(ch[static_cast<std::size_t>(i)]));
+    return r;
+  }
+
+  // ---- Build: finest stored scale first; within a scale, edge midpoints (type 1, whose
+  // children are square centres of half the scale) before square centres (type 0, whose
+  // children are this scale's edge midpoints).
+  void build() {
+    const int levels = hier->levels();
+    for (int k = first_stored_; k < levels; ++k) {
+      level& lv = levels_[static_cast<std::size_t>(k)];
+      const std::int32_t h = std::int32_t{1} << k;
+      for (const int type : {1, 0}) {
+        for (std::int32_t j = 0; j < lv.shape.n[1]; ++j) {
+          for (std::int32_t i = 0; i < lv.shape.n[0]; ++i) {
+            const int odd = (i & 1) + (j & 1);
+            if (odd == 0 || 2 - odd != type) continue;
+            const ipoint2 c{i * h, j * h};
+            PROGISO_ASSERT(hier->is_diamond(c) && hier->scale_of(c) == h);
+            lv.entries[lv.shape.slot(c, k)] = encode(on_demand(hier->make_diamond(c)));
+          }
+        }
+      }
+    }
+  }
+
+  // ---- Scale 1 (3/4 of all diamonds), on demand. An edge midpoint (type 1) is a leaf: its own
+  // 5 samples (centre, spine along the odd axis, apexes along the even one) and 1 split. A
+  // square centre (type 0) adds its 4 edge-midpoint children: the 3 × 3 block around it plus
+  // the 4 points at distance 2 along the axes (the children's far apexes), 13 samples and 5
+  // splits. Where all of those lie in the data box they are read straight from the typed
+  // samples; elsewhere the definition runs (same values, same arithmetic, so the same result).
+  [[nodiscard]] diamond_range scale1(const ipoint2& c) const noexcept {
+    const ipoint2& dmax = hier->data_max();
+    const bool square = (c[0] & 1) != 0 && (c[1] & 1) != 0;
+    const std::int32_t reach = range_data2d::subtree_reach(square ? 0 : 1, 1);
+    if (c[0] - reach >= dmax[0] || c[1] - reach >= dmax[1]) return {};
+    const bool inside =
+        c[0] >= reach && c[1] >= reach && c[0] + reach <= dmax[0] && c[1] + reach <= dmax[1];
+    if (!inside) {
+      const diamond2 d = hier->make_diamond(c);
+      diamond_range r = own(d);
+      std::array<ipoint2, 4> ch{};
+      const int n = hier->children(d, ch);
+      for (int i = 0; i < n; ++i) {
+        merge(r, own(hier->make_diamond(ch[static_cast<std::size_t>(i)])));
+      }
+      return r;
+    }
+    const T* p = samples_ + c[0] + width_ * c[1];
+    const std::int64_t w = width_;
+    const auto split = [](T mid, T a, T b) {
+      return std::abs(static_cast<double>(mid) -
+                      0.5 * (static_cast<double>(a) + static_cast<double>(b)));
+    };
+    if (!square) {
+      // Spine along the odd axis, apexes along the even one.
+      const std::int64_t along = (c[0] & 1) != 0 ? 1 : w;
+      const std::int64_t across = (c[0] & 1) != 0 ? w : 1;
+      const T f0 = p[-along];
+      const T f1 = p[along];
+      const T lo = std::min({p[0], f0, f1, p[-across], p[across]});
+      const T hi = std::max({p[0], f0, f1, p[-across], p[across]});
+      return {static_cast<double>(lo), static_cast<double>(hi), split(p[0], f0, f1)};
+    }
+    const T nw = p[-w - 1];
+    const T ne = p[-w + 1];
+    const T sw = p[w - 1];
+    const T se = p[w + 1];
+    const T n = p[-w];
+    const T s = p[w];
+    const T west = p[-1];
+    const T east = p[1];
+    const T lo =
+        std::min({p[0], nw, ne, sw, se, n, s, west, east, p[-2 * w], p[2 * w], p[-2], p[2]});
+    const T hi =
+        std::max({p[0], nw, ne, sw, se, n, s, west, east, p[-2 * w], p[2 * w], p[-2], p[2]});
+    // The own spine joins the corner whose coordinates are ≡ 0 mod 4 to the opposite one:
+    // (nw, se) when c ≡ (1, 1) or (3, 3) mod 4, else (ne, sw).
+    const bool main_diagonal = ((c[0] ^ c[1]) & 2) == 0;
+    double err = main_diagonal ? split(p[0], nw, se) : split(p[0], ne, sw);
+    err = std::max(
+        {err, split(n, nw, ne), split(s, sw, se), split(west, nw, sw), split(east, ne, se)});
+    return {static_cast<double>(lo), static_cast<double>(hi), err};
+  }
+
+  const T* samples_ = nullptr;
+  std::int64_t width_ = 0;
+  int first_stored_ = 1;
+  std::vector<level> levels_;  // indexed by log2(scale); levels below first_stored_ are empty
+};
+
+// A smoothed image (smoothing.hpp): ranges bounded from the data, as for smoothed volumes
+// (range_data.cpp). The subtree of a diamond lies in c ± subtree_reach(type, h) per axis; its
+// fine samples are bounded by the data over what their rows reach, widened by the overshoot bound
+// in the smoothed region; scale 1 takes the exact range of its own fine samples. Nested, since a
+// child's box lies in its parent's (type 1 → type 0 at h/2: h/2 + 3h/2 − 1 = 2h − 1; type 0 → type
+// 1 at h: h + 2h − 1 = 3h − 1). Error: hi − lo.
+class subdivided_range_data2d final : public range_data2d::impl {
+ public:
+  subdivided_range_data2d(const volume& v, const hierarchy2d& h)
+      : sub_(*v.subdivided()), data_(sub_.data(), {}) {
+    image = &v;
+    hier = &h;
+  }
+  [[nodiscard]] diamond_range get(const diamond2& d) const noexcept override {
+    return get_at(d.centre);
+  }
+  [[nodiscard]] diamond_range get_at(const ipoint2& c) const noexcept override {
+    const std::int32_t h = hier->scale_of(c);
+    const int odd = ((c[0] / h) & 1) + ((c[1] / h) & 1);
+    const std::int32_t r = range_data2d::subtree_reach(2 - odd, h);
+    const ipoint2& dm = hier->data_max();
+    if (c[0] - r >= dm[0] || c[1] - r >= dm[1]) return {};
+    if (h == 1) return scale1(c);
+    const ipoint b0{std::max(c[0] - r, 0), std::max(c[1] - r, 0), 0};
+    const ipoint b1{std::min(c[0] + r, dm[0]), std::min(c[1] + r, dm[1]), 0};
+    return detail::subdivided_range(sub_, data_, b0, b1);
+  }
+  [[nodiscard]] std::size_t byte_size() const noexcept override {
+    return sub_.byte_size() + data_.byte_size();
+  }
+  [[nodiscard]] std::int32_t finest_stored_scale() const noexcept override {
+    return std::int32_t{1} << 30;  // nothing stored
+  }
+
+ private:
+  // Scale 1 (3/4 of all diamonds, and where the bound is loosest): the definition, from the
+  // subtree's own fine samples (at most 13, clamped into the grid as every reader clamps them).
+  // Sound: the subtree's values; nested: a subset of what every ancestor's bound covers.
+  [[nodiscard]] diamond_range scale1(const ipoint2& c) const noexcept {
+    const diamond2 d = hier->make_diamond(c);
+    diamond_range r = own(d);
+    std::array<ipoint2, 4> ch{};
+    const int n = hier->children(d, ch);
+    for (int i = 0; i < n; ++i) merge(r, own(hier->make_diamond(ch[static_cast<std::size_t>(i)])));
+    return r;
+  }
+
+  const detail::subdivision& sub_;
+  detail::data_pyramid data_;
+};
+
+}  // namespace
+
+range_data2d::range_data2d(const volume& image, const hierarchy2d& hier) {
+  const index3& dims = image.dims();
+  if (dims[2] != 1 || dims[0] - 1 != hier.data_max()[0] || dims[1] - 1 != hier.data_max()[1]) {
+    throw error("range_data2d: image of " + std::to_string(dims[0]) + "x" +
+                std::to_string(dims[1]) + "x" + std::to_string(dims[2]) +
+                " samples does not match the hierarchy's " +
+                std::to_string(hier.data_max()[0] + 1) + "x" +
+                std::to_string(hier.data_max()[1] + 1) + "x1");
+  }
+  if (image.subdivided() != nullptr) {
+    impl_ = std::make_unique<subdivided_range_data2d>(image, hier);
+    return;
+  }
+  image.visit_samples([&](const auto* samples) {
+    using T = std::remove_cv_t<std::remove_pointer_t<decltype(samples)>>;
+    impl_ = std::make_unique<typed_range_data2d<T>>(image, hier);
+  });
+}
+
+range_data2d::~range_data2d() = default;
+range_data2d::range_data2d(range_data2d&&) noexcept = default;
+range_data2d& range_data2d::operator=(range_data2d&&) noexcept = default;
+
+diamond_range range_data2d::get(const diamond2& d) const noexcept { return impl_->get(d); }
+diamond_range range_data2d::get(const ipoint2& centre) const noexcept {
+  return impl_->get_at(centre);
+}
+diamond_range range_data2d::own(const diamond2& d) const noexcept { return impl_->own(d); }
+std::size_t range_data2d::byte_size() const noexcept { return impl_->byte_size(); }
+std::int32_t range_data2d::finest_stored_scale() const noexcept {
+  return impl_->finest_stored_scale();
+}
+
+}  // namespace progiso

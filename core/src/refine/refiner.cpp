@@ -1,0 +1,385 @@
+#include <progiso/core/refine/refiner.hpp>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdlib>
+#include <map>
+#include <string>
+
+#include <progiso/core/base/error.hpp>
+#include <progiso/core/refine/deadline.hpp>
+#include <progiso/core/refine/detail/ready_queue.hpp>
+#include <progiso/core/surface/detail/mesh_builder.hpp>
+#include <progiso/core/surface/marching.hpp>
+
+namespace progiso {
+namespace {
+
+// Per-diamond state, one byte per grid vertex (zeroed lazily, page by page).
+constexpr std::uint8_t split_bit = 0x80;
+// Set on a diamond when one of its tetrahedra holds surface (it owns a group of a split
+// record): its range then straddles the isovalue. Kept in breadth- and depth-first order only.
+constexpr std::uint8_t surface_bit = 0x40;
+constexpr std::uint8_t parent_count_mask = 0x07;
+
+}  // namespace
+
+namespace {
+
+detail::queue_discipline discipline_of(refine_order order) noexcept {
+  switch (order) {
+    case refine_order::breadth_first:
+      return detail::queue_discipline::fifo;
+    case refine_order::depth_first:
+      return detail::queue_discipline::lifo;
+    case refine_order::largest_error_first:
+      break;
+  }
+  return detail::queue_discipline::largest_error;
+}
+
+}  // namespace
+
+struct refiner::queue : detail::ready_queue<refiner::ready> {
+  using detail::ready_queue<refiner::ready>::ready_queue;
+};
+
+refiner::refiner(const volume& vol, const hierarchy& hier, const range_data& ranges,
+                 double isovalue, refine_order order)
+    : vol_(vol),
+      hier_(hier),
+      ranges_(ranges),
+      isovalue_(isovalue),
+      state_(hier.vertex_count()),
+      groups_(chunk_bits_for(vol)),
+      records_(chunk_bits_for(vol)),
+      queue_(std::make_unique<queue>(discipline_of(order))),
+      prefetch_(vol.byte_size() > prefetch_min_bytes),
+      errors_needed_(order == refine_order::largest_error_first),
+      threshold_(isovalue) {
+  if (!std::isfinite(isovalue)) {
+    throw error("isovalue: expected a finite number, found " + std::to_string(isovalue));
+  }
+  // As many ready diamonds as one chunk of records before the queue first grows (its growth
+  // by doubling copied the queue a dozen times per refinement of a small volume).
+  queue_->reserve(std::size_t{1} << chunk_bits_for(vol));
+  // Root record: the surface in the root tetrahedra, owned by the root diamonds.
+  records_.push_back({no_owner, 0, 0, 0, 0.0});
+  for (std::uint64_t r = 0; r < hier_.root_count(); ++r) {
+    const std::optional<ipoint> centre = compute_root(hier_, vol_, isovalue_, r, root_triangles_);
+    if (centre) {
+      const diamond d = hier_.make_diamond(*centre);
+      ++stats_.visited;
+      const diamond_range rr = ranges_.get(d);
+      if (rr.straddles(isovalue_)) {
+        queue_->push({rr.error, hier_.index(*centre), *centre, d.scale,
+                      static_cast<std::int16_t>(d.type), static_cast<std::int16_t>(d.depth)});
+      } else {
+        ++stats_.culled;
+      }
+    }
+  }
+  stats_.triangles = root_triangles_.size();
+  stats_.record_triangles = root_triangles_.size();
+}
+
+refiner::~refiner() = default;
+
+// Splits run to about a tenth of the voxels on the shared volumes and 257³ fields (0.08–0.24);
+// a chunk of about a thirtieth keeps the number of chunks small without reserving much more
+// than a small refinement uses.
+int refiner::chunk_bits_for(const volume& vol) noexcept {
+  const std::size_t want = vol.voxel_count() / 32;
+  int bits = 12;
+  while (bits < 16 && (std::size_t{1} << bits) < want) ++bits;
+  return bits;
+}
+
+bool refiner::done() const noexcept { return queue_->empty(); }
+double refiner::next_error() const noexcept {
+  if (done()) return 0.0;
+  const ready& top = queue_->top();
+  return std::isnan(top.error) ? ranges_.get(top.centre, top.scale).error : top.error;
+}
+
+void refiner::add_classification(const split_summary& s, std::uint64_t times) const noexcept {
+  for (std::size_t i = 0; i < tet_case_count; ++i) stats_.cases[i] += times * s.cases[i];
+  for (std::size_t i = 0; i < primitive_count; ++i) {
+    stats_.primitives[i] += times * s.primitives[i];
+  }
+  stats_.configurations[static_cast<std::size_t>(s.configuration)] += times;
+}
+
+const refine_statistics& refiner::statistics() const noexcept {
+  if (any_pending_) {
+    for (std::size_t i = 0; i < interior_classification_count; ++i) {
+      if (pending_[i] == 0) continue;
+      add_classification(interior_classification(i), pending_[i]);
+      pending_[i] = 0;
+    }
+    any_pending_ = false;
+  }
+  return stats_;
+}
+
+int refiner::next_depth() const noexcept { return done() ? -1 : queue_->top().depth; }
+
+bool refiner::is_split(const ipoint& centre) const noexcept {
+  return hier_.in_grid(centre) && (state_.get()[hier_.index(centre)] & split_bit) != 0;
+}
+
+// Asks the cache for the samples the split of a queued diamond will read, a few splits ahead:
+// every point of a diamond lies in centre + h·{-1, 0, 1}³ (h its scale), nine rows of the volume.
+void refiner::prefetch_samples(const ready& item) const noexcept {
+  const index3& dims = vol_.dims();
+  const std::int32_t h = item.scale;
+  const std::size_t size = sample_size(vol_.type());
+  const std::byte* base = vol_.bytes();
+  const auto clamp = [](std::int64_t v, std::int64_t hi) {
+    return std::clamp<std::int64_t>(v, 0, hi);
+  };
+  const std::int64_t x0 = clamp(item.centre[0] - h, dims[0] - 1);
+  const std::int64_t x1 = clamp(item.centre[0] + h, dims[0] - 1);
+  for (int dz = -1; dz <= 1; ++dz) {
+    const std::int64_t z = clamp(item.centre[2] + dz * h, dims[2] - 1);
+    for (int dy = -1; dy <= 1; ++dy) {
+      const std::int64_t y = clamp(item.centre[1] + dy * h, dims[1] - 1);
+      __builtin_prefetch(base + vol_.linear(x0, y, z) * size);
+      __builtin_prefetch(base + vol_.linear(x1, y, z) * size);
+    }
+  }
+}
+
+bool refiner::split_next() { return split(~std::uint64_t{0}); }
+bool refiner::split_next_within(std::uint64_t max_triangles) { return split(max_triangles); }
+
+bool refiner::split(std::uint64_t max_triangles) {
+  if (queue_->empty()) return false;
+  const ready next = queue_->top();
+  if (prefetch_) {
+    if (const ready* ahead = queue_->peek(prefetch_distance)) prefetch_samples(*ahead);
+  }
+  const std::size_t first = groups_.size();
+  scratch_.clear();
+  const split_summary s = compute_split(hier_, vol_, isovalue_, next.centre, next.scale, scratch_);
+  const std::uint64_t after = stats_.triangles + static_cast<std::uint64_t>(s.added_triangles) -
+                              static_cast<std::uint64_t>(s.removed_triangles);
+  if (after > max_triangles) return false;
+  groups_.append(scratch_.data(), scratch_.size());
+  queue_->pop();
+  std::uint8_t* state = state_.get();
+  state[next.index] = static_cast<std::uint8_t>(state[next.index] | split_bit);
+  if (!errors_needed_) {
+    for (const packed_group& g : scratch_) {
+      if (g.owner != no_owner)
+        state[g.owner] = static_cast<std::uint8_t>(state[g.owner] | surface_bit);
+    }
+  }
+  records_.push_back({edge_key(next.centre, next.centre), first,
+                      static_cast<std::uint32_t>(scratch_.size()), next.scale, next.error});
+  stats_.triangles = after;
+  stats_.record_triangles += static_cast<std::uint64_t>(s.added_triangles);
+  ++stats_.splits;
+  if (s.classification >= 0) {
+    // Counted by classification, added up when the statistics are read.
+    ++pending_[static_cast<std::size_t>(s.classification)];
+    any_pending_ = true;
+  } else {
+    add_classification(s, 1);
+  }
+
+  // Children whose parents are now all split become ready.
+  const child_list children = hier_.children_of(next.centre, next.scale, next.type);
+  const auto depth = static_cast<std::int16_t>(next.depth + 1);
+  const auto type = static_cast<std::int16_t>(children.type);
+  for (int i = 0; i < children.count; ++i) {
+    const auto ui = static_cast<std::size_t>(i);
+    const ipoint& c = children.centre[ui];
+    const std::uint64_t ci = hier_.index(c);
+    const auto count = static_cast<std::uint8_t>((state[ci] & parent_count_mask) + 1);
+    state[ci] = static_cast<std::uint8_t>((state[ci] & ~parent_count_mask) | count);
+    if (count != children.parents[ui]) continue;
+    ++stats_.visited;
+    if ((state[ci] & surface_bit) != 0) {
+      // A piece of surface in one of the child's tetrahedra: its range straddles w unless it
+      // is empty (wholly in the padding), and its error is not needed in this order (it is
+      // computed if asked for: next_error(), extract_cut()).
+      if (ranges_.empty(c, children.scale)) {
+        ++stats_.culled;
+      } else {
+        queue_->push({unknown_error, ci, c, children.scale, type, depth});
+      }
+      continue;
+    }
+    if (!errors_needed_) {
+      if (ranges_.straddles(c, children.scale, threshold_)) {
+        queue_->push({unknown_error, ci, c, children.scale, type, depth});
+      } else {
+        ++stats_.culled;
+      }
+      continue;
+    }
+    const diamond_range r = ranges_.get(c, children.scale);
+    if (r.straddles(isovalue_)) {
+      queue_->push({r.error, ci, c, children.scale, type, depth});
+    } else {
+      ++stats_.culled;
+    }
+  }
+  return true;
+}
+
+void refiner::refine_full() {
+  while (split_next()) {
+  }
+}
+
+void refiner::refine_to_error(double max_error) {
+  while (!done() && next_error() > max_error) split_next();
+}
+
+void refiner::refine_to_triangles(std::uint64_t max_triangles) {
+  while (split_next_within(max_triangles)) {
+  }
+}
+
+void refiner::refine_until(std::chrono::steady_clock::time_point deadline) {
+  while (!done() && std::chrono::steady_clock::now() < deadline) split_next();
+}
+
+void refiner::refine_set(const std::function<bool(std::uint64_t)>& in_set) {
+  while (!queue_->empty()) {
+    if (in_set(queue_->top().index)) {
+      split_next();
+    } else {
+      queue_->pop();
+    }
+  }
+}
+
+template <class InCut, class Take>
+triangle_mesh refiner::build_mesh(InCut&& in_cut, Take&& take) const {
+  detail::mesh_builder b(hier_, vol_, isovalue_,
+                         static_cast<std::size_t>(stats_.triangles / 2 + 16));
+  for (const owned_triangle& t : root_triangles_) {
+    if (take(t.owner)) b.add(t.keys);
+  }
+  for (std::size_t ri = 1; ri < records_.size(); ++ri) {
+    const record& r = records_[ri];
+    if (!in_cut(r)) continue;
+    for_each_unpacked_at(
+        r.centre_key, r.scale, groups_, r.first, r.count, take,
+        [&b](std::uint64_t, const std::array<std::uint64_t, 3>& keys) { b.add(keys); });
+  }
+  return b.finish();
+}
+
+triangle_mesh refiner::extract() const {
+  const std::uint8_t* state = state_.get();
+  return build_mesh([](const record&) { return true; },
+                    [state](std::uint64_t owner) {
+                      return owner == no_owner || (state[owner] & split_bit) == 0;
+                    });
+}
+
+triangle_mesh refiner::extract_cut(double max_error) const {
+  const std::uint8_t* state = state_.get();
+  return build_mesh(
+      [this, max_error](const record& r) {
+        if (r.centre_key == no_owner) return true;
+        const auto centre = [&r] {
+          const ipoint c2 = edge_key_point(r.centre_key);
+          return ipoint{c2[0] / 2, c2[1] / 2, c2[2] / 2};
+        };
+        const double e = std::isnan(r.error) ? ranges_.get(centre(), r.scale).error : r.error;
+        return e > max_error;
+      },
+      [&](std::uint64_t owner) {
+        if (owner == no_owner || (state[owner] & split_bit) == 0) return true;
+        const diamond d = hier_.make_diamond(hier_.point(owner));
+        return !(ranges_.get(d).error > max_error);
+      });
+}
+
+// ---------------------------------------------------------------------------------------------
+
+void check_extract_inputs(double isovalue, const extract_options& options) {
+  if (!std::isfinite(isovalue)) {
+    throw error("isovalue: expected a finite number, found " + std::to_string(isovalue));
+  }
+  if (options.mode == extract_mode::error && !(options.max_error >= 0.0)) {
+    throw error("error threshold: expected a non-negative number, found " +
+                std::to_string(options.max_error));
+  }
+  if (options.mode == extract_mode::time && !(options.time_budget.count() >= 0.0)) {
+    throw error("time budget: expected a non-negative duration");
+  }
+}
+
+extract_result extract_isosurface(const volume& vol, double isovalue,
+                                  const extract_options& options) {
+  using clock = std::chrono::steady_clock;
+  const auto seconds = [](clock::duration d) { return std::chrono::duration<double>(d).count(); };
+  check_extract_inputs(isovalue, options);
+  extract_result res;
+  const auto t0 = clock::now();
+  const hierarchy hier(vol.dims());
+  const range_data ranges(vol, hier);
+  const auto t1 = clock::now();
+  res.range_build_seconds = seconds(t1 - t0);
+  res.range_bytes = ranges.byte_size();
+
+  const refine_order order = options.mode == extract_mode::full ? refine_order::breadth_first
+                                                                : refine_order::largest_error_first;
+  refiner ref(vol, hier, ranges, isovalue, order);
+  {
+    const triangle_mesh first = ref.extract();
+    res.first_surface_seconds = seconds(clock::now() - t1);
+  }
+  const auto deadline = deadline_after(t1, options.time_budget);
+  extract_progress prog;
+  prog.max_depth = hier.max_depth();
+  std::uint64_t since = 0;
+  const auto report = [&] {
+    if (!options.progress || ++since < 4096) return;
+    since = 0;
+    prog.splits = ref.statistics().splits;
+    prog.triangles = ref.triangle_count();
+    prog.depth = ref.next_depth();
+    options.progress(prog);
+  };
+  switch (options.mode) {
+    case extract_mode::full:
+      while (ref.split_next()) report();
+      break;
+    case extract_mode::error:
+      while (!ref.done() && ref.next_error() > options.max_error) {
+        ref.split_next();
+        report();
+      }
+      break;
+    case extract_mode::triangles:
+      while (ref.split_next_within(options.max_triangles)) report();
+      break;
+    case extract_mode::time:
+      while (!ref.done() && clock::now() < deadline) {
+        ref.split_next();
+        report();
+      }
+      break;
+  }
+  const auto t2 = clock::now();
+  res.refine_seconds = seconds(t2 - t1);
+  res.mesh = ref.extract();
+  const auto t3 = clock::now();
+  res.extract_seconds = seconds(t3 - t2);
+  res.total_seconds = seconds(t3 - t0);
+  res.pipeline_seconds = res.total_seconds;
+  res.stats = ref.statistics();
+  // A scan of every sample: after the timings, not inside "first surface".
+  const auto [lo, hi] = vol.value_range();
+  res.isovalue_outside_data = !(lo <= isovalue && isovalue < hi);
+  return res;
+}
+
+}  // namespace progiso
