@@ -1,0 +1,448 @@
+// scheduler/src/engine_impl.hpp — the engine's inside, shared by the files that implement it.
+//
+// Not installed. One role per file: root.cpp (a root: its surface, its seeding, its per-vertex
+// arrays), range_build.cpp (the pruning data, built in slices), refinement_graph.cpp (the
+// compute and commit nodes: how splits are made and published), run_control.cpp (the driver
+// thread of a run, stop requests, the progress callback), snapshot.cpp (readers: snapshots and
+// their meshes) and engine.cpp (the public engine: construction, control calls, statistics).
+#pragma once
+
+#include <algorithm>
+#include <array>
+#include <atomic>
+#include <chrono>
+#include <cmath>
+#include <condition_variable>
+#include <cstdint>
+#include <exception>
+#include <functional>
+#include <limits>
+#include <memory>
+#include <mutex>
+#include <optional>
+#include <thread>
+#include <utility>
+#include <vector>
+
+#include <tbb/flow_graph.h>
+#include <tbb/parallel_for.h>
+#include <tbb/task_arena.h>
+
+#include <progiso/concurrent/append_log.hpp>
+#include <progiso/core/base/assert.hpp>
+#include <progiso/core/base/zeroed_array.hpp>
+#include <progiso/core/refine/detail/ready_queue.hpp>
+#include <progiso/scheduler/engine.hpp>
+#include <progiso/scheduler/tbb_environment.hpp>
+
+namespace progiso::detail {
+
+using clock = std::chrono::steady_clock;
+
+// Core's pieces of work (range slabs, mesh parts) as oneTBB tasks in the calling arena.
+inline void tbb_loop(std::size_t n, const std::function<void(std::size_t)>& body) {
+  tbb::parallel_for(std::size_t{0}, n, [&body](std::size_t i) { body(i); });
+}
+
+// One published split: the new triangles of the split as packed groups (in a buffer the root
+// owns; unpacked with the diamond's centre and scale), the diamond, its nested error and the
+// cut's triangle count once it is published. Record 0 is the root surface: its triangles are
+// engine_root::root_triangles, in plain form, and `count` is their number.
+struct engine_record {
+  std::uint64_t diamond;  // grid index; no_owner for the root record
+  const packed_group* groups;
+  std::uint32_t count;
+  std::int32_t depth;
+  std::int32_t scale;
+  double error;
+  std::uint64_t cut_triangles;
+};
+
+struct ready_item {
+  double error;
+  int depth;
+  std::uint64_t index;
+};
+
+// Counters written by the commit step (one writer at a time) and read by anyone: relaxed
+// atomics, each exact at some moment; no other data is published through them.
+class counter {
+ public:
+  void add(std::uint64_t n) noexcept {
+    // relaxed: single writer; readers want a recent value only (statistics).
+    v_.store(v_.load(std::memory_order_relaxed) + n, std::memory_order_relaxed);
+  }
+  void set(std::uint64_t n) noexcept {
+    // relaxed: as add().
+    v_.store(n, std::memory_order_relaxed);
+  }
+  [[nodiscard]] std::uint64_t get() const noexcept {
+    // relaxed: as add().
+    return v_.load(std::memory_order_relaxed);
+  }
+
+ private:
+  std::atomic<std::uint64_t> v_{0};
+};
+
+inline constexpr std::uint64_t root_alive = 0x70726f6769736f31;  // "progiso1"
+inline constexpr std::uint64_t root_dead = 0xdbdbdbdbdbdbdbdb;
+inline constexpr unsigned char poison_byte = 0xdb;
+
+// A root's per-grid-vertex arrays (engine_root::record_of and parents), all zero when handed to
+// a root. A reclaimed root gives them back to its engine, cleared, for the next root: a fresh
+// mapping would pay a page fault for every page the next refinement touches, and a TLB flush
+// interrupt on every core for each page first read (by a compute task's hint load or a reader)
+// and then written.
+struct vertex_state {
+  zeroed_array<std::uint32_t> record_of;
+  zeroed_array<std::uint8_t> parents;
+};
+
+// One isovalue's progressive surface. Readers reach it through engine_impl::root (protected by
+// an epoch guard) and read the published prefix of `records` and `record_of`; everything under
+// "commit step only" belongs to whichever thread runs the serial commit (or the control thread
+// while no run is active).
+struct engine_root : epoch_object {
+  engine_root(engine_impl& owner, double w, std::uint64_t gen, vertex_state&& state)
+      : impl(&owner),
+        isovalue(w),
+        generation(gen),
+        record_of(std::move(state.record_of)),
+        parents(std::move(state.parents)) {}
+
+  std::uint64_t magic = root_alive;
+  engine_impl* impl;
+  double isovalue;
+  std::uint64_t generation;
+  append_log<engine_record> records;
+  // Per grid vertex: index of the diamond's record, 0 while unsplit. Written once (0 → r) by the
+  // commit step before the release of records.publish(); read by readers through atomic_ref
+  // (relaxed: a value below the reader's watermark was written before that watermark's release,
+  // and any other value means "not in this cut").
+  zeroed_array<std::uint32_t> record_of;
+
+  // Parents split so far, per grid vertex: written by the commit step only (relaxed
+  // atomic_ref stores); compute tasks load it, relaxed, as a hint of which parent is last.
+  zeroed_array<std::uint8_t> parents;
+  // Root surface: set before the root is published, immutable afterwards.
+  std::vector<owned_triangle> root_triangles;
+  // The root diamonds, queued (or culled) by the first run, once the range data exists: the root
+  // surface needs none, so it is published before any pass over the volume. Commit step only.
+  std::vector<ipoint> root_centres;
+  bool seeded = false;
+  // Some queued diamond was made ready without the range data (a deadline run before it was
+  // built): queued by placeholder, never culled. The driver re-queues them by their ranges once
+  // the data is built (requeue_by_ranges), between graph runs. Commit step and driver.
+  bool unranged = false;
+  // Some queued diamond was keyed by an error bound (hi − lo: the range data's error pass was
+  // not done); re-keyed by the exact errors once they exist. Commit step and driver.
+  bool bounded = false;
+
+  // Commit step only.
+  std::vector<std::vector<packed_group>> buffers;
+  detail::ready_queue<ready_item> queue{queue_discipline::largest_error};
+  std::uint64_t cut_triangles = 0;
+
+  // Statistics (commit step writes, anyone reads).
+  counter splits, visited, culled, triangles, record_triangles, discarded, batches, remaining;
+  std::array<counter, tet_case_count> cases;
+  std::array<counter, primitive_count> primitives;
+  std::array<counter, split_configuration_count> configurations;
+
+  // Bytes of records and triangle buffers (commit step, or the control thread while idle).
+  [[nodiscard]] std::uint64_t bytes() const noexcept {
+    std::uint64_t n = records.byte_size();
+    n += root_triangles.capacity() * sizeof(owned_triangle);
+    for (const auto& b : buffers) n += b.capacity() * sizeof(packed_group);
+    return n;
+  }
+  std::uint64_t retired_bytes = 0;  // bytes() when retired
+
+  [[nodiscard]] std::uint32_t record_index(std::uint64_t vertex) const noexcept {
+    // relaxed: see record_of.
+    return std::atomic_ref<std::uint32_t>(record_of[vertex]).load(std::memory_order_relaxed);
+  }
+};
+
+struct child_info {
+  std::uint64_t index;
+  double error;
+  std::uint8_t parents_needed;
+  bool known;  // error and straddles were looked up (else the commit step looks them up)
+  bool straddles;
+};
+
+struct batch_item {
+  ready_item item;
+  std::uint32_t first = 0;  // groups in the batch's buffer
+  std::uint32_t count = 0;
+  std::int32_t scale = 0;
+  int added = 0;  // triangles
+  int removed = 0;
+  split_configuration configuration{};
+  std::array<std::uint8_t, tet_case_count> cases{};
+  std::array<std::uint16_t, primitive_count> primitives{};
+  std::uint8_t children = 0;
+  std::array<child_info, 8> child{};
+};
+
+// A compute task: diamonds taken from the ready queue together, computed by one worker.
+struct batch {
+  engine_root* root = nullptr;
+  bool seed = false;  // no work: asks the commit step to fill the window (a run's start)
+  std::vector<batch_item> items;
+  std::size_t computed = 0;
+  std::vector<packed_group> groups;
+};
+
+// The engine behind the public handle: its volume, hierarchy, range data, roots, graph and run
+// state. Member functions are defined in the file of their role (see the top of this file).
+struct engine_impl {
+  engine_impl(std::shared_ptr<const volume> owned, const volume& v, engine_options o);
+
+  // The range data: a staged build (range_data::staged), its pieces built with the engine's
+  // threads, one slab of bricks per task. Until it is complete the engine publishes its root
+  // surfaces (they need none), and a deadline run refines without culling while it builds pieces
+  // in between (drive()); every other run, and engine::ranges(), build what is left first.
+  // Building happens only on threads outside the arena, under `build_mutex` (the driver between
+  // its graph runs, users): a thread that held an arena slot while it waited for another
+  // thread's build would keep that build from the slot it needs (a deadlock with one slot, seen
+  // in the stress test). Tasks read the data through built_ranges().
+  const range_data& ranges() const;
+  // Builds pieces until done or `until` (or a stop request, when `stop_requests`: a cancelled
+  // deadline run returns within one step): the min/max pass, then (when `errors`) the error
+  // pass, fused with the first where neither has started (each slab read once); finishes each
+  // pass after its last piece. Caller holds build_mutex and is outside the arena. Returns
+  // whether what was asked for is complete.
+  bool build_ranges(clock::time_point until, bool stop_requests, bool errors) const;
+  // Wall seconds per piece of the min/max pass so far, steps of `threads` pieces in parallel,
+  // not counting the data's allocation (0 before the first). Caller holds build_mutex.
+  [[nodiscard]] double seconds_per_piece() const {
+    return min_max_pieces == 0 ? 0.0 : piece_seconds / static_cast<double>(min_max_pieces);
+  }
+  // The range data inside a run's tasks when it is complete, else null (a deadline run that
+  // refines before it is built): then only ranges_for_empty() may be asked.
+  const range_data* built_ranges() const noexcept {
+    // acquire: pairs with the release in build_ranges().
+    return ranges_ready.load(std::memory_order_acquire) ? &*ranges_ : nullptr;
+  }
+  // The staged data's empty() needs no piece: the driver made it before the run's first task,
+  // and the task graph's start orders that.
+  const range_data& ranges_for_empty() const noexcept {
+    PROGISO_ASSERT(ranges_.has_value());
+    return *ranges_;
+  }
+  // The queue key and record error of a diamond made ready without its range: above every
+  // error the data can have, halving with depth, so coarse diamonds go first and every cut by
+  // error stays parent-closed (a placeholder parent is never below its children).
+  static double unranged_error(int depth) noexcept {
+    return std::ldexp(std::numeric_limits<double>::max(), -std::min(depth, 60));
+  }
+  // oneTBB's pool has default_concurrency() threads; asking an arena for more only warns.
+  static unsigned effective_threads(unsigned requested) {
+    const auto available = static_cast<unsigned>(scheduler::default_concurrency());
+    return requested == 0 ? available : std::min(requested, available);
+  }
+  static std::uint64_t next_serial() {
+    static std::atomic<std::uint64_t> n{1};
+    // relaxed: a unique number; nothing is published with it.
+    return n.fetch_add(1, std::memory_order_relaxed);
+  }
+
+  // ---- roots ---------------------------------------------------------------------------------
+
+  engine_root* make_root(double w, std::uint64_t gen);
+
+  // Commit step (the first run on this root): queues the root diamonds whose range straddles
+  // (every one not wholly in the padding, by placeholder, before the range data is built).
+  void seed_roots(engine_root& r);
+
+  // Marks the root when keys made with `rd` are error bounds (the error pass not done): once per
+  // batch, not per queued diamond (an acquire load and a pointer chase on the commit path).
+  static void note_keys(engine_root& r, const range_data* rd) noexcept {
+    if (rd != nullptr && !rd->errors_exact()) r.bounded = true;
+  }
+
+  // Queues the diamond centred at c (scale h) by its range, or by placeholder when `rd` is null
+  // and its subtree is not wholly in the padding; returns whether it was queued. Commit step,
+  // or the driver between graph runs.
+  bool queue_if_straddles(engine_root& r, const ipoint& c, std::int32_t h, int depth,
+                          std::uint64_t index, const range_data* rd);
+
+  // Driver, between graph runs, once the range data is built: the diamonds queued by
+  // placeholder are queued again by their ranges, or culled; those queued by error bounds (a
+  // deadline run before the error pass) by their exact errors once they exist.
+  void requeue_by_ranges(engine_root& r);
+
+  // The cleared arrays of a reclaimed root if there are any, else fresh ones. Control thread.
+  vertex_state take_vertex_state();
+
+  // A dying root's arrays become the next root's, cleared on a thread of their own so that
+  // neither set_isovalue() nor the next run waits for it (one spare set at most; arrays that
+  // find the spare taken or the cleaner busy are unmapped). The commit step wrote record_of at
+  // each published diamond and parents at each of its children, nothing else: a small cut is
+  // cleared entry by entry, a large one by zeroing the arrays whole (cheaper beyond about one
+  // record per 64 vertices). Control thread, or the engine's destruction (then `recycle` is
+  // false and nothing is kept).
+  void keep_vertex_state(engine_root& r) noexcept;
+
+  static void destroy_root(void* p) noexcept;
+
+  // ---- readers -------------------------------------------------------------------------------
+
+  // This thread's participant in the domain, registered on the thread's first snapshot of this
+  // engine (takes a mutex once); then found in a small thread-local cache, most recent first.
+  epoch_participant& reader() const;
+
+  // ---- the run -------------------------------------------------------------------------------
+
+  [[nodiscard]] bool eligible(const engine_root& r) const noexcept {
+    if (r.queue.empty()) return false;
+    if (goal.what == refine_goal::kind::error) return r.queue.top().error > goal.max_error;
+    return true;
+  }
+  [[nodiscard]] bool past_deadline() const noexcept {
+    return goal.what == refine_goal::kind::deadline && clock::now() >= slice_end;
+  }
+  [[nodiscard]] bool stopping() const noexcept {
+    // relaxed: a request flag; the data the run publishes is ordered by records.publish().
+    return stop.load(std::memory_order_relaxed);
+  }
+  void request_stop() noexcept {
+    // relaxed: see stopping().
+    stop.store(true, std::memory_order_relaxed);
+  }
+
+  // Commit step only: fills the in-flight window.
+  void dispatch(engine_root& r);
+
+  // Any worker, in parallel: split records of the batch's diamonds (pure), and what the
+  // commit step needs to know about their children.
+  batch* compute_batch(batch* b);
+
+  // The serial commit step: publishes the batch's records in order (their parents are all
+  // published: they were ready when taken), makes children ready, refills the window.
+  void commit_batch(batch* b);
+
+  // Marks the progress callback's thread, so that control calls made from inside it can tell.
+  struct callback_scope {
+    explicit callback_scope(const engine_impl* e) noexcept : saved(in_callback_of) {
+      in_callback_of = e;
+    }
+    callback_scope(const callback_scope&) = delete;
+    callback_scope& operator=(const callback_scope&) = delete;
+    ~callback_scope() { in_callback_of = saved; }
+    const engine_impl* saved;
+  };
+  static thread_local const engine_impl* in_callback_of;
+  [[nodiscard]] bool in_own_callback() const noexcept { return in_callback_of == this; }
+  void refuse_in_callback(const char* call) const;
+  // After a run: moves a callback's exception to the control thread (caller holds `control`).
+  void rethrow_callback_error(std::unique_lock<std::mutex>& lock);
+
+  // One graph run: the first dispatch goes through the serial commit node too (the queue
+  // belongs to it: tasks started by the dispatch loop commit while it still runs).
+  void run_graph(engine_root* r);
+
+  // After a graph run that stopped at the end of its slice (not at the goal's deadline): clears
+  // the stop request and returns true, unless the user or the progress callback stopped the run
+  // (then the run ends). Under `control`, so that a cancel() is either seen here or made after.
+  bool continue_after_slice();
+
+  // A deadline run before the range data is complete (DESIGN §7, "the first surface needs no
+  // preprocessing"): slices of the build alternate with slices of refinement without culling
+  // (placeholder order: coarse first), each twice as long as the one before, from 1 ms, a build
+  // slice never more than half the time left and never a step expected to end past its slice;
+  // once the pieces left are estimated to fit in the time left, the build runs to the end. When the
+  // data is complete the queue is culled and ordered by it, and the run goes on as usual. What the
+  // build did is kept for the next run; what refinement did is a valid cut. Only the first step of
+  // all, which has no estimate, can overrun a deadline (by one slab per thread). Deadlines shorter
+  // than a step refine without building: the data is then built by the first run with time for it,
+  // or by any other kind of run. Why the build wins whenever it fits: refinement culled by the data
+  // buys far more surface per millisecond than refinement without it (brainsmall, 1 thread: 40 ms
+  // gave 118 K triangles with the data built after 10.5 ms; 20 ms spent half on each gave 5 K).
+  void drive_unranged(engine_root* r);
+
+  // The driver thread of one run.
+  void drive(engine_root* r);
+
+  // Control (caller holds `control`).
+  void launch(std::unique_lock<std::mutex>& lock, const refine_goal& g);
+  void stop_and_join(std::unique_lock<std::mutex>& lock);
+  [[nodiscard]] engine_root* current() const noexcept {
+    // relaxed: the control thread is the only writer of `root`.
+    return root.load(std::memory_order_relaxed);
+  }
+
+  std::shared_ptr<const volume> owned_volume;  // set when the engine owns its volume
+  const volume& vol;
+  engine_options opt;
+  hierarchy hier;
+  // The range data (see ranges()): made, built piece by piece and finished under build_mutex;
+  // complete once ranges_ready is set.
+  mutable std::mutex build_mutex;
+  mutable std::optional<range_data> ranges_;
+  // Guarded by build_mutex: pieces of the min/max pass built (min_max_pieces of them alone,
+  // in piece_seconds), pieces of the error pass built.
+  mutable std::size_t pieces_built = 0;
+  mutable std::size_t min_max_pieces = 0;
+  mutable double piece_seconds = 0.0;
+  mutable std::size_t error_pieces_built = 0;
+  mutable std::atomic<bool> ranges_ready{false};
+  mutable std::atomic<double> range_seconds{0.0};
+  unsigned threads;
+  // The per-vertex arrays of the last reclaimed root, cleared by `cleaner` (keep_vertex_state),
+  // until the next root takes them; the control thread reads `spare` only after joining the
+  // cleaner. Declared before the domain, which destroys the retired roots when it goes.
+  // `recycle` is cleared by ~engine, after joining the cleaner: roots destroyed then keep nothing.
+  std::optional<vertex_state> spare;
+  std::thread cleaner;
+  std::atomic<bool> cleaner_done{false};
+  bool recycle = true;
+  mutable epoch_domain domain;
+  epoch_participant control_participant;  // retires roots; used under `control`
+  mutable std::mutex readers_mutex;
+  mutable std::vector<std::unique_ptr<epoch_participant>> readers;
+  std::uint64_t serial;
+  // The published root: release-stored by set_isovalue() (pairs with the acquire in
+  // epoch_guard::protect() of snapshot()).
+  std::atomic<engine_root*> root{nullptr};
+
+  mutable tbb::task_arena arena;
+  std::unique_ptr<tbb::flow::graph> graph;
+  std::unique_ptr<tbb::flow::function_node<batch*, batch*>> compute;
+  std::unique_ptr<tbb::flow::function_node<batch*>> commit;
+
+  // Run state. `goal` is set before the driver starts (thread start orders it) and read by
+  // tasks; inflight, inflight_items, budget_hit, last_depth, since_progress belong to the
+  // commit step.
+  refine_goal goal;
+  // Deadline runs stop here: the goal's deadline, or the end of a slice of refinement while the
+  // range data is built (drive_unranged). Written by the driver between graph runs.
+  clock::time_point slice_end{};
+  std::atomic<bool> stop{false};
+  std::size_t inflight = 0;
+  std::size_t inflight_items = 0;
+  bool budget_hit = false;
+  int last_depth = 0;
+  std::uint64_t since_progress = 0;
+
+  std::mutex control;
+  std::condition_variable idle;
+  std::thread driver;
+  bool active = false;          // guarded by control
+  bool user_cancelled = false;  // guarded by control (read by the driver after its run)
+  bool last_reached = false;    // guarded by control
+  // Set by the progress callback (commit step) during a run, read by the driver after it.
+  bool callback_cancel = false;
+  std::exception_ptr callback_error;
+  std::exception_ptr pending_error;  // guarded by control: rethrown by wait() / refine()
+  std::atomic<bool> active_flag{false};
+  counter runs, cancelled_runs;
+  mutable counter retired_bytes, peak_retired_bytes, root_bytes;
+  counter recycled_roots;
+  std::uint64_t generation = 0;  // guarded by control
+};
+
+}  // namespace progiso::detail

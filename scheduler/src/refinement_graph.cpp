@@ -1,0 +1,225 @@
+// The refinement graph: compute tasks make split records in parallel; the serial commit node
+// publishes them, makes children ready and keeps the window of tasks in flight full.
+
+#include "engine_impl.hpp"
+
+namespace progiso::detail {
+
+// The engine and its graph: compute (any number in parallel) feeding commit (serial).
+engine_impl::engine_impl(std::shared_ptr<const volume> owned, const volume& v, engine_options o)
+    : owned_volume(std::move(owned)),
+      vol(v),
+      opt(std::move(o)),
+      hier(v.dims()),
+      threads(effective_threads(opt.threads)),
+      domain(opt.reclamation),
+      control_participant(domain),
+      serial(next_serial()),
+      arena(static_cast<int>(threads)) {
+  arena.execute([this] {
+    graph = std::make_unique<tbb::flow::graph>();
+    compute = std::make_unique<tbb::flow::function_node<batch*, batch*>>(
+        *graph, tbb::flow::unlimited, [this](batch* b) { return compute_batch(b); });
+    commit = std::make_unique<tbb::flow::function_node<batch*>>(
+        *graph, tbb::flow::serial, [this](batch* b) { commit_batch(b); });
+    tbb::flow::make_edge(*compute, *commit);
+  });
+}
+
+void engine_impl::dispatch(engine_root& r) {
+  const std::size_t window = std::max<std::size_t>(1, opt.tasks_per_thread * threads);
+  const std::size_t max_batch = std::max<std::size_t>(1, opt.batch);
+  while (inflight < window && !stopping() && eligible(r) && !past_deadline()) {
+    const std::size_t n = std::clamp<std::size_t>(r.queue.size() / (2 * threads), 1, max_batch);
+    auto* b = new batch;
+    b->root = &r;
+    b->items.reserve(n);
+    while (b->items.size() < n && eligible(r)) {
+      b->items.push_back({r.queue.top()});
+      r.queue.pop();
+    }
+    inflight_items += b->items.size();
+    ++inflight;
+    compute->try_put(b);
+  }
+}
+
+batch* engine_impl::compute_batch(batch* b) {
+  const double w = b->root->isovalue;
+  const range_data* rd = built_ranges();
+  for (std::size_t j = 0; j < b->items.size(); ++j) {
+    // The clock every fourth split (~2 µs): a clock read costs ~4% of a split.
+    if (stopping() || (j % 4 == 0 && past_deadline())) break;
+    batch_item& it = b->items[j];
+    const ipoint centre = hier.point(it.item.index);
+    const std::int32_t scale = hier.scale_of(centre);
+    const std::size_t first = b->groups.size();
+    const split_summary s = compute_split(hier, vol, w, centre, scale, b->groups);
+    it.first = static_cast<std::uint32_t>(first);
+    it.count = static_cast<std::uint32_t>(b->groups.size() - first);
+    it.scale = scale;
+    it.added = s.added_triangles;
+    it.removed = s.removed_triangles;
+    it.configuration = s.configuration;
+    it.cases = s.cases;
+    it.primitives = s.primitives;
+    const child_list children = hier.children_of(centre, scale, hierarchy::type_of(centre, scale));
+    it.children = static_cast<std::uint8_t>(children.count);
+    for (int i = 0; i < children.count; ++i) {
+      const ipoint& c = children.centre[static_cast<std::size_t>(i)];
+      child_info& ci = it.child[static_cast<std::size_t>(i)];
+      ci.index = hier.index(c);
+      ci.parents_needed = children.parents[static_cast<std::size_t>(i)];
+      // The child's range is needed once, when its last parent commits. The parent that
+      // finds all the others already committed looks it up here, in parallel; for the other
+      // parents it would be wasted work (a child has up to four). When two last parents are
+      // in flight together, neither may look: the commit step then does.
+      const std::uint8_t split_parents =
+          std::atomic_ref<std::uint8_t>(b->root->parents[ci.index])
+              // relaxed: a hint only; the commit step, the sole writer, decides readiness,
+              // and a stale count just moves the lookup to the commit step or repeats it.
+              .load(std::memory_order_relaxed);
+      ci.known = rd != nullptr && split_parents + 1 >= ci.parents_needed;
+      if (ci.known) {
+        const diamond_range cr = rd->get(c, children.scale);
+        ci.straddles = cr.straddles(w);
+        ci.error = cr.error;
+      }
+    }
+    ++b->computed;
+  }
+  return b;
+}
+
+void engine_impl::commit_batch(batch* b) {
+  engine_root& r = *b->root;
+  if (b->seed) {
+    delete b;
+    seed_roots(r);
+    dispatch(r);
+    r.remaining.set(r.queue.size() + inflight_items);
+    return;
+  }
+  const range_data* rd = built_ranges();
+  note_keys(r, rd);
+  --inflight;
+  inflight_items -= b->items.size();
+  std::size_t published = 0;
+  if (!stopping() && b->computed > 0) {
+    r.buffers.push_back(std::move(b->groups));
+    const packed_group* base = r.buffers.back().data();
+    std::array<std::uint64_t, tet_case_count> cases{};
+    std::array<std::uint64_t, primitive_count> prims{};
+    std::array<std::uint64_t, split_configuration_count> configs{};
+    std::uint64_t added = 0;
+    std::uint64_t visited = 0;
+    std::uint64_t culled = 0;
+    // The per-vertex state the loop below writes, requested ahead: in priority order the
+    // diamonds lie all over the grid, and these lines are the serial step's cache misses.
+    for (std::size_t i = 0; i < b->computed; ++i) {
+      const batch_item& it = b->items[i];
+      __builtin_prefetch(&r.record_of[it.item.index], 1);
+      for (std::size_t c = 0; c < it.children; ++c) {
+        __builtin_prefetch(&r.parents[it.child[c].index], 1);
+      }
+    }
+    for (std::size_t i = 0; i < b->computed; ++i) {
+      const batch_item& it = b->items[i];
+      if (i % 8 == 0 && past_deadline()) {  // every eighth record (~1 µs), as in compute
+        request_stop();
+        break;
+      }
+      const std::uint64_t after =
+          r.cut_triangles + static_cast<unsigned>(it.added) - static_cast<unsigned>(it.removed);
+      if (goal.what == refine_goal::kind::triangles && after > goal.max_triangles) {
+        budget_hit = true;
+        request_stop();
+        break;
+      }
+      const std::size_t index = r.records.size();
+      PROGISO_ASSERT(index < (std::size_t{1} << 32));
+      r.cut_triangles = after;
+      r.records.push_back({it.item.index, base + it.first, it.count, it.item.depth, it.scale,
+                           it.item.error, after});
+      std::atomic_ref<std::uint32_t>(r.record_of[it.item.index])
+          .store(static_cast<std::uint32_t>(index),
+                 // relaxed: published by the release in records.publish() below.
+                 std::memory_order_relaxed);
+      added += static_cast<unsigned>(it.added);
+      for (std::size_t k = 0; k < tet_case_count; ++k) cases[k] += it.cases[k];
+      for (std::size_t k = 0; k < primitive_count; ++k) prims[k] += it.primitives[k];
+      ++configs[static_cast<std::size_t>(it.configuration)];
+      for (std::size_t c = 0; c < it.children; ++c) {
+        const child_info& ci = it.child[c];
+        const std::atomic_ref<std::uint8_t> slot(r.parents[ci.index]);
+        // relaxed: the commit step is the only writer; compute tasks read a hint.
+        const auto count = static_cast<std::uint8_t>(slot.load(std::memory_order_relaxed) + 1);
+        slot.store(count, std::memory_order_relaxed);  // relaxed: as the load above
+        if (count != ci.parents_needed) continue;
+        ++visited;
+        if (ci.known) {
+          if (ci.straddles) {
+            r.queue.push({ci.error, it.item.depth + 1, ci.index});
+          } else {
+            ++culled;
+          }
+        } else {
+          const ipoint centre = hier.point(ci.index);
+          if (!queue_if_straddles(r, centre, hier.scale_of(centre), it.item.depth + 1, ci.index,
+                                  rd)) {
+            ++culled;
+          }
+        }
+      }
+      last_depth = it.item.depth;
+      ++published;
+    }
+    r.records.publish();
+    r.splits.add(published);
+    r.triangles.set(r.cut_triangles);
+    r.record_triangles.add(added);
+    r.visited.add(visited);
+    r.culled.add(culled);
+    for (std::size_t k = 0; k < tet_case_count; ++k) r.cases[k].add(cases[k]);
+    for (std::size_t k = 0; k < primitive_count; ++k) r.primitives[k].add(prims[k]);
+    for (std::size_t k = 0; k < split_configuration_count; ++k) {
+      r.configurations[k].add(configs[k]);
+    }
+  }
+  // What was not published goes back to the queue: still ready, never lost.
+  for (std::size_t i = published; i < b->items.size(); ++i) r.queue.push(b->items[i].item);
+  r.discarded.add(b->computed - std::min(b->computed, published));
+  r.batches.add(1);
+  delete b;
+  dispatch(r);
+  r.remaining.set(r.queue.size() + inflight_items);
+  if (opt.progress && !callback_error) {
+    since_progress += published;
+    if (since_progress >= opt.progress_interval) {
+      since_progress = 0;
+      // The callback may call cancel() (a stop request from here) but no control call that
+      // waits for this run; an exception it throws stops the run and is rethrown by the
+      // control thread's wait() or refine(), never across TBB.
+      const callback_scope in_callback(this);
+      try {
+        opt.progress({r.splits.get(), r.cut_triangles, r.queue.empty() ? 0.0 : r.queue.top().error,
+                      last_depth});
+      } catch (...) {
+        callback_error = std::current_exception();
+        request_stop();
+      }
+    }
+  }
+}
+
+void engine_impl::run_graph(engine_root* r) {
+  arena.execute([&] {
+    auto* seed = new batch;
+    seed->root = r;
+    seed->seed = true;
+    commit->try_put(seed);
+    graph->wait_for_all();
+  });
+}
+
+}  // namespace progiso::detail

@@ -1,0 +1,165 @@
+// A root: one isovalue's progressive surface. Its root surface (published before any pass over
+// the volume), the seeding of its root diamonds, the queue re-keyed once the range data exists,
+// and its per-vertex arrays, recycled from one root to the next.
+
+#include "engine_impl.hpp"
+
+#include <cstring>
+
+namespace progiso::detail {
+
+engine_root* engine_impl::make_root(double w, std::uint64_t gen) {
+  auto* r = make_managed<engine_root>(domain, *this, w, gen, take_vertex_state());
+  std::vector<owned_triangle> tris;
+  for (std::uint64_t q = 0; q < hier.root_count(); ++q) {
+    const std::optional<ipoint> centre = compute_root(hier, vol, w, q, tris);
+    if (centre) r->root_centres.push_back(*centre);
+  }
+  r->cut_triangles = tris.size();
+  r->records.push_back(
+      {no_owner, nullptr, static_cast<std::uint32_t>(tris.size()), -1, 0, 0.0, tris.size()});
+  r->root_triangles = std::move(tris);
+  r->records.publish();
+  r->triangles.set(r->cut_triangles);
+  r->record_triangles.set(r->cut_triangles);
+  // Not known before the seeding: every root may still split.
+  r->remaining.set(r->root_centres.size());
+  return r;
+}
+
+void engine_impl::seed_roots(engine_root& r) {
+  if (r.seeded) return;
+  r.seeded = true;
+  std::uint64_t culled = 0;
+  const range_data* rd = built_ranges();
+  note_keys(r, rd);
+  for (const ipoint& c : r.root_centres) {
+    if (!queue_if_straddles(r, c, hier.scale_of(c), hier.depth_of(c), hier.index(c), rd)) {
+      ++culled;
+    }
+  }
+  r.visited.add(r.root_centres.size());
+  r.culled.add(culled);
+}
+
+bool engine_impl::queue_if_straddles(engine_root& r, const ipoint& c, std::int32_t h, int depth,
+                                     std::uint64_t index, const range_data* rd) {
+  if (rd == nullptr) {
+    if (ranges_for_empty().empty(c, h)) return false;
+    r.queue.push({unranged_error(depth), depth, index});
+    r.unranged = true;
+    return true;
+  }
+  const diamond_range cr = rd->get(c, h);
+  if (!cr.straddles(r.isovalue)) return false;
+  r.queue.push({cr.error, depth, index});
+  return true;
+}
+
+void engine_impl::requeue_by_ranges(engine_root& r) {
+  const range_data* rd = built_ranges();
+  PROGISO_ASSERT(rd != nullptr);
+  if (!r.unranged && !(r.bounded && rd->errors_exact())) return;
+  std::vector<ready_item> items;
+  items.reserve(r.queue.size());
+  while (!r.queue.empty()) {
+    items.push_back(r.queue.top());
+    r.queue.pop();
+  }
+  std::uint64_t culled = 0;
+  const bool all = r.bounded && rd->errors_exact();
+  r.bounded = false;
+  note_keys(r, rd);
+  for (const ready_item& it : items) {
+    if (!all && it.error < unranged_error(60)) {  // already by its range
+      r.queue.push(it);
+      continue;
+    }
+    const ipoint c = hier.point(it.index);
+    if (!queue_if_straddles(r, c, hier.scale_of(c), it.depth, it.index, rd)) ++culled;
+  }
+  r.culled.add(culled);
+  r.unranged = false;
+}
+
+vertex_state engine_impl::take_vertex_state() {
+  if (cleaner.joinable() && cleaner_done.load(std::memory_order_acquire)) cleaner.join();
+  if (!cleaner.joinable() && spare) {
+    vertex_state s = std::move(*spare);
+    spare.reset();
+    recycled_roots.add(1);
+    return s;
+  }
+  const std::size_t n = hier.vertex_count();
+  return {zeroed_array<std::uint32_t>(n), zeroed_array<std::uint8_t>(n)};
+}
+
+void engine_impl::keep_vertex_state(engine_root& r) noexcept {
+  if (!recycle) return;
+  if (cleaner.joinable()) {
+    if (!cleaner_done.load(std::memory_order_acquire)) return;  // `spare` is the cleaner's
+    cleaner.join();
+  }
+  if (spare) return;
+  const std::size_t n = r.records.size();
+  std::vector<std::pair<std::uint64_t, std::int32_t>> written;  // (diamond, scale)
+  if (n * 64 < r.record_of.size()) {
+    written.reserve(n);
+    for (std::size_t i = 1; i < n; ++i) {
+      const engine_record& rec = r.records.at_unpublished(i);
+      written.emplace_back(rec.diamond, rec.scale);
+    }
+  }
+  vertex_state s{std::move(r.record_of), std::move(r.parents)};
+  const bool whole = written.empty() && n > 1;
+  cleaner_done.store(false, std::memory_order_relaxed);  // relaxed: the thread start orders it
+  try {
+    cleaner = std::thread([this, s = std::move(s), written = std::move(written), whole]() mutable {
+      if (whole) {
+        s.record_of.zero();
+        s.parents.zero();
+      }
+      for (const auto& [d, h] : written) {
+        s.record_of[d] = 0;
+        const ipoint c = hier.point(d);
+        const child_list children = hier.children_of(c, h, hierarchy::type_of(c, h));
+        for (int k = 0; k < children.count; ++k) {
+          s.parents[hier.index(children.centre[static_cast<std::size_t>(k)])] = 0;
+        }
+      }
+      spare = std::move(s);
+      // release: pairs with the acquire loads in take/keep_vertex_state (they then join).
+      cleaner_done.store(true, std::memory_order_release);
+    });
+  } catch (...) {
+    // No thread: the arrays are freed with the lambda, and the next root maps fresh ones.
+  }
+}
+
+void engine_impl::destroy_root(void* p) noexcept {
+  auto* r = static_cast<engine_root*>(p);
+  PROGISO_ASSERT(r->magic == root_alive);
+  engine_impl& impl = *r->impl;
+  impl.keep_vertex_state(*r);  // reads the records: before they are poisoned
+  if (impl.opt.poison_retired) {
+    for (auto& b : r->buffers) {
+      if (b.empty()) continue;  // no data pointer to poison
+      std::memset(static_cast<void*>(b.data()), poison_byte, b.size() * sizeof(packed_group));
+    }
+    if (!r->root_triangles.empty()) {
+      std::memset(static_cast<void*>(r->root_triangles.data()), poison_byte,
+                  r->root_triangles.size() * sizeof(owned_triangle));
+    }
+    for (std::size_t i = 0; i < r->records.size(); ++i) {
+      std::memset(static_cast<void*>(&r->records.at_unpublished(i)), poison_byte,
+                  sizeof(engine_record));
+    }
+    r->isovalue = std::nan("");
+  }
+  impl.retired_bytes.add(0 - r->retired_bytes);  // single writer: control or drain
+  r->magic = root_dead;
+  if (impl.opt.on_reclaim) impl.opt.on_reclaim(r->generation);
+  delete r;
+}
+
+}  // namespace progiso::detail

@@ -1,0 +1,151 @@
+// Run control: the driver thread of a run, stop requests, deadline slices, the progress
+// callback and its errors.
+
+#include "engine_impl.hpp"
+
+#include <string>
+
+#include <progiso/core/base/error.hpp>
+
+namespace progiso::detail {
+
+void engine_impl::refuse_in_callback(const char* call) const {
+  if (in_own_callback()) {
+    throw error(std::string("engine: ") + call +
+                " cannot be called from the engine's progress callback (it would wait for the "
+                "run that calls it); call cancel() there, which requests a stop");
+  }
+}
+
+void engine_impl::rethrow_callback_error(std::unique_lock<std::mutex>& lock) {
+  if (!pending_error) return;
+  std::exception_ptr e = std::move(pending_error);
+  pending_error = nullptr;
+  lock.unlock();
+  std::rethrow_exception(e);
+}
+
+bool engine_impl::continue_after_slice() {
+  const std::lock_guard lock(control);
+  if (user_cancelled || callback_cancel || callback_error != nullptr) return false;
+  if (clock::now() >= goal.deadline) return false;
+  stop.store(false, std::memory_order_relaxed);  // relaxed: the next graph run orders it
+  return true;
+}
+
+void engine_impl::drive_unranged(engine_root* r) {
+  auto slice = std::chrono::duration_cast<clock::duration>(std::chrono::milliseconds(1));
+  for (;;) {
+    {
+      const std::lock_guard lock(build_mutex);
+      const auto now = clock::now();
+      const double left = std::chrono::duration<double>(goal.deadline - now).count();
+      const std::size_t pieces_left = ranges_->piece_count() - pieces_built;
+      const double estimate = seconds_per_piece() * static_cast<double>(pieces_left);
+      const bool to_the_end = pieces_built > 0 && estimate <= left;
+      // A slice of the build takes at most half the time left, so that a short deadline
+      // still refines.
+      const auto half_left = std::chrono::duration_cast<clock::duration>(
+          std::chrono::duration<double>(0.5 * std::max(left, 0.0)));
+      const clock::time_point until = to_the_end ? goal.deadline : now + std::min(slice, half_left);
+      if (build_ranges(until, true, false) || clock::now() >= goal.deadline || stopping()) {
+        return;
+      }
+    }
+    slice_end = std::min(goal.deadline, clock::now() + slice);
+    run_graph(r);
+    if (!continue_after_slice()) return;
+    slice *= 2;
+  }
+}
+
+void engine_impl::drive(engine_root* r) {
+  slice_end = goal.deadline;
+  if (goal.what == refine_goal::kind::full) {
+    // Full refinement splits every straddling diamond whatever the errors: ranges only.
+    const std::lock_guard lock(build_mutex);
+    (void)build_ranges(clock::time_point::max(), false, false);
+  } else if (goal.what != refine_goal::kind::deadline) {
+    (void)ranges();  // ranges and exact errors: what is not built yet, in parallel
+  } else if (!ranges_ready.load(std::memory_order_acquire)) {  // acquire: see build_ranges()
+    // A deadline run needs only the ranges (errors of scale ≥ 2 are then bounds).
+    {
+      const std::lock_guard lock(build_mutex);
+      if (!ranges_) ranges_.emplace(vol, hier, range_data::staged);
+    }
+    drive_unranged(r);
+  }
+  // A stopped run still seeds a fresh root (the seed batch queues its roots, dispatches
+  // nothing), so that done() tells an unrefined root from a finished one.
+  // acquire: see build_ranges().
+  if (ranges_ready.load(std::memory_order_acquire)) {
+    slice_end = goal.deadline;
+    requeue_by_ranges(*r);
+    run_graph(r);
+  }
+  // Unseeded (a deadline passed inside the first build step): every root may still split.
+  if (r->seeded) r->remaining.set(r->queue.size());
+  root_bytes.set(r->bytes());
+  {
+    const std::lock_guard lock(control);
+    bool reached = false;
+    // callback_error and callback_cancel were written by commit tasks, which happen before
+    // wait_for_all() returns above.
+    const bool stopped_by_callback = callback_cancel || callback_error != nullptr;
+    callback_cancel = false;
+    if (callback_error) pending_error = std::move(callback_error);
+    callback_error = nullptr;
+    if (!user_cancelled && !stopped_by_callback) {
+      switch (goal.what) {
+        case refine_goal::kind::full:
+        case refine_goal::kind::error:
+          reached = !eligible(*r);
+          break;
+        case refine_goal::kind::triangles:
+          reached = budget_hit || r->queue.empty();
+          break;
+        case refine_goal::kind::deadline:
+          reached = r->seeded && r->queue.empty();
+          break;
+      }
+    }
+    last_reached = reached;
+    active = false;
+    // relaxed: a status reading for running(); waiters synchronise through `control`.
+    active_flag.store(false, std::memory_order_relaxed);
+    if (!reached) cancelled_runs.add(1);
+  }
+  idle.notify_all();
+}
+
+void engine_impl::launch(std::unique_lock<std::mutex>& lock, const refine_goal& g) {
+  stop_and_join(lock);
+  engine_root* r = current();
+  goal = g;
+  r->queue.set_discipline(g.what == refine_goal::kind::full ? queue_discipline::lifo
+                                                            : queue_discipline::largest_error);
+  stop.store(false, std::memory_order_relaxed);  // relaxed: the thread start orders it
+  user_cancelled = false;
+  pending_error = nullptr;  // a callback error belongs to the run it stopped
+  budget_hit = false;
+  active = true;
+  active_flag.store(true, std::memory_order_relaxed);  // relaxed: status only
+  runs.add(1);
+  driver = std::thread([this, r] { drive(r); });
+}
+
+void engine_impl::stop_and_join(std::unique_lock<std::mutex>& lock) {
+  if (!driver.joinable()) return;
+  if (active) {
+    user_cancelled = true;
+    request_stop();
+  }
+  std::thread t = std::move(driver);
+  lock.unlock();
+  t.join();
+  lock.lock();
+}
+
+thread_local const engine_impl* engine_impl::in_callback_of = nullptr;
+
+}  // namespace progiso::detail

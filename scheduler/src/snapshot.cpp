@@ -1,0 +1,194 @@
+// Readers: the epoch participant of each reading thread, snapshots and the meshes of their cuts.
+
+#include "engine_impl.hpp"
+
+#include <progiso/core/surface/detail/mesh_builder.hpp>
+
+namespace progiso {
+namespace detail {
+
+epoch_participant& engine_impl::reader() const {
+  struct entry {
+    std::uint64_t serial;
+    epoch_participant* participant;
+  };
+  thread_local std::vector<entry> cache;
+  for (std::size_t i = 0; i < cache.size(); ++i) {
+    if (cache[i].serial == serial) {
+      if (i != 0) std::swap(cache[i], cache[0]);
+      return *cache[0].participant;
+    }
+  }
+  epoch_participant* p = nullptr;
+  {
+    const std::lock_guard lock(readers_mutex);
+    readers.push_back(std::make_unique<epoch_participant>(domain));
+    p = readers.back().get();
+  }
+  // Forgotten entries keep their participant registered (owned by its engine) but unused.
+  if (cache.size() >= 8) cache.pop_back();
+  cache.push_back({serial, p});
+  std::rotate(cache.begin(), cache.end() - 1, cache.end());
+  return *p;
+}
+
+}  // namespace detail
+
+// ---------------------------------------------------------------------------------------------
+// surface_snapshot
+
+double surface_snapshot::isovalue() const noexcept { return root_->isovalue; }
+std::uint64_t surface_snapshot::generation() const noexcept { return root_->generation; }
+std::uint64_t surface_snapshot::triangle_count() const noexcept {
+  return root_->records[published_ - 1].cut_triangles;
+}
+
+bool surface_snapshot::is_split(std::uint64_t index) const noexcept {
+  const std::uint32_t r = root_->record_index(index);
+  return r != 0 && r < published_;
+}
+
+void surface_snapshot::for_each_split(const std::function<void(std::uint64_t)>& f) const {
+  for (std::uint64_t r = 1; r < published_; ++r) f(root_->records[r].diamond);
+}
+
+namespace {
+
+// Calls f(owner, edge keys) for the triangles of record r whose owner passes take(owner).
+template <class Take, class F>
+void walk_record(const detail::engine_root& root, const hierarchy& hier, std::uint64_t r,
+                 Take&& take, F&& f) {
+  const detail::engine_record& rec = root.records[r];
+  if (r == 0) {
+    for (std::uint32_t k = 0; k < rec.count; ++k) {
+      const owned_triangle& t = root.root_triangles[k];
+      if (take(t.owner)) f(t.owner, t.keys);
+    }
+    return;
+  }
+  for_each_unpacked(hier, rec.diamond, rec.scale, rec.groups, 0, rec.count, take, f);
+}
+
+}  // namespace
+
+void surface_snapshot::for_each_triangle(
+    const std::function<void(const owned_triangle&)>& f) const {
+  const auto live = [this](std::uint64_t owner) { return owner == no_owner || !is_split(owner); };
+  for (std::uint64_t r = 0; r < published_; ++r) {
+    walk_record(*root_, owner_->hierarchy_of(), r, live,
+                [&f](std::uint64_t owner, const std::array<std::uint64_t, 3>& keys) {
+                  f(owned_triangle{owner, keys});
+                });
+  }
+}
+
+// The records in canonical order (diamond order), cut into consecutive parts, each fed to its
+// own builder on the engine's thread count, then joined into the mesh one builder fed them all
+// would make (mesh_builder::join): the same mesh, vertex for vertex, for every thread count. One
+// part per 16 K records, up to 8 per thread (the records gather where the surface is, so parts of
+// equal vertex ranges differ in size). A fresh arena per call: the caller (any thread) takes its
+// reserved slot at once, whatever the engine's own arena is doing.
+template <class Take>
+triangle_mesh surface_snapshot::build(Take&& take, bool canonical, double max_error) const {
+  const engine& e = *owner_;
+  const hierarchy& hier = e.hierarchy_of();
+  const std::uint64_t vertices = hier.vertex_count();
+  const std::size_t threads = e.threads();
+  const std::size_t parts =
+      threads <= 1
+          ? 1
+          : std::clamp<std::size_t>(static_cast<std::size_t>(published_ / 16384), 1, 8 * threads);
+  // Canonical order is diamond order: with this many records, one sequential pass over the
+  // per-vertex record index costs less than sorting them.
+  const bool scan = canonical && vertices <= 64 * published_;
+  std::vector<std::pair<std::uint64_t, std::uint32_t>> order;
+  if (!scan) {
+    order.reserve(published_);
+    for (std::uint64_t r = 1; r < published_; ++r) {
+      const detail::engine_record& rec = root_->records[r];
+      if (rec.error > max_error) order.emplace_back(rec.diamond, static_cast<std::uint32_t>(r));
+    }
+    if (canonical) std::sort(order.begin(), order.end());
+  }
+  // Part k of n items: [first(k), first(k + 1)).
+  const auto first = [parts](std::uint64_t items, std::size_t k) {
+    return k * (items / parts) + std::min<std::uint64_t>(k, items % parts);
+  };
+  const auto expected = static_cast<std::size_t>(triangle_count() / 2 + 16);
+  std::vector<detail::mesh_builder> builders;
+  builders.reserve(parts);
+  for (std::size_t k = 0; k < parts; ++k) {
+    builders.emplace_back(hier, e.field(), root_->isovalue, expected / parts + 16);
+  }
+  const auto feed = [&](std::size_t k) {
+    detail::mesh_builder& b = builders[k];
+    const auto add = [&b](std::uint64_t, const std::array<std::uint64_t, 3>& keys) { b.add(keys); };
+    if (k == 0) walk_record(*root_, hier, 0, take, add);
+    if (scan) {
+      for (std::uint64_t v = first(vertices, k), end = first(vertices, k + 1); v < end; ++v) {
+        const std::uint32_t r = root_->record_index(v);
+        if (r == 0 || r >= published_ || !(root_->records[r].error > max_error)) continue;
+        walk_record(*root_, hier, r, take, add);
+      }
+    } else {
+      for (std::uint64_t i = first(order.size(), k), end = first(order.size(), k + 1); i < end;
+           ++i) {
+        walk_record(*root_, hier, order[i].second, take, add);
+      }
+    }
+  };
+  if (parts == 1) {
+    feed(0);
+    return builders[0].finish();
+  }
+  triangle_mesh m;
+  tbb::task_arena arena(static_cast<int>(std::min(threads, parts)));
+  arena.execute([&] {
+    detail::tbb_loop(parts, feed);
+    m = detail::mesh_builder::join(builders, detail::tbb_loop);
+  });
+  return m;
+}
+
+triangle_mesh surface_snapshot::mesh() const {
+  PROGISO_ASSERT(valid());
+  return build([this](std::uint64_t owner) { return owner == no_owner || !is_split(owner); }, true,
+               -std::numeric_limits<double>::infinity());
+}
+
+triangle_mesh surface_snapshot::mesh_cut(double max_error) const {
+  PROGISO_ASSERT(valid());
+  return build(
+      [this, max_error](std::uint64_t owner) {
+        if (owner == no_owner || !is_split(owner)) return true;
+        return !(root_->records[root_->record_index(owner)].error > max_error);
+      },
+      true, max_error);
+}
+
+bool surface_snapshot::check_integrity() const noexcept {
+  if (root_ == nullptr) return false;
+  if (root_->magic != detail::root_alive || !std::isfinite(root_->isovalue)) return false;
+  const std::uint64_t vertices = owner_->hierarchy_of().vertex_count();
+  for (std::uint64_t r = 0; r < published_; ++r) {
+    const detail::engine_record& rec = root_->records[r];
+    if (r == 0) {
+      if (rec.diamond != no_owner || rec.count != root_->root_triangles.size()) return false;
+      for (const owned_triangle& t : root_->root_triangles) {
+        if (t.owner != no_owner && t.owner >= vertices) return false;
+      }
+      continue;
+    }
+    if (rec.diamond >= vertices || root_->record_index(rec.diamond) != r) return false;
+    // At most one group per child tetrahedron: 2 per ring tetrahedron, 8 of those.
+    if (rec.count > 16 || !(rec.error >= 0.0) || rec.scale <= 0) return false;
+    for (std::uint32_t k = 0; k < rec.count; ++k) {
+      const packed_group& g = rec.groups[k];
+      if (g.owner != no_owner && g.owner >= vertices) return false;
+      if (g.count() != 1 && g.count() != 2) return false;
+    }
+  }
+  return true;
+}
+
+}  // namespace progiso
