@@ -166,6 +166,12 @@ triangle_mesh surface_snapshot::mesh_cut(double max_error) const {
       true, max_error);
 }
 
+void surface_snapshot::mesh_into(render_buffers& out) const { fill_render_buffers(mesh(), out); }
+
+void surface_snapshot::mesh_cut_into(double max_error, render_buffers& out) const {
+  fill_render_buffers(mesh_cut(max_error), out);
+}
+
 bool surface_snapshot::check_integrity() const noexcept {
   if (root_ == nullptr) return false;
   if (root_->magic != detail::root_alive || !std::isfinite(root_->isovalue)) return false;

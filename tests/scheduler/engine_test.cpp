@@ -101,6 +101,58 @@ TEST(Engine, mesh_is_byte_identical_whatever_the_thread_count_and_batch_size) {
   }
 }
 
+// A renderer's buffers (issue 12, target 7): the snapshot's mesh as floats, and storage kept
+// from frame to frame: a coarser cut after a finer one allocates nothing.
+TEST(Engine, render_buffers_hold_the_mesh_as_floats_and_keep_their_storage_frame_after_frame) {
+  const volume v = make_marschner_lobb({33, 33, 33});
+  engine e(v, 0.5, with_threads(2));
+  render_buffers out;
+  const auto same = [](const triangle_mesh& m, const render_buffers& b) {
+    if (b.vertex_count() != m.vertices.size() || b.triangle_count() != m.triangles.size()) {
+      return false;
+    }
+    for (std::size_t i = 0; i < m.vertices.size(); ++i) {
+      for (std::size_t k = 0; k < 3; ++k) {
+        if (b.positions[3 * i + k] != static_cast<float>(m.vertices[i][k])) return false;
+      }
+    }
+    for (std::size_t t = 0; t < m.triangles.size(); ++t) {
+      for (std::size_t k = 0; k < 3; ++k) {
+        if (b.indices[3 * t + k] != m.triangles[t][k]) return false;
+      }
+    }
+    return true;
+  };
+  // Frame 0: the root surface.
+  e.snapshot().mesh_into(out);
+  EXPECT_TRUE(same(e.snapshot().mesh(), out));
+  ASSERT_GT(out.triangle_count(), 0u);
+  // Frames while the surface grows, then the finest.
+  for (const double eps : {0.1, 0.01}) {
+    e.refine_until(eps);
+    const surface_snapshot s = e.snapshot();
+    s.mesh_into(out);
+    EXPECT_TRUE(same(s.mesh(), out)) << eps;
+  }
+  e.refine_full();
+  const surface_snapshot fine = e.snapshot();
+  fine.mesh_into(out);
+  EXPECT_TRUE(same(fine.mesh(), out));
+  const float* positions = out.positions.data();
+  const std::uint32_t* indices = out.indices.data();
+  const std::size_t fine_triangles = out.triangle_count();
+  // Coarser cuts and the finest again: the same storage.
+  for (const double eps : {0.05, 0.2, 0.0}) {
+    fine.mesh_cut_into(eps, out);
+    EXPECT_TRUE(same(fine.mesh_cut(eps), out)) << eps;
+    EXPECT_EQ(out.positions.data(), positions) << eps;
+    EXPECT_EQ(out.indices.data(), indices) << eps;
+  }
+  EXPECT_EQ(out.triangle_count(), fine_triangles);
+  const auto box = test::data_box(v);
+  EXPECT_TRUE(test::check_valid_cut(fine.mesh_cut(0.2), box[0], box[1]));
+}
+
 TEST(Engine, quality_driven_splits_exactly_the_sequential_set) {
   const volume v = make_marschner_lobb({33, 33, 33});
   const hierarchy h(v.dims());

@@ -169,6 +169,11 @@ class surface_snapshot {
   [[nodiscard]] triangle_mesh mesh() const;
   /// The coarser cut of the split diamonds whose nested error exceeds max_error.
   [[nodiscard]] triangle_mesh mesh_cut(double max_error) const;
+  /// mesh() as float positions and indices in buffers the caller owns (a renderer's, reused
+  /// frame after frame: their storage is kept, see render_buffers).
+  void mesh_into(render_buffers& out) const;
+  /// mesh_cut(max_error) into the caller's buffers.
+  void mesh_cut_into(double max_error, render_buffers& out) const;
   /// Checks that the root is alive and every record in the cut is well-formed (owners in the
   /// grid, triangle counts plausible); returns false on poison or garbage (stress tests).
   [[nodiscard]] bool check_integrity() const noexcept;

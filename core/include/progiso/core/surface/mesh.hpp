@@ -8,6 +8,7 @@
 #pragma once
 
 #include <array>
+#include <cstddef>
 #include <cstdint>
 #include <vector>
 
@@ -25,5 +26,20 @@ struct triangle_mesh {
 
   [[nodiscard]] bool empty() const noexcept { return triangles.empty(); }
 };
+
+/// A mesh as a renderer uploads it: x, y, z floats per vertex and three indices per triangle,
+/// in buffers the renderer owns. Filling them again (frame after frame) reuses their storage:
+/// nothing is allocated while a surface fits the capacity an earlier one left.
+struct render_buffers {
+  std::vector<float> positions;        ///< 3 per vertex
+  std::vector<std::uint32_t> indices;  ///< 3 per triangle, same orientation as triangle_mesh
+
+  [[nodiscard]] std::size_t vertex_count() const noexcept { return positions.size() / 3; }
+  [[nodiscard]] std::size_t triangle_count() const noexcept { return indices.size() / 3; }
+};
+
+/// Writes m into out (resized, storage reused): each coordinate rounded to the nearest float, so
+/// a vertex shared by triangles stays one vertex and bit-identical.
+void fill_render_buffers(const triangle_mesh& m, render_buffers& out);
 
 }  // namespace progiso
