@@ -31,6 +31,7 @@
 #include <progiso/concurrent/append_log.hpp>
 #include <progiso/core/base/assert.hpp>
 #include <progiso/core/base/zeroed_array.hpp>
+#include <progiso/core/field/detail/sample_threshold.hpp>
 #include <progiso/core/refine/detail/ready_queue.hpp>
 #include <progiso/scheduler/engine.hpp>
 #include <progiso/scheduler/tbb_environment.hpp>
@@ -45,8 +46,9 @@ inline void tbb_loop(std::size_t n, const std::function<void(std::size_t)>& body
 }
 
 // One published split: the new triangles of the split as packed groups (in a buffer the root
-// owns; unpacked with the diamond's centre and scale), the diamond, its nested error and the
-// cut's triangle count once it is published. Record 0 is the root surface: its triangles are
+// owns; unpacked with the diamond's centre and scale), the diamond and the cut's triangle count
+// once it is published (no error: a cut by error reads them from the range data, see
+// surface_snapshot::mesh_cut). Record 0 is the root surface: its triangles are
 // engine_root::root_triangles, in plain form, and `count` is their number.
 struct engine_record {
   std::uint64_t diamond;  // grid index; no_owner for the root record
@@ -54,7 +56,6 @@ struct engine_record {
   std::uint32_t count;
   std::int32_t depth;
   std::int32_t scale;
-  double error;
   std::uint64_t cut_triangles;
 };
 
@@ -107,6 +108,7 @@ struct engine_root : epoch_object {
   engine_root(engine_impl& owner, double w, std::uint64_t gen, vertex_state&& state)
       : impl(&owner),
         isovalue(w),
+        threshold(w),
         generation(gen),
         record_of(std::move(state.record_of)),
         parents(std::move(state.parents)) {}
@@ -114,6 +116,7 @@ struct engine_root : epoch_object {
   std::uint64_t magic = root_alive;
   engine_impl* impl;
   double isovalue;
+  detail::sample_threshold threshold;  // isovalue, as straddle tests compare samples with it
   std::uint64_t generation;
   append_log<engine_record> records;
   // Per grid vertex: index of the diamond's record, 0 while unsplit. Written once (0 → r) by the
@@ -131,9 +134,11 @@ struct engine_root : epoch_object {
   // surface needs none, so it is published before any pass over the volume. Commit step only.
   std::vector<ipoint> root_centres;
   bool seeded = false;
-  // Some queued diamond was made ready without the range data (a deadline run before it was
-  // built): queued by placeholder, never culled. The driver re-queues them by their ranges once
-  // the data is built (requeue_by_ranges), between graph runs. Commit step and driver.
+  // Some queued diamond is keyed by placeholder (unranged_error): made ready without the range
+  // data (a deadline run before it was built: never culled), or by full refinement, which
+  // needs no errors (culled by a straddle test that stops at the first samples on both sides).
+  // The driver re-queues them by their ranges before the next run (requeue_by_ranges).
+  // Commit step and driver.
   bool unranged = false;
   // Some queued diamond was keyed by an error bound (hi − lo: the range data's error pass was
   // not done); re-keyed by the exact errors once they exist. Commit step and driver.
@@ -233,9 +238,8 @@ struct engine_impl {
     PROGISO_ASSERT(ranges_.has_value());
     return *ranges_;
   }
-  // The queue key and record error of a diamond made ready without its range: above every
-  // error the data can have, halving with depth, so coarse diamonds go first and every cut by
-  // error stays parent-closed (a placeholder parent is never below its children).
+  // The queue key of a diamond made ready without its error: above every error the data can
+  // have, halving with depth, so that coarse diamonds go first.
   static double unranged_error(int depth) noexcept {
     return std::ldexp(std::numeric_limits<double>::max(), -std::min(depth, 60));
   }
@@ -264,9 +268,10 @@ struct engine_impl {
     if (rd != nullptr && !rd->errors_exact()) r.bounded = true;
   }
 
-  // Queues the diamond centred at c (scale h) by its range, or by placeholder when `rd` is null
-  // and its subtree is not wholly in the padding; returns whether it was queued. Commit step,
-  // or the driver between graph runs.
+  // Queues the diamond centred at c (scale h) if it straddles: by its error, or by placeholder
+  // in full refinement (no error needed), or by placeholder when `rd` is null and its subtree is
+  // not wholly in the padding; returns whether it was queued. Commit step, or the driver
+  // between graph runs.
   bool queue_if_straddles(engine_root& r, const ipoint& c, std::int32_t h, int depth,
                           std::uint64_t index, const range_data* rd);
 
@@ -297,6 +302,9 @@ struct engine_impl {
 
   // ---- the run -------------------------------------------------------------------------------
 
+  // Full refinement splits every straddling diamond whatever its error: children are tested
+  // by straddles() (stops at the first samples on both sides), and queued by placeholder.
+  [[nodiscard]] bool errors_needed() const noexcept { return goal.what != refine_goal::kind::full; }
   [[nodiscard]] bool eligible(const engine_root& r) const noexcept {
     if (r.queue.empty()) return false;
     if (goal.what == refine_goal::kind::error) return r.queue.top().error > goal.max_error;
@@ -324,6 +332,10 @@ struct engine_impl {
   // The serial commit step: publishes the batch's records in order (their parents are all
   // published: they were ready when taken), makes children ready, refills the window.
   void commit_batch(batch* b);
+
+  // The error of the queue's next diamond for the progress callback (0 when none): its key, or
+  // the range data's error when it is queued by placeholder. Commit step.
+  [[nodiscard]] double next_error(const engine_root& r, const range_data* rd) const;
 
   // Marks the progress callback's thread, so that control calls made from inside it can tell.
   struct callback_scope {

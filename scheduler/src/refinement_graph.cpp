@@ -80,7 +80,17 @@ batch* engine_impl::compute_batch(batch* b) {
               // and a stale count just moves the lookup to the commit step or repeats it.
               .load(std::memory_order_relaxed);
       ci.known = rd != nullptr && split_parents + 1 >= ci.parents_needed;
-      if (ci.known) {
+      if (ci.known && !errors_needed()) {
+        // A child that owns a piece of this split's surface straddles w unless its range is
+        // empty (wholly in the padding): no sample read. Others: the straddle test.
+        bool owns_surface = false;
+        for (std::size_t g = first; g < b->groups.size() && !owns_surface; ++g) {
+          owns_surface = b->groups[g].owner == ci.index;
+        }
+        ci.straddles = owns_surface ? !rd->empty(c, children.scale)
+                                    : rd->straddles(c, children.scale, b->root->threshold);
+        ci.error = unranged_error(it.item.depth + 1);
+      } else if (ci.known) {
         const diamond_range cr = rd->get(c, children.scale);
         ci.straddles = cr.straddles(w);
         ci.error = cr.error;
@@ -139,8 +149,8 @@ void engine_impl::commit_batch(batch* b) {
       const std::size_t index = r.records.size();
       PROGISO_ASSERT(index < (std::size_t{1} << 32));
       r.cut_triangles = after;
-      r.records.push_back({it.item.index, base + it.first, it.count, it.item.depth, it.scale,
-                           it.item.error, after});
+      r.records.push_back(
+          {it.item.index, base + it.first, it.count, it.item.depth, it.scale, after});
       std::atomic_ref<std::uint32_t>(r.record_of[it.item.index])
           .store(static_cast<std::uint32_t>(index),
                  // relaxed: published by the release in records.publish() below.
@@ -175,6 +185,7 @@ void engine_impl::commit_batch(batch* b) {
       ++published;
     }
     r.records.publish();
+    if (!errors_needed()) r.unranged = true;  // children queued by placeholder
     r.splits.add(published);
     r.triangles.set(r.cut_triangles);
     r.record_triangles.add(added);
@@ -202,8 +213,7 @@ void engine_impl::commit_batch(batch* b) {
       // control thread's wait() or refine(), never across TBB.
       const callback_scope in_callback(this);
       try {
-        opt.progress({r.splits.get(), r.cut_triangles, r.queue.empty() ? 0.0 : r.queue.top().error,
-                      last_depth});
+        opt.progress({r.splits.get(), r.cut_triangles, next_error(r, rd), last_depth});
       } catch (...) {
         callback_error = std::current_exception();
         request_stop();
@@ -220,6 +230,14 @@ void engine_impl::run_graph(engine_root* r) {
     commit->try_put(seed);
     graph->wait_for_all();
   });
+}
+
+double engine_impl::next_error(const engine_root& r, const range_data* rd) const {
+  if (r.queue.empty()) return 0.0;
+  const ready_item& top = r.queue.top();
+  if (top.error < unranged_error(60) || rd == nullptr) return top.error;
+  const ipoint c = hier.point(top.index);
+  return rd->get(c, hier.scale_of(c)).error;
 }
 
 }  // namespace progiso::detail

@@ -17,7 +17,7 @@ engine_root* engine_impl::make_root(double w, std::uint64_t gen) {
   }
   r->cut_triangles = tris.size();
   r->records.push_back(
-      {no_owner, nullptr, static_cast<std::uint32_t>(tris.size()), -1, 0, 0.0, tris.size()});
+      {no_owner, nullptr, static_cast<std::uint32_t>(tris.size()), -1, 0, tris.size()});
   r->root_triangles = std::move(tris);
   r->records.publish();
   r->triangles.set(r->cut_triangles);
@@ -50,6 +50,12 @@ bool engine_impl::queue_if_straddles(engine_root& r, const ipoint& c, std::int32
     r.unranged = true;
     return true;
   }
+  if (!errors_needed()) {
+    if (!rd->straddles(c, h, r.threshold)) return false;
+    r.queue.push({unranged_error(depth), depth, index});
+    r.unranged = true;
+    return true;
+  }
   const diamond_range cr = rd->get(c, h);
   if (!cr.straddles(r.isovalue)) return false;
   r.queue.push({cr.error, depth, index});
@@ -69,6 +75,7 @@ void engine_impl::requeue_by_ranges(engine_root& r) {
   std::uint64_t culled = 0;
   const bool all = r.bounded && rd->errors_exact();
   r.bounded = false;
+  r.unranged = false;  // set again by what is queued by placeholder below (full refinement)
   note_keys(r, rd);
   for (const ready_item& it : items) {
     if (!all && it.error < unranged_error(60)) {  // already by its range
@@ -79,7 +86,6 @@ void engine_impl::requeue_by_ranges(engine_root& r) {
     if (!queue_if_straddles(r, c, hier.scale_of(c), it.depth, it.index, rd)) ++culled;
   }
   r.culled.add(culled);
-  r.unranged = false;
 }
 
 vertex_state engine_impl::take_vertex_state() {

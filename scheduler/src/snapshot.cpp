@@ -88,8 +88,8 @@ void surface_snapshot::for_each_triangle(
 // part per 16 K records, up to 8 per thread (the records gather where the surface is, so parts of
 // equal vertex ranges differ in size). A fresh arena per call: the caller (any thread) takes its
 // reserved slot at once, whatever the engine's own arena is doing.
-template <class Take>
-triangle_mesh surface_snapshot::build(Take&& take, bool canonical, double max_error) const {
+template <class Take, class Keep>
+triangle_mesh surface_snapshot::build(Take&& take, Keep&& keep) const {
   const engine& e = *owner_;
   const hierarchy& hier = e.hierarchy_of();
   const std::uint64_t vertices = hier.vertex_count();
@@ -100,15 +100,15 @@ triangle_mesh surface_snapshot::build(Take&& take, bool canonical, double max_er
           : std::clamp<std::size_t>(static_cast<std::size_t>(published_ / 16384), 1, 8 * threads);
   // Canonical order is diamond order: with this many records, one sequential pass over the
   // per-vertex record index costs less than sorting them.
-  const bool scan = canonical && vertices <= 64 * published_;
+  const bool scan = vertices <= 64 * published_;
   std::vector<std::pair<std::uint64_t, std::uint32_t>> order;
   if (!scan) {
     order.reserve(published_);
     for (std::uint64_t r = 1; r < published_; ++r) {
       const detail::engine_record& rec = root_->records[r];
-      if (rec.error > max_error) order.emplace_back(rec.diamond, static_cast<std::uint32_t>(r));
+      if (keep(r)) order.emplace_back(rec.diamond, static_cast<std::uint32_t>(r));
     }
-    if (canonical) std::sort(order.begin(), order.end());
+    std::sort(order.begin(), order.end());
   }
   // Part k of n items: [first(k), first(k + 1)).
   const auto first = [parts](std::uint64_t items, std::size_t k) {
@@ -127,7 +127,7 @@ triangle_mesh surface_snapshot::build(Take&& take, bool canonical, double max_er
     if (scan) {
       for (std::uint64_t v = first(vertices, k), end = first(vertices, k + 1); v < end; ++v) {
         const std::uint32_t r = root_->record_index(v);
-        if (r == 0 || r >= published_ || !(root_->records[r].error > max_error)) continue;
+        if (r == 0 || r >= published_ || !keep(r)) continue;
         walk_record(*root_, hier, r, take, add);
       }
     } else {
@@ -152,18 +152,42 @@ triangle_mesh surface_snapshot::build(Take&& take, bool canonical, double max_er
 
 triangle_mesh surface_snapshot::mesh() const {
   PROGISO_ASSERT(valid());
-  return build([this](std::uint64_t owner) { return owner == no_owner || !is_split(owner); }, true,
-               -std::numeric_limits<double>::infinity());
+  return build([this](std::uint64_t owner) { return owner == no_owner || !is_split(owner); },
+               [](std::uint64_t) { return true; });
 }
 
+// Records carry no errors (full refinement never computes them): the cut's records are chosen
+// here, by the range data's exact errors (made first when no run has made them), one lookup
+// per record, in parallel. Every diamond's error is then from one source, and nested, so the
+// cut is parent-closed whatever mix of runs made the records.
 triangle_mesh surface_snapshot::mesh_cut(double max_error) const {
   PROGISO_ASSERT(valid());
+  const range_data& rd = owner_->ranges();
+  const hierarchy& hier = owner_->hierarchy_of();
+  std::vector<std::uint8_t> coarse(published_, 0);  // per record: error > max_error
+  const auto mark = [&](std::uint64_t lo, std::uint64_t hi) {
+    for (std::uint64_t r = std::max<std::uint64_t>(lo, 1); r < hi; ++r) {
+      const detail::engine_record& rec = root_->records[r];
+      coarse[r] = rd.get(hier.point(rec.diamond), rec.scale).error > max_error ? 1 : 0;
+    }
+  };
+  constexpr std::uint64_t chunk = 4096;
+  if (owner_->threads() <= 1 || published_ <= chunk) {
+    mark(0, published_);
+  } else {
+    tbb::task_arena arena(static_cast<int>(owner_->threads()));
+    arena.execute([&] {
+      tbb::parallel_for(std::uint64_t{0}, (published_ + chunk - 1) / chunk, [&](std::uint64_t i) {
+        mark(i * chunk, std::min(published_, (i + 1) * chunk));
+      });
+    });
+  }
   return build(
-      [this, max_error](std::uint64_t owner) {
+      [this, &coarse](std::uint64_t owner) {
         if (owner == no_owner || !is_split(owner)) return true;
-        return !(root_->records[root_->record_index(owner)].error > max_error);
+        return coarse[root_->record_index(owner)] == 0;
       },
-      true, max_error);
+      [&coarse](std::uint64_t r) { return coarse[r] != 0; });
 }
 
 void surface_snapshot::mesh_into(render_buffers& out) const { fill_render_buffers(mesh(), out); }
@@ -187,7 +211,7 @@ bool surface_snapshot::check_integrity() const noexcept {
     }
     if (rec.diamond >= vertices || root_->record_index(rec.diamond) != r) return false;
     // At most one group per child tetrahedron: 2 per ring tetrahedron, 8 of those.
-    if (rec.count > 16 || !(rec.error >= 0.0) || rec.scale <= 0) return false;
+    if (rec.count > 16 || rec.scale <= 0) return false;
     for (std::uint32_t k = 0; k < rec.count; ++k) {
       const packed_group& g = rec.groups[k];
       if (g.owner != no_owner && g.owner >= vertices) return false;

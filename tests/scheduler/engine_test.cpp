@@ -153,6 +153,71 @@ TEST(Engine, render_buffers_hold_the_mesh_as_floats_and_keep_their_storage_frame
   EXPECT_TRUE(test::check_valid_cut(fine.mesh_cut(0.2), box[0], box[1]));
 }
 
+// Full refinement tests children by their ranges alone and queues them by placeholder (no
+// errors). A run by error after an interrupted full run re-keys what is left by the real
+// errors: it splits the sequential set for its target and stops there, not everything; the
+// progress callback reports real errors in full runs too.
+TEST(Engine, an_error_run_after_an_interrupted_full_run_orders_by_real_errors) {
+  const volume v = make_marschner_lobb({41, 41, 41});
+  const hierarchy h(v.dims());
+  const range_data ranges(v, h);
+  const auto [lo, hi] = v.value_range();
+  engine full(v, 0.5, with_threads(2));
+  ASSERT_TRUE(full.refine_full());
+  const std::uint64_t all = full.snapshot().split_count();
+  const double eps = 0.05;
+  refiner seq(v, h, ranges, 0.5);
+  seq.refine_to_error(eps);
+  ASSERT_LT(seq.statistics().splits, all) << "the target must leave some unsplit";
+  for (const unsigned threads : {1u, 2u}) {
+    SCOPED_TRACE(threads);
+    engine* self = nullptr;
+    std::atomic<bool> cancel_now{true};
+    std::vector<double> reported;
+    engine_options o = with_threads(threads);
+    o.progress_interval = 64;
+    o.progress = [&](const engine_progress& p) {
+      reported.push_back(p.next_error);
+      if (cancel_now.load() && p.splits >= all / 8) self->cancel();
+    };
+    engine e(v, 0.5, o);
+    self = &e;
+    (void)e.ranges();  // exact errors first: only the placeholders need re-keying
+    EXPECT_FALSE(e.refine_full());
+    std::vector<bool> before(h.vertex_count(), false);
+    std::uint64_t interrupted = 0;
+    {
+      const surface_snapshot cut = e.snapshot();
+      cut.for_each_split([&](std::uint64_t d) { before[d] = true; });
+      interrupted = cut.split_count();
+    }
+    ASSERT_LT(interrupted, all / 2);
+    ASSERT_FALSE(reported.empty());
+    for (const double r : reported) {
+      EXPECT_GE(r, 0.0);
+      EXPECT_LE(r, hi - lo) << "a placeholder key reported as an error";
+    }
+    cancel_now = false;
+    EXPECT_TRUE(e.refine_until(eps));
+    const surface_snapshot s = e.snapshot();
+    // Nested errors: what the error run adds is exactly the sequential set for its target, so
+    // the cut is the union of the interrupted cut and that set; splitting by placeholder keys
+    // would add the interrupted run's whole frontier.
+    std::uint64_t expected = 0;
+    std::uint64_t missing = 0;
+    for (std::uint64_t d = 0; d < h.vertex_count(); ++d) {
+      const bool in_seq = seq.is_split(h.point(d));
+      expected += (in_seq || before[d]) ? 1U : 0U;
+      missing += (in_seq && !s.is_split(d)) ? 1U : 0U;
+    }
+    EXPECT_EQ(missing, 0u) << "the sequential set for the target is not all split";
+    EXPECT_EQ(s.split_count(), expected) << "the error run split beyond its target";
+    const auto box = test::data_box(v);
+    EXPECT_TRUE(test::check_valid_cut(s.mesh_cut(eps * 2), box[0], box[1]));
+    self = nullptr;
+  }
+}
+
 TEST(Engine, quality_driven_splits_exactly_the_sequential_set) {
   const volume v = make_marschner_lobb({33, 33, 33});
   const hierarchy h(v.dims());

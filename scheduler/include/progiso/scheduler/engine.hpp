@@ -167,7 +167,9 @@ class surface_snapshot {
   /// The cut's surface: indexed, clipped to the data box, physical coordinates, records in
   /// canonical order (by diamond), so it depends only on the split set.
   [[nodiscard]] triangle_mesh mesh() const;
-  /// The coarser cut of the split diamonds whose nested error exceeds max_error.
+  /// The coarser cut of the split diamonds whose nested error exceeds max_error, by the range
+  /// data's exact errors: makes them first if no run has (engine::ranges(); so, like it, not
+  /// from the progress callback).
   [[nodiscard]] triangle_mesh mesh_cut(double max_error) const;
   /// mesh() as float positions and indices in buffers the caller owns (a renderer's, reused
   /// frame after frame: their storage is kept, see render_buffers).
@@ -180,8 +182,8 @@ class surface_snapshot {
 
  private:
   friend class engine;
-  template <class Take>
-  triangle_mesh build(Take&& take, bool canonical, double max_error) const;
+  template <class Take, class Keep>
+  triangle_mesh build(Take&& take, Keep&& keep) const;
 
   epoch_guard guard_;
   const engine* owner_ = nullptr;
@@ -255,9 +257,8 @@ class engine {
   /// without culling while it builds pieces of them in between (coarse levels first), so that a
   /// deadline shorter than the build still buys surface. Deadline and full runs need no exact
   /// errors: they order by error bounds (hi − lo; full refinement splits the same set either
-  /// way) until an error or budget run, or ranges(), makes the exact errors (a second pass,
-  /// about 4× the first), and the splits they make record those bounds (so mesh_cut() of their
-  /// cut is valid but finer than exact errors would make it: call ranges() first for those).
+  /// way) until an error or budget run, ranges() or mesh_cut() makes the exact errors (a second
+  /// pass, about 4× the first); full refinement tests children by their ranges alone.
   /// Any thread.
   [[nodiscard]] bool ranges_built() const noexcept;
   /// Whether the range data's exact errors exist (ranges(), error and budget runs make them).
