@@ -31,7 +31,13 @@ void engine_impl::dispatch(engine_root& r) {
   const std::size_t max_batch = std::max<std::size_t>(1, opt.batch);
   while (inflight < window && !stopping() && eligible(r) && !past_deadline()) {
     const std::size_t n = std::clamp<std::size_t>(r.queue.size() / (2 * threads), 1, max_batch);
-    auto* b = new batch;
+    batch* b = nullptr;
+    if (spare_batches.empty()) {
+      b = new batch;
+    } else {
+      b = spare_batches.back().release();
+      spare_batches.pop_back();
+    }
     b->root = &r;
     b->items.reserve(n);
     while (b->items.size() < n && eligible(r)) {
@@ -116,8 +122,7 @@ void engine_impl::commit_batch(batch* b) {
   inflight_items -= b->items.size();
   std::size_t published = 0;
   if (!stopping() && b->computed > 0) {
-    r.buffers.push_back(std::move(b->groups));
-    const packed_group* base = r.buffers.back().data();
+    const packed_group* base = r.groups.append(b->groups.data(), b->groups.size());
     std::array<std::uint64_t, tet_case_count> cases{};
     std::array<std::uint64_t, primitive_count> prims{};
     std::array<std::uint64_t, split_configuration_count> configs{};
@@ -201,7 +206,10 @@ void engine_impl::commit_batch(batch* b) {
   for (std::size_t i = published; i < b->items.size(); ++i) r.queue.push(b->items[i].item);
   r.discarded.add(b->computed - std::min(b->computed, published));
   r.batches.add(1);
-  delete b;
+  b->items.clear();
+  b->groups.clear();
+  b->computed = 0;
+  spare_batches.emplace_back(b);
   dispatch(r);
   r.remaining.set(r.queue.size() + inflight_items);
   if (opt.progress && !callback_error) {

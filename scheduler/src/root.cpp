@@ -148,10 +148,7 @@ void engine_impl::destroy_root(void* p) noexcept {
   engine_impl& impl = *r->impl;
   impl.keep_vertex_state(*r);  // reads the records: before they are poisoned
   if (impl.opt.poison_retired) {
-    for (auto& b : r->buffers) {
-      if (b.empty()) continue;  // no data pointer to poison
-      std::memset(static_cast<void*>(b.data()), poison_byte, b.size() * sizeof(packed_group));
-    }
+    r->groups.poison(poison_byte);
     if (!r->root_triangles.empty()) {
       std::memset(static_cast<void*>(r->root_triangles.data()), poison_byte,
                   r->root_triangles.size() * sizeof(owned_triangle));
