@@ -8,6 +8,7 @@
 
 #include <progiso/core/base/error.hpp>
 #include <progiso/core/refine/deadline.hpp>
+#include <progiso/core/refine/detail/prefetch.hpp>
 #include <progiso/core/refine/detail/ready_queue.hpp>
 #include <progiso/core/surface/detail/mesh_builder.hpp>
 #include <progiso/core/surface/marching.hpp>
@@ -54,7 +55,7 @@ refiner::refiner(const volume& vol, const hierarchy& hier, const range_data& ran
       groups_(chunk_bits_for(vol)),
       records_(chunk_bits_for(vol)),
       queue_(std::make_unique<queue>(discipline_of(order))),
-      prefetch_(vol.byte_size() > prefetch_min_bytes),
+      prefetch_(vol.byte_size() > detail::prefetch_min_bytes),
       errors_needed_(order == refine_order::largest_error_first),
       threshold_(isovalue) {
   if (!std::isfinite(isovalue)) {
@@ -128,28 +129,6 @@ bool refiner::is_split(const ipoint& centre) const noexcept {
   return hier_.in_grid(centre) && (state_.get()[hier_.index(centre)] & split_bit) != 0;
 }
 
-// Asks the cache for the samples the split of a queued diamond will read, a few splits ahead:
-// every point of a diamond lies in centre + h·{-1, 0, 1}³ (h its scale), nine rows of the volume.
-void refiner::prefetch_samples(const ready& item) const noexcept {
-  const index3& dims = vol_.dims();
-  const std::int32_t h = item.scale;
-  const std::size_t size = sample_size(vol_.type());
-  const std::byte* base = vol_.bytes();
-  const auto clamp = [](std::int64_t v, std::int64_t hi) {
-    return std::clamp<std::int64_t>(v, 0, hi);
-  };
-  const std::int64_t x0 = clamp(item.centre[0] - h, dims[0] - 1);
-  const std::int64_t x1 = clamp(item.centre[0] + h, dims[0] - 1);
-  for (int dz = -1; dz <= 1; ++dz) {
-    const std::int64_t z = clamp(item.centre[2] + dz * h, dims[2] - 1);
-    for (int dy = -1; dy <= 1; ++dy) {
-      const std::int64_t y = clamp(item.centre[1] + dy * h, dims[1] - 1);
-      __builtin_prefetch(base + vol_.linear(x0, y, z) * size);
-      __builtin_prefetch(base + vol_.linear(x1, y, z) * size);
-    }
-  }
-}
-
 bool refiner::split_next() { return split(~std::uint64_t{0}); }
 bool refiner::split_next_within(std::uint64_t max_triangles) { return split(max_triangles); }
 
@@ -157,7 +136,9 @@ bool refiner::split(std::uint64_t max_triangles) {
   if (queue_->empty()) return false;
   const ready next = queue_->top();
   if (prefetch_) {
-    if (const ready* ahead = queue_->peek(prefetch_distance)) prefetch_samples(*ahead);
+    if (const ready* ahead = queue_->peek(prefetch_distance)) {
+      detail::prefetch_diamond_samples(vol_, ahead->centre, ahead->scale);
+    }
   }
   const std::size_t first = groups_.size();
   scratch_.clear();

@@ -134,9 +134,6 @@ class refiner {
 
   bool split(std::uint64_t max_triangles);
   static constexpr std::size_t prefetch_distance = 8;
-  // Volumes this small stay in the cache: prefetching their samples only costs instructions.
-  static constexpr std::size_t prefetch_min_bytes = std::size_t{1} << 20;
-  void prefetch_samples(const ready& item) const noexcept;
   template <class InCut, class Take>
   triangle_mesh build_mesh(InCut&& in_cut, Take&& take) const;
 
@@ -192,7 +189,7 @@ class refiner {
   std::vector<packed_group> scratch_;
   chunked_store<record> records_;
   std::unique_ptr<queue> queue_;
-  bool prefetch_;  // prefetch_samples() pays off (the volume is larger than the cache)
+  bool prefetch_;  // prefetching samples pays off (the volume is larger than the cache)
   // The queue orders by error (largest_error_first). In the other orders a ready diamond's
   // error is left unknown when the range lookup is skipped (one of its tetrahedra holds
   // surface: see surface_bit in refiner.cpp).
