@@ -228,17 +228,21 @@ struct child_info {
 };
 
 struct batch_item {
+  explicit batch_item(const ready_item& i) noexcept : item(i) {}
   ready_item item;
-  std::uint32_t first = 0;  // groups in the batch's buffer
-  std::uint32_t count = 0;
-  std::int32_t scale = 0;
-  int added = 0;  // triangles
-  int removed = 0;
-  split_configuration configuration{};
-  std::array<std::uint8_t, tet_case_count> cases{};
-  std::array<std::uint16_t, primitive_count> primitives{};
-  std::uint8_t children = 0;
-  std::array<child_info, 8> child{};
+  // Written by the compute task for the items it computes; left unset for the rest, which the
+  // commit step only queues again (item): an item is ~300 bytes, zeroing it cost more than the
+  // dispatch loop's other work.
+  std::uint32_t first;  // groups in the batch's buffer
+  std::uint32_t count;
+  std::int32_t scale;
+  int added;  // triangles
+  int removed;
+  split_configuration configuration;
+  std::array<std::uint8_t, tet_case_count> cases;
+  std::array<std::uint16_t, primitive_count> primitives;
+  std::uint8_t children;
+  std::array<child_info, 8> child;
 };
 
 // A compute task: diamonds taken from the ready queue together, computed by one worker.

@@ -41,7 +41,7 @@ void engine_impl::dispatch(engine_root& r) {
     b->root = &r;
     b->items.reserve(n);
     while (b->items.size() < n && eligible(r)) {
-      b->items.push_back({r.queue.top()});
+      b->items.emplace_back(r.queue.top());
       r.queue.pop();
     }
     inflight_items += b->items.size();
