@@ -294,7 +294,17 @@ struct engine_impl {
   // The queue key of a diamond made ready without its error: above every error the data can
   // have, halving with depth, so that coarse diamonds go first.
   static double unranged_error(int depth) noexcept {
-    return std::ldexp(std::numeric_limits<double>::max(), -std::min(depth, 60));
+    // A table: full refinement keys every child this way (ldexp was a library call each).
+    static constexpr std::array<double, 61> keys = [] {
+      std::array<double, 61> k{};
+      double v = std::numeric_limits<double>::max();
+      for (double& e : k) {
+        e = v;
+        v /= 2;  // exact: every value stays a normal double
+      }
+      return k;
+    }();
+    return keys[static_cast<std::size_t>(std::clamp(depth, 0, 60))];
   }
   // oneTBB's pool has default_concurrency() threads; asking an arena for more only warns.
   static unsigned effective_threads(unsigned requested) {
