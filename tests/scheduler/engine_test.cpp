@@ -526,6 +526,34 @@ TEST(Engine, snapshots_taken_while_refining_are_valid_cuts_of_one_isovalue) {
   EXPECT_TRUE(std::is_sorted(seen.begin(), seen.end())) << "published cuts only grow";
 }
 
+// A reader's cut by error while a full run refines (records carry no error: mesh_cut takes the
+// range data's exact errors, built by the first mesh_cut while the run goes on): every such
+// cut is valid, and at the end it equals the sequential refiner's cut by the same error.
+TEST(Engine, cuts_by_error_taken_while_a_full_run_refines_are_valid) {
+  const volume v = make_gaussian_blobs({49, 49, 49}, 9, 7u);
+  const auto box = test::data_box(v);
+  const double eps = 0.02;
+  for (const unsigned n : {1u, 2u}) {
+    engine e(v, 0.4, with_threads(n));
+    e.start(refine_goal::full());
+    int taken = 0;
+    while (e.running() && taken < 6) {
+      const surface_snapshot s = e.snapshot();
+      EXPECT_TRUE(test::check_valid_cut(s.mesh_cut(eps), box[0], box[1])) << n;
+      ++taken;
+    }
+    e.wait();
+    const hierarchy h(v.dims());
+    const range_data ranges(v, h);
+    refiner r(v, h, ranges, 0.4);
+    r.refine_full();
+    const surface_snapshot s = e.snapshot();
+    EXPECT_TRUE(test::same_surface(s.mesh_cut(eps), r.extract_cut(eps))) << n;
+    EXPECT_TRUE(test::same_surface(s.mesh_cut(1e300), r.extract_cut(1e300))) << n;
+    EXPECT_TRUE(e.errors_built()) << "mesh_cut makes the exact errors";
+  }
+}
+
 TEST(Engine, statistics_count_cases_and_primitives_like_the_sequential_refiner) {
   const volume v = make_marschner_lobb({33, 33, 33});
   const hierarchy h(v.dims());
