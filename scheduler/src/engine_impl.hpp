@@ -10,12 +10,10 @@
 #include <algorithm>
 #include <array>
 #include <atomic>
-#include <bit>
 #include <chrono>
 #include <cmath>
 #include <condition_variable>
 #include <cstdint>
-#include <cstring>
 #include <exception>
 #include <functional>
 #include <limits>
@@ -32,6 +30,7 @@
 
 #include <progiso/concurrent/append_log.hpp>
 #include <progiso/core/base/assert.hpp>
+#include <progiso/core/base/detail/chunked_store.hpp>
 #include <progiso/core/base/zeroed_array.hpp>
 #include <progiso/core/field/detail/sample_threshold.hpp>
 #include <progiso/core/refine/detail/ready_queue.hpp>
@@ -102,52 +101,6 @@ struct vertex_state {
   zeroed_array<std::uint8_t> parents;
 };
 
-// The packed groups of a root's published records, in chunks that never move (records point
-// into them): a batch's groups are copied in with one memcpy, so the batch keeps its buffer
-// for the next batch and a root's groups cost one allocation per chunk, not one per batch.
-// Commit step only (readers reach the groups through published records).
-class group_store {
- public:
-  // Chunks of about a 32nd of the grid's vertices in groups, 4 K–64 K (64–1024 KiB): a small
-  // volume's refinement does not reserve far more than it fills.
-  explicit group_store(std::uint64_t vertices) noexcept
-      : chunk_(std::clamp<std::size_t>(std::bit_ceil(static_cast<std::size_t>(vertices / 32) + 1),
-                                       std::size_t{4096}, std::size_t{65536})),
-        used_(chunk_) {}
-  // Copies n groups in (contiguous) and returns where they are.
-  const packed_group* append(const packed_group* g, std::size_t n) {
-    if (chunks_.empty() || n > chunk_ - used_) {
-      const std::size_t size = std::max(n, chunk_);
-      chunks_.push_back({std::make_unique_for_overwrite<packed_group[]>(size), size});
-      used_ = 0;
-      chunk_ = std::max(chunk_, size);
-    }
-    packed_group* at = chunks_.back().data.get() + used_;
-    if (n != 0) std::memcpy(static_cast<void*>(at), g, n * sizeof(packed_group));
-    used_ += n;
-    return at;
-  }
-  [[nodiscard]] std::uint64_t byte_size() const noexcept {
-    std::uint64_t b = 0;
-    for (const auto& c : chunks_) b += c.size * sizeof(packed_group);
-    return b;
-  }
-  // Overwrites every chunk with `byte` (retired roots, engine_options::poison_retired).
-  void poison(unsigned char byte) noexcept {
-    for (auto& c : chunks_)
-      std::memset(static_cast<void*>(c.data.get()), byte, c.size * sizeof(packed_group));
-  }
-
- private:
-  struct chunk {
-    std::unique_ptr<packed_group[]> data;
-    std::size_t size;
-  };
-  std::vector<chunk> chunks_;
-  std::size_t chunk_;
-  std::size_t used_;
-};
-
 // One isovalue's progressive surface. Readers reach it through engine_impl::root (protected by
 // an epoch guard) and read the published prefix of `records` and `record_of`; everything under
 // "commit step only" belongs to whichever thread runs the serial commit (or the control thread
@@ -160,7 +113,7 @@ struct engine_root : epoch_object {
         generation(gen),
         record_of(std::move(state.record_of)),
         parents(std::move(state.parents)),
-        groups(record_of.size()) {}
+        groups(detail::chunked_store<packed_group>::bits_for(record_of.size())) {}
 
   std::uint64_t magic = root_alive;
   engine_impl* impl;
@@ -193,8 +146,9 @@ struct engine_root : epoch_object {
   // not done); re-keyed by the exact errors once they exist. Commit step and driver.
   bool bounded = false;
 
-  // Commit step only.
-  group_store groups;
+  // Commit step only. The packed groups of the published records (each record's in one piece;
+  // records point into the chunks, which never move).
+  detail::chunked_store<packed_group> groups;
   detail::ready_queue<ready_item> queue{queue_discipline::largest_error};
   std::uint64_t cut_triangles = 0;
 

@@ -122,7 +122,6 @@ void engine_impl::commit_batch(batch* b) {
   inflight_items -= b->items.size();
   std::size_t published = 0;
   if (!stopping() && b->computed > 0) {
-    const packed_group* base = r.groups.append(b->groups.data(), b->groups.size());
     std::array<std::uint64_t, tet_case_count> cases{};
     std::array<std::uint64_t, primitive_count> prims{};
     std::array<std::uint64_t, split_configuration_count> configs{};
@@ -154,8 +153,9 @@ void engine_impl::commit_batch(batch* b) {
       const std::size_t index = r.records.size();
       PROGISO_ASSERT(index < (std::size_t{1} << 32));
       r.cut_triangles = after;
-      r.records.push_back(
-          {it.item.index, base + it.first, it.count, it.item.depth, it.scale, after});
+      r.records.push_back({it.item.index,
+                           r.groups.append_contiguous(b->groups.data() + it.first, it.count),
+                           it.count, it.item.depth, it.scale, after});
       std::atomic_ref<std::uint32_t>(r.record_of[it.item.index])
           .store(static_cast<std::uint32_t>(index),
                  // relaxed: published by the release in records.publish() below.

@@ -148,7 +148,7 @@ void engine_impl::destroy_root(void* p) noexcept {
   engine_impl& impl = *r->impl;
   impl.keep_vertex_state(*r);  // reads the records: before they are poisoned
   if (impl.opt.poison_retired) {
-    r->groups.poison(poison_byte);
+    r->groups.overwrite(poison_byte);
     if (!r->root_triangles.empty()) {
       std::memset(static_cast<void*>(r->root_triangles.data()), poison_byte,
                   r->root_triangles.size() * sizeof(owned_triangle));

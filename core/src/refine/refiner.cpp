@@ -52,8 +52,8 @@ refiner::refiner(const volume& vol, const hierarchy& hier, const range_data& ran
       ranges_(ranges),
       isovalue_(isovalue),
       state_(hier.vertex_count()),
-      groups_(chunk_bits_for(vol)),
-      records_(chunk_bits_for(vol)),
+      groups_(detail::chunked_store<packed_group>::bits_for(vol.voxel_count())),
+      records_(detail::chunked_store<record>::bits_for(vol.voxel_count())),
       queue_(std::make_unique<queue>(discipline_of(order))),
       prefetch_(vol.byte_size() > detail::prefetch_min_bytes),
       errors_needed_(order == refine_order::largest_error_first),
@@ -63,7 +63,7 @@ refiner::refiner(const volume& vol, const hierarchy& hier, const range_data& ran
   }
   // As many ready diamonds as one chunk of records before the queue first grows (its growth
   // by doubling copied the queue a dozen times per refinement of a small volume).
-  queue_->reserve(std::size_t{1} << chunk_bits_for(vol));
+  queue_->reserve(std::size_t{1} << detail::chunked_store<record>::bits_for(vol.voxel_count()));
   // Root record: the surface in the root tetrahedra, owned by the root diamonds.
   records_.push_back({no_owner, 0, 0, 0, 0.0});
   for (std::uint64_t r = 0; r < hier_.root_count(); ++r) {
@@ -85,16 +85,6 @@ refiner::refiner(const volume& vol, const hierarchy& hier, const range_data& ran
 }
 
 refiner::~refiner() = default;
-
-// Splits run to about a tenth of the voxels on the shared volumes and 257³ fields (0.08–0.24);
-// a chunk of about a thirtieth keeps the number of chunks small without reserving much more
-// than a small refinement uses.
-int refiner::chunk_bits_for(const volume& vol) noexcept {
-  const std::size_t want = vol.voxel_count() / 32;
-  int bits = 12;
-  while (bits < 16 && (std::size_t{1} << bits) < want) ++bits;
-  return bits;
-}
 
 bool refiner::done() const noexcept { return queue_->empty(); }
 double refiner::next_error() const noexcept {

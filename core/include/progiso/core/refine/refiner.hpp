@@ -34,6 +34,7 @@
 
 #include <progiso/core/base/config.hpp>
 #include <progiso/core/base/detail/borrow.hpp>
+#include <progiso/core/base/detail/chunked_store.hpp>
 #include <progiso/core/base/error.hpp>
 #include <progiso/core/base/zeroed_array.hpp>
 #include <progiso/core/field/volume.hpp>
@@ -142,52 +143,11 @@ class refiner {
   const range_data& ranges_;
   double isovalue_;
   zeroed_array<std::uint8_t> state_;  // per grid vertex: split flag, split parents
-  // Append-only storage in fixed chunks (a power of two, 4 K to 64 K elements, chosen from the
-  // volume's size): growth never moves what is stored (no reallocation copy of tens or hundreds
-  // of megabytes, no second set of fresh pages), and a small volume's refinement stays small
-  // enough for the allocator to keep reusing its memory.
-  template <class T>
-  class chunked_store {
-   public:
-    explicit chunked_store(int chunk_bits) noexcept
-        : bits_(chunk_bits), mask_((std::size_t{1} << chunk_bits) - 1) {}
-    [[nodiscard]] std::size_t size() const noexcept { return size_; }
-    void push_back(const T& v) {
-      if ((size_ & mask_) == 0 && (size_ >> bits_) == chunks_.size()) {
-        chunks_.push_back(std::make_unique_for_overwrite<T[]>(mask_ + 1));
-      }
-      chunks_[size_ >> bits_][size_ & mask_] = v;
-      ++size_;
-    }
-    void append(const T* v, std::size_t n) {
-      while (n > 0) {
-        if ((size_ & mask_) == 0 && (size_ >> bits_) == chunks_.size()) {
-          chunks_.push_back(std::make_unique_for_overwrite<T[]>(mask_ + 1));
-        }
-        const std::size_t room = mask_ + 1 - (size_ & mask_);
-        const std::size_t k = n < room ? n : room;
-        std::copy(v, v + k, chunks_[size_ >> bits_].get() + (size_ & mask_));
-        size_ += k;
-        v += k;
-        n -= k;
-      }
-    }
-    [[nodiscard]] const T& operator[](std::size_t i) const noexcept {
-      return chunks_[i >> bits_][i & mask_];
-    }
-
-   private:
-    int bits_;
-    std::size_t mask_;
-    std::vector<std::unique_ptr<T[]>> chunks_;
-    std::size_t size_ = 0;
-  };
-  static int chunk_bits_for(const volume& vol) noexcept;
 
   std::vector<owned_triangle> root_triangles_;
-  chunked_store<packed_group> groups_;  // packed_group: 16 bytes for one or two triangles
+  detail::chunked_store<packed_group> groups_;  // packed_group: 16 bytes for one or two triangles
   std::vector<packed_group> scratch_;
-  chunked_store<record> records_;
+  detail::chunked_store<record> records_;
   std::unique_ptr<queue> queue_;
   bool prefetch_;  // prefetching samples pays off (the volume is larger than the cache)
   // The queue orders by error (largest_error_first). In the other orders a ready diamond's
