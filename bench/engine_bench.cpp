@@ -236,6 +236,32 @@ BENCHMARK(BM_full_refine)
     ->MinTime(1.0);
 
 // ---------------------------------------------------------------------------------------------
+// Extraction of the finest cut from a snapshot (mesh()), on N threads, after one full run:
+// the extraction phase of the pipeline alone. Args: threads, volume side.
+void BM_snapshot_mesh(benchmark::State& state) {
+  engine_options o;
+  o.threads = static_cast<unsigned>(state.range(0));
+  engine e(ml(state.range(1)), 0.5, o);
+  e.refine_full();
+  const surface_snapshot s = e.snapshot();
+  std::size_t triangles = 0;
+  for (auto _ : state) {
+    const triangle_mesh m = s.mesh();
+    triangles = m.triangles.size();
+    benchmark::DoNotOptimize(m.vertices.data());
+  }
+  state.counters["triangles"] = static_cast<double>(triangles);
+  state.counters["ns_per_triangle"] = benchmark::Counter(
+      static_cast<double>(triangles),
+      benchmark::Counter::kIsIterationInvariantRate | benchmark::Counter::kInvert);
+}
+BENCHMARK(BM_snapshot_mesh)
+    ->ArgsProduct({{1, 2}, {257}})
+    ->Unit(benchmark::kMillisecond)
+    ->UseRealTime()
+    ->MinTime(1.0);
+
+// ---------------------------------------------------------------------------------------------
 // Refinement by priority against full refinement (issue 12, target 8): splits per second of a
 // run that takes the largest error first (a deadline, an error target, a triangle budget),
 // over splits per second of full refinement (depth first), on one engine, the same isovalue

@@ -57,6 +57,7 @@ struct engine_record {
   std::uint32_t count;
   std::int32_t depth;
   std::int32_t scale;
+  std::uint32_t crossed;  // split_summary::crossed: the new edges the surface crosses
   std::uint64_t cut_triangles;
 };
 
@@ -190,6 +191,7 @@ struct batch_item {
   std::uint32_t first;  // groups in the batch's buffer
   std::uint32_t count;
   std::int32_t scale;
+  std::uint32_t crossed;
   int added;  // triangles
   int removed;
   split_configuration configuration;

@@ -64,6 +64,7 @@ batch* engine_impl::compute_batch(batch* b) {
     it.first = static_cast<std::uint32_t>(first);
     it.count = static_cast<std::uint32_t>(b->groups.size() - first);
     it.scale = scale;
+    it.crossed = s.crossed;
     it.added = s.added_triangles;
     it.removed = s.removed_triangles;
     it.configuration = s.configuration;
@@ -155,7 +156,7 @@ void engine_impl::commit_batch(batch* b) {
       r.cut_triangles = after;
       r.records.push_back({it.item.index,
                            r.groups.append_contiguous(b->groups.data() + it.first, it.count),
-                           it.count, it.item.depth, it.scale, after});
+                           it.count, it.item.depth, it.scale, it.crossed, after});
       std::atomic_ref<std::uint32_t>(r.record_of[it.item.index])
           .store(static_cast<std::uint32_t>(index),
                  // relaxed: published by the release in records.publish() below.

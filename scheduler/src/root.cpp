@@ -17,7 +17,7 @@ engine_root* engine_impl::make_root(double w, std::uint64_t gen) {
   }
   r->cut_triangles = tris.size();
   r->records.push_back(
-      {no_owner, nullptr, static_cast<std::uint32_t>(tris.size()), -1, 0, tris.size()});
+      {no_owner, nullptr, static_cast<std::uint32_t>(tris.size()), -1, 0, 0, tris.size()});
   r->root_triangles = std::move(tris);
   r->records.publish();
   r->triangles.set(r->cut_triangles);

@@ -2,7 +2,7 @@
 
 #include "engine_impl.hpp"
 
-#include <progiso/core/surface/detail/mesh_builder.hpp>
+#include <progiso/core/surface/detail/cut_mesher.hpp>
 
 namespace progiso {
 namespace detail {
@@ -82,78 +82,54 @@ void surface_snapshot::for_each_triangle(
   }
 }
 
-// The records in canonical order (diamond order), cut into consecutive parts, each fed to its
-// own builder on the engine's thread count, then joined into the mesh one builder fed them all
-// would make (mesh_builder::join): the same mesh, vertex for vertex, for every thread count. One
-// part per 16 K records, up to 8 per thread (the records gather where the surface is, so parts of
-// equal vertex ranges differ in size). A fresh arena per call: the caller (any thread) takes its
-// reserved slot at once, whatever the engine's own arena is doing.
-template <class Take, class Keep>
-triangle_mesh surface_snapshot::build(Take&& take, Keep&& keep) const {
+namespace {
+
+// The cut of a snapshot, as cut_mesher reads it: the published records, of which keep(r) are
+// split in the cut.
+template <class Keep>
+struct snapshot_cut {
+  const detail::engine_root& root;
+  std::uint64_t published;
+  const Keep& keep;
+
+  [[nodiscard]] std::uint64_t records() const noexcept { return published; }
+  [[nodiscard]] const detail::engine_record& record(std::uint64_t r) const noexcept {
+    return root.records[r];
+  }
+  [[nodiscard]] bool split(std::uint64_t r) const noexcept { return keep(r); }
+  [[nodiscard]] const std::vector<owned_triangle>& root_triangles() const noexcept {
+    return root.root_triangles;
+  }
+};
+
+}  // namespace
+
+// The mesh of the cut made of the published records r with keep(r), by cut_mesher (no vertex
+// hashing): the records in canonical order (diamond order), cut into consecutive parts, one per
+// 16 K records, up to 8 per thread (the records gather where the surface is, so parts of equal
+// vertex ranges differ in size), on the engine's thread count. The same mesh, vertex for vertex,
+// for every thread count. A fresh arena per call: the caller (any thread) takes its reserved
+// slot at once, whatever the engine's own arena is doing.
+template <class Keep>
+triangle_mesh surface_snapshot::build(Keep&& keep) const {
   const engine& e = *owner_;
-  const hierarchy& hier = e.hierarchy_of();
-  const std::uint64_t vertices = hier.vertex_count();
   const std::size_t threads = e.threads();
   const std::size_t parts =
       threads <= 1
           ? 1
           : std::clamp<std::size_t>(static_cast<std::size_t>(published_ / 16384), 1, 8 * threads);
-  // Canonical order is diamond order: with this many records, one sequential pass over the
-  // per-vertex record index costs less than sorting them.
-  const bool scan = vertices <= 64 * published_;
-  std::vector<std::pair<std::uint64_t, std::uint32_t>> order;
-  if (!scan) {
-    order.reserve(published_);
-    for (std::uint64_t r = 1; r < published_; ++r) {
-      const detail::engine_record& rec = root_->records[r];
-      if (keep(r)) order.emplace_back(rec.diamond, static_cast<std::uint32_t>(r));
-    }
-    std::sort(order.begin(), order.end());
-  }
-  // Part k of n items: [first(k), first(k + 1)).
-  const auto first = [parts](std::uint64_t items, std::size_t k) {
-    return k * (items / parts) + std::min<std::uint64_t>(k, items % parts);
-  };
-  const auto expected = static_cast<std::size_t>(triangle_count() / 2 + 16);
-  std::vector<detail::mesh_builder> builders;
-  builders.reserve(parts);
-  for (std::size_t k = 0; k < parts; ++k) {
-    builders.emplace_back(hier, e.field(), root_->isovalue, expected / parts + 16);
-  }
-  const auto feed = [&](std::size_t k) {
-    detail::mesh_builder& b = builders[k];
-    const auto add = [&b](std::uint64_t, const std::array<std::uint64_t, 3>& keys) { b.add(keys); };
-    if (k == 0) walk_record(*root_, hier, 0, take, add);
-    if (scan) {
-      for (std::uint64_t v = first(vertices, k), end = first(vertices, k + 1); v < end; ++v) {
-        const std::uint32_t r = root_->record_index(v);
-        if (r == 0 || r >= published_ || !keep(r)) continue;
-        walk_record(*root_, hier, r, take, add);
-      }
-    } else {
-      for (std::uint64_t i = first(order.size(), k), end = first(order.size(), k + 1); i < end;
-           ++i) {
-        walk_record(*root_, hier, order[i].second, take, add);
-      }
-    }
-  };
-  if (parts == 1) {
-    feed(0);
-    return builders[0].finish();
-  }
+  const snapshot_cut<std::remove_cvref_t<Keep>> cut{*root_, published_, keep};
+  detail::cut_mesher mesher(cut, e.hierarchy_of(), e.field(), root_->isovalue);
+  if (parts == 1) return mesher.build({}, 1);
   triangle_mesh m;
   tbb::task_arena arena(static_cast<int>(std::min(threads, parts)));
-  arena.execute([&] {
-    detail::tbb_loop(parts, feed);
-    m = detail::mesh_builder::join(builders, detail::tbb_loop);
-  });
+  arena.execute([&] { m = mesher.build(detail::tbb_loop, parts); });
   return m;
 }
 
 triangle_mesh surface_snapshot::mesh() const {
   PROGISO_ASSERT(valid());
-  return build([this](std::uint64_t owner) { return owner == no_owner || !is_split(owner); },
-               [](std::uint64_t) { return true; });
+  return build([](std::uint64_t) { return true; });
 }
 
 // Records carry no errors (full refinement never computes them): the cut's records are chosen
@@ -182,12 +158,7 @@ triangle_mesh surface_snapshot::mesh_cut(double max_error) const {
       });
     });
   }
-  return build(
-      [this, &coarse](std::uint64_t owner) {
-        if (owner == no_owner || !is_split(owner)) return true;
-        return coarse[root_->record_index(owner)] == 0;
-      },
-      [&coarse](std::uint64_t r) { return coarse[r] != 0; });
+  return build([&coarse](std::uint64_t r) { return coarse[r] != 0; });
 }
 
 void surface_snapshot::mesh_into(render_buffers& out) const { fill_render_buffers(mesh(), out); }

@@ -39,7 +39,7 @@ triangle_mesh mesh_builder::finish() {
 // Every vertex is used (in order of first use) unless clipping left one of its triangles' inside
 // corners out (a corner on the box's face with the rest of the piece beyond it) and no other
 // triangle uses it: then the unused ones are dropped.
-void mesh_builder::drop_unused(triangle_mesh& m, const std::vector<std::uint32_t>& suspects) {
+void drop_unused(triangle_mesh& m, const std::vector<std::uint32_t>& suspects) {
   if (suspects.empty()) return;
   const std::size_t count = m.vertices.size();
   {
@@ -200,62 +200,11 @@ std::uint32_t mesh_builder::clip_vertex(const vec3& p) {
   return it->second;
 }
 
-// Sutherland–Hodgman against x_q ≤ box_q, on positions. Each crossing point is computed from
-// the segment's ends in lexicographic order, so the two triangles sharing a segment get the same
-// point; crossing points get vertex ids (one per position) only when a kept triangle uses them.
 void mesh_builder::clip(const std::array<std::uint32_t, 3>& ids) {
-  struct corner {
-    vec3 p;
-    std::uint32_t id;  // a vertex id, or none for a crossing point
-  };
-  constexpr std::uint32_t none = ~std::uint32_t{0};
-  // Clipping a convex polygon by a plane adds at most one corner: at most 6 after 3 planes.
-  std::array<corner, 8> poly{};
-  std::array<corner, 8> next{};
-  for (std::size_t i = 0; i < 3; ++i) poly[i] = {position(ids[i]), ids[i]};
-  std::size_t size = 3;
-  for (std::size_t q = 0; q < 3 && size >= 3; ++q) {
-    std::size_t kept = 0;
-    for (std::size_t i = 0; i < size; ++i) {
-      const corner& a = poly[i];
-      const corner& b = poly[i + 1 == size ? 0 : i + 1];
-      const bool ain = a.p[q] <= box_[q];
-      const bool bin = b.p[q] <= box_[q];
-      if (ain) next[kept++] = a;
-      // A crossing whose inside end lies on the plane is that end itself, already emitted.
-      const bool on_plane = ain ? a.p[q] == box_[q] : b.p[q] == box_[q];
-      if (ain != bin && !on_plane) {
-        vec3 p = a.p;
-        vec3 r = b.p;
-        if (r < p) std::swap(p, r);
-        const double s = (box_[q] - p[q]) / (r[q] - p[q]);
-        vec3 x{};
-        for (std::size_t k = 0; k < 3; ++k) x[k] = p[k] + s * (r[k] - p[k]);
-        x[q] = box_[q];
-        next[kept++] = {x, none};
-      }
-    }
-    PROGISO_ASSERT(kept <= 6);
-    poly = next;
-    size = kept;
-  }
-  // Each of the input's inside vertices should end up in a kept triangle; one that does not may
-  // be unused (finish() checks).
-  std::array<bool, 3> used{};
-  for (std::size_t i = 1; i + 1 < size; ++i) {
-    const std::array<corner*, 3> t{&poly[0], &poly[i], &poly[i + 1]};
-    if (t[0]->p == t[1]->p || t[1]->p == t[2]->p || t[0]->p == t[2]->p) continue;
-    std::array<std::uint32_t, 3> tri{};
-    for (std::size_t k = 0; k < 3; ++k) {
-      if (t[k]->id == none) {
-        t[k]->id = clip_vertex(t[k]->p);
-      } else {
-        for (std::size_t j = 0; j < 3; ++j) used[j] = used[j] || ids[j] == t[k]->id;
-      }
-      tri[k] = t[k]->id;
-    }
-    mesh_.triangles.push_back(tri);
-  }
+  const std::array<vec3, 3> p{position(ids[0]), position(ids[1]), position(ids[2])};
+  const std::array<bool, 3> used = clip_to_box(
+      p, ids, box_, [this](const vec3& x) { return clip_vertex(x); },
+      [this](const std::array<std::uint32_t, 3>& t) { mesh_.triangles.push_back(t); });
   for (std::size_t j = 0; j < 3; ++j) {
     if ((ids[j] & outside_bit) == 0 && !used[j]) suspects_.push_back(ids[j]);
   }

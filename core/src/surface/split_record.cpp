@@ -301,6 +301,11 @@ struct shape_table {
   offset spine{};                       // spine end d; end c is its opposite
   std::array<offset, 8> ring{};         // ring points
   std::array<child_table, 16> child{};  // child 2m + half, as split_into() orders them
+  // 1 << edge_offset_code() of spine end c, spine end d and each ring point.
+  std::uint32_t spine_c_bit = 0;
+  std::uint32_t spine_d_bit = 0;
+  std::array<std::uint32_t, 8> ring_bit{};
+  group_edge_table edges{};  // see group_edges()
 };
 
 // Shape index: bit q set when axis q is odd at the diamond's scale, bit 3 + q when the spine
@@ -341,6 +346,15 @@ std::array<shape_table, 64> build_shapes() {
       for (int m = 0; m < d.ring_size; ++m) {
         t.ring[static_cast<std::size_t>(m)] = off(d.ring[static_cast<std::size_t>(m)]);
       }
+      const auto code27 = [](const offset& o) {
+        return edge_offset_code({int{o[0]}, int{o[1]}, int{o[2]}});
+      };
+      t.spine_c_bit = 1u << code27(off(d.spine[0]));
+      t.spine_d_bit = 1u << code27(t.spine);
+      for (int m = 0; m < d.ring_size; ++m) {
+        t.ring_bit[static_cast<std::size_t>(m)] = 1u << code27(t.ring[static_cast<std::size_t>(m)]);
+      }
+      for (auto& e : t.edges) e = {centre_offset_code, centre_offset_code};
       for (int m = 0; m < d.ring_size; ++m) {
         const ipoint& a = d.ring[static_cast<std::size_t>(m)];
         const ipoint& b = d.ring[static_cast<std::size_t>(m + 1 == d.ring_size ? 0 : m + 1)];
@@ -349,6 +363,24 @@ std::array<shape_table, 64> build_shapes() {
           const ipoint& p = half == 0 ? d.spine[0] : d.spine[1];
           const std::array<ipoint, 4> tet =
               half == 0 ? std::array<ipoint, 4>{p, c, a, b} : std::array<ipoint, 4>{c, p, a, b};
+          // Every edge of the child, by its code: the code of the sum of its ends' offsets.
+          for (std::size_t i = 0; i < 4; ++i) {
+            for (std::size_t j = i + 1; j < 4; ++j) {
+              const offset u = off(tet[i]);
+              const offset v = off(tet[j]);
+              std::size_t code = 0;
+              for (std::size_t q = 3; q-- > 0;)
+                code = code * 5 + static_cast<std::size_t>(u[q] + v[q] + 2);
+              std::array<std::uint8_t, 2> ends{static_cast<std::uint8_t>(code27(u)),
+                                               static_cast<std::uint8_t>(code27(v))};
+              if (ends[1] == centre_offset_code) std::swap(ends[0], ends[1]);
+              auto& slot = t.edges[code];
+              // Edge keys name edges uniquely: one edge per code.
+              PROGISO_ASSERT((slot[0] == centre_offset_code && slot[1] == centre_offset_code) ||
+                             slot == ends);
+              slot = ends;
+            }
+          }
           for (unsigned mask = 0; mask < 16; ++mask) {
             std::array<double, 4> f{};
             for (std::size_t i = 0; i < 4; ++i) f[i] = ((mask >> i) & 1u) != 0 ? 1.0 : 0.0;
@@ -371,6 +403,15 @@ const std::array<shape_table, 64>& shapes() {
   static const std::array<shape_table, 64> all = build_shapes();
   return all;
 }
+
+}  // namespace
+
+const group_edge_table& group_edges(const ipoint& c, std::int32_t h) noexcept {
+  const int lg = std::countr_zero(static_cast<std::uint32_t>(h));
+  return shapes()[shape_of(c, h, lg)].edges;
+}
+
+namespace {
 
 // classify() of a diamond whose ring lies wholly in the grid, by table: one entry per ring size
 // (4, 6, 8) and colouring of c, d, e and the ring, made by classify() itself.
@@ -486,6 +527,12 @@ split_summary split_packed(const hierarchy& hier, const volume& vol, Samples sam
     s = interior_summary(k);
   } else {
     classify(k, s);
+  }
+  if (k.c != k.e) s.crossed |= shape.spine_c_bit;
+  if (k.d != k.e) s.crossed |= shape.spine_d_bit;
+  const unsigned other = (k.e ? ~k.ring : k.ring) & k.ring_in_grid;
+  for (unsigned todo = other; todo != 0; todo &= todo - 1) {
+    s.crossed |= shape.ring_bit[static_cast<std::size_t>(std::countr_zero(todo))];
   }
   const unsigned ce = (k.c ? 1u : 0u) | (k.e ? 2u : 0u);  // colours of (c, e, ., .)
   const unsigned ed = (k.e ? 1u : 0u) | (k.d ? 2u : 0u);  // colours of (e, d, ., .)

@@ -182,8 +182,8 @@ class surface_snapshot {
 
  private:
   friend class engine;
-  template <class Take, class Keep>
-  triangle_mesh build(Take&& take, Keep&& keep) const;
+  template <class Keep>
+  triangle_mesh build(Keep&& keep) const;
 
   epoch_guard guard_;
   const engine* owner_ = nullptr;

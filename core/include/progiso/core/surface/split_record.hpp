@@ -179,7 +179,26 @@ struct split_summary {
   /// ≥ 0 for a diamond wholly in the grid: the index of its classification (every field above
   /// but added_triangles) in interior_classification(); -1 otherwise.
   std::int16_t classification = -1;
+  /// The new edges (centre, centre + h·o) whose ends differ in colour: bit
+  /// edge_offset_code(o) each. Set by the packed compute_split() only (not part of the
+  /// classification above).
+  std::uint32_t crossed = 0;
 };
+
+/// Code of an offset o in {-1, 0, 1}³ (a point of a diamond relative to its centre, in units of
+/// its scale): (o0 + 1) + 3 (o1 + 1) + 9 (o2 + 1), in [0, 27); 13 is the centre itself.
+[[nodiscard]] constexpr unsigned edge_offset_code(const std::array<int, 3>& o) noexcept {
+  return static_cast<unsigned>((o[0] + 1) + 3 * (o[1] + 1) + 9 * (o[2] + 1));
+}
+inline constexpr unsigned centre_offset_code = 13;
+
+/// The two ends of every edge a packed group of one diamond can name: entry k (a group's edge
+/// code, see packed_group) holds the edge_offset_code() of both ends, or {centre_offset_code,
+/// centre_offset_code} for a code no edge of the diamond has. When one end is the centre it
+/// comes first. The table depends only on the diamond's shape.
+using group_edge_table = std::array<std::array<std::uint8_t, 2>, 125>;
+/// The table for the diamond centred at c with scale h.
+[[nodiscard]] const group_edge_table& group_edges(const ipoint& c, std::int32_t h) noexcept;
 
 /// Number of classifications of diamonds wholly in the grid: one per ring size (4, 6, 8) and
 /// colouring of the spine ends, centre and ring.

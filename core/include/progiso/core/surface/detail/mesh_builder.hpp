@@ -14,8 +14,10 @@
 #include <cstddef>
 #include <cstdint>
 #include <unordered_map>
+#include <utility>
 #include <vector>
 
+#include <progiso/core/base/assert.hpp>
 #include <progiso/core/base/detail/flat_map.hpp>
 #include <progiso/core/base/parallel_loop.hpp>
 #include <progiso/core/field/volume.hpp>
@@ -23,6 +25,73 @@
 #include <progiso/core/surface/mesh.hpp>
 
 namespace progiso::detail {
+
+/// Sutherland–Hodgman clipping of one triangle (grid positions p, vertex ids ids) against
+/// x_q ≤ box_q. Each crossing point is computed from the segment's ends in lexicographic order,
+/// so the two triangles sharing a segment get the same point; a crossing point gets its id from
+/// clip_vertex(position) only when a kept triangle uses it. Calls emit(ids) for each kept
+/// triangle; returns, per corner, whether a kept triangle uses it (a corner outside the box
+/// never is, and its id is never emitted).
+template <class ClipVertex, class Emit>
+std::array<bool, 3> clip_to_box(const std::array<vec3, 3>& p,
+                                const std::array<std::uint32_t, 3>& ids, const vec3& box,
+                                ClipVertex&& clip_vertex, Emit&& emit) {
+  struct corner {
+    vec3 p;
+    std::uint32_t id;  // a vertex id, or none for a crossing point
+  };
+  constexpr std::uint32_t none = ~std::uint32_t{0};
+  // Clipping a convex polygon by a plane adds at most one corner: at most 6 after 3 planes.
+  std::array<corner, 8> poly{};
+  std::array<corner, 8> next{};
+  for (std::size_t i = 0; i < 3; ++i) poly[i] = {p[i], ids[i]};
+  std::size_t size = 3;
+  for (std::size_t q = 0; q < 3 && size >= 3; ++q) {
+    std::size_t kept = 0;
+    for (std::size_t i = 0; i < size; ++i) {
+      const corner& a = poly[i];
+      const corner& b = poly[i + 1 == size ? 0 : i + 1];
+      const bool ain = a.p[q] <= box[q];
+      const bool bin = b.p[q] <= box[q];
+      if (ain) next[kept++] = a;
+      // A crossing whose inside end lies on the plane is that end itself, already emitted.
+      const bool on_plane = ain ? a.p[q] == box[q] : b.p[q] == box[q];
+      if (ain != bin && !on_plane) {
+        vec3 lo = a.p;
+        vec3 hi = b.p;
+        if (hi < lo) std::swap(lo, hi);
+        const double s = (box[q] - lo[q]) / (hi[q] - lo[q]);
+        vec3 x{};
+        for (std::size_t k = 0; k < 3; ++k) x[k] = lo[k] + s * (hi[k] - lo[k]);
+        x[q] = box[q];
+        next[kept++] = {x, none};
+      }
+    }
+    PROGISO_ASSERT(kept <= 6);
+    poly = next;
+    size = kept;
+  }
+  std::array<bool, 3> used{};
+  for (std::size_t i = 1; i + 1 < size; ++i) {
+    const std::array<corner*, 3> t{&poly[0], &poly[i], &poly[i + 1]};
+    if (t[0]->p == t[1]->p || t[1]->p == t[2]->p || t[0]->p == t[2]->p) continue;
+    std::array<std::uint32_t, 3> tri{};
+    for (std::size_t k = 0; k < 3; ++k) {
+      if (t[k]->id == none) {
+        t[k]->id = clip_vertex(t[k]->p);
+      } else {
+        for (std::size_t j = 0; j < 3; ++j) used[j] = used[j] || ids[j] == t[k]->id;
+      }
+      tri[k] = t[k]->id;
+    }
+    emit(tri);
+  }
+  return used;
+}
+
+/// Drops the vertices no triangle uses, when one of `suspects` (vertex ids) is among them,
+/// renumbering the rest in order of first use.
+void drop_unused(triangle_mesh& m, const std::vector<std::uint32_t>& suspects);
 
 class mesh_builder {
  public:
@@ -78,8 +147,6 @@ class mesh_builder {
   std::uint32_t new_vertex(std::uint64_t key);
   // Physical coordinates of a grid position.
   [[nodiscard]] vec3 physical(const vec3& p) const noexcept;
-  // Drops the vertices that no triangle uses, when one of `suspects` is among them.
-  static void drop_unused(triangle_mesh& m, const std::vector<std::uint32_t>& suspects);
   std::uint32_t clip_vertex(const vec3& p);
   void clip(const std::array<std::uint32_t, 3>& ids);
 
