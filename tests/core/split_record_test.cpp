@@ -45,6 +45,43 @@ void check_packed_against_plain(const volume& v, std::initializer_list<double> i
       }
       EXPECT_EQ(k, plain.size());
       triangles += k;
+      // crossed: exactly the new edges (centre, spine end or ring point in the grid) whose ends
+      // lie on opposite sides of w.
+      std::uint32_t crossed = 0;
+      const auto above = [&](const ipoint& p) { return v.value(p[0], p[1], p[2]) > w; };
+      const auto mark = [&](const ipoint& x) {
+        if (above(x) == above(c)) return;
+        crossed |= 1u << edge_offset_code(
+                       {(x[0] - c[0]) / d.scale, (x[1] - c[1]) / d.scale, (x[2] - c[2]) / d.scale});
+      };
+      mark(d.spine[0]);
+      mark(d.spine[1]);
+      for (int m = 0; m < d.ring_size; ++m) {
+        if (((d.ring_in_grid >> m) & 1u) != 0) mark(d.ring[static_cast<std::size_t>(m)]);
+      }
+      EXPECT_EQ(b.crossed, crossed) << "diamond " << i;
+      // group_edges: each edge code of a group decodes to two points of the diamond whose edge
+      // key is the one unpack() gives, the centre first when it is an end.
+      const group_edge_table& edges = group_edges(c, d.scale);
+      for (const packed_group& g : packed) {
+        for (std::size_t t = 0; t < g.count(); ++t) {
+          const auto keys = unpack(c, d.scale, g, t);
+          for (std::size_t q = 0; q < 3; ++q) {
+            const auto& e = edges[g.edge(t, q)];
+            ASSERT_NE(e[1], centre_offset_code);
+            const auto end = [&](unsigned code) {
+              return ipoint{c[0] + d.scale * (static_cast<std::int32_t>(code % 3) - 1),
+                            c[1] + d.scale * (static_cast<std::int32_t>(code / 3 % 3) - 1),
+                            c[2] + d.scale * (static_cast<std::int32_t>(code / 9) - 1)};
+            };
+            EXPECT_EQ(edge_key(end(e[0]), end(e[1])), keys[q]) << "diamond " << i;
+            // An edge from the centre is a crossed new edge.
+            if (e[0] == centre_offset_code) {
+              EXPECT_NE((b.crossed >> e[1]) & 1u, 0u);
+            }
+          }
+        }
+      }
     }
   }
   EXPECT_GT(diamonds, 1000u);

@@ -39,6 +39,7 @@
 #include <bit>
 #include <concepts>
 #include <cstdint>
+#include <memory>
 #include <unordered_map>
 #include <utility>
 #include <vector>
@@ -173,8 +174,9 @@ class cut_mesher {
     parts_ = std::max<std::size_t>(parts, 1);
     make_index(run);
     const std::uint64_t n = index_.size();
-    entries_.resize(n);
-    names_.resize(n);
+    // Not zeroed: pass 2 writes every rank's entry and mask, pass 3 every base.
+    entries_ = std::make_unique_for_overwrite<entry[]>(n);
+    names_ = std::make_unique_for_overwrite<naming[]>(n);
     name_root_vertices();
     run_loop(run, parts_, [this](std::size_t k) { read_records(k); });
     // First ids: counts per rank range, then each range's first id.
@@ -415,14 +417,18 @@ class cut_mesher {
     std::uint64_t vertices = 0;
     if (hi > lo) vertices = names_[hi - 1].base + bit_count(names_[hi - 1].mask) - names_[lo].base;
     out.reserve(static_cast<std::size_t>(2 * vertices + 64));
-    constexpr std::uint64_t ahead = 8;  // groups requested ahead: they lie in publication order
+    constexpr std::uint64_t ahead = 16;  // groups requested ahead: they lie in publication order
     // Per split, the ids found so far by edge code: a vertex is shared by about two triangles
     // of the same split. Stamped with the rank, so nothing is cleared between splits.
     std::array<std::uint32_t, 125> memo{};
     std::array<std::uint64_t, 125> stamp{};
     stamp.fill(~std::uint64_t{0});
     for (std::uint64_t i = lo; i < hi; ++i) {
-      if (i + ahead < hi) __builtin_prefetch(entries_[i + ahead].groups);
+      if (i + ahead < hi) {
+        const entry& later = entries_[i + ahead];
+        __builtin_prefetch(later.groups);
+        __builtin_prefetch(later.groups + later.count - 1);
+      }
       const entry& en = entries_[i];
       const std::int32_t h = en.scale;
       const ipoint& c = en.centre;
@@ -517,8 +523,8 @@ class cut_mesher {
   vec3 box_{};
   std::uint32_t root_mask_ = 0;
   cut_index index_;
-  std::vector<entry> entries_;  // by rank
-  std::vector<naming> names_;   // by rank
+  std::unique_ptr<entry[]> entries_;  // by rank
+  std::unique_ptr<naming[]> names_;   // by rank
   flat_map root_ids_;
   std::vector<vec3> root_positions_;
   std::vector<std::vector<std::array<std::uint32_t, 3>>> triangles_;  // per rank range
