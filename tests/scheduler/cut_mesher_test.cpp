@@ -7,6 +7,8 @@
 #include <progiso/core/refine/refiner.hpp>
 #include <progiso/scheduler/engine.hpp>
 
+#include <algorithm>
+#include <functional>
 #include <random>
 #include <vector>
 
@@ -45,6 +47,39 @@ TEST(CutIndex, dense_and_sparse_agree_with_a_count_of_the_members_below) {
     }
   }
 }
+
+// A cut_source made from a split set directly (compute_split per diamond, compute_root per root
+// cube), for cut_mesher on any number of parts.
+struct split_set_cut {
+  struct entry {
+    std::uint64_t diamond;
+    std::int32_t scale;
+    const packed_group* groups;
+    std::uint32_t count;
+    std::uint32_t crossed;
+  };
+  std::vector<std::vector<packed_group>> groups;
+  std::vector<entry> list;
+  std::vector<owned_triangle> roots;
+
+  split_set_cut(const hierarchy& h, const volume& v, double w,
+                const std::vector<std::uint64_t>& split) {
+    for (std::uint64_t r = 0; r < h.root_count(); ++r) (void)compute_root(h, v, w, r, roots);
+    groups.resize(split.size());
+    list.push_back({no_owner, 0, nullptr, 0, 0});
+    for (std::size_t i = 0; i < split.size(); ++i) {
+      const ipoint c = h.point(split[i]);
+      const std::int32_t scale = h.scale_of(c);
+      const split_summary s = compute_split(h, v, w, c, scale, groups[i]);
+      list.push_back({split[i], scale, groups[i].data(),
+                      static_cast<std::uint32_t>(groups[i].size()), s.crossed});
+    }
+  }
+  [[nodiscard]] std::uint64_t records() const noexcept { return list.size(); }
+  [[nodiscard]] const entry& record(std::uint64_t r) const noexcept { return list[r]; }
+  [[nodiscard]] bool split(std::uint64_t) const noexcept { return true; }
+  [[nodiscard]] const std::vector<owned_triangle>& root_triangles() const noexcept { return roots; }
+};
 
 engine_options with_threads(unsigned n) {
   engine_options o;
@@ -95,6 +130,66 @@ TEST(CutMesher, each_surface_vertex_once_and_the_surface_of_the_hashed_extractio
       for (const double eps : {0.5, 0.1, 0.02}) check(s.mesh_cut(eps), full.extract_cut(eps));
     }
   }
+}
+
+// Parts are pieces of every pass: any number of them, run in any order, gives the mesh of one,
+// vertex for vertex; on a padded grid whose root cut is clipped at the data box (crossing points
+// shared between parts by position) and on finer cuts.
+TEST(CutMesher, any_number_of_parts_gives_the_one_part_mesh_vertex_for_vertex) {
+  const volume v = make_marschner_lobb({19, 23, 21});
+  const hierarchy h(v.dims());
+  engine e(v, 0.5, with_threads(1));
+  const parallel_loop backwards = [](std::size_t n, const std::function<void(std::size_t)>& body) {
+    for (std::size_t i = n; i-- > 0;) body(i);
+  };
+  for (const double eps : {-1.0, 0.2, 0.02, 0.0}) {
+    SCOPED_TRACE(eps);
+    if (eps > 0) {
+      ASSERT_TRUE(e.refine_until(eps));
+    } else if (eps == 0) {
+      ASSERT_TRUE(e.refine_full());
+    }
+    std::vector<std::uint64_t> split;
+    e.snapshot().for_each_split([&](std::uint64_t d) { split.push_back(d); });
+    const split_set_cut cut(h, v, 0.5, split);
+    detail::cut_mesher one(cut, h, v, 0.5);
+    const triangle_mesh whole = one.build({}, 1);
+    ASSERT_GT(whole.triangles.size(), 20u);
+    EXPECT_EQ(whole.vertices.size(), e.snapshot().mesh().vertices.size());
+    EXPECT_TRUE(test::same_surface(whole, e.snapshot().mesh()));
+    if (eps < 0) {
+      const auto& box = h.data_max();
+      ASSERT_TRUE(std::any_of(whole.vertices.begin(), whole.vertices.end(), [&](const vec3& p) {
+        return p[0] == box[0] || p[1] == box[1] || p[2] == box[2];
+      })) << "the root cut is not clipped: nothing is checked about crossing points";
+    }
+    for (const std::size_t parts : {2u, 3u, 7u, 16u}) {
+      detail::cut_mesher many(cut, h, v, 0.5);
+      const triangle_mesh m = many.build(backwards, parts);
+      EXPECT_EQ(m.vertices, whole.vertices) << parts << " parts";
+      EXPECT_EQ(m.triangles, whole.triangles) << parts << " parts";
+    }
+  }
+}
+
+// The engine's snapshots build large meshes in parts (one per 16 K records): the mesh is the
+// one-thread mesh, vertex for vertex.
+TEST(CutMesher, engine_mesh_in_parts_equals_the_one_thread_mesh) {
+  const volume v = make_gaussian_blobs({81, 77, 79}, 12, 8u);
+  engine one(v, 0.4, with_threads(1));
+  engine all(v, 0.4);
+  one.refine_full();
+  all.refine_full();
+  if (all.threads() < 2) GTEST_SKIP() << "one core: no parts";
+  ASSERT_GE(all.statistics().published, 2u * 16384u) << "too few records for two parts";
+  const triangle_mesh a = one.snapshot().mesh();
+  const triangle_mesh b = all.snapshot().mesh();
+  EXPECT_EQ(b.vertices, a.vertices);
+  EXPECT_EQ(b.triangles, a.triangles);
+  const triangle_mesh ca = one.snapshot().mesh_cut(0.05);
+  const triangle_mesh cb = all.snapshot().mesh_cut(0.05);
+  EXPECT_EQ(cb.vertices, ca.vertices);
+  EXPECT_EQ(cb.triangles, ca.triangles);
 }
 
 }  // namespace

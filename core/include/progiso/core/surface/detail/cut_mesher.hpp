@@ -401,12 +401,20 @@ class cut_mesher {
     if (k == 0) {
       for (const owned_triangle& t : src_.root_triangles()) {
         if (!take(t.owner)) continue;
+        // Root tetrahedra have root edges only, all named (the edges of split diamonds' spines
+        // are in no taken triangle).
         std::array<std::uint32_t, 3> ids{};
-        std::array<std::array<ipoint, 2>, 3> ends{};
         for (std::size_t v = 0; v < 3; ++v) {
-          ends[v] = hier_.edge_ends(t.keys[v]);
-          ids[v] = vertex_of(ends[v][0], ends[v][1]);
+          const std::uint32_t* id = root_ids_.find(t.keys[v]);
+          PROGISO_ASSERT(id != nullptr);
+          ids[v] = id != nullptr ? *id : outside;
         }
+        if (ids[0] != outside && ids[1] != outside && ids[2] != outside) {
+          out.push_back(ids);
+          continue;
+        }
+        std::array<std::array<ipoint, 2>, 3> ends{};
+        for (std::size_t v = 0; v < 3; ++v) ends[v] = hier_.edge_ends(t.keys[v]);
         emit(ids, ends);
       }
     }

@@ -5,8 +5,8 @@
 // computed from the segment's ends in lexicographic order so neighbours agree exactly), drops
 // vertices only clipped-away triangles used, and maps to physical coordinates.
 //
-// Shared by the sequential refiner and the engine's snapshots. Not thread-safe: one builder per
-// extraction, or one per part of an extraction with join() (parts on their own threads).
+// The sequential refiner's extraction (the engine's is cut_mesher.hpp, without hashing). Not
+// thread-safe: one builder per extraction.
 // Cost: O(triangles added) expected.
 #pragma once
 
@@ -122,12 +122,6 @@ class mesh_builder {
   }
   /// The mesh; the builder is spent.
   triangle_mesh finish();
-  /// Parts fed consecutive runs of one triangle sequence (each part may be fed on its own
-  /// thread): the mesh one builder fed the whole sequence in order would give, vertex for vertex
-  /// and triangle for triangle. A vertex belongs to the first part that uses it; the others find
-  /// it in that part's key map (only parts whose keys' z range holds the key are asked). Pieces
-  /// of the join run through `run`. The parts are spent.
-  static triangle_mesh join(std::vector<mesh_builder>& parts, const parallel_loop& run);
 
  private:
   // Vertex ids are below 2^31 (a mesh has fewer than 2^31 vertices: positions alone would take
