@@ -434,8 +434,10 @@ class cut_mesher {
     for (std::uint64_t i = lo; i < hi; ++i) {
       if (i + ahead < hi) {
         const entry& later = entries_[i + ahead];
-        __builtin_prefetch(later.groups);
-        __builtin_prefetch(later.groups + later.count - 1);
+        if (later.count != 0) {  // a split without surface may have no groups (and no pointer)
+          __builtin_prefetch(later.groups);
+          __builtin_prefetch(later.groups + (later.count - 1));
+        }
       }
       const entry& en = entries_[i];
       const std::int32_t h = en.scale;
