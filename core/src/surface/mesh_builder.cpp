@@ -20,18 +20,10 @@ mesh_builder::mesh_builder(const hierarchy& hier, const volume& vol, double w, s
   mesh_.triangles.reserve(2 * (expected + slack));
 }
 
-vec3 mesh_builder::physical(const vec3& p) const noexcept {
-  const auto& sp = vol_.spacing();
-  const auto& org = vol_.origin();
-  vec3 r{};
-  for (std::size_t q = 0; q < 3; ++q) r[q] = org[q] + p[q] * sp[q];
-  return r;
-}
-
 triangle_mesh mesh_builder::finish() {
   // In place: the grid positions are not needed after this (no second array to fault in).
   mesh_.vertices = std::move(grid_);
-  for (vec3& v : mesh_.vertices) v = physical(v);
+  for (vec3& v : mesh_.vertices) v = physical_position(vol_, v);
   drop_unused(mesh_, suspects_);
   return std::move(mesh_);
 }
@@ -104,7 +96,7 @@ void mesh_builder::clip(const std::array<std::uint32_t, 3>& ids) {
   }
 }
 
-std::size_t mesh_builder::position_hash::operator()(const vec3& p) const noexcept {
+std::size_t position_hash::operator()(const vec3& p) const noexcept {
   std::uint64_t h = 0;
   for (const double v : p) {
     // + 0.0 makes -0.0 hash as 0.0 (they compare equal).

@@ -249,11 +249,7 @@ class cut_mesher {
   [[nodiscard]] bool in_box(const vec3& p) const noexcept {
     return p[0] <= box_[0] && p[1] <= box_[1] && p[2] <= box_[2];
   }
-  [[nodiscard]] vec3 physical(const vec3& p) const noexcept {
-    const auto& sp = vol_.spacing();
-    const auto& org = vol_.origin();
-    return vec3{org[0] + p[0] * sp[0], org[1] + p[1] * sp[1], org[2] + p[2] * sp[2]};
-  }
+  [[nodiscard]] vec3 physical(const vec3& p) const noexcept { return physical_position(vol_, p); }
   [[nodiscard]] static ipoint at(const ipoint& c, std::int32_t h, unsigned code) noexcept {
     const ipoint o = offset_of_code(code);
     return ipoint{c[0] + h * o[0], c[1] + h * o[1], c[2] + h * o[2]};
@@ -496,15 +492,6 @@ class cut_mesher {
   // Pieces past the data box, in canonical order: crossing points numbered after every edge
   // vertex, one id per position.
   void clip_pieces() {
-    struct position_hash {
-      std::size_t operator()(const vec3& p) const noexcept {
-        std::uint64_t h = 0;
-        for (const double v : p) {
-          h = (h ^ std::bit_cast<std::uint64_t>(v + 0.0)) * 0x9E3779B97F4A7C15ULL;  // -0 as 0
-        }
-        return static_cast<std::size_t>(h ^ (h >> 29));
-      }
-    };
     std::unordered_map<vec3, std::uint32_t, position_hash> crossings;
     const auto crossing = [&](const vec3& x) {
       const auto [it, inserted] =

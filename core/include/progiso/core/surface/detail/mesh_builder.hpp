@@ -89,6 +89,19 @@ std::array<bool, 3> clip_to_box(const std::array<vec3, 3>& p,
   return used;
 }
 
+/// Hash of a position's bit pattern (-0 as 0): crossing points of clipping are merged by
+/// position (every crossing is computed the same way, so equal points are equal doubles).
+struct position_hash {
+  std::size_t operator()(const vec3& p) const noexcept;
+};
+
+/// Physical coordinates of a grid position of vol (origin + position × spacing).
+[[nodiscard]] inline vec3 physical_position(const volume& vol, const vec3& p) noexcept {
+  const auto& sp = vol.spacing();
+  const auto& org = vol.origin();
+  return vec3{org[0] + p[0] * sp[0], org[1] + p[1] * sp[1], org[2] + p[2] * sp[2]};
+}
+
 /// Drops the vertices no triangle uses, when one of `suspects` (vertex ids) is among them,
 /// renumbering the rest in order of first use.
 void drop_unused(triangle_mesh& m, const std::vector<std::uint32_t>& suspects);
@@ -139,8 +152,6 @@ class mesh_builder {
     return *stored;
   }
   std::uint32_t new_vertex(std::uint64_t key);
-  // Physical coordinates of a grid position.
-  [[nodiscard]] vec3 physical(const vec3& p) const noexcept;
   std::uint32_t clip_vertex(const vec3& p);
   void clip(const std::array<std::uint32_t, 3>& ids);
 
@@ -152,11 +163,7 @@ class mesh_builder {
   std::array<std::uint64_t, 3> last_keys_{flat_map::empty_key, flat_map::empty_key,
                                           flat_map::empty_key};
   std::array<std::uint32_t, 3> last_ids_{};
-  // Clip vertices by position (bit patterns: every crossing is computed the same way, so equal
-  // points are equal doubles).
-  struct position_hash {
-    std::size_t operator()(const vec3& p) const noexcept;
-  };
+  // Clip vertices by position.
   std::unordered_map<vec3, std::uint32_t, position_hash> clipped_;
   std::vector<std::uint32_t> suspects_;  // inside vertices clipping left out of a triangle
   std::vector<vec3> grid_;               // vertices inside the data box, then clip vertices
