@@ -174,6 +174,42 @@ struct engine_root : epoch_object {
   }
 };
 
+// What a run's splits add to a root's statistics, counted by one thread and added to the root's
+// counters when its records are published (by whoever publishes: the commit step, the one-thread
+// loop, or a full-refinement task under the publication mutex).
+struct split_tally {
+  std::array<std::uint64_t, tet_case_count> cases{};
+  std::array<std::uint64_t, primitive_count> primitives{};
+  std::array<std::uint64_t, split_configuration_count> configurations{};
+  std::uint64_t splits = 0;
+  std::uint64_t added = 0;  // triangles of the records
+  std::uint64_t visited = 0;
+  std::uint64_t culled = 0;
+  std::uint64_t discarded = 0;
+
+  void count(const split_summary& s) noexcept {
+    ++splits;
+    added += static_cast<unsigned>(s.added_triangles);
+    for (std::size_t k = 0; k < tet_case_count; ++k) cases[k] += s.cases[k];
+    for (std::size_t k = 0; k < primitive_count; ++k) primitives[k] += s.primitives[k];
+    ++configurations[static_cast<std::size_t>(s.configuration)];
+  }
+  // Adds everything to r's counters (their one writer at a time) and starts again from zero.
+  void add_to(engine_root& r) noexcept {
+    r.splits.add(splits);
+    r.record_triangles.add(added);
+    r.visited.add(visited);
+    r.culled.add(culled);
+    r.discarded.add(discarded);
+    for (std::size_t k = 0; k < tet_case_count; ++k) r.cases[k].add(cases[k]);
+    for (std::size_t k = 0; k < primitive_count; ++k) r.primitives[k].add(primitives[k]);
+    for (std::size_t k = 0; k < split_configuration_count; ++k) {
+      r.configurations[k].add(configurations[k]);
+    }
+    *this = split_tally{};
+  }
+};
+
 struct child_info {
   std::uint64_t index;
   double error;
@@ -294,6 +330,16 @@ struct engine_impl {
   bool queue_if_straddles(engine_root& r, const ipoint& c, std::int32_t h, int depth,
                           std::uint64_t index, const range_data* rd);
 
+  // The queue item of a diamond whose parents are all split (centre c, scale h), or nothing
+  // when it is culled: keyed by its error, or by placeholder in full refinement (tested by
+  // straddles(), or, when it owns a piece of its last parent's surface, by empty() alone: it
+  // straddles unless wholly in the padding) and while `rd` is null (culled only when wholly in
+  // the padding). Reads only immutable data: any thread.
+  [[nodiscard]] std::optional<ready_item> ready_child(const engine_root& r, const ipoint& c,
+                                                      std::int32_t h, int depth,
+                                                      std::uint64_t index, const range_data* rd,
+                                                      bool owns_surface) const;
+
   // Driver, between graph runs, once the range data is built: the diamonds queued by
   // placeholder are queued again by their ranges, or culled; those queued by error bounds (a
   // deadline run before the error pass) by their exact errors once they exist.
@@ -375,6 +421,34 @@ struct engine_impl {
   // One graph run: the first dispatch goes through the serial commit node too (the queue
   // belongs to it: tasks started by the dispatch loop commit while it still runs).
   void run_graph(engine_root* r);
+
+  // Whether a piece of the split surface `groups` lies in diamond `index` (its owner).
+  [[nodiscard]] static bool owns_piece(const std::vector<packed_group>& groups,
+                                       std::uint64_t index) noexcept {
+    return std::any_of(groups.begin(), groups.end(),
+                       [index](const packed_group& g) { return g.owner == index; });
+  }
+  // After a publication of `published` records: calls the progress callback once
+  // opt.progress_interval records were published since its last call. The callback may
+  // cancel() (a stop request); an exception it throws stops the run and is rethrown by the
+  // control thread's wait() or refine(), never across TBB. Whoever publishes (one at a time).
+  void report_progress(engine_root& r, const range_data* rd, std::uint64_t published);
+
+  // One run on one thread (serial_refinement.cpp): the same records, publication rule, queue,
+  // goals and statistics as the graph, split by split in the driver thread, published every
+  // 64 splits. run_graph() takes it when the engine has one thread.
+  void refine_serially(engine_root& r);
+
+  // A full run on more than one thread (full_refinement.cpp): tasks over subtrees, each a
+  // depth-first loop like refine_serially()'s, publishing its splits every 64 under
+  // `publish_mutex`; a child becomes ready when the atomic increment of its last parent, made
+  // after that parent's publication, reaches its parent count. run_graph() takes it for full
+  // goals on more than one thread; priority goals keep the graph (their order is global).
+  struct full_run;
+  struct full_task;
+  void refine_full_in_tasks(engine_root& r);
+  void run_full_task(full_task& t);
+  void publish_full_task(full_task& t);
 
   // After a graph run that stopped at the end of its slice (not at the goal's deadline): clears
   // the stop request and returns true, unless the user or the progress callback stopped the run
@@ -460,6 +534,11 @@ struct engine_impl {
   std::vector<std::unique_ptr<batch>> spare_batches;
   bool budget_hit = false;
   int last_depth = 0;
+  // The split groups of refine_serially()'s current diamond (the driver's; kept for capacity).
+  std::vector<packed_group> serial_groups;
+  // Full runs in tasks: publication (records, record_of, the root's counters, last_depth,
+  // since_progress, the progress callback) is one task at a time under this mutex.
+  std::mutex publish_mutex;
   std::uint64_t since_progress = 0;
 
   std::mutex control;

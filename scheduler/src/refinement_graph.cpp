@@ -122,13 +122,8 @@ void engine_impl::commit_batch(batch* b) {
   --inflight;
   inflight_items -= b->items.size();
   std::size_t published = 0;
+  split_tally tally;
   if (!stopping() && b->computed > 0) {
-    std::array<std::uint64_t, tet_case_count> cases{};
-    std::array<std::uint64_t, primitive_count> prims{};
-    std::array<std::uint64_t, split_configuration_count> configs{};
-    std::uint64_t added = 0;
-    std::uint64_t visited = 0;
-    std::uint64_t culled = 0;
     // The per-vertex state the loop below writes, requested ahead: in priority order the
     // diamonds lie all over the grid, and these lines are the serial step's cache misses.
     for (std::size_t i = 0; i < b->computed; ++i) {
@@ -161,10 +156,11 @@ void engine_impl::commit_batch(batch* b) {
           .store(static_cast<std::uint32_t>(index),
                  // relaxed: published by the release in records.publish() below.
                  std::memory_order_relaxed);
-      added += static_cast<unsigned>(it.added);
-      for (std::size_t k = 0; k < tet_case_count; ++k) cases[k] += it.cases[k];
-      for (std::size_t k = 0; k < primitive_count; ++k) prims[k] += it.primitives[k];
-      ++configs[static_cast<std::size_t>(it.configuration)];
+      ++tally.splits;
+      tally.added += static_cast<unsigned>(it.added);
+      for (std::size_t k = 0; k < tet_case_count; ++k) tally.cases[k] += it.cases[k];
+      for (std::size_t k = 0; k < primitive_count; ++k) tally.primitives[k] += it.primitives[k];
+      ++tally.configurations[static_cast<std::size_t>(it.configuration)];
       for (std::size_t c = 0; c < it.children; ++c) {
         const child_info& ci = it.child[c];
         const std::atomic_ref<std::uint8_t> slot(r.parents[ci.index]);
@@ -172,18 +168,18 @@ void engine_impl::commit_batch(batch* b) {
         const auto count = static_cast<std::uint8_t>(slot.load(std::memory_order_relaxed) + 1);
         slot.store(count, std::memory_order_relaxed);  // relaxed: as the load above
         if (count != ci.parents_needed) continue;
-        ++visited;
+        ++tally.visited;
         if (ci.known) {
           if (ci.straddles) {
             r.queue.push({ci.error, it.item.depth + 1, ci.index});
           } else {
-            ++culled;
+            ++tally.culled;
           }
         } else {
           const ipoint centre = hier.point(ci.index);
           if (!queue_if_straddles(r, centre, hier.scale_of(centre), it.item.depth + 1, ci.index,
                                   rd)) {
-            ++culled;
+            ++tally.culled;
           }
         }
       }
@@ -192,20 +188,12 @@ void engine_impl::commit_batch(batch* b) {
     }
     r.records.publish();
     if (!errors_needed()) r.unranged = true;  // children queued by placeholder
-    r.splits.add(published);
     r.triangles.set(r.cut_triangles);
-    r.record_triangles.add(added);
-    r.visited.add(visited);
-    r.culled.add(culled);
-    for (std::size_t k = 0; k < tet_case_count; ++k) r.cases[k].add(cases[k]);
-    for (std::size_t k = 0; k < primitive_count; ++k) r.primitives[k].add(prims[k]);
-    for (std::size_t k = 0; k < split_configuration_count; ++k) {
-      r.configurations[k].add(configs[k]);
-    }
   }
   // What was not published goes back to the queue: still ready, never lost.
   for (std::size_t i = published; i < b->items.size(); ++i) r.queue.push(b->items[i].item);
-  r.discarded.add(b->computed - std::min(b->computed, published));
+  tally.discarded = b->computed - std::min(b->computed, published);
+  tally.add_to(r);
   r.batches.add(1);
   b->items.clear();
   b->groups.clear();
@@ -213,25 +201,32 @@ void engine_impl::commit_batch(batch* b) {
   spare_batches.emplace_back(b);
   dispatch(r);
   r.remaining.set(r.queue.size() + inflight_items);
-  if (opt.progress && !callback_error) {
-    since_progress += published;
-    if (since_progress >= opt.progress_interval) {
-      since_progress = 0;
-      // The callback may call cancel() (a stop request from here) but no control call that
-      // waits for this run; an exception it throws stops the run and is rethrown by the
-      // control thread's wait() or refine(), never across TBB.
-      const callback_scope in_callback(this);
-      try {
-        opt.progress({r.splits.get(), r.cut_triangles, next_error(r, rd), last_depth});
-      } catch (...) {
-        callback_error = std::current_exception();
-        request_stop();
-      }
-    }
+  report_progress(r, rd, published);
+}
+
+void engine_impl::report_progress(engine_root& r, const range_data* rd, std::uint64_t published) {
+  if (!opt.progress || callback_error) return;
+  since_progress += published;
+  if (since_progress < opt.progress_interval) return;
+  since_progress = 0;
+  const callback_scope in_callback(this);
+  try {
+    opt.progress({r.splits.get(), r.cut_triangles, next_error(r, rd), last_depth});
+  } catch (...) {
+    callback_error = std::current_exception();
+    request_stop();
   }
 }
 
 void engine_impl::run_graph(engine_root* r) {
+  if (threads == 1) {
+    refine_serially(*r);
+    return;
+  }
+  if (goal.what == refine_goal::kind::full) {
+    refine_full_in_tasks(*r);
+    return;
+  }
   arena.execute([&] {
     auto* seed = new batch;
     seed->root = r;

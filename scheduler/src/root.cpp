@@ -42,23 +42,28 @@ void engine_impl::seed_roots(engine_root& r) {
   r.culled.add(culled);
 }
 
-bool engine_impl::queue_if_straddles(engine_root& r, const ipoint& c, std::int32_t h, int depth,
-                                     std::uint64_t index, const range_data* rd) {
+std::optional<ready_item> engine_impl::ready_child(const engine_root& r, const ipoint& c,
+                                                   std::int32_t h, int depth, std::uint64_t index,
+                                                   const range_data* rd, bool owns_surface) const {
   if (rd == nullptr) {
-    if (ranges_for_empty().empty(c, h)) return false;
-    r.queue.push({unranged_error(depth), depth, index});
-    r.unranged = true;
-    return true;
+    if (ranges_for_empty().empty(c, h)) return std::nullopt;
+    return ready_item{unranged_error(depth), depth, index};
   }
   if (!errors_needed()) {
-    if (!rd->straddles(c, h, r.threshold)) return false;
-    r.queue.push({unranged_error(depth), depth, index});
-    r.unranged = true;
-    return true;
+    if (owns_surface ? rd->empty(c, h) : !rd->straddles(c, h, r.threshold)) return std::nullopt;
+    return ready_item{unranged_error(depth), depth, index};
   }
   const diamond_range cr = rd->get(c, h);
-  if (!cr.straddles(r.isovalue)) return false;
-  r.queue.push({cr.error, depth, index});
+  if (!cr.straddles(r.isovalue)) return std::nullopt;
+  return ready_item{cr.error, depth, index};
+}
+
+bool engine_impl::queue_if_straddles(engine_root& r, const ipoint& c, std::int32_t h, int depth,
+                                     std::uint64_t index, const range_data* rd) {
+  const std::optional<ready_item> item = ready_child(r, c, h, depth, index, rd, false);
+  if (!item) return false;
+  r.queue.push(*item);
+  if (rd == nullptr || !errors_needed()) r.unranged = true;
   return true;
 }
 

@@ -379,31 +379,36 @@ TEST(Engine, cancel_during_a_deadline_runs_range_build_stops_the_build) {
 
 TEST(Engine, cancel_from_another_thread_stops_every_worker_and_keeps_what_was_published) {
   const volume v = make_marschner_lobb({97, 97, 97});
-  engine e(v, 0.5, with_threads(2));
-  e.start(refine_goal::full());
-  EXPECT_TRUE(e.running() || e.done());
-  std::thread canceller([&] {
-    std::this_thread::sleep_for(5ms);
-    e.cancel();
-  });
-  canceller.join();
-  EXPECT_FALSE(e.running());
-  const engine_statistics a = e.statistics();
-  ASSERT_FALSE(e.done()) << "97³ refines fully in 5 ms? make the volume larger";
-  std::this_thread::sleep_for(10ms);
-  const engine_statistics b = e.statistics();
-  EXPECT_EQ(a.published, b.published) << "a worker published after cancel() returned";
-  EXPECT_EQ(a.batches, b.batches) << "a task ran after cancel() returned";
-  EXPECT_GE(b.cancelled_runs, 1u);
-  const surface_snapshot s = e.snapshot();
-  EXPECT_EQ(s.split_count() + 1, b.published);
-  EXPECT_TRUE(test::same_surface(s.mesh(), replay(e, s)));
-  // Restarting continues from the published cut and reaches the full surface.
-  e.start(refine_goal::full());
-  e.wait();
-  EXPECT_TRUE(e.done());
-  EXPECT_TRUE(
-      test::same_surface(e.snapshot().mesh(), test::reference_marching_tetrahedra(v, 0.5).mesh));
+  // One thread (the serial loop), two and three (full refinement in tasks).
+  for (const unsigned n : {1u, 2u, 3u}) {
+    SCOPED_TRACE(n);
+    engine e(v, 0.5, with_threads(n));
+    e.start(refine_goal::full());
+    EXPECT_TRUE(e.running() || e.done());
+    std::thread canceller([&] {
+      std::this_thread::sleep_for(5ms);
+      e.cancel();
+    });
+    canceller.join();
+    EXPECT_FALSE(e.running());
+    const engine_statistics a = e.statistics();
+    ASSERT_FALSE(e.done()) << "97³ refines fully in 5 ms? make the volume larger";
+    std::this_thread::sleep_for(10ms);
+    const engine_statistics b = e.statistics();
+    EXPECT_EQ(a.published, b.published) << "a worker published after cancel() returned";
+    EXPECT_EQ(a.batches, b.batches) << "a task ran after cancel() returned";
+    EXPECT_GE(b.cancelled_runs, 1u);
+    const surface_snapshot s = e.snapshot();
+    EXPECT_EQ(s.split_count() + 1, b.published);
+    EXPECT_TRUE(test::same_surface(s.mesh(), replay(e, s)));
+    // Restarting continues from the published cut and reaches the full surface.
+    e.start(refine_goal::full());
+    e.wait();
+    EXPECT_TRUE(e.done());
+    EXPECT_TRUE(
+        test::same_surface(e.snapshot().mesh(), test::reference_marching_tetrahedra(v, 0.5).mesh));
+    EXPECT_TRUE(e.done());
+  }
 }
 
 TEST(Engine, isovalue_change_publishes_the_new_root_at_once_and_resumes_refining) {
@@ -560,18 +565,97 @@ TEST(Engine, statistics_count_cases_and_primitives_like_the_sequential_refiner) 
   const range_data ranges(v, h);
   refiner r(v, h, ranges, 0.5);
   r.refine_full();
-  engine e(v, 0.5, with_threads(2));
-  e.refine_full();
-  const refine_statistics a = r.statistics();
-  const refine_statistics b = e.statistics().refine;
-  EXPECT_EQ(a.splits, b.splits);
-  EXPECT_EQ(a.visited, b.visited);
-  EXPECT_EQ(a.culled, b.culled);
-  EXPECT_EQ(a.triangles, b.triangles);
-  EXPECT_EQ(a.record_triangles, b.record_triangles);
-  EXPECT_EQ(a.cases, b.cases);
-  EXPECT_EQ(a.primitives, b.primitives);
-  EXPECT_EQ(a.configurations, b.configurations);
+  // One thread (the serial loop), two and three (full refinement in tasks).
+  for (const unsigned n : {1u, 2u, 3u}) {
+    SCOPED_TRACE(n);
+    engine e(v, 0.5, with_threads(n));
+    e.refine_full();
+    const refine_statistics a = r.statistics();
+    const refine_statistics b = e.statistics().refine;
+    EXPECT_EQ(a.splits, b.splits);
+    EXPECT_EQ(a.visited, b.visited);
+    EXPECT_EQ(a.culled, b.culled);
+    EXPECT_EQ(a.triangles, b.triangles);
+    EXPECT_EQ(a.record_triangles, b.record_triangles);
+    EXPECT_EQ(a.cases, b.cases);
+    EXPECT_EQ(a.primitives, b.primitives);
+    EXPECT_EQ(a.configurations, b.configurations);
+    EXPECT_TRUE(e.done());
+  }
+}
+
+// Every record follows the records of its parents, in every cut a reader can see: the rule that
+// makes each published prefix a valid cut, whoever publishes (the one-thread loop, full
+// refinement in tasks, the graph's commit step for priority goals).
+TEST(Engine, records_follow_their_parents_records_on_every_path) {
+  const volume v = make_gaussian_blobs({65, 61, 63}, 9, 13u);
+  const auto parents_first = [](const engine& e, const surface_snapshot& s) {
+    const hierarchy& h = e.hierarchy_of();
+    std::unordered_set<std::uint64_t> before;
+    std::size_t orphans = 0;
+    s.for_each_split([&](std::uint64_t d) {
+      std::array<ipoint, 4> ps{};
+      const int n = h.parents(h.make_diamond(h.point(d)), ps);
+      for (int i = 0; i < n; ++i) {
+        if (before.count(h.index(ps[static_cast<std::size_t>(i)])) == 0) ++orphans;
+      }
+      before.insert(d);
+    });
+    return orphans;
+  };
+  for (const unsigned n : {1u, 2u, 3u}) {
+    for (const bool full : {true, false}) {
+      SCOPED_TRACE(testing::Message() << n << " threads, " << (full ? "full" : "error"));
+      engine e(v, 0.4, with_threads(n));
+      e.start(full ? refine_goal::full() : refine_goal::error(0.001));
+      std::size_t taken = 0;
+      while (e.running()) {
+        const surface_snapshot s = e.snapshot();
+        EXPECT_EQ(parents_first(e, s), 0u) << "a record before one of its parents'";
+        ++taken;
+      }
+      e.wait();
+      const surface_snapshot s = e.snapshot();
+      EXPECT_GT(s.split_count(), 1000u);
+      EXPECT_EQ(parents_first(e, s), 0u);
+      RecordProperty("snapshots_during_the_run", static_cast<int>(taken));
+    }
+  }
+}
+
+// With one thread the engine runs its goals in a loop of its own (no graph): the same split
+// sets as the sequential refiner where the order fixes them (full, error), the budget held and
+// a valid cut otherwise.
+TEST(Engine, one_thread_reaches_every_goal_like_the_sequential_refiner) {
+  const volume v = make_marschner_lobb({41, 41, 41});
+  const auto box = test::data_box(v);
+  const hierarchy h(v.dims());
+  const range_data ranges(v, h);
+  for (const double eps : {0.1, 0.01}) {
+    refiner r(v, h, ranges, 0.5);
+    r.refine_to_error(eps);
+    engine e(v, 0.5, with_threads(1));
+    EXPECT_TRUE(e.refine_until(eps));
+    EXPECT_EQ(e.snapshot().split_count(), r.statistics().splits) << eps;
+    EXPECT_TRUE(test::same_surface(e.snapshot().mesh(), r.extract())) << eps;
+  }
+  for (const std::uint64_t k : {400u, 3000u}) {  // the root cut has 200
+    engine e(v, 0.5, with_threads(1));
+    EXPECT_TRUE(e.refine(refine_goal::triangles(k)));
+    const surface_snapshot s = e.snapshot();
+    EXPECT_LE(s.triangle_count(), k);
+    EXPECT_GT(s.split_count(), 0u);
+    EXPECT_TRUE(test::check_valid_cut(s.mesh(), box[0], box[1]));
+  }
+  engine e(v, 0.5, with_threads(1));
+  e.refine(refine_goal::until(std::chrono::steady_clock::now() + 2ms));
+  const surface_snapshot s = e.snapshot();
+  EXPECT_TRUE(test::check_valid_cut(s.mesh(), box[0], box[1]));
+  EXPECT_TRUE(test::same_surface(s.mesh(), replay(e, s)));
+  // and a full run continues the deadline's cut to the finest surface
+  EXPECT_TRUE(e.refine_full());
+  EXPECT_TRUE(
+      test::same_surface(e.snapshot().mesh(), test::reference_marching_tetrahedra(v, 0.5).mesh));
 }
 
 TEST(Engine, parallel_extraction_matches_the_sequential_one_in_every_mode) {

@@ -1,0 +1,235 @@
+// Full refinement on more than one thread: tasks over subtrees, no serial step per split.
+//
+// Each task refines depth first from its own stack, as the one-thread loop does, and publishes
+// its computed splits every 64 under `publish_mutex` (records, record_of, counters: the critical
+// section copies, it computes nothing). Only then does it count its splits as parents of their
+// children: an atomic increment per child, and the task whose increment completes a child's
+// parent count pushes the child on its own stack. A child is therefore computed, hence published,
+// after every parent was published, so every published prefix of the records is a valid cut, as
+// with the graph. A task whose stack has work to spare gives the older half (the coarser diamonds,
+// the larger subtrees) to a new task whenever fewer tasks than threads are running; oneTBB's
+// work stealing places it on an idle thread. Full refinement splits every straddling diamond
+// whatever the order, so the split set and the mesh are those of the graph and of one thread.
+
+#include "engine_impl.hpp"
+
+#include <tbb/task_group.h>
+
+#include <progiso/core/refine/detail/prefetch.hpp>
+
+namespace progiso::detail {
+
+namespace {
+
+// Splits a task computes between two publications: a reader's snapshot lags a task by at most
+// this many splits, and the mutex is taken once per step.
+constexpr std::size_t task_publish_step = 64;
+constexpr std::size_t task_prefetch_distance = 8;
+
+// A computed split waiting for its task's next publication.
+struct pending_split {
+  ready_item item;
+  std::int32_t scale;
+  std::uint32_t crossed;
+  std::uint32_t first;  // groups in the task's buffer
+  std::uint32_t count;
+  int added;
+  int removed;
+};
+
+}  // namespace
+
+// State shared by the tasks of one run.
+struct engine_impl::full_run {
+  engine_root* root = nullptr;
+  const range_data* ranges = nullptr;
+  tbb::task_group* group = nullptr;
+  // Tasks running or spawned: a hint for sharing work (relaxed; a stale value only shares a
+  // little early or late).
+  std::atomic<unsigned> active{0};
+  // Ready diamonds on the tasks' stacks plus computed, unpublished splits: the root's
+  // `remaining` while the run lasts (relaxed; statistics only).
+  std::atomic<std::int64_t> outstanding{0};
+  // What stopped tasks did not publish, queued again by the driver after the run.
+  std::mutex returned_mutex;
+  std::vector<ready_item> returned;
+};
+
+struct engine_impl::full_task {
+  full_run* run = nullptr;
+  std::vector<ready_item> stack;  // next diamond at the back
+  std::vector<pending_split> pending;
+  std::vector<packed_group> groups;  // of the pending splits
+  split_tally pending_tally;         // of the pending splits
+  split_tally tally;                 // published splits, visited and culled children
+};
+
+void engine_impl::refine_full_in_tasks(engine_root& r) {
+  seed_roots(r);  // a no-op once seeded
+  const range_data* rd = built_ranges();
+  PROGISO_ASSERT(rd != nullptr);  // drive() builds the ranges before a full run
+  note_keys(r, rd);
+  std::vector<ready_item> items;
+  items.reserve(r.queue.size());
+  while (!r.queue.empty()) {
+    items.push_back(r.queue.top());
+    r.queue.pop();
+  }
+  if (items.empty()) return;
+  std::reverse(items.begin(), items.end());  // the queue's next diamond at the back
+
+  full_run run;
+  run.root = &r;
+  run.ranges = rd;
+  run.outstanding.store(static_cast<std::int64_t>(items.size()), std::memory_order_relaxed);
+  arena.execute([&] {
+    tbb::task_group group;
+    run.group = &group;
+    const std::size_t tasks = std::min<std::size_t>(threads, items.size());
+    for (std::size_t k = 0; k < tasks; ++k) {
+      const std::size_t lo = items.size() * k / tasks;
+      const std::size_t hi = items.size() * (k + 1) / tasks;
+      std::vector<ready_item> part(items.begin() + static_cast<std::ptrdiff_t>(lo),
+                                   items.begin() + static_cast<std::ptrdiff_t>(hi));
+      run.active.fetch_add(1, std::memory_order_relaxed);  // relaxed: a hint (see full_run)
+      group.run([this, &run, part = std::move(part)] {
+        full_task t;
+        t.run = &run;
+        t.stack = part;  // oneTBB calls the body as const: one copy per task
+        run_full_task(t);
+      });
+    }
+    group.wait();
+  });
+  // Stopped: what was not published is still ready, never lost.
+  for (const ready_item& it : run.returned) r.queue.push(it);
+  if (!r.queue.empty()) r.unranged = true;  // queued by placeholder
+  r.remaining.set(r.queue.size());
+}
+
+void engine_impl::run_full_task(full_task& t) {
+  full_run& run = *t.run;
+  const engine_root& r = *run.root;
+  const double w = r.isovalue;
+  const bool prefetch = vol.byte_size() > prefetch_min_bytes;
+  for (;;) {
+    while (!t.stack.empty() && !stopping()) {
+      const ready_item item = t.stack.back();
+      t.stack.pop_back();
+      if (prefetch && t.stack.size() > task_prefetch_distance) {
+        const ipoint a = hier.point(t.stack[t.stack.size() - 1 - task_prefetch_distance].index);
+        prefetch_diamond_samples(vol, a, hier.scale_of(a));
+      }
+      const ipoint centre = hier.point(item.index);
+      const std::int32_t scale = hier.scale_of(centre);
+      const std::size_t first = t.groups.size();
+      const split_summary s = compute_split(hier, vol, w, centre, scale, t.groups);
+      t.pending.push_back({item, scale, s.crossed, static_cast<std::uint32_t>(first),
+                           static_cast<std::uint32_t>(t.groups.size() - first), s.added_triangles,
+                           s.removed_triangles});
+      t.pending_tally.count(s);
+      if (t.pending.size() == task_publish_step) publish_full_task(t);
+    }
+    if (stopping() || t.pending.empty()) break;
+    publish_full_task(t);  // the children it makes ready refill the stack
+  }
+  if (!t.pending.empty() || !t.stack.empty()) {  // stopped
+    t.tally.discarded += t.pending.size();
+    const std::lock_guard lock(run.returned_mutex);
+    for (const pending_split& p : t.pending) run.returned.push_back(p.item);
+    run.returned.insert(run.returned.end(), t.stack.begin(), t.stack.end());
+  }
+  {
+    const std::lock_guard lock(publish_mutex);
+    t.tally.add_to(*run.root);
+  }
+  run.active.fetch_sub(1, std::memory_order_relaxed);  // relaxed: a hint (see full_run)
+}
+
+void engine_impl::publish_full_task(full_task& t) {
+  full_run& run = *t.run;
+  engine_root& r = *run.root;
+  const auto published = static_cast<std::int64_t>(t.pending.size());
+  {
+    const std::lock_guard lock(publish_mutex);
+    if (stopping()) return;  // the caller returns the pending splits to the queue
+    for (const pending_split& p : t.pending) {
+      const std::size_t index = r.records.size();
+      PROGISO_ASSERT(index < (std::size_t{1} << 32));
+      const std::uint64_t after =
+          r.cut_triangles + static_cast<unsigned>(p.added) - static_cast<unsigned>(p.removed);
+      r.cut_triangles = after;
+      r.records.push_back({p.item.index,
+                           r.groups.append_contiguous(t.groups.data() + p.first, p.count), p.count,
+                           p.item.depth, p.scale, p.crossed, after});
+      std::atomic_ref<std::uint32_t>(r.record_of[p.item.index])
+          .store(static_cast<std::uint32_t>(index),
+                 // relaxed: published by the release in records.publish() below.
+                 std::memory_order_relaxed);
+    }
+    r.records.publish();
+    r.triangles.set(r.cut_triangles);
+    t.pending_tally.add_to(r);
+    t.tally.add_to(r);
+    r.batches.add(1);
+    last_depth = t.pending.back().item.depth;
+    // relaxed: statistics (see full_run::outstanding).
+    r.remaining.set(static_cast<std::uint64_t>(
+        std::max<std::int64_t>(1, run.outstanding.load(std::memory_order_relaxed))));
+    report_progress(r, run.ranges, static_cast<std::uint64_t>(published));
+  }
+  // The children of the splits just published: the increment that completes a child's parent
+  // count makes it ready, on this task's stack.
+  std::int64_t pushed = 0;
+  for (const pending_split& p : t.pending) {
+    const ipoint centre = hier.point(p.item.index);
+    const child_list children =
+        hier.children_of(centre, p.scale, hierarchy::type_of(centre, p.scale));
+    const int depth = p.item.depth + 1;
+    for (int i = 0; i < children.count; ++i) {
+      const auto ui = static_cast<std::size_t>(i);
+      const ipoint& c = children.centre[ui];
+      const std::uint64_t ci = hier.index(c);
+      // acq_rel: the increments of a child's parents form one release sequence; the last one
+      // acquires the others, each made after its parent's publication (under publish_mutex
+      // above), so the child, computed and published after it, follows all its parents in the
+      // records. Partner: this same fetch_add by the tasks of the child's other parents.
+      const auto before =
+          std::atomic_ref<std::uint8_t>(r.parents[ci]).fetch_add(1, std::memory_order_acq_rel);
+      if (before + 1 != children.parents[ui]) continue;
+      ++t.tally.visited;
+      const packed_group* g = t.groups.data() + p.first;
+      const bool owns =
+          std::any_of(g, g + p.count, [ci](const packed_group& x) { return x.owner == ci; });
+      const std::optional<ready_item> child =
+          ready_child(r, c, children.scale, depth, ci, run.ranges, owns);
+      if (child) {
+        t.stack.push_back(*child);
+        ++pushed;
+      } else {
+        ++t.tally.culled;
+      }
+    }
+  }
+  // relaxed: statistics (see full_run::outstanding).
+  run.outstanding.fetch_add(pushed - published, std::memory_order_relaxed);
+  t.pending.clear();
+  t.groups.clear();
+
+  // Work to spare for an idle thread: the older half of the stack (coarser diamonds).
+  // relaxed: a hint (see full_run::active).
+  if (t.stack.size() >= 2 && run.active.load(std::memory_order_relaxed) < threads) {
+    const auto half = static_cast<std::ptrdiff_t>(t.stack.size() / 2);
+    std::vector<ready_item> part(t.stack.begin(), t.stack.begin() + half);
+    t.stack.erase(t.stack.begin(), t.stack.begin() + half);
+    run.active.fetch_add(1, std::memory_order_relaxed);  // relaxed: a hint (see full_run)
+    run.group->run([this, &run, part = std::move(part)] {
+      full_task nt;
+      nt.run = &run;
+      nt.stack = part;  // oneTBB calls the body as const: one copy per task
+      run_full_task(nt);
+    });
+  }
+}
+
+}  // namespace progiso::detail
