@@ -24,6 +24,7 @@ namespace {
 // Splits a task computes between two publications: a reader's snapshot lags a task by at most
 // this many splits, and the mutex is taken once per step.
 constexpr std::size_t task_publish_step = 64;
+constexpr std::size_t task_publish_most = 256;
 constexpr std::size_t task_prefetch_distance = 8;
 
 // A computed split waiting for its task's next publication.
@@ -128,10 +129,14 @@ void engine_impl::run_full_task(full_task& t) {
                            static_cast<std::uint32_t>(t.groups.size() - first), s.added_triangles,
                            s.removed_triangles});
       t.pending_tally.count(s);
-      if (t.pending.size() == task_publish_step) publish_full_task(t);
+      // Every 64 splits when the mutex is free; a task that finds it taken goes on computing
+      // (waiting for it was a tenth of the time on two threads), up to 256.
+      if (t.pending.size() >= task_publish_step && (t.pending.size() % task_publish_step) == 0) {
+        (void)publish_full_task(t, t.pending.size() >= task_publish_most);
+      }
     }
     if (stopping() || t.pending.empty()) break;
-    publish_full_task(t);  // the children it makes ready refill the stack
+    (void)publish_full_task(t, true);  // the children it makes ready refill the stack
   }
   if (!t.pending.empty() || !t.stack.empty()) {  // stopped
     t.tally.discarded += t.pending.size();
@@ -146,13 +151,18 @@ void engine_impl::run_full_task(full_task& t) {
   run.active.fetch_sub(1, std::memory_order_relaxed);  // relaxed: a hint (see full_run)
 }
 
-void engine_impl::publish_full_task(full_task& t) {
+bool engine_impl::publish_full_task(full_task& t, bool wait) {
   full_run& run = *t.run;
   engine_root& r = *run.root;
   const auto published = static_cast<std::int64_t>(t.pending.size());
   {
-    const std::lock_guard lock(publish_mutex);
-    if (stopping()) return;  // the caller returns the pending splits to the queue
+    std::unique_lock lock(publish_mutex, std::defer_lock);
+    if (wait) {
+      lock.lock();
+    } else if (!lock.try_lock()) {
+      return false;
+    }
+    if (stopping()) return false;  // the caller returns the pending splits to the queue
     for (const pending_split& p : t.pending) {
       const std::size_t index = r.records.size();
       PROGISO_ASSERT(index < (std::size_t{1} << 32));
@@ -230,6 +240,7 @@ void engine_impl::publish_full_task(full_task& t) {
       run_full_task(nt);
     });
   }
+  return true;
 }
 
 }  // namespace progiso::detail
