@@ -2,12 +2,14 @@
 //
 // What it is. An engine owns one volume's hierarchy and range data (built once, in parallel, by
 // the first run, independent of the isovalue; the root surface published at construction needs
-// none) and the progressive surface of the current isovalue. Refinement runs as tasks on
-// a oneTBB flow graph: split records of ready diamonds (all parents split) are computed in
-// parallel in batches — compute_split() is pure — and a serial commit step publishes them in
-// dependency order and makes their children ready. Ready diamonds wait in the engine's own
-// priority queue (largest nested error first; depth first for full refinement); at most
-// `tasks_per_thread × threads` batches are in flight, so a cancel has little to drain.
+// none) and the progressive surface of the current isovalue. Split records of ready diamonds
+// (all parents split; compute_split() is pure) are published in dependency order, every record
+// after its parents'. On one thread a run is a loop in its driver. On more, a full run is oneTBB
+// tasks over subtrees, each depth first from its own stack, publishing every 64 splits and
+// making children ready by atomic parent counts after publication; error, budget and deadline
+// runs use a oneTBB flow graph: splits computed in parallel in batches, a serial commit step
+// that publishes them and keeps the engine's priority queue (largest nested error first), at
+// most `tasks_per_thread × threads` batches in flight, so a cancel has little to drain.
 //
 // The four scenarios of the paper (§1):
 //  - quality-driven:  refine_until(ε) splits until every remaining error is ≤ ε;
@@ -78,7 +80,8 @@ struct engine_progress {
 struct engine_options {
   /// Worker threads; 0: all cores. Capped at default_concurrency(), the size of oneTBB's pool.
   unsigned threads = 0;
-  /// Diamonds per compute task (TBB costs ~150–200 ns per task; a split ~0.5–1 µs).
+  /// Diamonds per compute task of the flow graph (priority runs on more than one thread; TBB
+  /// costs ~150–200 ns per task, a split ~0.2–1 µs).
   std::size_t batch = 32;
   /// In-flight batches per thread: bounds what a cancel must drain.
   std::size_t tasks_per_thread = 4;
