@@ -423,9 +423,9 @@ struct engine_impl {
   void run_graph(engine_root* r);
 
   // Whether a piece of the split surface `groups` lies in diamond `index` (its owner).
-  [[nodiscard]] static bool owns_piece(const std::vector<packed_group>& groups,
+  [[nodiscard]] static bool owns_piece(const packed_group* groups, std::size_t count,
                                        std::uint64_t index) noexcept {
-    return std::any_of(groups.begin(), groups.end(),
+    return std::any_of(groups, groups + count,
                        [index](const packed_group& g) { return g.owner == index; });
   }
   // After a publication of `published` records: calls the progress callback once

@@ -208,11 +208,9 @@ bool engine_impl::publish_full_task(full_task& t, bool wait) {
           std::atomic_ref<std::uint8_t>(r.parents[ci]).fetch_add(1, std::memory_order_acq_rel);
       if (before + 1 != children.parents[ui]) continue;
       ++t.tally.visited;
-      const packed_group* g = t.groups.data() + p.first;
-      const bool owns =
-          std::any_of(g, g + p.count, [ci](const packed_group& x) { return x.owner == ci; });
       const std::optional<ready_item> child =
-          ready_child(r, c, children.scale, depth, ci, run.ranges, owns);
+          ready_child(r, c, children.scale, depth, ci, run.ranges,
+                      owns_piece(t.groups.data() + p.first, p.count, ci));
       if (child) {
         t.stack.push_back(*child);
         ++pushed;

@@ -87,20 +87,12 @@ batch* engine_impl::compute_batch(batch* b) {
               // and a stale count just moves the lookup to the commit step or repeats it.
               .load(std::memory_order_relaxed);
       ci.known = rd != nullptr && split_parents + 1 >= ci.parents_needed;
-      if (ci.known && !errors_needed()) {
-        // A child that owns a piece of this split's surface straddles w unless its range is
-        // empty (wholly in the padding): no sample read. Others: the straddle test.
-        bool owns_surface = false;
-        for (std::size_t g = first; g < b->groups.size() && !owns_surface; ++g) {
-          owns_surface = b->groups[g].owner == ci.index;
-        }
-        ci.straddles = owns_surface ? !rd->empty(c, children.scale)
-                                    : rd->straddles(c, children.scale, b->root->threshold);
-        ci.error = unranged_error(it.item.depth + 1);
-      } else if (ci.known) {
-        const diamond_range cr = rd->get(c, children.scale);
-        ci.straddles = cr.straddles(w);
-        ci.error = cr.error;
+      if (ci.known) {
+        const std::optional<ready_item> child =
+            ready_child(*b->root, c, children.scale, it.item.depth + 1, ci.index, rd,
+                        owns_piece(b->groups.data() + first, b->groups.size() - first, ci.index));
+        ci.straddles = child.has_value();
+        ci.error = child ? child->error : 0.0;
       }
     }
     ++b->computed;

@@ -49,8 +49,16 @@ std::optional<ready_item> engine_impl::ready_child(const engine_root& r, const i
     if (ranges_for_empty().empty(c, h)) return std::nullopt;
     return ready_item{unranged_error(depth), depth, index};
   }
+  // An owner of a piece of its parent's surface straddles w unless its range is empty: no
+  // sample read to keep it, and, when the goal orders by error, only the samples of its splits
+  // for the error. Others: the straddle test (stops at the first samples on both sides), or,
+  // when the error is needed, the range and error in one pass. The sequential refiner's rule.
+  if (owns_surface) {
+    if (rd->empty(c, h)) return std::nullopt;
+    return ready_item{errors_needed() ? rd->error(c, h) : unranged_error(depth), depth, index};
+  }
   if (!errors_needed()) {
-    if (owns_surface ? rd->empty(c, h) : !rd->straddles(c, h, r.threshold)) return std::nullopt;
+    if (!rd->straddles(c, h, r.threshold)) return std::nullopt;
     return ready_item{unranged_error(depth), depth, index};
   }
   const diamond_range cr = rd->get(c, h);

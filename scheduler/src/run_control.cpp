@@ -124,6 +124,7 @@ void engine_impl::launch(std::unique_lock<std::mutex>& lock, const refine_goal& 
   goal = g;
   r->queue.set_discipline(g.what == refine_goal::kind::full ? queue_discipline::lifo
                                                             : queue_discipline::largest_error);
+  if (g.what == refine_goal::kind::error) r->queue.aim_at(g.max_error);  // eligible() is exact
   stop.store(false, std::memory_order_relaxed);  // relaxed: the thread start orders it
   user_cancelled = false;
   pending_error = nullptr;  // a callback error belongs to the run it stopped

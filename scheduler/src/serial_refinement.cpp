@@ -94,8 +94,8 @@ void engine_impl::refine_serially(engine_root& r) {
       slot.store(parents, std::memory_order_relaxed);  // relaxed: as the load above
       if (parents != children.parents[ui]) continue;
       ++tally.visited;
-      const std::optional<ready_item> child =
-          ready_child(r, c, children.scale, depth, ci, rd, owns_piece(groups, ci));
+      const std::optional<ready_item> child = ready_child(
+          r, c, children.scale, depth, ci, rd, owns_piece(groups.data(), groups.size(), ci));
       if (child) {
         r.queue.push(*child);
         if (rd == nullptr) r.unranged = true;

@@ -79,6 +79,10 @@ void check_all_diamonds(const volume& v, bool exact_errors = true) {
         EXPECT_EQ(by_scale.lo, r.lo);
         EXPECT_EQ(by_scale.hi, r.hi);
         EXPECT_EQ(by_scale.error, r.error);
+        if (!r.empty()) {
+          // The error alone (split samples only at scale 1) is the same double.
+          EXPECT_EQ(rd.error(c, d.scale), r.error) << x << "," << y << "," << z;
+        }
         for (const double w : {r.lo, r.hi, 0.5 * (r.lo + r.hi), r.lo - 0.5, r.hi + 0.5,
                                std::nextafter(r.hi, -1e300), 0.1, 0.3, 0.55, 100.5}) {
           EXPECT_EQ(rd.straddles(c, d.scale, detail::sample_threshold(w)), r.straddles(w))

@@ -1,6 +1,7 @@
 // The refiner's modes, statistics, output sensitivity and determinism.
 #include <progiso/core/base/error.hpp>
 #include <progiso/core/field/analytic.hpp>
+#include <progiso/core/refine/detail/ready_queue.hpp>
 #include <progiso/core/refine/refiner.hpp>
 
 #include <cmath>
@@ -101,15 +102,67 @@ TEST(Refiner, triangle_budget_is_respected_and_splits_largest_error_first) {
   r.refine_to_triangles(2000);
   EXPECT_LE(r.triangle_count(), 2000u);
   EXPECT_EQ(r.extract().triangles.size(), r.triangle_count());
-  // Largest error first: the next diamond's error is no larger than any split so far, so the
-  // budgeted cut is also the cut by error at next_error().
-  const double next = r.next_error();
+  // Largest error first, by bands at most a factor 1.25 wide: when the budget stops the run inside
+  // the band of next_error(), every diamond of a larger band is split and none of a smaller one,
+  // so the budgeted cut lies between the cuts by error at the band's bounds.
+  const auto [lo, hi] = detail::error_bucket_bounds(detail::error_bucket(r.next_error()));
+  ASSERT_LE(lo, r.next_error());
+  ASSERT_LT(r.next_error(), hi);
+  ASSERT_LE(hi / lo, 1.25 + 1e-12);
+  ASSERT_GE(hi / lo, 8.0 / 7.0 - 1e-12);
   refiner above(f.v, f.h, f.ranges, 0.3);
-  above.refine_to_error(next);  // every error > next
+  above.refine_to_error(std::nextafter(hi, 0.0));  // every error ≥ hi
   refiner at(f.v, f.h, f.ranges, 0.3);
-  at.refine_to_error(std::nextafter(next, -1.0));  // every error ≥ next
-  EXPECT_LE(above.statistics().splits, r.statistics().splits);
-  EXPECT_GE(at.statistics().splits, r.statistics().splits);
+  at.refine_to_error(std::nextafter(lo, -1.0));  // every error ≥ lo
+  std::uint64_t in_above = 0;
+  std::uint64_t in_r = 0;
+  for (std::uint64_t i = 0; i < f.h.vertex_count(); ++i) {
+    const ipoint c = f.h.point(i);
+    if (!f.h.is_diamond(c)) continue;
+    if (above.is_split(c)) {
+      ++in_above;
+      EXPECT_TRUE(r.is_split(c)) << "a diamond of a larger band left unsplit";
+    }
+    if (r.is_split(c)) {
+      ++in_r;
+      EXPECT_TRUE(at.is_split(c)) << "a diamond of a smaller band split";
+    }
+  }
+  EXPECT_EQ(in_r, r.statistics().splits);
+  EXPECT_GT(in_above, 0u);
+  EXPECT_LT(in_above, at.statistics().splits);
+}
+
+// An error target is exact although the queue orders by bands: the split set of
+// refine_to_error(ε) is every straddling diamond of error > ε, for targets inside a band and on
+// its bounds, and moving the target between runs re-ranks what is queued.
+TEST(Refiner, error_targets_are_exact_inside_a_band) {
+  fixture f(make_gyroid_field({29, 33, 31}, 9.0));
+  const double w = 0.15;
+  refiner full(f.v, f.h, f.ranges, w);
+  full.refine_full();
+  std::vector<std::uint64_t> by_error;  // straddling, split by a full refinement
+  for (std::uint64_t i = 0; i < f.h.vertex_count(); ++i) {
+    if (f.h.is_diamond(f.h.point(i)) && full.is_split(f.h.point(i))) by_error.push_back(i);
+  }
+  const auto [lo, hi] = detail::error_bucket_bounds(detail::error_bucket(0.05));
+  refiner moving(f.v, f.h, f.ranges, w);
+  for (const double eps : {hi, std::nextafter(hi, 0.0), 0.5 * (lo + hi), lo, 0.3 * lo}) {
+    SCOPED_TRACE(eps);
+    refiner r(f.v, f.h, f.ranges, w);
+    r.refine_to_error(eps);
+    moving.refine_to_error(eps);  // targets descend: each run continues the last
+    std::uint64_t expected = 0;
+    for (const std::uint64_t i : by_error) {
+      const ipoint c = f.h.point(i);
+      const bool above = f.ranges.get(c).error > eps;
+      expected += above ? 1 : 0;
+      ASSERT_EQ(r.is_split(c), above);
+      ASSERT_EQ(moving.is_split(c), above);
+    }
+    EXPECT_EQ(r.statistics().splits, expected);
+    EXPECT_LE(r.next_error(), eps);
+  }
 }
 
 TEST(Refiner, zero_time_budget_returns_the_root_surface) {

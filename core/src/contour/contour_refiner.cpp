@@ -137,7 +137,10 @@ void contour_refiner::refine_full() {
   }
 }
 
+void contour_refiner::aim_at_error(double max_error) { queue_->aim_at(max_error); }
+
 void contour_refiner::refine_to_error(double max_error) {
+  aim_at_error(max_error);
   while (!done() && next_error() > max_error) split_next();
 }
 
@@ -346,6 +349,7 @@ contour_result extract_contours(const volume& image, const std::vector<double>& 
   const std::size_t n = isovalues.size();
   for (std::size_t k = 0; k < n; ++k) {
     contour_refiner r(image, hier, ranges, isovalues[k], order);
+    if (options.mode == contour_mode::error) r.aim_at_error(options.max_error);
     if (k == 0) res.first_contour_seconds = seconds(clock::now() - t1);
     if (k == 0) frame(&r, false);
     const std::uint64_t share = segments_left / (n - k);

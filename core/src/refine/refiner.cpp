@@ -140,11 +140,9 @@ bool refiner::split(std::uint64_t max_triangles) {
   queue_->pop();
   std::uint8_t* state = state_.get();
   state[next.index] = static_cast<std::uint8_t>(state[next.index] | split_bit);
-  if (!errors_needed_) {
-    for (const packed_group& g : scratch_) {
-      if (g.owner != no_owner)
-        state[g.owner] = static_cast<std::uint8_t>(state[g.owner] | surface_bit);
-    }
+  for (const packed_group& g : scratch_) {
+    if (g.owner != no_owner)
+      state[g.owner] = static_cast<std::uint8_t>(state[g.owner] | surface_bit);
   }
   records_.push_back({edge_key(next.centre, next.centre), first,
                       static_cast<std::uint32_t>(scratch_.size()), next.scale, next.error});
@@ -171,31 +169,29 @@ bool refiner::split(std::uint64_t max_triangles) {
     state[ci] = static_cast<std::uint8_t>((state[ci] & ~parent_count_mask) | count);
     if (count != children.parents[ui]) continue;
     ++stats_.visited;
+    // A piece of surface in one of the child's tetrahedra: its range straddles w unless it is
+    // empty (wholly in the padding), so no sample is read to keep it, and in largest-error-first
+    // order only its splits' samples for the error. The others take the straddle test, which
+    // stops at the first samples on both sides, or, when the error is needed, read the range
+    // and error in one pass. (In breadth- and depth-first order the error is computed if asked
+    // for: next_error(), extract_cut().)
+    double error = unknown_error;
+    bool keep = false;
     if ((state[ci] & surface_bit) != 0) {
-      // A piece of surface in one of the child's tetrahedra: its range straddles w unless it
-      // is empty (wholly in the padding), and its error is not needed in this order (it is
-      // computed if asked for: next_error(), extract_cut()).
-      if (ranges_.empty(c, children.scale)) {
-        ++stats_.culled;
-      } else {
-        queue_->push({unknown_error, ci, c, children.scale, type, depth});
-      }
-      continue;
-    }
-    if (!errors_needed_) {
-      if (ranges_.straddles(c, children.scale, threshold_)) {
-        queue_->push({unknown_error, ci, c, children.scale, type, depth});
-      } else {
-        ++stats_.culled;
-      }
-      continue;
-    }
-    const diamond_range r = ranges_.get(c, children.scale);
-    if (r.straddles(isovalue_)) {
-      queue_->push({r.error, ci, c, children.scale, type, depth});
+      keep = !ranges_.empty(c, children.scale);
+      if (keep && errors_needed_) error = ranges_.error(c, children.scale);
+    } else if (!errors_needed_) {
+      keep = ranges_.straddles(c, children.scale, threshold_);
     } else {
-      ++stats_.culled;
+      const diamond_range r = ranges_.get(c, children.scale);
+      keep = r.straddles(isovalue_);
+      error = r.error;
     }
+    if (!keep) {
+      ++stats_.culled;
+      continue;
+    }
+    queue_->push({error, ci, c, children.scale, type, depth});
   }
   return true;
 }
@@ -205,7 +201,10 @@ void refiner::refine_full() {
   }
 }
 
+void refiner::aim_at_error(double max_error) { queue_->aim_at(max_error); }
+
 void refiner::refine_to_error(double max_error) {
+  aim_at_error(max_error);
   while (!done() && next_error() > max_error) split_next();
 }
 
@@ -324,6 +323,7 @@ extract_result extract_isosurface(const volume& vol, double isovalue,
       while (ref.split_next()) report();
       break;
     case extract_mode::error:
+      ref.aim_at_error(options.max_error);
       while (!ref.done() && ref.next_error() > options.max_error) {
         ref.split_next();
         report();

@@ -67,7 +67,9 @@ class contour_refiner {
 
   [[nodiscard]] double isovalue() const noexcept { return isovalue_; }
   [[nodiscard]] bool done() const noexcept;
+  /// As refiner::next_error() and refiner::aim_at_error().
   [[nodiscard]] double next_error() const noexcept;
+  void aim_at_error(double max_error);
   [[nodiscard]] int next_depth() const noexcept;
   /// Splits the next ready diamond (if the cut then has at most max_segments segments).
   bool split_next(std::uint64_t max_segments = ~std::uint64_t{0});

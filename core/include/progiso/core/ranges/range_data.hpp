@@ -100,7 +100,7 @@ class range_data {
   range_data(range_data&&) noexcept;
   range_data& operator=(range_data&&) noexcept;
 
-  /// Nested range and error of diamond d: ≤ 64 bricks for scale ≥ 2, ≤ 60 samples for scale 1.
+  /// Nested range and error of diamond d: ≤ 64 bricks for scale ≥ 2, ≤ 69 samples for scale 1.
   [[nodiscard]] diamond_range get(const diamond& d) const noexcept;
   /// The same for the diamond centred at `centre` (a diamond of the hierarchy), without
   /// building the diamond when it is not needed.
@@ -111,6 +111,11 @@ class range_data {
   /// error computed). `w` is made once per isovalue.
   [[nodiscard]] bool straddles(const ipoint& centre, std::int32_t scale,
                                const detail::sample_threshold& w) const noexcept;
+  /// get(centre, scale).error alone. At scale 1 it reads only the samples of the subtree's
+  /// splits (a cube centre's: 27 of its 69), not the range's: an error-driven refinement asks it
+  /// for every ready diamond once a straddle test (or owning a piece of its parent's surface)
+  /// has kept it.
+  [[nodiscard]] double error(const ipoint& centre, std::int32_t scale) const noexcept;
   /// True when get(centre, scale) is empty (the subtree lies wholly in the padding), without
   /// computing the range: O(1), no samples read.
   [[nodiscard]] bool empty(const ipoint& centre, std::int32_t scale) const noexcept;

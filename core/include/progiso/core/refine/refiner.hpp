@@ -81,8 +81,14 @@ class refiner {
   [[nodiscard]] double isovalue() const noexcept { return isovalue_; }
   /// True when no split can change the surface any more (the cut is full resolution).
   [[nodiscard]] bool done() const noexcept;
-  /// Nested error of the next diamond to split (0 when done).
+  /// Nested error of the next diamond to split (0 when done). In largest-error-first order the
+  /// queue takes errors by bands at most a factor 1.25 wide, so within a band the next error need
+  /// not be the largest; aim_at_error() makes the order exact at one error.
   [[nodiscard]] double next_error() const noexcept;
+  /// Orders every ready diamond of error > max_error before every other, so that
+  /// `while (!done() && next_error() > max_error) split_next();` splits exactly the diamonds of
+  /// error > max_error (refine_to_error() calls it). O(ready diamonds) when the target moves.
+  void aim_at_error(double max_error);
   /// Depth of the next diamond to split (-1 when done).
   [[nodiscard]] int next_depth() const noexcept;
 

@@ -1,19 +1,58 @@
 // progiso/core/refine/detail/ready_queue.hpp — the queue of diamonds ready to split, shared by the
-// 3D refiner and the 2D contour refiner.
+// 3D refiner, the 2D contour refiner and the engine.
 //
-// Three disciplines over one vector: first in first out (breadth first: coarse to fine), last in
-// first out (depth first: the working set stays local), and a binary max-heap on (error, then
-// coarser depth, then index) for quality-, budget- and time-driven refinement. Item needs
-// members `error`, `depth` and `index`. Not thread-safe.
+// Three disciplines: first in first out (breadth first: coarse to fine), last in first out (depth
+// first: the working set stays local), and largest error first for quality-, budget- and
+// time-driven refinement. Item needs members `error`, `depth` and `index`. Not thread-safe.
+//
+// Largest error first is kept in buckets, not a heap: a bucket holds a quarter of an octave of
+// errors (error_bucket below: [1, 1.25), [1.25, 1.5), … times a power of two), buckets are taken
+// largest first, and a bucket's items last in first out. A child's nested error is at most its
+// parent's, so the children of a split mostly land in the bucket being taken and are split next,
+// while their samples and per-vertex entries are still in cache: the order of a depth-first
+// refinement inside each band of errors. A binary heap spent ~30% of an error-driven refinement's
+// time in its sift-down (Marschner–Lobb 257³, 0.7 M splits: 19 levels, the deep ones cache misses)
+// and sent every split to a random place in the grid.
+//
+// An error target is exact all the same: aim_at(ε) ranks every item of error > ε above every
+// other, so `while (top().error > ε) pop-and-split` reaches exactly the diamonds of error > ε.
 #pragma once
 
 #include <algorithm>
+#include <bit>
+#include <cmath>
 #include <cstddef>
+#include <cstdint>
+#include <iterator>
+#include <limits>
+#include <utility>
 #include <vector>
 
 namespace progiso::detail {
 
 enum class queue_discipline { fifo, lifo, largest_error };
+
+/// Buckets per octave of error in largest-error-first order: 2 bits of mantissa, so a bucket
+/// spans a factor 1.14 to 1.25.
+inline constexpr int error_bucket_bits = 2;
+
+/// The bucket of an error key: monotone (a larger key never gets a smaller bucket), 0 for keys
+/// ≤ 0, the largest for +inf and NaN (an unknown error is taken first).
+[[nodiscard]] inline std::uint32_t error_bucket(double e) noexcept {
+  if (std::isnan(e)) return (std::uint32_t{0x7ff} << error_bucket_bits) + 2;
+  if (!(e > 0.0)) return 0;
+  // A positive double's bits order as its value: exponent, then mantissa.
+  return static_cast<std::uint32_t>(std::bit_cast<std::uint64_t>(e) >> (52 - error_bucket_bits)) +
+         1;
+}
+
+/// The errors of bucket b ≥ 1: [first, second).
+[[nodiscard]] inline std::pair<double, double> error_bucket_bounds(std::uint32_t b) noexcept {
+  const auto at = [](std::uint64_t k) {
+    return std::bit_cast<double>(k << (52 - error_bucket_bits));
+  };
+  return {at(b - 1), at(b)};
+}
 
 template <class Item>
 class ready_queue {
@@ -22,18 +61,30 @@ class ready_queue {
 
   /// Room for n items before the first reallocation.
   void reserve(std::size_t n) { items_.reserve(n); }
-  [[nodiscard]] bool empty() const noexcept { return head_ == items_.size(); }
-  [[nodiscard]] std::size_t size() const noexcept { return items_.size() - head_; }
+  [[nodiscard]] bool empty() const noexcept { return size() == 0; }
+  [[nodiscard]] std::size_t size() const noexcept {
+    return discipline_ == queue_discipline::largest_error ? count_ : items_.size() - head_;
+  }
   [[nodiscard]] queue_discipline discipline() const noexcept { return discipline_; }
-  /// Changes the discipline, keeping the items (O(n) when switching to largest_error).
+  /// Changes the discipline, keeping the items (O(n)). Largest error first hands its items on
+  /// smallest bucket first, so last in first out then starts with the largest.
   void set_discipline(queue_discipline d) {
     if (d == discipline_) return;
-    items_.erase(items_.begin(), items_.begin() + static_cast<std::ptrdiff_t>(head_));
-    head_ = 0;
+    std::vector<Item> all = take_all();
     discipline_ = d;
-    if (d == queue_discipline::largest_error) {
-      std::make_heap(items_.begin(), items_.end(), ranks_below{});
+    put_all(std::move(all));
+  }
+  /// Largest error first: every item of error > max_error is taken before any other, whatever
+  /// their buckets (O(n) when the target moves; NaN counts as above).
+  void aim_at(double max_error) {
+    if (max_error == target_ || (std::isnan(max_error) && std::isnan(target_))) return;
+    if (discipline_ != queue_discipline::largest_error) {
+      target_ = max_error;
+      return;
     }
+    std::vector<Item> all = take_all();
+    target_ = max_error;
+    put_all(std::move(all));
   }
   [[nodiscard]] const Item& top() const noexcept {
     switch (discipline_) {
@@ -44,10 +95,10 @@ class ready_queue {
       case queue_discipline::largest_error:
         break;
     }
-    return items_.front();
+    return buckets_.back().items.back();
   }
-  /// The item k places after top() in fifo or lifo order, or nullptr (largest_error: unknown
-  /// without popping). For prefetching.
+  /// The item k places after top(), or nullptr when it is not known without popping (largest
+  /// error first looks in the top bucket only). For prefetching.
   [[nodiscard]] const Item* peek(std::size_t k) const noexcept {
     switch (discipline_) {
       case queue_discipline::fifo:
@@ -57,13 +108,27 @@ class ready_queue {
       case queue_discipline::largest_error:
         break;
     }
-    return nullptr;
+    if (buckets_.empty()) return nullptr;
+    const std::vector<Item>& top = buckets_.back().items;
+    return k < top.size() ? &top[top.size() - 1 - k] : nullptr;
   }
   void push(const Item& item) {
-    items_.push_back(item);
-    if (discipline_ == queue_discipline::largest_error) {
-      std::push_heap(items_.begin(), items_.end(), ranks_below{});
+    if (discipline_ != queue_discipline::largest_error) {
+      items_.push_back(item);
+      return;
     }
+    const std::uint64_t key = key_of(item.error);
+    ++count_;
+    // The common case: a child in its parent's bucket, the one being taken.
+    if (!buckets_.empty() && buckets_.back().key == key) {
+      buckets_.back().items.push_back(item);
+      return;
+    }
+    // Else a few buckets below the top, mostly: searched from the top down.
+    auto at = buckets_.end();
+    while (at != buckets_.begin() && std::prev(at)->key >= key) --at;
+    if (at == buckets_.end() || at->key != key) at = buckets_.insert(at, bucket{key, spare()});
+    at->items.push_back(item);
   }
   void pop() {
     switch (discipline_) {
@@ -83,25 +148,71 @@ class ready_queue {
         items_.pop_back();
         return;
       case queue_discipline::largest_error:
-        std::pop_heap(items_.begin(), items_.end(), ranks_below{});
-        items_.pop_back();
-        return;
+        break;
+    }
+    --count_;
+    std::vector<Item>& top = buckets_.back().items;
+    top.pop_back();
+    if (top.empty()) {
+      spare_.push_back(std::move(top));
+      buckets_.pop_back();
     }
   }
 
  private:
-  // A function object, not a function: the heap algorithms inline it.
-  struct ranks_below {
-    bool operator()(const Item& a, const Item& b) const noexcept {
-      if (a.error != b.error) return a.error < b.error;
-      if (a.depth != b.depth) return a.depth > b.depth;
-      return a.index > b.index;
-    }
+  struct bucket {
+    std::uint64_t key;
+    std::vector<Item> items;  // never empty
   };
 
+  // Above the target first, then by bucket.
+  [[nodiscard]] std::uint64_t key_of(double e) const noexcept {
+    const bool above = !(e <= target_);
+    return (std::uint64_t{above} << 32) | error_bucket(e);
+  }
+  std::vector<Item> spare() {
+    if (spare_.empty()) return {};
+    std::vector<Item> v = std::move(spare_.back());
+    spare_.pop_back();
+    return v;
+  }
+  std::vector<Item> take_all() {
+    std::vector<Item> all;
+    if (discipline_ == queue_discipline::largest_error) {
+      all.reserve(count_);
+      for (bucket& b : buckets_) {
+        all.insert(all.end(), b.items.begin(), b.items.end());
+        b.items.clear();
+        spare_.push_back(std::move(b.items));
+      }
+      buckets_.clear();
+      count_ = 0;
+    } else {
+      all.assign(items_.begin() + static_cast<std::ptrdiff_t>(head_), items_.end());
+      items_.clear();
+      head_ = 0;
+    }
+    return all;
+  }
+  void put_all(std::vector<Item> all) {
+    if (discipline_ != queue_discipline::largest_error) {
+      items_ = std::move(all);
+      head_ = 0;
+      return;
+    }
+    for (const Item& it : all) push(it);
+  }
+
   queue_discipline discipline_;
+  // fifo and lifo: the items, consumed ones before head_ (fifo).
   std::vector<Item> items_;
   std::size_t head_ = 0;
+  // largest_error: non-empty buckets by ascending key (the last is taken first), and the storage
+  // of emptied ones, reused.
+  std::vector<bucket> buckets_;
+  std::vector<std::vector<Item>> spare_;
+  std::size_t count_ = 0;
+  double target_ = -std::numeric_limits<double>::infinity();
 };
 
 }  // namespace progiso::detail

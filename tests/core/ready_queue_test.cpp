@@ -1,0 +1,154 @@
+// The ready queue's largest-error-first order: bands of errors at most a factor 1.25 wide, taken
+// largest first, last in first out inside a band; an aimed target splits a band exactly.
+#include <progiso/core/refine/detail/ready_queue.hpp>
+
+#include <cmath>
+#include <cstdint>
+#include <limits>
+#include <random>
+#include <vector>
+
+#include <gtest/gtest.h>
+
+namespace progiso::detail {
+namespace {
+
+struct item {
+  double error;
+  int depth;
+  std::uint64_t index;
+};
+
+std::vector<item> drain(ready_queue<item>& q) {
+  std::vector<item> out;
+  while (!q.empty()) {
+    out.push_back(q.top());
+    q.pop();
+  }
+  return out;
+}
+
+TEST(ErrorBucket, is_monotone_with_four_bands_per_octave) {
+  EXPECT_EQ(error_bucket(0.0), 0u);
+  EXPECT_EQ(error_bucket(-1.0), 0u);
+  EXPECT_GT(error_bucket(std::numeric_limits<double>::denorm_min()), 0u);
+  EXPECT_GT(error_bucket(std::numeric_limits<double>::quiet_NaN()),
+            error_bucket(std::numeric_limits<double>::infinity()));
+  EXPECT_GT(error_bucket(std::numeric_limits<double>::infinity()),
+            error_bucket(std::numeric_limits<double>::max()));
+  std::mt19937_64 rng(7);
+  std::uniform_real_distribution<double> exponent(-40.0, 40.0);
+  for (int k = 0; k < 10000; ++k) {
+    const double a = std::pow(2.0, exponent(rng));
+    const double b = std::pow(2.0, exponent(rng));
+    if (a < b) {
+      ASSERT_LE(error_bucket(a), error_bucket(b)) << a << " " << b;
+    }
+    const auto [lo, hi] = error_bucket_bounds(error_bucket(a));
+    ASSERT_LE(lo, a);
+    ASSERT_LT(a, hi);
+    ASSERT_LE(hi / lo, 1.25 + 1e-12);
+    ASSERT_GE(hi / lo, 8.0 / 7.0 - 1e-12);
+    ASSERT_EQ(error_bucket(lo), error_bucket(a));
+    ASSERT_EQ(error_bucket(hi), error_bucket(a) + 1);
+  }
+}
+
+TEST(ReadyQueue, takes_bands_largest_first_and_each_band_last_in_first_out) {
+  ready_queue<item> q;
+  std::mt19937_64 rng(11);
+  std::uniform_real_distribution<double> exponent(-20.0, 3.0);
+  std::vector<item> pushed;
+  for (std::uint64_t i = 0; i < 5000; ++i) {
+    pushed.push_back({std::pow(2.0, exponent(rng)), 0, i});
+    q.push(pushed.back());
+  }
+  ASSERT_EQ(q.size(), pushed.size());
+  const std::vector<item> out = drain(q);
+  ASSERT_EQ(out.size(), pushed.size());
+  for (std::size_t k = 1; k < out.size(); ++k) {
+    const std::uint32_t a = error_bucket(out[k - 1].error);
+    const std::uint32_t b = error_bucket(out[k].error);
+    ASSERT_GE(a, b) << "a smaller band before a larger one";
+    if (a == b) {
+      ASSERT_GT(out[k - 1].index, out[k].index) << "not last in first out in a band";
+    }
+  }
+}
+
+TEST(ReadyQueue, interleaved_pushes_never_take_a_smaller_band_before_a_queued_larger_one) {
+  // As in a refinement: every pop may push children of no larger error.
+  ready_queue<item> q;
+  std::mt19937_64 rng(3);
+  std::uniform_real_distribution<double> shrink(0.3, 1.0);
+  for (std::uint64_t i = 0; i < 8; ++i) q.push({1.0 + static_cast<double>(i), 0, i});
+  std::uint64_t next = 8;
+  std::uint32_t last = std::numeric_limits<std::uint32_t>::max();
+  std::size_t taken = 0;
+  while (!q.empty() && taken < 20000) {
+    const item t = q.top();
+    const std::uint32_t b = error_bucket(t.error);
+    ASSERT_LE(b, last) << "children pushed later may not outrank what was taken before";
+    last = b;
+    q.pop();
+    ++taken;
+    if (next < 15000) {
+      for (int c = 0; c < 2; ++c) q.push({t.error * shrink(rng), t.depth + 1, next++});
+    }
+  }
+  EXPECT_TRUE(q.empty());
+}
+
+TEST(ReadyQueue, an_aimed_target_takes_every_item_above_it_before_any_other) {
+  const auto [lo, hi] = error_bucket_bounds(error_bucket(0.1));
+  const double target = 0.5 * (lo + hi);
+  ready_queue<item> q;
+  std::mt19937_64 rng(5);
+  std::uniform_real_distribution<double> in_band(lo, hi);
+  std::size_t above = 0;
+  for (std::uint64_t i = 0; i < 2000; ++i) {
+    const double e = in_band(rng);
+    above += e > target ? 1 : 0;
+    q.push({e, 0, i});
+  }
+  ASSERT_GT(above, 0u);
+  ASSERT_LT(above, 2000u);
+  q.aim_at(target);           // re-ranks what is queued
+  q.push({target, 0, 9000});  // not above
+  q.push({std::nextafter(target, 1.0), 0, 9001});
+  ++above;
+  std::size_t taken = 0;
+  while (!q.empty() && q.top().error > target) {
+    q.pop();
+    ++taken;
+  }
+  EXPECT_EQ(taken, above);
+  const std::vector<item> rest = drain(q);
+  for (const item& it : rest) EXPECT_LE(it.error, target);
+  EXPECT_EQ(rest.size(), 2001 - above + 1);
+}
+
+TEST(ReadyQueue, switching_disciplines_keeps_every_item) {
+  ready_queue<item> q(queue_discipline::lifo);
+  for (std::uint64_t i = 0; i < 300; ++i)
+    q.push({std::ldexp(1.0, -static_cast<int>(i % 30)), 0, i});
+  q.set_discipline(queue_discipline::largest_error);
+  EXPECT_EQ(q.size(), 300u);
+  for (int k = 0; k < 100; ++k) q.pop();
+  q.set_discipline(queue_discipline::lifo);
+  EXPECT_EQ(q.size(), 200u);
+  // Largest error first hands its items on smallest band first: last in first out then starts
+  // with the largest left.
+  EXPECT_EQ(q.top().error, std::ldexp(1.0, -10));
+  q.set_discipline(queue_discipline::fifo);
+  std::vector<item> out = drain(q);
+  EXPECT_EQ(out.size(), 200u);
+  std::vector<bool> seen(300, false);
+  for (const item& it : out) {
+    EXPECT_FALSE(seen[it.index]);
+    seen[it.index] = true;
+  }
+}
+
+}  // namespace
+}  // namespace progiso::detail
