@@ -331,10 +331,11 @@ struct engine_impl {
                           std::uint64_t index, const range_data* rd);
 
   // The queue item of a diamond whose parents are all split (centre c, scale h), or nothing
-  // when it is culled: keyed by its error, or by placeholder in full refinement (tested by
-  // straddles(), or, when it owns a piece of its last parent's surface, by empty() alone: it
-  // straddles unless wholly in the padding) and while `rd` is null (culled only when wholly in
-  // the padding). Reads only immutable data: any thread.
+  // when it is culled. An owner of a piece of its last parent's surface is kept unless empty()
+  // (it straddles unless wholly in the padding) and keyed by range_data::error() (its splits'
+  // samples only); another by get() (range and error in one pass), or, in full refinement, by
+  // straddles(). Full refinement keys by placeholder, as does a run while `rd` is null (culled
+  // only when wholly in the padding). Reads only immutable data: any thread.
   [[nodiscard]] std::optional<ready_item> ready_child(const engine_root& r, const ipoint& c,
                                                       std::int32_t h, int depth,
                                                       std::uint64_t index, const range_data* rd,
