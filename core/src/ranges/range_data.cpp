@@ -278,7 +278,7 @@ class typed_range_data final : public range_data::impl {
     const T* base = samples_ + vol->linear(c[0], c[1], c[2]);
     std::array<T, max_stencil_points> v;  // NOLINT(cppcoreguidelines-pro-type-member-init)
     for (std::size_t i = 0; i < st.split_points.size(); ++i) v[i] = base[st.split_points[i]];
-    return split_error(v, st.split_local);
+    return split_error([&v](std::uint8_t k) { return v[k]; }, st.split_local);
   }
 
   [[nodiscard]] diamond_range get_at(const ipoint& c, std::int32_t h) const noexcept override {
@@ -651,6 +651,33 @@ class typed_range_data final : public range_data::impl {
     return false;
   }
 
+  // The largest split error |f(c) − (f(a) + f(b)) / 2| over `splits` (centre, spine ends), each
+  // sample read as at(point). Integers: twice the error, |2 f(c) − f(a) − f(b)|, in integers,
+  // exact for every integer sample type (at most 34 bits); half of it is the same double as the
+  // floating formula.
+  template <class At, class Split>
+  [[nodiscard]] static double split_error(const At& at, const std::vector<Split>& splits) {
+    if constexpr (std::is_integral_v<T>) {
+      std::int64_t twice = 0;
+      for (const auto& s : splits) {
+        const std::int64_t e = 2 * static_cast<std::int64_t>(at(s[0])) -
+                               static_cast<std::int64_t>(at(s[1])) -
+                               static_cast<std::int64_t>(at(s[2]));
+        twice = std::max(twice, e < 0 ? -e : e);
+      }
+      return 0.5 * static_cast<double>(twice);
+    } else {
+      double err = 0.0;
+      for (const auto& s : splits) {
+        const double e =
+            std::abs(static_cast<double>(at(s[0])) -
+                     0.5 * (static_cast<double>(at(s[1])) + static_cast<double>(at(s[2]))));
+        err = e > err ? e : err;
+      }
+      return err;
+    }
+  }
+
   // Range of the samples at(p) for p = 0 and every p in `points`, and the largest split error
   // |at(c) - (at(a) + at(b)) / 2| over the (c, a, b) in `splits`. NaN samples never replace a
   // number (comparisons with NaN are false).
@@ -665,26 +692,7 @@ class typed_range_data final : public range_data::impl {
       lo = v < lo ? v : lo;
       hi = v > hi ? v : hi;
     }
-    double err = 0.0;
-    if constexpr (std::is_integral_v<T>) {
-      // Twice the error, |2 f(c) - f(a) - f(b)|, in integers: exact for every integer sample
-      // type (at most 34 bits), and half of it is the same double as the formula below.
-      std::int64_t twice = 0;
-      for (const auto& s : splits) {
-        const std::int64_t e = 2 * static_cast<std::int64_t>(at(s[0])) -
-                               static_cast<std::int64_t>(at(s[1])) -
-                               static_cast<std::int64_t>(at(s[2]));
-        twice = std::max(twice, e < 0 ? -e : e);
-      }
-      err = 0.5 * static_cast<double>(twice);
-    } else {
-      for (const auto& s : splits) {
-        const double e =
-            std::abs(static_cast<double>(at(s[0])) -
-                     0.5 * (static_cast<double>(at(s[1])) + static_cast<double>(at(s[2]))));
-        err = e > err ? e : err;
-      }
-    }
+    const double err = split_error(at, splits);
     diamond_range r;
     r.lo = static_cast<double>(lo);
     r.hi = static_cast<double>(hi);
@@ -753,31 +761,6 @@ class typed_range_data final : public range_data::impl {
     }
   }
 
-  // The largest split error |f(c) − (f(a) + f(b)) / 2| over `splits` (indices into v), computed
-  // as summarise() does.
-  [[nodiscard]] static double split_error(const std::array<T, max_stencil_points>& v,
-                                          const std::vector<std::array<std::uint8_t, 3>>& splits) {
-    double err = 0.0;
-    if constexpr (std::is_integral_v<T>) {
-      std::int64_t twice = 0;
-      for (const auto& s : splits) {
-        const std::int64_t e = 2 * static_cast<std::int64_t>(v[s[0]]) -
-                               static_cast<std::int64_t>(v[s[1]]) -
-                               static_cast<std::int64_t>(v[s[2]]);
-        twice = std::max(twice, e < 0 ? -e : e);
-      }
-      err = 0.5 * static_cast<double>(twice);
-    } else {
-      for (const auto& s : splits) {
-        const double e =
-            std::abs(static_cast<double>(v[s[0]]) -
-                     0.5 * (static_cast<double>(v[s[1]]) + static_cast<double>(v[s[2]])));
-        err = e > err ? e : err;
-      }
-    }
-    return err;
-  }
-
   // The stencil's samples are read once into a local array and the splits' errors computed from
   // it (a split's three samples are points of the stencil): the same range and error as
   // summarise(), with a third of its sample loads. An error-driven refinement computes one per
@@ -812,7 +795,7 @@ class typed_range_data final : public range_data::impl {
     }
     const T lo = lo1 < lo0 ? lo1 : lo0;
     const T hi = hi1 > hi0 ? hi1 : hi0;
-    const double err = split_error(v, st.split_index);
+    const double err = split_error([&v](std::uint8_t k) { return v[k]; }, st.split_index);
     diamond_range r;
     r.lo = static_cast<double>(lo);
     r.hi = static_cast<double>(hi);
