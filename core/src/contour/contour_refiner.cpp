@@ -3,25 +3,18 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdlib>
-#include <map>
 #include <string>
 
-#include <progiso/core/base/detail/flat_map.hpp>
 #include <progiso/core/base/error.hpp>
 #include <progiso/core/refine/deadline.hpp>
 #include <progiso/core/refine/detail/ready_queue.hpp>
 
 namespace progiso {
-namespace {
 
-constexpr std::uint8_t split_bit = 0x80;
-constexpr std::uint8_t parent_count_mask = 0x07;
-constexpr std::uint64_t no_owner2 = ~std::uint64_t{0};
+using detail::no_owner2;
 
-}  // namespace
-
-struct contour_refiner::queue : detail::ready_queue<contour_refiner::ready> {
-  using detail::ready_queue<contour_refiner::ready>::ready_queue;
+struct contour_refiner::queue : detail::ready_queue<detail::contour_ready> {
+  using detail::ready_queue<detail::contour_ready>::ready_queue;
 };
 
 contour_refiner::contour_refiner(const volume& image, const hierarchy2d& hier,
@@ -30,7 +23,7 @@ contour_refiner::contour_refiner(const volume& image, const hierarchy2d& hier,
       hier_(hier),
       ranges_(ranges),
       isovalue_(isovalue),
-      state_(hier.vertex_count()),
+      frontier_(hier),
       record_of_(hier.vertex_count()),
       queue_(std::make_unique<queue>(order == contour_order::breadth_first
                                          ? detail::queue_discipline::fifo
@@ -41,28 +34,14 @@ contour_refiner::contour_refiner(const volume& image, const hierarchy2d& hier,
   origin_ = {image.origin()[0], image.origin()[1]};
   spacing_ = {image.spacing()[0], image.spacing()[1]};
   records_.push_back({no_owner2, {0, 0}, 0, 0, 0.0});
-  std::array<std::array<ipoint2, 3>, 2> tris{};
-  for (std::uint64_t r = 0; r < hier_.root_count(); ++r) {
-    hier_.root_triangles(r, tris);
-    const ipoint2 centre = hier_.root_centre(r);
-    const bool has_diamond = hier_.root_size() >= 2;
-    const std::uint64_t owner = has_diamond ? hier_.index(centre) : no_owner2;
-    for (const auto& t : tris) {
-      std::array<double, 3> f{};
-      for (std::size_t i = 0; i < 3; ++i) f[i] = image_.value(t[i][0], t[i][1], 0);
-      std::array<std::uint64_t, 2> k{};
-      if (march_triangle(t, f, isovalue_, k)) {
-        segments_.push_back({{owner, k}, {place(k[0]), place(k[1])}});
-      }
-    }
-    if (has_diamond) {
-      ++stats_.visited;
-      const diamond_range rr = ranges_.get(centre);
-      if (rr.straddles(isovalue_)) {
-        queue_->push({rr.error, 0, owner, centre});
-      } else {
-        ++stats_.culled;
-      }
+  std::vector<ipoint2> roots;
+  detail::root_contour(hier_, image_, isovalue_, segments_, roots);
+  for (const ipoint2& c : roots) {
+    ++stats_.visited;
+    if (const auto r = detail::ready_contour_diamond(ranges_, isovalue_, c, hier_.index(c), 0)) {
+      queue_->push(*r);
+    } else {
+      ++stats_.culled;
     }
   }
   records_[0].count = static_cast<std::uint32_t>(segments_.size());
@@ -77,18 +56,12 @@ double contour_refiner::next_error() const noexcept { return done() ? 0.0 : queu
 int contour_refiner::next_depth() const noexcept { return done() ? -1 : queue_->top().depth; }
 
 bool contour_refiner::is_split(const ipoint2& c) const noexcept {
-  return hier_.in_grid(c) && (state_.get()[hier_.index(c)] & split_bit) != 0;
-}
-
-vec2 contour_refiner::place(std::uint64_t key) const noexcept {
-  const auto e = hier_.edge_ends(key);
-  return interpolate2(e[0], image_.value(e[0][0], e[0][1], 0), e[1],
-                      image_.value(e[1][0], e[1][1], 0), isovalue_);
+  return hier_.in_grid(c) && frontier_.is_split(hier_.index(c));
 }
 
 bool contour_refiner::split_next(std::uint64_t max_segments) {
   if (queue_->empty()) return false;
-  const ready next = queue_->top();
+  const detail::contour_ready next = queue_->top();
   const diamond2 d = hier_.make_diamond(next.centre);
   scratch_.clear();
   const contour_split_summary s = compute_contour_split(hier_, image_, isovalue_, d, scratch_);
@@ -98,10 +71,10 @@ bool contour_refiner::split_next(std::uint64_t max_segments) {
   queue_->pop();
   const std::uint64_t first = segments_.size();
   for (const owned_segment& seg : scratch_) {
-    segments_.push_back({seg, {place(seg.keys[0]), place(seg.keys[1])}});
+    segments_.push_back({seg,
+                         {detail::place_contour_vertex(hier_, image_, isovalue_, seg.keys[0]),
+                          detail::place_contour_vertex(hier_, image_, isovalue_, seg.keys[1])}});
   }
-  std::uint8_t* state = state_.get();
-  state[next.index] = static_cast<std::uint8_t>(state[next.index] | split_bit);
   record_of_.get()[next.index] = static_cast<std::uint32_t>(records_.size());
   records_.push_back(
       {next.index, next.centre, first, static_cast<std::uint32_t>(scratch_.size()), next.error});
@@ -113,22 +86,14 @@ bool contour_refiner::split_next(std::uint64_t max_segments) {
     ++stats_.primitives[static_cast<std::size_t>(s.ops[static_cast<std::size_t>(i)].kind)];
   }
   last_ = s;
-  std::array<ipoint2, 4> children{};
-  const int nc = hier_.children(d, children);
-  for (int i = 0; i < nc; ++i) {
-    const ipoint2& c = children[static_cast<std::size_t>(i)];
-    const std::uint64_t ci = hier_.index(c);
-    const auto count = static_cast<std::uint8_t>((state[ci] & parent_count_mask) + 1);
-    state[ci] = static_cast<std::uint8_t>((state[ci] & ~parent_count_mask) | count);
-    if (count != hier_.parent_count(c)) continue;
+  frontier_.split(d, next.index, [&](const ipoint2& c, std::uint64_t ci) {
     ++stats_.visited;
-    const diamond_range r = ranges_.get(c);
-    if (r.straddles(isovalue_)) {
-      queue_->push({r.error, d.depth + 1, ci, c});
+    if (const auto r = detail::ready_contour_diamond(ranges_, isovalue_, c, ci, d.depth + 1)) {
+      queue_->push(*r);
     } else {
       ++stats_.culled;
     }
-  }
+  });
   return true;
 }
 
@@ -153,104 +118,19 @@ void contour_refiner::refine_until(std::chrono::steady_clock::time_point deadlin
 
 template <class InCut>
 contour_set contour_refiner::build(InCut&& in_cut) const {
-  const double bx = static_cast<double>(hier_.data_max()[0]);
-  const double by = static_cast<double>(hier_.data_max()[1]);
-  contour_set out;
-  detail::flat_map ids(static_cast<std::size_t>(stats_.segments + 16));
-  std::map<vec2, std::uint32_t> clipped;
-  const auto key_id = [&](std::uint64_t key, const vec2& p) {
-    const auto [id, inserted] =
-        ids.try_emplace(key, static_cast<std::uint32_t>(out.vertices.size()));
-    if (inserted) out.vertices.push_back(p);
-    return id;
-  };
-  const auto point_id = [&](const vec2& p) {
-    const auto [it, inserted] =
-        clipped.try_emplace(p, static_cast<std::uint32_t>(out.vertices.size()));
-    if (inserted) out.vertices.push_back(p);
-    return it->second;
-  };
-  std::vector<std::array<std::uint32_t, 2>> segs;
-  const std::uint8_t* state = state_.get();
+  detail::contour_assembler out(hier_, isovalue_, static_cast<std::size_t>(stats_.segments));
   for (const record& r : records_) {
     if (!in_cut(r.diamond, r.centre, r.error, true)) continue;
     for (std::uint64_t i = r.first; i < r.first + r.count; ++i) {
       const owned_segment& s = segments_[i].seg;
-      if (s.owner != no_owner2 && (state[s.owner] & split_bit) != 0 &&
+      if (s.owner != no_owner2 && frontier_.is_split(s.owner) &&
           in_cut(s.owner, ipoint2{}, 0.0, false)) {
         continue;
       }
-      const vec2 p = segments_[i].pos[0];
-      const vec2 q = segments_[i].pos[1];
-      if (p[0] <= bx && p[1] <= by && q[0] <= bx && q[1] <= by) {
-        segs.push_back({key_id(s.keys[0], p), key_id(s.keys[1], q)});
-        continue;
-      }
-      // Clip against x ≤ bx and y ≤ by; crossings computed from the lexicographically ordered
-      // ends so that neighbours agree exactly. The direction of the segment is kept. When the
-      // inside end lies on the border line, what remains is that point: the segment is dropped.
-      vec2 a = p, b = q;
-      bool a_orig = true, b_orig = true, keep = true;
-      for (std::size_t axis = 0; axis < 2 && keep; ++axis) {
-        const double lim = axis == 0 ? bx : by;
-        const bool ain = a[axis] <= lim;
-        const bool bin = b[axis] <= lim;
-        if (ain && bin) continue;
-        if ((!ain && !bin) || (ain && a[axis] == lim) || (bin && b[axis] == lim)) {
-          keep = false;
-          break;
-        }
-        vec2 u = a, v = b;
-        if (v < u) std::swap(u, v);
-        const double t = (lim - u[axis]) / (v[axis] - u[axis]);
-        vec2 x{u[0] + t * (v[0] - u[0]), u[1] + t * (v[1] - u[1])};
-        x[axis] = lim;
-        if (!ain) {
-          a = x;
-          a_orig = false;
-        } else {
-          b = x;
-          b_orig = false;
-        }
-      }
-      if (!keep || a == b) continue;
-      const std::uint32_t ia = a_orig ? key_id(s.keys[0], p) : point_id(a);
-      const std::uint32_t ib = b_orig ? key_id(s.keys[1], q) : point_id(b);
-      if (ia != ib) segs.push_back({ia, ib});
+      out.add(segments_[i]);
     }
   }
-  // Chain: every vertex has at most one outgoing and one incoming segment.
-  const std::uint32_t none = ~std::uint32_t{0};
-  std::vector<std::uint32_t> next(out.vertices.size(), none);
-  std::vector<std::uint8_t> has_in(out.vertices.size(), 0);
-  for (const auto& s : segs) {
-    next[s[0]] = s[1];
-    has_in[s[1]] = 1;
-  }
-  std::vector<std::uint8_t> used(out.vertices.size(), 0);
-  const auto walk = [&](std::uint32_t start, bool closed) {
-    polyline pl;
-    pl.closed = closed;
-    pl.isovalue = isovalue_;
-    std::uint32_t v = start;
-    while (v != none && !used[v]) {
-      used[v] = 1;
-      pl.vertices.push_back(v);
-      v = next[v];
-    }
-    if (pl.vertices.size() >= 2) out.polylines.push_back(std::move(pl));
-  };
-  for (std::uint32_t v = 0; v < out.vertices.size(); ++v) {
-    if (!has_in[v] && next[v] != none) walk(v, false);
-  }
-  for (std::uint32_t v = 0; v < out.vertices.size(); ++v) {
-    if (!used[v] && next[v] != none) walk(v, true);
-  }
-  // Physical coordinates: origin + grid position × spacing, as for volumes.
-  for (vec2& p : out.vertices) {
-    p = {origin_[0] + p[0] * spacing_[0], origin_[1] + p[1] * spacing_[1]};
-  }
-  return out;
+  return out.finish(origin_, spacing_);
 }
 
 contour_set contour_refiner::extract() const {

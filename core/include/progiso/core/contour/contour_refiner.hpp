@@ -30,6 +30,7 @@
 #include <progiso/core/base/zeroed_array.hpp>
 #include <progiso/core/contour/contour.hpp>
 #include <progiso/core/contour/contour_split.hpp>
+#include <progiso/core/contour/detail/contour_frontier.hpp>
 #include <progiso/core/field/volume.hpp>
 #include <progiso/core/hierarchy/hierarchy2d.hpp>
 #include <progiso/core/ranges/range_data2d.hpp>
@@ -99,20 +100,8 @@ class contour_refiner {
     std::uint32_t count;
     double error;
   };
-  struct ready {
-    double error;
-    int depth;
-    std::uint64_t index;
-    ipoint2 centre;
-  };
   struct queue;
 
-  // A recorded segment with its two end positions, placed when the record is published.
-  struct placed_segment {
-    owned_segment seg;
-    std::array<vec2, 2> pos;
-  };
-  [[nodiscard]] vec2 place(std::uint64_t key) const noexcept;
   template <class InCut>
   contour_set build(InCut&& in_cut) const;
 
@@ -122,8 +111,8 @@ class contour_refiner {
   double isovalue_;
   std::array<double, 2> origin_{};  // copied so that extraction never reads the image
   std::array<double, 2> spacing_{};
-  zeroed_array<std::uint8_t> state_;  // per grid vertex: split flag, split parents
-  std::vector<placed_segment> segments_;
+  detail::contour_frontier frontier_;  // per grid vertex: split flag, split parents
+  std::vector<detail::placed_segment> segments_;
   std::vector<owned_segment> scratch_;
   std::vector<record> records_;
   // Record of each split diamond, by grid index (untouched pages cost nothing).

@@ -1,0 +1,125 @@
+// progiso/core/contour/detail/contour_frontier.hpp — what the sequential contour refiner
+// (contour_refiner.hpp) and the contour engine (progiso/scheduler/contour_engine.hpp) share, so
+// that both make the same records in the same way: the root contour, the per-vertex state that
+// makes a diamond ready once all its parents are split, the readiness rule, the placement of
+// contour vertices and the assembly of a cut's live segments into polylines.
+//
+// Not a public API: its layout may change with the two users.
+#pragma once
+
+#include <array>
+#include <cstddef>
+#include <cstdint>
+#include <map>
+#include <optional>
+#include <vector>
+
+#include <progiso/core/base/config.hpp>
+#include <progiso/core/base/detail/flat_map.hpp>
+#include <progiso/core/base/zeroed_array.hpp>
+#include <progiso/core/contour/contour.hpp>
+#include <progiso/core/contour/contour_split.hpp>
+#include <progiso/core/field/volume.hpp>
+#include <progiso/core/hierarchy/hierarchy2d.hpp>
+#include <progiso/core/ranges/range_data2d.hpp>
+
+namespace progiso::detail {
+
+/// Owner of a segment of a finest triangle, and the diamond of the root record.
+inline constexpr std::uint64_t no_owner2 = ~std::uint64_t{0};
+
+/// A recorded segment with its two end positions (pixel units), placed when the record that
+/// creates it is made: extraction then needs neither the image nor the range data.
+struct placed_segment {
+  owned_segment seg;
+  std::array<vec2, 2> pos;
+};
+
+/// A diamond whose parents are all split and whose range straddles the isovalue.
+struct contour_ready {
+  double error;
+  int depth;
+  std::uint64_t index;
+  ipoint2 centre;
+};
+
+/// The contour vertex on the grid edge with this key (edge_key2), pixel units.
+[[nodiscard]] vec2 place_contour_vertex(const hierarchy2d& hier, const volume& image,
+                                        double isovalue, std::uint64_t key) noexcept;
+
+/// The root cut: appends the placed segments of the root triangles to `segments` and the
+/// centres of the root diamonds (roots of size ≥ 2) to `roots`. Reads 4 samples per root
+/// square: no pass over the image beyond them.
+void root_contour(const hierarchy2d& hier, const volume& image, double isovalue,
+                  std::vector<placed_segment>& segments, std::vector<ipoint2>& roots);
+
+/// The readiness rule: the diamond centred at c (parents all split) is queued by its nested
+/// error when its range straddles the isovalue, and culled (nothing) otherwise.
+[[nodiscard]] inline std::optional<contour_ready> ready_contour_diamond(
+    const range_data2d& ranges, double isovalue, const ipoint2& c, std::uint64_t index,
+    int depth) noexcept {
+  const diamond_range r = ranges.get(c);
+  if (!r.straddles(isovalue)) return std::nullopt;
+  return contour_ready{r.error, depth, index, c};
+}
+
+/// Per grid vertex: whether the diamond is split and how many of its parents are.
+class contour_frontier {
+ public:
+  explicit contour_frontier(const hierarchy2d& hier) : hier_(&hier), state_(hier.vertex_count()) {}
+
+  [[nodiscard]] bool is_split(std::uint64_t index) const noexcept {
+    return (state_.get()[index] & split_bit) != 0;
+  }
+  /// Marks diamond d (grid index `index`) split and calls ready(child centre, child index) for
+  /// each child whose parents are now all split. Returns d's child count.
+  template <class Ready>
+  int split(const diamond2& d, std::uint64_t index, Ready&& ready) {
+    std::uint8_t* state = state_.get();
+    state[index] = static_cast<std::uint8_t>(state[index] | split_bit);
+    std::array<ipoint2, 4> children{};
+    const int nc = hier_->children(d, children);
+    for (int i = 0; i < nc; ++i) {
+      const ipoint2& c = children[static_cast<std::size_t>(i)];
+      const std::uint64_t ci = hier_->index(c);
+      const auto count = static_cast<std::uint8_t>((state[ci] & parent_count_mask) + 1);
+      state[ci] = static_cast<std::uint8_t>((state[ci] & ~parent_count_mask) | count);
+      if (count == hier_->parent_count(c)) ready(c, ci);
+    }
+    return nc;
+  }
+
+ private:
+  static constexpr std::uint8_t split_bit = 0x80;
+  static constexpr std::uint8_t parent_count_mask = 0x07;
+  const hierarchy2d* hier_;
+  zeroed_array<std::uint8_t> state_;
+};
+
+/// Turns the live segments of a cut into polylines: clips them to the data box (the padded
+/// grid reaches beyond it), shares vertices by edge key, chains segments (every vertex has at
+/// most one outgoing and one incoming segment) and maps positions to physical coordinates.
+class contour_assembler {
+ public:
+  /// `expected` segments size the key table (a hint).
+  contour_assembler(const hierarchy2d& hier, double isovalue, std::size_t expected);
+  /// Adds one live segment of the cut.
+  void add(const placed_segment& s);
+  /// The polylines, with positions origin + p × spacing. Once.
+  [[nodiscard]] contour_set finish(const std::array<double, 2>& origin,
+                                   const std::array<double, 2>& spacing);
+
+ private:
+  std::uint32_t key_id(std::uint64_t key, const vec2& p);
+  std::uint32_t point_id(const vec2& p);
+
+  double bx_;
+  double by_;
+  double isovalue_;
+  contour_set out_;
+  flat_map ids_;
+  std::map<vec2, std::uint32_t> clipped_;  // clipped ends, by exact position
+  std::vector<std::array<std::uint32_t, 2>> segs_;
+};
+
+}  // namespace progiso::detail

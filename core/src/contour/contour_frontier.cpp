@@ -1,0 +1,133 @@
+#include <progiso/core/contour/detail/contour_frontier.hpp>
+
+#include <utility>
+
+namespace progiso::detail {
+
+vec2 place_contour_vertex(const hierarchy2d& hier, const volume& image, double isovalue,
+                          std::uint64_t key) noexcept {
+  const auto e = hier.edge_ends(key);
+  return interpolate2(e[0], image.value(e[0][0], e[0][1], 0), e[1],
+                      image.value(e[1][0], e[1][1], 0), isovalue);
+}
+
+void root_contour(const hierarchy2d& hier, const volume& image, double isovalue,
+                  std::vector<placed_segment>& segments, std::vector<ipoint2>& roots) {
+  std::array<std::array<ipoint2, 3>, 2> tris{};
+  const bool has_diamond = hier.root_size() >= 2;
+  for (std::uint64_t r = 0; r < hier.root_count(); ++r) {
+    hier.root_triangles(r, tris);
+    const ipoint2 centre = hier.root_centre(r);
+    const std::uint64_t owner = has_diamond ? hier.index(centre) : no_owner2;
+    for (const auto& t : tris) {
+      std::array<double, 3> f{};
+      for (std::size_t i = 0; i < 3; ++i) f[i] = image.value(t[i][0], t[i][1], 0);
+      std::array<std::uint64_t, 2> k{};
+      if (march_triangle(t, f, isovalue, k)) {
+        segments.push_back({{owner, k},
+                            {place_contour_vertex(hier, image, isovalue, k[0]),
+                             place_contour_vertex(hier, image, isovalue, k[1])}});
+      }
+    }
+    if (has_diamond) roots.push_back(centre);
+  }
+}
+
+contour_assembler::contour_assembler(const hierarchy2d& hier, double isovalue,
+                                     std::size_t expected)
+    : bx_(static_cast<double>(hier.data_max()[0])),
+      by_(static_cast<double>(hier.data_max()[1])),
+      isovalue_(isovalue),
+      ids_(expected + 16) {}
+
+std::uint32_t contour_assembler::key_id(std::uint64_t key, const vec2& p) {
+  const auto [id, inserted] =
+      ids_.try_emplace(key, static_cast<std::uint32_t>(out_.vertices.size()));
+  if (inserted) out_.vertices.push_back(p);
+  return id;
+}
+
+std::uint32_t contour_assembler::point_id(const vec2& p) {
+  const auto [it, inserted] =
+      clipped_.try_emplace(p, static_cast<std::uint32_t>(out_.vertices.size()));
+  if (inserted) out_.vertices.push_back(p);
+  return it->second;
+}
+
+void contour_assembler::add(const placed_segment& ps) {
+  const owned_segment& s = ps.seg;
+  const vec2 p = ps.pos[0];
+  const vec2 q = ps.pos[1];
+  if (p[0] <= bx_ && p[1] <= by_ && q[0] <= bx_ && q[1] <= by_) {
+    segs_.push_back({key_id(s.keys[0], p), key_id(s.keys[1], q)});
+    return;
+  }
+  // Clip against x ≤ bx and y ≤ by; crossings computed from the lexicographically ordered
+  // ends so that neighbours agree exactly. The direction of the segment is kept. When the
+  // inside end lies on the border line, what remains is that point: the segment is dropped.
+  vec2 a = p, b = q;
+  bool a_orig = true, b_orig = true;
+  for (std::size_t axis = 0; axis < 2; ++axis) {
+    const double lim = axis == 0 ? bx_ : by_;
+    const bool ain = a[axis] <= lim;
+    const bool bin = b[axis] <= lim;
+    if (ain && bin) continue;
+    if ((!ain && !bin) || (ain && a[axis] == lim) || (bin && b[axis] == lim)) return;
+    vec2 u = a, v = b;
+    if (v < u) std::swap(u, v);
+    const double t = (lim - u[axis]) / (v[axis] - u[axis]);
+    vec2 x{u[0] + t * (v[0] - u[0]), u[1] + t * (v[1] - u[1])};
+    x[axis] = lim;
+    if (!ain) {
+      a = x;
+      a_orig = false;
+    } else {
+      b = x;
+      b_orig = false;
+    }
+  }
+  if (a == b) return;
+  const std::uint32_t ia = a_orig ? key_id(s.keys[0], p) : point_id(a);
+  const std::uint32_t ib = b_orig ? key_id(s.keys[1], q) : point_id(b);
+  if (ia != ib) segs_.push_back({ia, ib});
+}
+
+contour_set contour_assembler::finish(const std::array<double, 2>& origin,
+                                      const std::array<double, 2>& spacing) {
+  contour_set out = std::move(out_);
+  // Chain: every vertex has at most one outgoing and one incoming segment.
+  const std::uint32_t none = ~std::uint32_t{0};
+  std::vector<std::uint32_t> next(out.vertices.size(), none);
+  std::vector<std::uint8_t> has_in(out.vertices.size(), 0);
+  for (const auto& s : segs_) {
+    next[s[0]] = s[1];
+    has_in[s[1]] = 1;
+  }
+  std::vector<std::uint8_t> used(out.vertices.size(), 0);
+  const auto walk = [&](std::uint32_t start, bool closed) {
+    polyline pl;
+    pl.closed = closed;
+    pl.isovalue = isovalue_;
+    std::uint32_t v = start;
+    while (v != none && !used[v]) {
+      used[v] = 1;
+      pl.vertices.push_back(v);
+      v = next[v];
+    }
+    if (pl.vertices.size() >= 2) out.polylines.push_back(std::move(pl));
+  };
+  for (std::uint32_t v = 0; v < out.vertices.size(); ++v) {
+    if (!has_in[v] && next[v] != none) walk(v, false);
+  }
+  for (std::uint32_t v = 0; v < out.vertices.size(); ++v) {
+    if (!used[v] && next[v] != none) walk(v, true);
+  }
+  // Physical coordinates: origin + grid position × spacing, as for volumes.
+  for (vec2& p : out.vertices) {
+    p = {origin[0] + p[0] * spacing[0], origin[1] + p[1] * spacing[1]};
+  }
+  segs_.clear();
+  return out;
+}
+
+}  // namespace progiso::detail
