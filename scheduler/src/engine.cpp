@@ -94,38 +94,20 @@ void engine::start(const refine_goal& goal) {
   impl_->launch(lock, goal);
 }
 
-void engine::cancel() {
-  if (impl_->in_own_callback()) {
-    // From the progress callback, on a thread of the run itself: joining the run here would
-    // wait for this very call, so only request the stop; the run ends within one split.
-    impl_->callback_cancel = true;
-    impl_->request_stop();
-    return;
-  }
-  std::unique_lock lock(impl_->control);
-  impl_->stop_and_join(lock);
-}
+void engine::cancel() { impl_->cancel(); }
 
-void engine::wait() {
-  impl_->refuse_in_callback("wait()");
-  std::unique_lock lock(impl_->control);
-  impl_->idle.wait(lock, [this] { return !impl_->active; });
-  impl_->rethrow_callback_error(lock);
-}
+void engine::wait() { impl_->wait(); }
 
 bool engine::refine(const refine_goal& goal) {
   impl_->refuse_in_callback("refine()");
   std::unique_lock lock(impl_->control);
   impl_->launch(lock, goal);
-  impl_->idle.wait(lock, [this] { return !impl_->active; });
-  const bool reached = impl_->last_reached;
-  impl_->rethrow_callback_error(lock);
-  return reached;
+  return impl_->wait_reached(lock);
 }
 
 surface_snapshot engine::snapshot() const {
   surface_snapshot s;
-  s.guard_ = impl_->reader().pin();
+  s.guard_ = impl_->readers.reader().pin();
   s.owner_ = this;
   s.root_ = s.guard_.protect(impl_->root);
   s.published_ = s.root_->records.published();
@@ -133,24 +115,21 @@ surface_snapshot engine::snapshot() const {
 }
 
 double engine::isovalue() const {
-  epoch_guard g = impl_->reader().pin();
+  epoch_guard g = impl_->readers.reader().pin();
   return g.protect(impl_->root)->isovalue;
 }
 
-bool engine::running() const noexcept {
-  // relaxed: a status reading.
-  return impl_->active_flag.load(std::memory_order_relaxed);
-}
+bool engine::running() const noexcept { return impl_->running(); }
 
 bool engine::done() const {
-  epoch_guard g = impl_->reader().pin();
+  epoch_guard g = impl_->readers.reader().pin();
   return g.protect(impl_->root)->remaining.get() == 0;
 }
 
 engine_statistics engine::statistics() const {
   engine_statistics s;
   {
-    epoch_guard g = impl_->reader().pin();
+    epoch_guard g = impl_->readers.reader().pin();
     const detail::engine_root* r = g.protect(impl_->root);
     s.refine.splits = r->splits.get();
     s.refine.visited = r->visited.get();
@@ -176,10 +155,7 @@ engine_statistics engine::statistics() const {
   s.runs = impl_->runs.get();
   s.cancelled_runs = impl_->cancelled_runs.get();
   s.reclamation = impl_->domain.statistics();
-  {
-    const std::lock_guard lock(impl_->readers_mutex);
-    for (const auto& p : impl_->readers) s.snapshot_retries += p->protect_retries();
-  }
+  s.snapshot_retries = impl_->readers.snapshot_retries();
   return s;
 }
 

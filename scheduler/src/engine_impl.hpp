@@ -37,9 +37,9 @@
 #include <progiso/scheduler/engine.hpp>
 #include <progiso/scheduler/tbb_environment.hpp>
 
-namespace progiso::detail {
+#include "run_control.hpp"
 
-using clock = std::chrono::steady_clock;
+namespace progiso::detail {
 
 // Core's pieces of work (range slabs, mesh parts) as oneTBB tasks in the calling arena.
 inline void tbb_loop(std::size_t n, const std::function<void(std::size_t)>& body) {
@@ -65,27 +65,6 @@ struct ready_item {
   double error;
   int depth;
   std::uint64_t index;
-};
-
-// Counters written by the commit step (one writer at a time) and read by anyone: relaxed
-// atomics, each exact at some moment; no other data is published through them.
-class counter {
- public:
-  void add(std::uint64_t n) noexcept {
-    // relaxed: single writer; readers want a recent value only (statistics).
-    v_.store(v_.load(std::memory_order_relaxed) + n, std::memory_order_relaxed);
-  }
-  void set(std::uint64_t n) noexcept {
-    // relaxed: as add().
-    v_.store(n, std::memory_order_relaxed);
-  }
-  [[nodiscard]] std::uint64_t get() const noexcept {
-    // relaxed: as add().
-    return v_.load(std::memory_order_relaxed);
-  }
-
- private:
-  std::atomic<std::uint64_t> v_{0};
 };
 
 inline constexpr std::uint64_t root_alive = 0x70726f6769736f31;  // "progiso1"
@@ -248,7 +227,7 @@ struct batch {
 
 // The engine behind the public handle: its volume, hierarchy, range data, roots, graph and run
 // state. Member functions are defined in the file of their role (see the top of this file).
-struct engine_impl {
+struct engine_impl : run_control {
   engine_impl(std::shared_ptr<const volume> owned, const volume& v, engine_options o);
 
   // The range data: a staged build (range_data::staged), its pieces built with the engine's
@@ -303,12 +282,6 @@ struct engine_impl {
     const auto available = static_cast<unsigned>(scheduler::default_concurrency());
     return requested == 0 ? available : std::min(requested, available);
   }
-  static std::uint64_t next_serial() {
-    static std::atomic<std::uint64_t> n{1};
-    // relaxed: a unique number; nothing is published with it.
-    return n.fetch_add(1, std::memory_order_relaxed);
-  }
-
   // ---- roots ---------------------------------------------------------------------------------
 
   engine_root* make_root(double w, std::uint64_t gen);
@@ -362,10 +335,6 @@ struct engine_impl {
 
   // ---- readers -------------------------------------------------------------------------------
 
-  // This thread's participant in the domain, registered on the thread's first snapshot of this
-  // engine (takes a mutex once); then found in a small thread-local cache, most recent first.
-  epoch_participant& reader() const;
-
   // ---- the run -------------------------------------------------------------------------------
 
   // Full refinement splits every straddling diamond whatever its error: children are tested
@@ -379,15 +348,6 @@ struct engine_impl {
   [[nodiscard]] bool past_deadline() const noexcept {
     return goal.what == refine_goal::kind::deadline && clock::now() >= slice_end;
   }
-  [[nodiscard]] bool stopping() const noexcept {
-    // relaxed: a request flag; the data the run publishes is ordered by records.publish().
-    return stop.load(std::memory_order_relaxed);
-  }
-  void request_stop() noexcept {
-    // relaxed: see stopping().
-    stop.store(true, std::memory_order_relaxed);
-  }
-
   // Commit step only: fills the in-flight window.
   void dispatch(engine_root& r);
 
@@ -402,22 +362,6 @@ struct engine_impl {
   // The error of the queue's next diamond for the progress callback (0 when none): its key, or
   // the range data's error when it is queued by placeholder. Commit step.
   [[nodiscard]] double next_error(const engine_root& r, const range_data* rd) const;
-
-  // Marks the progress callback's thread, so that control calls made from inside it can tell.
-  struct callback_scope {
-    explicit callback_scope(const engine_impl* e) noexcept : saved(in_callback_of) {
-      in_callback_of = e;
-    }
-    callback_scope(const callback_scope&) = delete;
-    callback_scope& operator=(const callback_scope&) = delete;
-    ~callback_scope() { in_callback_of = saved; }
-    const engine_impl* saved;
-  };
-  static thread_local const engine_impl* in_callback_of;
-  [[nodiscard]] bool in_own_callback() const noexcept { return in_callback_of == this; }
-  void refuse_in_callback(const char* call) const;
-  // After a run: moves a callback's exception to the control thread (caller holds `control`).
-  void rethrow_callback_error(std::unique_lock<std::mutex>& lock);
 
   // One graph run: the first dispatch goes through the serial commit node too (the queue
   // belongs to it: tasks started by the dispatch loop commit while it still runs).
@@ -478,7 +422,6 @@ struct engine_impl {
 
   // Control (caller holds `control`).
   void launch(std::unique_lock<std::mutex>& lock, const refine_goal& g);
-  void stop_and_join(std::unique_lock<std::mutex>& lock);
   [[nodiscard]] engine_root* current() const noexcept {
     // relaxed: the control thread is the only writer of `root`.
     return root.load(std::memory_order_relaxed);
@@ -511,9 +454,7 @@ struct engine_impl {
   bool recycle = true;
   mutable epoch_domain domain;
   epoch_participant control_participant;  // retires roots; used under `control`
-  mutable std::mutex readers_mutex;
-  mutable std::vector<std::unique_ptr<epoch_participant>> readers;
-  std::uint64_t serial;
+  reader_registry readers;                // participants of reading threads (snapshots)
   // The published root: release-stored by set_isovalue() (pairs with the acquire in
   // epoch_guard::protect() of snapshot()).
   std::atomic<engine_root*> root{nullptr};
@@ -530,7 +471,6 @@ struct engine_impl {
   // Deadline runs stop here: the goal's deadline, or the end of a slice of refinement while the
   // range data is built (drive_unranged). Written by the driver between graph runs.
   clock::time_point slice_end{};
-  std::atomic<bool> stop{false};
   std::size_t inflight = 0;
   std::size_t inflight_items = 0;
   // Batches done with, kept with their buffers' capacity for the next ones (commit step: both
@@ -545,18 +485,6 @@ struct engine_impl {
   std::mutex publish_mutex;
   std::uint64_t since_progress = 0;
 
-  std::mutex control;
-  std::condition_variable idle;
-  std::thread driver;
-  bool active = false;          // guarded by control
-  bool user_cancelled = false;  // guarded by control (read by the driver after its run)
-  bool last_reached = false;    // guarded by control
-  // Set by the progress callback (commit step) during a run, read by the driver after it.
-  bool callback_cancel = false;
-  std::exception_ptr callback_error;
-  std::exception_ptr pending_error;  // guarded by control: rethrown by wait() / refine()
-  std::atomic<bool> active_flag{false};
-  counter runs, cancelled_runs;
   mutable counter retired_bytes, peak_retired_bytes, root_bytes;
   counter recycled_roots;
   std::uint64_t generation = 0;  // guarded by control

@@ -7,14 +7,15 @@ namespace progiso::detail {
 
 // The engine and its graph: compute (any number in parallel) feeding commit (serial).
 engine_impl::engine_impl(std::shared_ptr<const volume> owned, const volume& v, engine_options o)
-    : owned_volume(std::move(owned)),
+    : run_control("engine"),
+      owned_volume(std::move(owned)),
       vol(v),
       opt(std::move(o)),
       hier(v.dims()),
       threads(effective_threads(opt.threads)),
       domain(opt.reclamation),
       control_participant(domain),
-      serial(next_serial()),
+      readers(domain),
       arena(static_cast<int>(threads)) {
   arena.execute([this] {
     graph = std::make_unique<tbb::flow::graph>();
@@ -201,13 +202,9 @@ void engine_impl::report_progress(engine_root& r, const range_data* rd, std::uin
   since_progress += published;
   if (since_progress < opt.progress_interval) return;
   since_progress = 0;
-  const callback_scope in_callback(this);
-  try {
+  call_progress([&] {
     opt.progress({r.splits.get(), r.cut_triangles, next_error(r, rd), last_depth});
-  } catch (...) {
-    callback_error = std::current_exception();
-    request_stop();
-  }
+  });
 }
 
 void engine_impl::run_graph(engine_root* r) {

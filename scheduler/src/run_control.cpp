@@ -1,29 +1,142 @@
-// Run control: the driver thread of a run, stop requests, deadline slices, the progress
-// callback and its errors.
+// Run control: what both engines share (run_control.hpp: the driver thread, stop requests,
+// cancel and wait, the progress callback and its errors, readers' participants), and the 3D
+// engine's driver (range build slices, deadline slices, the goal reached).
 
 #include "engine_impl.hpp"
 
+#include <algorithm>
 #include <string>
+#include <utility>
 
 #include <progiso/core/base/error.hpp>
 
 namespace progiso::detail {
 
-void engine_impl::refuse_in_callback(const char* call) const {
+// ---- shared with the contour engine (run_control.hpp) ---------------------------------------
+
+epoch_participant& reader_registry::reader() const {
+  struct entry {
+    std::uint64_t serial;
+    epoch_participant* participant;
+  };
+  thread_local std::vector<entry> cache;
+  for (std::size_t i = 0; i < cache.size(); ++i) {
+    if (cache[i].serial == serial_) {
+      if (i != 0) std::swap(cache[i], cache[0]);
+      return *cache[0].participant;
+    }
+  }
+  epoch_participant* p = nullptr;
+  {
+    const std::lock_guard lock(mutex_);
+    readers_.push_back(std::make_unique<epoch_participant>(*domain_));
+    p = readers_.back().get();
+  }
+  // Forgotten entries keep their participant registered (owned by its engine) but unused.
+  if (cache.size() >= 8) cache.pop_back();
+  cache.push_back({serial_, p});
+  std::rotate(cache.begin(), cache.end() - 1, cache.end());
+  return *p;
+}
+
+std::uint64_t reader_registry::snapshot_retries() const {
+  const std::lock_guard lock(mutex_);
+  std::uint64_t n = 0;
+  for (const auto& p : readers_) n += p->protect_retries();
+  return n;
+}
+
+void reader_registry::clear() {
+  const std::lock_guard lock(mutex_);
+  readers_.clear();
+}
+
+thread_local const run_control* run_control::in_callback_of = nullptr;
+
+void run_control::refuse_in_callback(const char* call) const {
   if (in_own_callback()) {
-    throw error(std::string("engine: ") + call +
-                " cannot be called from the engine's progress callback (it would wait for the "
-                "run that calls it); call cancel() there, which requests a stop");
+    throw error(std::string(who_) + ": " + call + " cannot be called from the " + who_ +
+                "'s progress callback (it would wait for the run that calls it); call cancel() "
+                "there, which requests a stop");
   }
 }
 
-void engine_impl::rethrow_callback_error(std::unique_lock<std::mutex>& lock) {
+void run_control::rethrow_callback_error(std::unique_lock<std::mutex>& lock) {
   if (!pending_error) return;
   std::exception_ptr e = std::move(pending_error);
   pending_error = nullptr;
   lock.unlock();
   std::rethrow_exception(e);
 }
+
+void run_control::stop_and_join(std::unique_lock<std::mutex>& lock) {
+  if (!driver.joinable()) return;
+  if (active) {
+    user_cancelled = true;
+    request_stop();
+  }
+  std::thread t = std::move(driver);
+  lock.unlock();
+  t.join();
+  lock.lock();
+}
+
+void run_control::begin_run(std::function<void()> body) {
+  user_cancelled = false;
+  pending_error = nullptr;  // a callback error belongs to the run it stopped
+  active = true;
+  active_flag.store(true, std::memory_order_relaxed);  // relaxed: status only
+  runs.add(1);
+  driver = std::thread(std::move(body));
+}
+
+void run_control::end_run(bool goal_reached) {
+  {
+    const std::lock_guard lock(control);
+    // callback_error and callback_cancel were written by the run's publishers, which happen
+    // before the driver's end (the graph's wait_for_all(), a task group's wait, or the driver
+    // itself).
+    const bool stopped_by_callback = callback_cancel || callback_error != nullptr;
+    callback_cancel = false;
+    if (callback_error) pending_error = std::move(callback_error);
+    callback_error = nullptr;
+    const bool reached = goal_reached && !user_cancelled && !stopped_by_callback;
+    last_reached = reached;
+    active = false;
+    // relaxed: a status reading for running(); waiters synchronise through `control`.
+    active_flag.store(false, std::memory_order_relaxed);
+    if (!reached) cancelled_runs.add(1);
+  }
+  idle.notify_all();
+}
+
+void run_control::cancel() {
+  if (in_own_callback()) {
+    // From the progress callback, on a thread of the run itself: joining the run here would
+    // wait for this very call, so only request the stop; the run ends within one split.
+    callback_cancel = true;
+    request_stop();
+    return;
+  }
+  std::unique_lock lock(control);
+  stop_and_join(lock);
+}
+
+void run_control::wait() {
+  refuse_in_callback("wait()");
+  std::unique_lock lock(control);
+  idle.wait(lock, [this] { return !active; });
+  rethrow_callback_error(lock);
+}
+
+bool run_control::wait_reached(std::unique_lock<std::mutex>& lock) {
+  idle.wait(lock, [this] { return !active; });
+  const bool reached = last_reached;
+  rethrow_callback_error(lock);
+  return reached;
+}
+
+// ---- the engine's driver ------------------------------------------------------------------
 
 bool engine_impl::continue_after_slice() {
   const std::lock_guard lock(control);
@@ -86,36 +199,20 @@ void engine_impl::drive(engine_root* r) {
   // Unseeded (a deadline passed inside the first build step): every root may still split.
   if (r->seeded) r->remaining.set(r->queue.size());
   root_bytes.set(r->bytes());
-  {
-    const std::lock_guard lock(control);
-    bool reached = false;
-    // callback_error and callback_cancel were written by commit tasks, which happen before
-    // wait_for_all() returns above.
-    const bool stopped_by_callback = callback_cancel || callback_error != nullptr;
-    callback_cancel = false;
-    if (callback_error) pending_error = std::move(callback_error);
-    callback_error = nullptr;
-    if (!user_cancelled && !stopped_by_callback) {
-      switch (goal.what) {
-        case refine_goal::kind::full:
-        case refine_goal::kind::error:
-          reached = !eligible(*r);
-          break;
-        case refine_goal::kind::triangles:
-          reached = budget_hit || r->queue.empty();
-          break;
-        case refine_goal::kind::deadline:
-          reached = r->seeded && r->queue.empty();
-          break;
-      }
-    }
-    last_reached = reached;
-    active = false;
-    // relaxed: a status reading for running(); waiters synchronise through `control`.
-    active_flag.store(false, std::memory_order_relaxed);
-    if (!reached) cancelled_runs.add(1);
+  bool reached = false;
+  switch (goal.what) {
+    case refine_goal::kind::full:
+    case refine_goal::kind::error:
+      reached = !eligible(*r);
+      break;
+    case refine_goal::kind::triangles:
+      reached = budget_hit || r->queue.empty();
+      break;
+    case refine_goal::kind::deadline:
+      reached = r->seeded && r->queue.empty();
+      break;
   }
-  idle.notify_all();
+  end_run(reached);
 }
 
 void engine_impl::launch(std::unique_lock<std::mutex>& lock, const refine_goal& g) {
@@ -126,27 +223,8 @@ void engine_impl::launch(std::unique_lock<std::mutex>& lock, const refine_goal& 
                                                             : queue_discipline::largest_error);
   if (g.what == refine_goal::kind::error) r->queue.aim_at(g.max_error);  // eligible() is exact
   stop.store(false, std::memory_order_relaxed);  // relaxed: the thread start orders it
-  user_cancelled = false;
-  pending_error = nullptr;  // a callback error belongs to the run it stopped
   budget_hit = false;
-  active = true;
-  active_flag.store(true, std::memory_order_relaxed);  // relaxed: status only
-  runs.add(1);
-  driver = std::thread([this, r] { drive(r); });
+  begin_run([this, r] { drive(r); });
 }
-
-void engine_impl::stop_and_join(std::unique_lock<std::mutex>& lock) {
-  if (!driver.joinable()) return;
-  if (active) {
-    user_cancelled = true;
-    request_stop();
-  }
-  std::thread t = std::move(driver);
-  lock.unlock();
-  t.join();
-  lock.lock();
-}
-
-thread_local const engine_impl* engine_impl::in_callback_of = nullptr;
 
 }  // namespace progiso::detail

@@ -1,38 +1,10 @@
-// Readers: the epoch participant of each reading thread, snapshots and the meshes of their cuts.
+// Readers: snapshots and the meshes of their cuts.
 
 #include "engine_impl.hpp"
 
 #include <progiso/core/surface/detail/cut_mesher.hpp>
 
 namespace progiso {
-namespace detail {
-
-epoch_participant& engine_impl::reader() const {
-  struct entry {
-    std::uint64_t serial;
-    epoch_participant* participant;
-  };
-  thread_local std::vector<entry> cache;
-  for (std::size_t i = 0; i < cache.size(); ++i) {
-    if (cache[i].serial == serial) {
-      if (i != 0) std::swap(cache[i], cache[0]);
-      return *cache[0].participant;
-    }
-  }
-  epoch_participant* p = nullptr;
-  {
-    const std::lock_guard lock(readers_mutex);
-    readers.push_back(std::make_unique<epoch_participant>(domain));
-    p = readers.back().get();
-  }
-  // Forgotten entries keep their participant registered (owned by its engine) but unused.
-  if (cache.size() >= 8) cache.pop_back();
-  cache.push_back({serial, p});
-  std::rotate(cache.begin(), cache.end() - 1, cache.end());
-  return *p;
-}
-
-}  // namespace detail
 
 // ---------------------------------------------------------------------------------------------
 // surface_snapshot

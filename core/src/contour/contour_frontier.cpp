@@ -33,8 +33,7 @@ void root_contour(const hierarchy2d& hier, const volume& image, double isovalue,
   }
 }
 
-contour_assembler::contour_assembler(const hierarchy2d& hier, double isovalue,
-                                     std::size_t expected)
+contour_assembler::contour_assembler(const hierarchy2d& hier, double isovalue, std::size_t expected)
     : bx_(static_cast<double>(hier.data_max()[0])),
       by_(static_cast<double>(hier.data_max()[1])),
       isovalue_(isovalue),

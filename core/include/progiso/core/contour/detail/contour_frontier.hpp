@@ -55,9 +55,11 @@ void root_contour(const hierarchy2d& hier, const volume& image, double isovalue,
 
 /// The readiness rule: the diamond centred at c (parents all split) is queued by its nested
 /// error when its range straddles the isovalue, and culled (nothing) otherwise.
-[[nodiscard]] inline std::optional<contour_ready> ready_contour_diamond(
-    const range_data2d& ranges, double isovalue, const ipoint2& c, std::uint64_t index,
-    int depth) noexcept {
+[[nodiscard]] inline std::optional<contour_ready> ready_contour_diamond(const range_data2d& ranges,
+                                                                        double isovalue,
+                                                                        const ipoint2& c,
+                                                                        std::uint64_t index,
+                                                                        int depth) noexcept {
   const diamond_range r = ranges.get(c);
   if (!r.straddles(isovalue)) return std::nullopt;
   return contour_ready{r.error, depth, index, c};

@@ -1,0 +1,160 @@
+// scheduler/src/run_control.hpp — what the 3D engine (engine_impl.hpp) and the contour engine
+// (contour_engine.cpp) share to run in the background and be read while they do: the control
+// of runs (a driver thread per run, stop requests, cancel and wait, the progress callback and
+// its errors), statistics counters, and the epoch participants of reading threads.
+//
+// Not installed. The rules it keeps, for both engines: control calls serialise on `control`;
+// a run is one driver thread, joined before the next starts; a stop request is a relaxed flag
+// that every worker reads between splits; cancel() from the progress callback only requests the
+// stop (joining there would wait for the caller itself); an exception of the callback stops the
+// run and is rethrown by the control thread's wait() or refine(), never across a worker.
+#pragma once
+
+#include <atomic>
+#include <chrono>
+#include <condition_variable>
+#include <cstdint>
+#include <exception>
+#include <functional>
+#include <memory>
+#include <mutex>
+#include <thread>
+#include <vector>
+
+#include <progiso/concurrent/epoch.hpp>
+
+namespace progiso::detail {
+
+using clock = std::chrono::steady_clock;
+
+// Counters written by one writer at a time (the commit step, or whoever publishes) and read by
+// anyone: relaxed atomics, each exact at some moment; no other data is published through them.
+class counter {
+ public:
+  void add(std::uint64_t n) noexcept {
+    // relaxed: single writer; readers want a recent value only (statistics).
+    v_.store(v_.load(std::memory_order_relaxed) + n, std::memory_order_relaxed);
+  }
+  void set(std::uint64_t n) noexcept {
+    // relaxed: as add().
+    v_.store(n, std::memory_order_relaxed);
+  }
+  [[nodiscard]] std::uint64_t get() const noexcept {
+    // relaxed: as add().
+    return v_.load(std::memory_order_relaxed);
+  }
+
+ private:
+  std::atomic<std::uint64_t> v_{0};
+};
+
+// The epoch participants of the threads that read one engine. A thread's participant is
+// registered on its first read of that engine (takes a mutex once), then found in a small
+// thread-local cache, most recent first, by the registry's serial number (never reused).
+class reader_registry {
+ public:
+  explicit reader_registry(epoch_domain& domain) : domain_(&domain), serial_(next_serial()) {}
+  reader_registry(const reader_registry&) = delete;
+  reader_registry& operator=(const reader_registry&) = delete;
+
+  [[nodiscard]] epoch_participant& reader() const;
+  // Bounded re-reads of protect() by every reader so far (statistics).
+  [[nodiscard]] std::uint64_t snapshot_retries() const;
+  // Unregisters every participant (the engine's destruction, before its domain goes).
+  void clear();
+
+ private:
+  static std::uint64_t next_serial() {
+    static std::atomic<std::uint64_t> n{1};
+    // relaxed: a unique number; nothing is published with it.
+    return n.fetch_add(1, std::memory_order_relaxed);
+  }
+  epoch_domain* domain_;
+  std::uint64_t serial_;
+  mutable std::mutex mutex_;
+  mutable std::vector<std::unique_ptr<epoch_participant>> readers_;
+};
+
+// Background runs of one engine. `who` names the engine in error messages.
+struct run_control {
+  explicit run_control(const char* who) noexcept : who_(who) {}
+
+  [[nodiscard]] bool stopping() const noexcept {
+    // relaxed: a request flag; the data a run publishes is ordered by its own publication.
+    return stop.load(std::memory_order_relaxed);
+  }
+  void request_stop() noexcept {
+    // relaxed: see stopping().
+    stop.store(true, std::memory_order_relaxed);
+  }
+
+  // Marks the progress callback's thread, so that control calls made from inside it can tell.
+  struct callback_scope {
+    explicit callback_scope(const run_control* e) noexcept : saved(in_callback_of) {
+      in_callback_of = e;
+    }
+    callback_scope(const callback_scope&) = delete;
+    callback_scope& operator=(const callback_scope&) = delete;
+    ~callback_scope() { in_callback_of = saved; }
+    const run_control* saved;
+  };
+  static thread_local const run_control* in_callback_of;
+  [[nodiscard]] bool in_own_callback() const noexcept { return in_callback_of == this; }
+  // Throws progiso::error when called from this engine's progress callback.
+  void refuse_in_callback(const char* call) const;
+  // Calls the progress callback `f` (by whoever publishes, one at a time): marks the thread,
+  // and turns an exception into a stop request and a pending error for the control thread.
+  template <class F>
+  void call_progress(F&& f) noexcept {
+    if (callback_error) return;
+    const callback_scope in_callback(this);
+    try {
+      f();
+    } catch (...) {
+      callback_error = std::current_exception();
+      request_stop();
+    }
+  }
+
+  // Control calls; the caller holds `control` where a lock is passed.
+  // Requests the stop of the active run and joins its driver (unlocks while joining).
+  void stop_and_join(std::unique_lock<std::mutex>& lock);
+  // Starts `body` on a new driver thread: after stop_and_join(), with `stop` cleared and the
+  // run's state set by the caller (the thread's start orders them for the driver).
+  void begin_run(std::function<void()> body);
+  // The driver's last step: the run reached its goal when `goal_reached` and neither the user
+  // nor the progress callback stopped it; wakes wait().
+  void end_run(bool goal_reached);
+  // engine::cancel(): from the progress callback only a stop request, else stop and join.
+  void cancel();
+  // engine::wait(): blocks until idle and rethrows a callback's exception.
+  void wait();
+  // engine::refine()'s second half, after the launch: waits until idle; returns whether the
+  // goal was reached; rethrows a callback's exception.
+  bool wait_reached(std::unique_lock<std::mutex>& lock);
+  // After a run: moves a callback's exception to the control thread.
+  void rethrow_callback_error(std::unique_lock<std::mutex>& lock);
+  [[nodiscard]] bool running() const noexcept {
+    // relaxed: a status reading; waiters synchronise through `control`.
+    return active_flag.load(std::memory_order_relaxed);
+  }
+
+  std::atomic<bool> stop{false};
+  std::mutex control;
+  std::condition_variable idle;
+  std::thread driver;
+  bool active = false;          // guarded by control
+  bool user_cancelled = false;  // guarded by control (read by the driver after its run)
+  bool last_reached = false;    // guarded by control
+  // Set by the progress callback (whoever publishes) during a run, read by the driver after it.
+  bool callback_cancel = false;
+  std::exception_ptr callback_error;
+  std::exception_ptr pending_error;  // guarded by control: rethrown by wait() / refine()
+  std::atomic<bool> active_flag{false};
+  counter runs, cancelled_runs;
+
+ private:
+  const char* who_;
+};
+
+}  // namespace progiso::detail
