@@ -7,6 +7,7 @@
 
 #include <algorithm>
 #include <atomic>
+#include <bit>
 #include <cmath>
 #include <cstring>
 #include <mutex>
@@ -356,25 +357,44 @@ contour_set contour_snapshot::build(InCut&& in_cut) const {
   detail::contour_assembler out(e.hier, root_->isovalue, static_cast<std::size_t>(segment_count()));
   // Records in canonical order (the root's, then by diamond), so that the polylines depend
   // only on the split set, not on the order of the splits (goal, interruptions, resumptions).
-  std::vector<std::pair<std::uint64_t, std::uint64_t>> order;  // (diamond, record)
-  order.reserve(static_cast<std::size_t>(published_));
-  for (std::uint64_t r = 1; r < published_; ++r) {
-    const detail::contour_record& rec = root_->records[r];
-    if (in_cut(rec)) order.emplace_back(rec.diamond, r);
-  }
-  std::sort(order.begin(), order.end());
-  const auto add_live = [&](const detail::contour_record& rec) {
+  // A dense cut marks its diamonds in a bitmap read in grid order (a bit per grid vertex; it
+  // also answers "is this segment's owner split in the cut" from cache); a sparse one (below
+  // about one split per 64 vertices) sorts its diamonds and asks record_of.
+  const auto add_live = [&](const detail::contour_record& rec, auto&& split_in_cut) {
     for (std::uint32_t i = 0; i < rec.count; ++i) {
       const detail::placed_segment& s = rec.segments[i];
-      if (s.seg.owner != detail::no_owner2) {
-        const std::uint32_t o = root_->record_index(s.seg.owner);
-        if (o != 0 && o < published_ && in_cut(root_->records[o])) continue;  // split in the cut
-      }
-      out.add(s);
+      if (s.seg.owner == detail::no_owner2 || !split_in_cut(s.seg.owner)) out.add(s);
     }
   };
-  add_live(root_->records[0]);
-  for (const auto& [diamond, r] : order) add_live(root_->records[r]);
+  const std::uint64_t vertices = e.hier.vertex_count();
+  if (published_ > vertices / 64) {
+    std::vector<std::uint64_t> bits((vertices + 63) / 64, 0);
+    for (std::uint64_t r = 1; r < published_; ++r) {
+      const detail::contour_record& rec = root_->records[r];
+      if (in_cut(rec)) bits[rec.diamond / 64] |= std::uint64_t{1} << (rec.diamond % 64);
+    }
+    const auto marked = [&bits](std::uint64_t d) { return ((bits[d / 64] >> (d % 64)) & 1) != 0; };
+    add_live(root_->records[0], marked);
+    for (std::size_t w = 0; w < bits.size(); ++w) {
+      for (std::uint64_t b = bits[w]; b != 0; b &= b - 1) {
+        const std::uint64_t d = 64 * w + static_cast<std::uint64_t>(std::countr_zero(b));
+        add_live(root_->records[root_->record_index(d)], marked);
+      }
+    }
+  } else {
+    const auto split = [&](std::uint64_t d) {
+      const std::uint32_t o = root_->record_index(d);
+      return o != 0 && o < published_ && in_cut(root_->records[o]);
+    };
+    add_live(root_->records[0], split);
+    std::vector<std::pair<std::uint64_t, std::uint64_t>> order;  // (diamond, record)
+    for (std::uint64_t r = 1; r < published_; ++r) {
+      const detail::contour_record& rec = root_->records[r];
+      if (in_cut(rec)) order.emplace_back(rec.diamond, r);
+    }
+    std::sort(order.begin(), order.end());
+    for (const auto& [diamond, r] : order) add_live(root_->records[r], split);
+  }
   return out.finish(e.origin, e.spacing);
 }
 

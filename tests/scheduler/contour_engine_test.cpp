@@ -180,6 +180,14 @@ TEST(ContourEngine, the_same_split_set_gives_identical_contours_whatever_the_ord
   ASSERT_EQ(a.split_count(), b.split_count());
   EXPECT_TRUE(identical(a.extract(), b.extract()));
   EXPECT_TRUE(identical(a.extract_cut(0.03), b.extract_cut(0.03)));
+  // A small cut (its records sorted) against the same cut taken from the full run's records
+  // (read through a bitmap in grid order).
+  contour_engine coarse(img, 0.05);
+  EXPECT_TRUE(coarse.refine_until(0.3));
+  const contour_snapshot c = coarse.snapshot();
+  ASSERT_GT(c.split_count(), 10U);
+  ASSERT_LT(c.split_count(), coarse.hierarchy_of().vertex_count() / 64);
+  EXPECT_TRUE(identical(c.extract(), a.extract_cut(0.3)));
 }
 
 TEST(ContourEngine, a_deadline_stops_the_run_and_leaves_a_valid_cut) {
