@@ -26,6 +26,7 @@
 #include <gtest/gtest.h>
 
 #include "support/contour_checks.hpp"
+#include "support/engine_stress.hpp"
 #include "support/stress_support.hpp"
 
 namespace progiso {
@@ -116,30 +117,8 @@ TEST(ContourEngineStress,
     }
     std::mt19937 rng(11);
     while (clock::now() < end) {
-      std::uniform_int_distribution<int> action(0, 5);
-      std::uniform_int_distribution<std::size_t> pick(0, isovalues.size() - 1);
-      std::uniform_int_distribution<int> ms(0, 3);
-      switch (action(rng)) {
-        case 0:
-        case 1:
-          e.set_isovalue(isovalues[pick(rng)]);
-          ++generations;
-          break;
-        case 2:
-          e.start(refine_goal::full());
-          break;
-        case 3:
-          e.start(refine_goal::error(0.01));
-          break;
-        case 4:
-          e.cancel();
-          break;
-        case 5:
-          e.refine_for(std::chrono::milliseconds(ms(rng)));
-          break;
-      }
+      if (test::random_control_step(e, rng, isovalues, 0.01)) ++generations;
       ++control_ops;
-      std::this_thread::sleep_for(std::chrono::microseconds(ms(rng) * 400));
     }
     e.cancel();
     // release: pairs with the readers' acquire-loads.

@@ -474,45 +474,14 @@ contour_engine::~contour_engine() {
 }
 
 void contour_engine::set_isovalue(double w) {
-  if (!std::isfinite(w)) {
-    throw error("isovalue: expected a finite number, found " + std::to_string(w));
-  }
-  impl_->refuse_in_callback("set_isovalue()");
-  std::unique_lock lock(impl_->control);
-  const bool resume = impl_->active;
-  const refine_goal goal = impl_->goal;
-  impl_->stop_and_join(lock);
-  detail::contour_root* old = impl_->current();
-  detail::contour_root* fresh = impl_->make_root(w, ++impl_->generation);
-  // seq_cst (the default): release for readers' protect(), and seq_cst for the TSan variant of
-  // the reclamation argument (concurrent/epoch.hpp), as in engine::set_isovalue().
-  impl_->root.store(fresh);
-  impl_->control_participant.retire(old, &detail::contour_engine_impl::destroy_root,
-                                    old->birth_era());
-  impl_->control_participant.flush();
-  if (resume) impl_->launch(lock, goal);
+  detail::swap_root(*impl_, w, [](const detail::contour_root&) {});
 }
 
-void contour_engine::start(const refine_goal& goal) {
-  if (goal.what == refine_goal::kind::error && !(goal.max_error >= -1e300)) {
-    throw error("refine goal: expected a number as error threshold");
-  }
-  impl_->refuse_in_callback("start()");
-  std::unique_lock lock(impl_->control);
-  impl_->launch(lock, goal);
-}
-
+void contour_engine::start(const refine_goal& goal) { detail::start_run(*impl_, goal); }
 void contour_engine::cancel() { impl_->cancel(); }
 void contour_engine::wait() { impl_->wait(); }
-
 bool contour_engine::refine(const refine_goal& goal) {
-  if (goal.what == refine_goal::kind::error && !(goal.max_error >= -1e300)) {
-    throw error("refine goal: expected a number as error threshold");
-  }
-  impl_->refuse_in_callback("refine()");
-  std::unique_lock lock(impl_->control);
-  impl_->launch(lock, goal);
-  return impl_->wait_reached(lock);
+  return detail::refine_blocking(*impl_, goal);
 }
 
 contour_snapshot contour_engine::snapshot() const {

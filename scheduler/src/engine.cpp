@@ -26,9 +26,7 @@ engine::engine(std::shared_ptr<const volume> vol, double isovalue, engine_option
 
 void engine::init(std::shared_ptr<const volume> owned, const volume& vol, double isovalue,
                   engine_options options) {
-  if (!std::isfinite(isovalue)) {
-    throw error("isovalue: expected a finite number, found " + std::to_string(isovalue));
-  }
+  detail::require_finite_isovalue(isovalue);
   if (options.smooth.active()) {
     // The engine refines the smoothed field; it keeps the data alive through it when it owns
     // the data, and borrows it (as for any volume given by reference) otherwise.
@@ -61,49 +59,21 @@ engine::~engine() {
 }
 
 void engine::set_isovalue(double w) {
-  if (!std::isfinite(w)) {
-    throw error("isovalue: expected a finite number, found " + std::to_string(w));
-  }
-  impl_->refuse_in_callback("set_isovalue()");
-  std::unique_lock lock(impl_->control);
-  const bool resume = impl_->active;
-  const refine_goal goal = impl_->goal;
-  impl_->stop_and_join(lock);
-  detail::engine_root* old = impl_->current();
-  detail::engine_root* fresh = impl_->make_root(w, ++impl_->generation);
-  // seq_cst (the default): release for readers' protect(), and the unlink must be seq_cst for
-  // the TSan variant of the reclamation argument (concurrent/epoch.hpp).
-  impl_->root.store(fresh);
-  old->retired_bytes = old->bytes();
-  impl_->retired_bytes.add(old->retired_bytes);
-  impl_->peak_retired_bytes.set(
-      std::max(impl_->peak_retired_bytes.get(), impl_->retired_bytes.get()));
-  impl_->control_participant.retire(old, &detail::engine_impl::destroy_root, old->birth_era());
-  // Roots are large and few: reclaim now what no snapshot holds, rather than every
-  // reclaim_threshold retirements. A reader stalled in a snapshot pins only its own root.
-  impl_->control_participant.flush();
-  if (resume) impl_->launch(lock, goal);
+  detail::engine_impl& e = *impl_;
+  detail::swap_root(e, w, [&e](detail::engine_root& old) {
+    old.retired_bytes = old.bytes();
+    e.retired_bytes.add(old.retired_bytes);
+    e.peak_retired_bytes.set(std::max(e.peak_retired_bytes.get(), e.retired_bytes.get()));
+  });
 }
 
-void engine::start(const refine_goal& goal) {
-  if (goal.what == refine_goal::kind::error && !(goal.max_error >= -1e300)) {
-    throw error("refine goal: expected a number as error threshold");
-  }
-  impl_->refuse_in_callback("start()");
-  std::unique_lock lock(impl_->control);
-  impl_->launch(lock, goal);
-}
+void engine::start(const refine_goal& goal) { detail::start_run(*impl_, goal); }
 
 void engine::cancel() { impl_->cancel(); }
 
 void engine::wait() { impl_->wait(); }
 
-bool engine::refine(const refine_goal& goal) {
-  impl_->refuse_in_callback("refine()");
-  std::unique_lock lock(impl_->control);
-  impl_->launch(lock, goal);
-  return impl_->wait_reached(lock);
-}
+bool engine::refine(const refine_goal& goal) { return detail::refine_blocking(*impl_, goal); }
 
 surface_snapshot engine::snapshot() const {
   surface_snapshot s;

@@ -5,6 +5,7 @@
 #include "engine_impl.hpp"
 
 #include <algorithm>
+#include <cmath>
 #include <string>
 #include <utility>
 
@@ -49,6 +50,18 @@ std::uint64_t reader_registry::snapshot_retries() const {
 void reader_registry::clear() {
   const std::lock_guard lock(mutex_);
   readers_.clear();
+}
+
+void require_finite_isovalue(double w) {
+  if (!std::isfinite(w)) {
+    throw error("isovalue: expected a finite number, found " + std::to_string(w));
+  }
+}
+
+void require_valid_goal(const refine_goal& goal) {
+  if (goal.what == refine_goal::kind::error && !(goal.max_error >= -1e300)) {
+    throw error("refine goal: expected a number as error threshold");
+  }
 }
 
 thread_local const run_control* run_control::in_callback_of = nullptr;

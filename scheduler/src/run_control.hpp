@@ -22,6 +22,7 @@
 #include <vector>
 
 #include <progiso/concurrent/epoch.hpp>
+#include <progiso/scheduler/engine.hpp>
 
 namespace progiso::detail {
 
@@ -156,5 +157,57 @@ struct run_control {
  private:
   const char* who_;
 };
+
+// Throws progiso::error for a non-finite isovalue (both engines' constructors and
+// set_isovalue()).
+void require_finite_isovalue(double w);
+// Throws progiso::error for an error goal whose threshold is not a number.
+void require_valid_goal(const refine_goal& goal);
+
+// The control calls both engines make the same way. `Impl` derives from run_control and has
+// `goal`, `generation`, `root` (an atomic root pointer), `control_participant`, current(),
+// make_root(w, generation), launch(lock, goal) and a static destroy_root(void*).
+
+// start(): a run towards `goal` in the background (cancelling a run in progress).
+template <class Impl>
+void start_run(Impl& impl, const refine_goal& goal) {
+  require_valid_goal(goal);
+  impl.refuse_in_callback("start()");
+  std::unique_lock lock(impl.control);
+  impl.launch(lock, goal);
+}
+
+// refine(): start_run() and wait; whether the goal was reached.
+template <class Impl>
+bool refine_blocking(Impl& impl, const refine_goal& goal) {
+  require_valid_goal(goal);
+  impl.refuse_in_callback("refine()");
+  std::unique_lock lock(impl.control);
+  impl.launch(lock, goal);
+  return impl.wait_reached(lock);
+}
+
+// set_isovalue(): stops the run, publishes w's root, retires the old one (after
+// `on_retire(old)`, the caller's accounting) and resumes the interrupted goal.
+template <class Impl, class OnRetire>
+void swap_root(Impl& impl, double w, OnRetire&& on_retire) {
+  require_finite_isovalue(w);
+  impl.refuse_in_callback("set_isovalue()");
+  std::unique_lock lock(impl.control);
+  const bool resume = impl.active;
+  const refine_goal goal = impl.goal;
+  impl.stop_and_join(lock);
+  auto* old = impl.current();
+  auto* fresh = impl.make_root(w, ++impl.generation);
+  // seq_cst (the default): release for readers' protect(), and the unlink must be seq_cst for
+  // the TSan variant of the reclamation argument (concurrent/epoch.hpp).
+  impl.root.store(fresh);
+  on_retire(*old);
+  impl.control_participant.retire(old, &Impl::destroy_root, old->birth_era());
+  // Roots are large and few: reclaim now what no snapshot holds, rather than every
+  // reclaim_threshold retirements. A reader stalled in a snapshot pins only its own root.
+  impl.control_participant.flush();
+  if (resume) impl.launch(lock, goal);
+}
 
 }  // namespace progiso::detail

@@ -240,4 +240,15 @@ volume load_pgm(const std::filesystem::path& path) {
                 std::move(samples));
 }
 
+volume make_test_image(std::int64_t w, std::int64_t h, double (*f)(double, double)) {
+  std::vector<std::byte> b(static_cast<std::size_t>(w * h) * sizeof(float));
+  auto* p = reinterpret_cast<float*>(b.data());
+  for (std::int64_t y = 0; y < h; ++y) {
+    for (std::int64_t x = 0; x < w; ++x) {
+      p[x + w * y] = static_cast<float>(f(static_cast<double>(x), static_cast<double>(y)));
+    }
+  }
+  return volume({w, h, 1}, sample_type::f32, std::move(b));
+}
+
 }  // namespace progiso::test

@@ -66,4 +66,7 @@ struct shared_image {
 /// progiso::error naming the file when it cannot be read or is not such a PGM.
 [[nodiscard]] volume load_pgm(const std::filesystem::path& path);
 
+/// A w × h float image sampling f(x, y) at the pixel centres' grid coordinates.
+[[nodiscard]] volume make_test_image(std::int64_t w, std::int64_t h, double (*f)(double, double));
+
 }  // namespace progiso::test
