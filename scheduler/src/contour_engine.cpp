@@ -32,8 +32,6 @@ namespace progiso::detail {
 namespace {
 
 constexpr std::uint64_t contour_root_alive = 0x70726f67636f6e31;  // "progcon1"
-constexpr std::uint64_t contour_root_dead = 0xdbdbdbdbdbdbdbdb;
-constexpr unsigned char contour_poison = 0xdb;
 // Splits between publications: readers see progress at least this often (a split is ~0.1–0.3
 // µs), and the release store and counter updates stay off the per-split path.
 constexpr std::uint64_t publish_every = 64;
@@ -165,18 +163,12 @@ struct contour_engine_impl : run_control {
     PROGISO_ASSERT(r->magic == contour_root_alive);
     contour_engine_impl& impl = *r->impl;
     if (impl.opt.poison_retired) {
-      r->segments.overwrite(contour_poison);
-      if (!r->root_segments.empty()) {
-        std::memset(static_cast<void*>(r->root_segments.data()), contour_poison,
-                    r->root_segments.size() * sizeof(placed_segment));
-      }
-      for (std::size_t i = 0; i < r->records.size(); ++i) {
-        std::memset(static_cast<void*>(&r->records.at_unpublished(i)), contour_poison,
-                    sizeof(contour_record));
-      }
+      r->segments.overwrite(poison_byte);
+      poison_vector(r->root_segments);
+      poison_log(r->records);
       r->isovalue = std::nan("");
     }
-    r->magic = contour_root_dead;
+    r->magic = root_dead;
     if (impl.opt.on_reclaim) impl.opt.on_reclaim(r->generation);
     delete r;
   }

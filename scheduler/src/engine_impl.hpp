@@ -68,8 +68,6 @@ struct ready_item {
 };
 
 inline constexpr std::uint64_t root_alive = 0x70726f6769736f31;  // "progiso1"
-inline constexpr std::uint64_t root_dead = 0xdbdbdbdbdbdbdbdb;
-inline constexpr unsigned char poison_byte = 0xdb;
 
 // A root's per-grid-vertex arrays (engine_root::record_of and parents), all zero when handed to
 // a root. A reclaimed root gives them back to its engine, cleared, for the next root: a fresh

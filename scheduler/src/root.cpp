@@ -162,14 +162,8 @@ void engine_impl::destroy_root(void* p) noexcept {
   impl.keep_vertex_state(*r);  // reads the records: before they are poisoned
   if (impl.opt.poison_retired) {
     r->groups.overwrite(poison_byte);
-    if (!r->root_triangles.empty()) {
-      std::memset(static_cast<void*>(r->root_triangles.data()), poison_byte,
-                  r->root_triangles.size() * sizeof(owned_triangle));
-    }
-    for (std::size_t i = 0; i < r->records.size(); ++i) {
-      std::memset(static_cast<void*>(&r->records.at_unpublished(i)), poison_byte,
-                  sizeof(engine_record));
-    }
+    poison_vector(r->root_triangles);
+    poison_log(r->records);
     r->isovalue = std::nan("");
   }
   impl.retired_bytes.add(0 - r->retired_bytes);  // single writer: control or drain

@@ -13,7 +13,9 @@
 #include <atomic>
 #include <chrono>
 #include <condition_variable>
+#include <cstddef>
 #include <cstdint>
+#include <cstring>
 #include <exception>
 #include <functional>
 #include <memory>
@@ -157,6 +159,23 @@ struct run_control {
  private:
   const char* who_;
 };
+
+// Retired roots: a dead root's magic, and the poison that fills its storage before it is freed
+// when the options ask for it (stress tests: a reader of a reclaimed root then reads poison,
+// which snapshot::check_integrity() reports).
+inline constexpr std::uint64_t root_dead = 0xdbdbdbdbdbdbdbdb;
+inline constexpr unsigned char poison_byte = 0xdb;
+// Poisons every element of an append_log (published or not) and of a vector.
+template <class Log>
+void poison_log(Log& log) noexcept {
+  for (std::size_t i = 0; i < log.size(); ++i) {
+    std::memset(static_cast<void*>(&log.at_unpublished(i)), poison_byte, sizeof(log[i]));
+  }
+}
+template <class T>
+void poison_vector(std::vector<T>& v) noexcept {
+  if (!v.empty()) std::memset(static_cast<void*>(v.data()), poison_byte, v.size() * sizeof(T));
+}
 
 // Throws progiso::error for a non-finite isovalue (both engines' constructors and
 // set_isovalue()).
