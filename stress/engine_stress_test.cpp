@@ -59,99 +59,106 @@ TEST(EngineStress, readers_walk_snapshots_while_runs_are_cancelled_and_the_isova
   const volume v = make_gaussian_blobs({41, 37, 39}, 7, 19u);
   const auto box = test::data_box(v);
   const std::vector<double> isovalues{0.35, 0.4, 0.5, 0.6, 0.45};
-  std::mutex reclaim_mutex;
-  std::multiset<std::uint64_t> reclaimed;
-  std::uint64_t generations = 0;
-  std::uint64_t control_ops = 0;
-  std::vector<reader_counts> counts(2);
-  {
-    engine_options o;
-    o.poison_retired = true;
-    o.reclamation.reclaim_threshold = 2;  // reclaim as early as possible: more chances to catch
-    o.reclamation.era_frequency = 1;      // a use after free
-    o.batch = 8;
-    o.on_reclaim = [&](std::uint64_t g) {
-      const std::lock_guard lock(reclaim_mutex);
-      reclaimed.insert(g);
-    };
-    engine e(v, isovalues[0], o);
-    const auto end = clock::now() + test::stress_duration();
-    std::atomic<bool> finished{false};
+  // Runs by priority on both schedules (engine_options::schedule), half the time each.
+  for (const refinement_schedule schedule :
+       {refinement_schedule::tasks, refinement_schedule::flow_graph}) {
+    SCOPED_TRACE(static_cast<int>(schedule));
+    std::mutex reclaim_mutex;
+    std::multiset<std::uint64_t> reclaimed;
+    std::uint64_t generations = 0;
+    std::uint64_t control_ops = 0;
+    std::vector<reader_counts> counts(2);
+    {
+      engine_options o;
+      o.poison_retired = true;
+      o.reclamation.reclaim_threshold = 2;  // reclaim as early as possible: more chances to catch
+      o.reclamation.era_frequency = 1;      // a use after free
+      o.batch = 8;
+      o.schedule = schedule;
+      o.on_reclaim = [&](std::uint64_t g) {
+        const std::lock_guard lock(reclaim_mutex);
+        reclaimed.insert(g);
+      };
+      engine e(v, isovalues[0], o);
+      const auto end = clock::now() + test::stress_duration() / 2;
+      std::atomic<bool> finished{false};
 
-    std::vector<std::thread> readers;
-    for (std::size_t t = 0; t < counts.size(); ++t) {
-      readers.emplace_back([&, t] {
-        std::mt19937 rng(static_cast<unsigned>(100 + t));
-        reader_counts& c = counts[t];
-        std::map<std::uint64_t, std::uint64_t> last_splits;  // per generation
-        const auto violation = [&c](const std::string& what) {
-          if (c.violations++ == 0) c.first_violation = what;
-        };
-        // acquire: pairs with the release-store below; the flag orders nothing else.
-        while (!finished.load(std::memory_order_acquire)) {
-          const surface_snapshot s = e.snapshot();
-          ++c.snapshots;
-          random_pause(rng);
-          if (!s.check_integrity()) {
-            violation("snapshot integrity (poisoned or garbage root)");
-            continue;
+      std::vector<std::thread> readers;
+      for (std::size_t t = 0; t < counts.size(); ++t) {
+        readers.emplace_back([&, t] {
+          std::mt19937 rng(static_cast<unsigned>(100 + t));
+          reader_counts& c = counts[t];
+          std::map<std::uint64_t, std::uint64_t> last_splits;  // per generation
+          const auto violation = [&c](const std::string& what) {
+            if (c.violations++ == 0) c.first_violation = what;
+          };
+          // acquire: pairs with the release-store below; the flag orders nothing else.
+          while (!finished.load(std::memory_order_acquire)) {
+            const surface_snapshot s = e.snapshot();
+            ++c.snapshots;
+            random_pause(rng);
+            if (!s.check_integrity()) {
+              violation("snapshot integrity (poisoned or garbage root)");
+              continue;
+            }
+            const std::uint64_t g = s.generation();
+            if (s.split_count() < last_splits[g]) violation("a cut of one root shrank");
+            last_splits[g] = s.split_count();
+            const triangle_mesh m = s.mesh();
+            random_pause(rng);
+            c.triangles_walked += m.triangles.size();
+            if (auto r = test::check_valid_cut(m, box[0], box[1]); !r) {
+              violation(std::string("invalid cut: ") + r.message());
+            }
+            std::unordered_set<std::uint64_t> split;
+            s.for_each_split([&](std::uint64_t d) { split.insert(d); });
+            random_pause(rng);
+            refiner replay(e.field(), e.hierarchy_of(), e.ranges(), s.isovalue(),
+                           refine_order::breadth_first);
+            replay.refine_set([&](std::uint64_t d) { return split.count(d) != 0; });
+            if (replay.statistics().splits != split.size())
+              violation("split set not parent-closed");
+            if (auto r = test::same_surface(m, replay.extract()); !r) {
+              violation(std::string("differs from the sequential replay: ") + r.message());
+            }
+            if (!s.check_integrity()) violation("integrity lost while the snapshot was held");
           }
-          const std::uint64_t g = s.generation();
-          if (s.split_count() < last_splits[g]) violation("a cut of one root shrank");
-          last_splits[g] = s.split_count();
-          const triangle_mesh m = s.mesh();
-          random_pause(rng);
-          c.triangles_walked += m.triangles.size();
-          if (auto r = test::check_valid_cut(m, box[0], box[1]); !r) {
-            violation(std::string("invalid cut: ") + r.message());
-          }
-          std::unordered_set<std::uint64_t> split;
-          s.for_each_split([&](std::uint64_t d) { split.insert(d); });
-          random_pause(rng);
-          refiner replay(e.field(), e.hierarchy_of(), e.ranges(), s.isovalue(),
-                         refine_order::breadth_first);
-          replay.refine_set([&](std::uint64_t d) { return split.count(d) != 0; });
-          if (replay.statistics().splits != split.size()) violation("split set not parent-closed");
-          if (auto r = test::same_surface(m, replay.extract()); !r) {
-            violation(std::string("differs from the sequential replay: ") + r.message());
-          }
-          if (!s.check_integrity()) violation("integrity lost while the snapshot was held");
-        }
-      });
-    }
+        });
+      }
 
-    std::mt19937 rng(7);
-    while (clock::now() < end) {
-      if (test::random_control_step(e, rng, isovalues, 0.02)) ++generations;
-      ++control_ops;
+      std::mt19937 rng(7);
+      while (clock::now() < end) {
+        if (test::random_control_step(e, rng, isovalues, 0.02)) ++generations;
+        ++control_ops;
+      }
+      e.cancel();
+      // release: pairs with the readers' acquire-loads.
+      finished.store(true, std::memory_order_release);
+      for (auto& r : readers) r.join();
+      EXPECT_EQ(e.statistics().reclamation.retired, generations);
     }
-    e.cancel();
-    // release: pairs with the readers' acquire-loads.
-    finished.store(true, std::memory_order_release);
-    for (auto& r : readers) r.join();
-    EXPECT_EQ(e.statistics().reclamation.retired, generations);
+    std::multiset<std::uint64_t> expected;
+    for (std::uint64_t g = 0; g <= generations; ++g) expected.insert(g);
+    EXPECT_EQ(reclaimed, expected) << "every root reclaimed exactly once";
+    std::uint64_t snapshots = 0;
+    std::uint64_t violations = 0;
+    std::uint64_t triangles = 0;
+    for (const auto& c : counts) {
+      snapshots += c.snapshots;
+      violations += c.violations;
+      triangles += c.triangles_walked;
+      EXPECT_EQ(c.violations, 0u) << c.first_violation;
+    }
+    EXPECT_GT(snapshots, 0u);
+    std::printf(
+        "engine stress (%s): %llu control operations (%llu isovalue changes), %llu snapshots "
+        "checked, "
+        "%llu triangles walked, %llu violations\n",
+        schedule == refinement_schedule::tasks ? "tasks" : "flow graph",
+        static_cast<unsigned long long>(control_ops), static_cast<unsigned long long>(generations),
+        static_cast<unsigned long long>(snapshots), static_cast<unsigned long long>(triangles),
+        static_cast<unsigned long long>(violations));
   }
-  std::multiset<std::uint64_t> expected;
-  for (std::uint64_t g = 0; g <= generations; ++g) expected.insert(g);
-  EXPECT_EQ(reclaimed, expected) << "every root reclaimed exactly once";
-  std::uint64_t snapshots = 0;
-  std::uint64_t violations = 0;
-  std::uint64_t triangles = 0;
-  for (const auto& c : counts) {
-    snapshots += c.snapshots;
-    violations += c.violations;
-    triangles += c.triangles_walked;
-    EXPECT_EQ(c.violations, 0u) << c.first_violation;
-  }
-  EXPECT_GT(snapshots, 0u);
-  std::printf(
-      "engine stress: %llu control operations (%llu isovalue changes), %llu snapshots checked, "
-      "%llu triangles walked, %llu violations\n",
-      static_cast<unsigned long long>(control_ops), static_cast<unsigned long long>(generations),
-      static_cast<unsigned long long>(snapshots), static_cast<unsigned long long>(triangles),
-      static_cast<unsigned long long>(violations));
-  RecordProperty("snapshots", std::to_string(snapshots));
-  RecordProperty("violations", std::to_string(violations));
 }
 
 // The range data is built once, on first use, by whichever thread asks first: readers calling

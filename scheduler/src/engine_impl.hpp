@@ -382,19 +382,22 @@ struct engine_impl : run_control {
   // 64 splits. run_graph() takes it when the engine has one thread.
   void refine_serially(engine_root& r);
 
-  // A full run on more than one thread (full_refinement.cpp): tasks over subtrees, each a
+  // A run on more than one thread (full_refinement.cpp): tasks over subtrees, each a
   // depth-first loop like refine_serially()'s, publishing its splits every 64 (up to 256 while
   // another task holds the mutex) under `publish_mutex`; a child becomes ready when the atomic
   // increment of its last parent, made after that parent's publication, reaches its parent count.
-  // run_graph() takes it for full goals on more than one thread; priority goals keep the graph
-  // (their order is global).
+  // Full refinement is one such run over everything queued; refinement by priority one per band
+  // of the queue (an octave of errors), largest first, a child below the band left for a later
+  // one. run_graph() takes it on more than one thread (for runs by priority unless
+  // engine_options::schedule asks for the flow graph).
   struct full_run;
   struct full_task;
-  void refine_full_in_tasks(engine_root& r);
+  void refine_in_tasks(engine_root& r);
   void run_full_task(full_task& t);
-  // Publishes the task's computed splits and makes their children ready; without `wait`, only
-  // if publish_mutex is free. Returns whether it published.
-  bool publish_full_task(full_task& t, bool wait);
+  // Publishes the task's computed splits (the prefix a triangle budget allows) and makes their
+  // children ready; without `wait`, only if publish_mutex is free; once the run is stopping, only
+  // when `stopped` (a deadline's last publication). Returns whether it published.
+  bool publish_full_task(full_task& t, bool wait, bool stopped = false);
 
   // After a graph run that stopped at the end of its slice (not at the goal's deadline): clears
   // the stop request and returns true, unless the user or the progress callback stopped the run

@@ -1,5 +1,7 @@
-// The refinement graph: compute tasks make split records in parallel; the serial commit node
-// publishes them, makes children ready and keeps the window of tasks in flight full.
+// The refinement graph (refinement_schedule::flow_graph, runs by priority on more than one
+// thread): compute tasks make split records in parallel; the serial commit node publishes them,
+// makes children ready and keeps the window of tasks in flight full. run_graph() also picks the
+// one-thread loop and the tasks (full_refinement.cpp) for the other runs.
 
 #include "engine_impl.hpp"
 
@@ -212,8 +214,8 @@ void engine_impl::run_graph(engine_root* r) {
     refine_serially(*r);
     return;
   }
-  if (goal.what == refine_goal::kind::full) {
-    refine_full_in_tasks(*r);
+  if (goal.what == refine_goal::kind::full || opt.schedule == refinement_schedule::tasks) {
+    refine_in_tasks(*r);
     return;
   }
   arena.execute([&] {

@@ -1,5 +1,5 @@
-// The ready queue's largest-error-first order: bands of errors at most a factor 1.25 wide, taken
-// largest first, last in first out inside a band; an aimed target splits a band exactly.
+// The ready queue's largest-error-first order: bands of errors at most error_bucket_widest wide,
+// taken largest first, last in first out inside a band; an aimed target splits a band exactly.
 #include <progiso/core/refine/detail/ready_queue.hpp>
 
 #include <cmath>
@@ -28,7 +28,7 @@ std::vector<item> drain(ready_queue<item>& q) {
   return out;
 }
 
-TEST(ErrorBucket, is_monotone_with_four_bands_per_octave) {
+TEST(ErrorBucket, is_monotone_with_bands_of_the_declared_widths) {
   EXPECT_EQ(error_bucket(0.0), 0u);
   EXPECT_EQ(error_bucket(-1.0), 0u);
   EXPECT_GT(error_bucket(std::numeric_limits<double>::denorm_min()), 0u);
@@ -47,8 +47,8 @@ TEST(ErrorBucket, is_monotone_with_four_bands_per_octave) {
     const auto [lo, hi] = error_bucket_bounds(error_bucket(a));
     ASSERT_LE(lo, a);
     ASSERT_LT(a, hi);
-    ASSERT_LE(hi / lo, 1.25 + 1e-12);
-    ASSERT_GE(hi / lo, 8.0 / 7.0 - 1e-12);
+    ASSERT_LE(hi / lo, error_bucket_widest + 1e-12);
+    ASSERT_GE(hi / lo, error_bucket_narrowest - 1e-12);
     ASSERT_EQ(error_bucket(lo), error_bucket(a));
     ASSERT_EQ(error_bucket(hi), error_bucket(a) + 1);
   }

@@ -102,14 +102,14 @@ TEST(Refiner, triangle_budget_is_respected_and_splits_largest_error_first) {
   r.refine_to_triangles(2000);
   EXPECT_LE(r.triangle_count(), 2000u);
   EXPECT_EQ(r.extract().triangles.size(), r.triangle_count());
-  // Largest error first, by bands at most a factor 1.25 wide: when the budget stops the run inside
-  // the band of next_error(), every diamond of a larger band is split and none of a smaller one,
-  // so the budgeted cut lies between the cuts by error at the band's bounds.
+  // Largest error first, by bands at most error_bucket_widest wide: when the budget stops the run
+  // inside the band of next_error(), every diamond of a larger band is split and none of a smaller
+  // one, so the budgeted cut lies between the cuts by error at the band's bounds.
   const auto [lo, hi] = detail::error_bucket_bounds(detail::error_bucket(r.next_error()));
   ASSERT_LE(lo, r.next_error());
   ASSERT_LT(r.next_error(), hi);
-  ASSERT_LE(hi / lo, 1.25 + 1e-12);
-  ASSERT_GE(hi / lo, 8.0 / 7.0 - 1e-12);
+  ASSERT_LE(hi / lo, detail::error_bucket_widest + 1e-12);
+  ASSERT_GE(hi / lo, detail::error_bucket_narrowest - 1e-12);
   refiner above(f.v, f.h, f.ranges, 0.3);
   above.refine_to_error(std::nextafter(hi, 0.0));  // every error ≥ hi
   refiner at(f.v, f.h, f.ranges, 0.3);

@@ -2,6 +2,7 @@
 #include <progiso/core/base/error.hpp>
 #include <progiso/core/field/analytic.hpp>
 #include <progiso/core/field/smoothing.hpp>
+#include <progiso/core/refine/detail/ready_queue.hpp>
 #include <progiso/core/refine/refiner.hpp>
 #include <progiso/scheduler/engine.hpp>
 
@@ -284,6 +285,70 @@ TEST(Engine, smoothed_field_refines_to_the_sequential_surface_on_every_thread_co
   engine_options bad;
   bad.smooth = {1, 0, std::nullopt, 3.0};
   EXPECT_THROW(engine(*data, 0.4, bad), error);
+}
+
+// Runs by priority on several threads, on both schedules: an error target splits exactly the
+// sequential set; a budget is respected, and on tasks (band by band of the queue) it stops
+// inside one band: every diamond of a larger band is split (the sequential cut by that band's
+// upper bound lies in the budgeted cut); a deadline leaves a valid cut that the statistics
+// count exactly.
+TEST(Engine, runs_by_priority_reach_their_goals_on_tasks_and_on_the_flow_graph) {
+  const volume v = make_gaussian_blobs({37, 35, 33}, 9, 5u);
+  const hierarchy h(v.dims());
+  const range_data ranges(v, h);
+  const auto box = test::data_box(v);
+  const double w = 0.4;
+  for (const refinement_schedule schedule :
+       {refinement_schedule::tasks, refinement_schedule::flow_graph}) {
+    for (const unsigned n : {2u, 3u}) {
+      SCOPED_TRACE(static_cast<int>(schedule) * 10 + static_cast<int>(n));
+      engine_options o = with_threads(n);
+      o.schedule = schedule;
+      for (const double eps : {0.1, 0.02}) {
+        refiner r(v, h, ranges, w);
+        r.refine_to_error(eps);
+        engine e(v, w, o);
+        EXPECT_TRUE(e.refine_until(eps));
+        const surface_snapshot s = e.snapshot();
+        EXPECT_EQ(s.split_count(), r.statistics().splits);
+        EXPECT_TRUE(test::same_surface(s.mesh(), r.extract()));
+      }
+      for (const std::uint64_t k : {300u, 4000u}) {
+        engine e(v, w, o);
+        EXPECT_TRUE(e.refine(refine_goal::triangles(k)));
+        const surface_snapshot s = e.snapshot();
+        EXPECT_LE(s.triangle_count(), k);
+        EXPECT_EQ(s.mesh().triangles.size(), s.triangle_count());
+        EXPECT_EQ(e.statistics().refine.splits, s.split_count());
+        ASSERT_TRUE(test::check_valid_cut(s.mesh(), box[0], box[1]));
+        if (schedule != refinement_schedule::tasks) continue;
+        double smallest = std::numeric_limits<double>::infinity();
+        s.for_each_split(
+            [&](std::uint64_t d) { smallest = std::min(smallest, ranges.get(h.point(d)).error); });
+        const double band_top = detail::error_bucket_bounds(detail::error_bucket(smallest)).second;
+        refiner above(v, h, ranges, w);
+        above.refine_to_error(std::nextafter(band_top, 0.0));  // every error ≥ band_top
+        std::uint64_t missing = 0;
+        for (std::uint64_t d = 0; d < h.vertex_count(); ++d) {
+          missing += (above.is_split(h.point(d)) && !s.is_split(d)) ? 1U : 0U;
+        }
+        EXPECT_EQ(missing, 0u) << "a diamond of a larger band left unsplit";
+        if (k == 4000u) {
+          EXPECT_GT(above.statistics().splits, 0u) << "a budget within one band";
+        }
+      }
+      engine e(v, w, o);
+      (void)e.ranges();
+      (void)e.refine_for(2ms);
+      const surface_snapshot s = e.snapshot();
+      EXPECT_EQ(e.statistics().refine.splits, s.split_count());
+      EXPECT_TRUE(test::check_valid_cut(s.mesh(), box[0], box[1]));
+      EXPECT_TRUE(e.refine_full());
+      refiner r(v, h, ranges, w);
+      r.refine_full();
+      EXPECT_TRUE(test::same_surface(e.snapshot().mesh(), r.extract()));
+    }
+  }
 }
 
 TEST(Engine, triangle_budget_is_respected) {

@@ -7,9 +7,11 @@
 // after its parents'. On one thread a run is a loop in its driver. On more, a full run is oneTBB
 // tasks over subtrees, each depth first from its own stack, publishing every 64 splits and
 // making children ready by atomic parent counts after publication; error, budget and deadline
-// runs use a oneTBB flow graph: splits computed in parallel in batches, a serial commit step
-// that publishes them and keeps the engine's priority queue (largest nested error first), at
-// most `tasks_per_thread × threads` batches in flight, so a cancel has little to drain.
+// runs the same tasks band by band of the priority queue (an octave of nested errors each,
+// largest first; a child below the band waits for its own). engine_options::schedule selects a
+// oneTBB flow graph for those instead: splits computed in parallel in batches, a serial commit
+// step that publishes them and keeps the priority queue, at most `tasks_per_thread × threads`
+// batches in flight (slower: its commit step is serial).
 //
 // The four scenarios of the paper (§1):
 //  - quality-driven:  refine_until(ε) splits until every remaining error is ≤ ε;
@@ -77,13 +79,25 @@ struct engine_progress {
   int depth = 0;            ///< depth of the last diamond published
 };
 
+/// How runs by priority (error, budget, deadline) share more than one thread. Full runs always
+/// use tasks; one thread always runs a loop in the driver.
+enum class refinement_schedule {
+  /// Tasks over subtrees, band by band of the priority queue (the default: on Marschner–Lobb
+  /// 257³ at 2 threads, 1.2–1.4× the splits per second of the flow graph).
+  tasks,
+  /// A oneTBB flow graph: compute tasks in batches feeding a serial commit node.
+  flow_graph,
+};
+
 struct engine_options {
   /// Worker threads; 0: all cores. Capped at default_concurrency(), the size of oneTBB's pool.
   unsigned threads = 0;
-  /// Diamonds per compute task of the flow graph (priority runs on more than one thread; TBB
-  /// costs ~150–200 ns per task, a split ~0.2–1 µs).
+  /// See refinement_schedule.
+  refinement_schedule schedule = refinement_schedule::tasks;
+  /// Diamonds per compute task of the flow graph (refinement_schedule::flow_graph; TBB costs
+  /// ~150–200 ns per task, a split ~0.2–1 µs).
   std::size_t batch = 32;
-  /// In-flight batches per thread: bounds what a cancel must drain.
+  /// In-flight batches per thread of the flow graph: bounds what a cancel must drain.
   std::size_t tasks_per_thread = 4;
   /// Reclamation of retired roots. Roots are few and large (one per isovalue change), so each
   /// retirement advances the era clock and is followed by a flush: a reader stalled in a
