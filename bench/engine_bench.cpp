@@ -282,10 +282,12 @@ BENCHMARK(BM_snapshot_mesh)
 // and a fresh root for each run; pairs alternate which runs first, and the counter is the
 // median of the per-pair ratios. Mode 0: a deadline at half the pair's full time. Mode 1: the
 // error target that leaves about half of the full splits (found once by bisection). Mode 2: a
-// budget of half the full surface's triangles. Args: threads, mode.
+// budget of half the full surface's triangles. Args: threads, mode, schedule of the priority
+// runs on more than one thread (0: tasks by bands, the default; 1: the flow graph).
 void BM_priority_over_full(benchmark::State& state) {
   engine_options o;
   o.threads = static_cast<unsigned>(state.range(0));
+  o.schedule = state.range(2) == 0 ? refinement_schedule::tasks : refinement_schedule::flow_graph;
   const int mode = static_cast<int>(state.range(1));
   engine e(ml(257), 0.5, o);
   e.refine(refine_goal::triangles(1));  // the range data, built once per volume
@@ -358,7 +360,8 @@ void BM_priority_over_full(benchmark::State& state) {
   state.counters["full_splits"] = static_cast<double>(full_splits);
 }
 BENCHMARK(BM_priority_over_full)
-    ->ArgsProduct({{1, 2}, {0, 1, 2}})
+    ->ArgsProduct({{1, 2}, {0, 1, 2}, {0}})
+    ->ArgsProduct({{2}, {0, 1, 2}, {1}})
     ->Iterations(8)
     ->Unit(benchmark::kMillisecond)
     ->UseRealTime();

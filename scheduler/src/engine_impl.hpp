@@ -387,7 +387,7 @@ struct engine_impl : run_control {
   // another task holds the mutex) under `publish_mutex`; a child becomes ready when the atomic
   // increment of its last parent, made after that parent's publication, reaches its parent count.
   // Full refinement is one such run over everything queued; refinement by priority one per band
-  // of the queue (an octave of errors), largest first, a child below the band left for a later
+  // of the queue (a quarter octave of errors), largest first, a child below the band left for a later
   // one. run_graph() takes it on more than one thread (for runs by priority unless
   // engine_options::schedule asks for the flow graph).
   struct full_run;

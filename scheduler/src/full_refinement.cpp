@@ -13,7 +13,7 @@
 // Full refinement splits every straddling diamond whatever the order: one run over everything
 // queued, so the split set and the mesh are those of one thread. Refinement by priority (a
 // deadline, an error target, a budget) runs band by band: the driver takes the queue's top band
-// (one octave of errors, see ready_queue.hpp), the tasks refine it depth first, and a child
+// (a quarter octave of errors, see ready_queue.hpp), the tasks refine it depth first, and a child
 // ranked below the band waits for a later one. A child's error is at most its parent's, so each
 // band is taken once, and the order is the one-thread loop's up to the order inside a band. The
 // flow graph (refinement_schedule::flow_graph: compute tasks feeding a serial commit node that

@@ -7,7 +7,7 @@
 // after its parents'. On one thread a run is a loop in its driver. On more, a full run is oneTBB
 // tasks over subtrees, each depth first from its own stack, publishing every 64 splits and
 // making children ready by atomic parent counts after publication; error, budget and deadline
-// runs the same tasks band by band of the priority queue (an octave of nested errors each,
+// runs the same tasks band by band of the priority queue (a quarter octave of nested errors each,
 // largest first; a child below the band waits for its own). engine_options::schedule selects a
 // oneTBB flow graph for those instead: splits computed in parallel in batches, a serial commit
 // step that publishes them and keeps the priority queue, at most `tasks_per_thread × threads`

@@ -5,8 +5,8 @@
 // first: the working set stays local), and largest error first for quality-, budget- and
 // time-driven refinement. Item needs members `error`, `depth` and `index`. Not thread-safe.
 //
-// Largest error first is kept in buckets, not a heap: a bucket holds an octave of errors
-// (error_bucket below: [1, 2) times a power of two), buckets are taken
+// Largest error first is kept in buckets, not a heap: a bucket holds a quarter of an octave of
+// errors (error_bucket below: [1, 1.25), [1.25, 1.5), … times a power of two), buckets are taken
 // largest first, and a bucket's items last in first out. A child's nested error is at most its
 // parent's, so the children of a split mostly land in the bucket being taken and are split next,
 // while their samples and per-vertex entries are still in cache: the order of a depth-first
@@ -32,12 +32,13 @@ namespace progiso::detail {
 
 enum class queue_discipline { fifo, lifo, largest_error };
 
-/// Mantissa bits of an error key that choose its bucket: 0, one bucket per octave. Finer buckets
-/// order more exactly but keep fewer children in their parent's bucket: with four per octave an
-/// error-driven refinement of Marschner–Lobb 257³ ran at 0.56–0.63× the splits per second of a
-/// full one, with one per octave 0.65–0.73× (the samples and per-vertex entries of the next
-/// split are in cache more often).
-inline constexpr int error_bucket_bits = 0;
+/// Mantissa bits of an error key that choose its bucket: 2, four buckets per octave. Coarser
+/// buckets keep more children in their parent's bucket and so split faster (one per octave: an
+/// error-driven refinement of Marschner–Lobb 257³ at 0.65–0.73× the splits per second of a full
+/// one, against 0.56–0.65×), but order worse: what a deadline buys fell by a third to a half
+/// (area within one voxel of the full surface at Flying Edges' time, 1 thread, two runs each:
+/// Marschner–Lobb 257³ 0.74 / 0.69 → 0.49 / 0.44, headsq 0.65 / 0.46 → 0.30 / 0.33).
+inline constexpr int error_bucket_bits = 2;
 /// The widest and narrowest bucket, as the ratio of its bounds: [1, 1 + 2^-b) and [2 − 2^-b, 2)
 /// times a power of two.
 inline constexpr double error_bucket_widest = 1.0 + 1.0 / (1 << error_bucket_bits);
