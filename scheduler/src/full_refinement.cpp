@@ -67,9 +67,10 @@ struct engine_impl::full_run {
   // `remaining` while the run lasts (relaxed; statistics only).
   std::atomic<std::int64_t> outstanding{0};
   // Ready diamonds the run leaves to the queue: what stopped tasks did not publish, and
-  // children ranked below the band. Queued by the driver after the run.
+  // children ranked below the band, in the tasks' own vectors (moved, not copied). Queued by
+  // the driver after the run, or, after a deadline, by the next run (engine_root::leftover).
   std::mutex left_mutex;
-  std::vector<ready_item> left;
+  std::vector<std::vector<ready_item>> left;
 };
 
 struct engine_impl::full_task {
@@ -130,13 +131,23 @@ void engine_impl::refine_in_tasks(engine_root& r) {
       }
       group.wait();
     });
-    // Stopped: what was not published is still ready, never lost; and the lower bands.
-    for (const ready_item& it : run.left) r.queue.push(it);
+    // Stopped: what was not published is still ready, never lost; and the lower bands. After a
+    // deadline the next run queues it (the run returns now).
+    if (stopping() && goal.what == refine_goal::kind::deadline) {
+      for (std::vector<ready_item>& part : run.left) {
+        r.leftover_items += part.size();
+        r.leftover.push_back(std::move(part));
+      }
+    } else {
+      for (const std::vector<ready_item>& part : run.left) {
+        for (const ready_item& it : part) r.queue.push(it);
+      }
+    }
     if (!banded) break;  // full refinement: one run over everything
   }
   // Queued by placeholder: full refinement's children, or any before the range data exists.
-  if (!r.queue.empty() && (!banded || rd == nullptr)) r.unranged = true;
-  r.remaining.set(r.queue.size());
+  if (ready_count(r) != 0 && (!banded || rd == nullptr)) r.unranged = true;
+  r.remaining.set(ready_count(r));
 }
 
 void engine_impl::run_full_task(full_task& t) {
@@ -182,10 +193,10 @@ void engine_impl::run_full_task(full_task& t) {
   if (!t.pending.empty() && deadline && past_deadline()) (void)publish_full_task(t, true, true);
   if (!t.pending.empty() || !t.stack.empty() || !t.below.empty()) {
     t.tally.discarded += t.pending.size();
+    for (const pending_split& p : t.pending) t.stack.push_back(p.item);
     const std::lock_guard lock(run.left_mutex);
-    for (const pending_split& p : t.pending) run.left.push_back(p.item);
-    run.left.insert(run.left.end(), t.stack.begin(), t.stack.end());
-    run.left.insert(run.left.end(), t.below.begin(), t.below.end());
+    if (!t.stack.empty()) run.left.push_back(std::move(t.stack));
+    if (!t.below.empty()) run.left.push_back(std::move(t.below));
   }
   {
     const std::lock_guard lock(publish_mutex);

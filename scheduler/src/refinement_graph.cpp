@@ -210,6 +210,7 @@ void engine_impl::report_progress(engine_root& r, const range_data* rd, std::uin
 }
 
 void engine_impl::run_graph(engine_root* r) {
+  settle_leftover(*r);
   if (threads == 1) {
     refine_serially(*r);
     return;

@@ -75,7 +75,16 @@ bool engine_impl::queue_if_straddles(engine_root& r, const ipoint& c, std::int32
   return true;
 }
 
+void engine_impl::settle_leftover(engine_root& r) {
+  for (const std::vector<ready_item>& part : r.leftover) {
+    for (const ready_item& it : part) r.queue.push(it);
+  }
+  r.leftover.clear();
+  r.leftover_items = 0;
+}
+
 void engine_impl::requeue_by_ranges(engine_root& r) {
+  settle_leftover(r);
   const range_data* rd = built_ranges();
   PROGISO_ASSERT(rd != nullptr);
   if (!r.unranged && !(r.bounded && rd->errors_exact())) return;

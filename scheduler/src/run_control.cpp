@@ -210,7 +210,7 @@ void engine_impl::drive(engine_root* r) {
     run_graph(r);
   }
   // Unseeded (a deadline passed inside the first build step): every root may still split.
-  if (r->seeded) r->remaining.set(r->queue.size());
+  if (r->seeded) r->remaining.set(ready_count(*r));
   root_bytes.set(r->bytes());
   bool reached = false;
   switch (goal.what) {
@@ -222,7 +222,7 @@ void engine_impl::drive(engine_root* r) {
       reached = budget_hit || r->queue.empty();
       break;
     case refine_goal::kind::deadline:
-      reached = r->seeded && r->queue.empty();
+      reached = r->seeded && ready_count(*r) == 0;
       break;
   }
   end_run(reached);
