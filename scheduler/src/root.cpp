@@ -76,6 +76,38 @@ bool engine_impl::queue_if_straddles(engine_root& r, const ipoint& c, std::int32
 }
 
 void engine_impl::settle_leftover(engine_root& r) {
+  if (!r.uncounted.empty()) {
+    const range_data* rd = built_ranges();
+    split_tally tally;
+    for (const std::uint32_t i : r.uncounted) {
+      const engine_record& rec = r.records[i];
+      const ipoint centre = hier.point(rec.diamond);
+      const child_list children =
+          hier.children_of(centre, rec.scale, hierarchy::type_of(centre, rec.scale));
+      for (int k = 0; k < children.count; ++k) {
+        const auto uk = static_cast<std::size_t>(k);
+        const ipoint& c = children.centre[uk];
+        const std::uint64_t ci = hier.index(c);
+        const std::atomic_ref<std::uint8_t> slot(r.parents[ci]);
+        // relaxed: the driver is the only thread of the root's run between its task runs (the
+        // tasks that wrote these counts were joined).
+        const auto parents = static_cast<std::uint8_t>(slot.load(std::memory_order_relaxed) + 1);
+        slot.store(parents, std::memory_order_relaxed);  // relaxed: as the load above
+        if (parents != children.parents[uk]) continue;
+        ++tally.visited;
+        const std::optional<ready_item> child = ready_child(
+            r, c, children.scale, rec.depth + 1, ci, rd, owns_piece(rec.groups, rec.count, ci));
+        if (child) {
+          r.queue.push(*child);
+          if (rd == nullptr || !errors_needed()) r.unranged = true;
+        } else {
+          ++tally.culled;
+        }
+      }
+    }
+    r.uncounted.clear();
+    tally.add_to(r);
+  }
   for (const std::vector<ready_item>& part : r.leftover) {
     for (const ready_item& it : part) r.queue.push(it);
   }
