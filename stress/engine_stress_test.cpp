@@ -92,7 +92,8 @@ TEST(EngineStress, readers_walk_snapshots_while_runs_are_cancelled_and_the_isova
           const auto violation = [&c](const std::string& what) {
             if (c.violations++ == 0) c.first_violation = what;
           };
-          // acquire: pairs with the release-store below; the flag orders nothing else.
+          // acquire: pairs with the release-store in test::control_until(); the flag orders nothing
+          // else.
           while (!finished.load(std::memory_order_acquire)) {
             const surface_snapshot s = e.snapshot();
             ++c.snapshots;
@@ -127,19 +128,10 @@ TEST(EngineStress, readers_walk_snapshots_while_runs_are_cancelled_and_the_isova
       }
 
       std::mt19937 rng(7);
-      while (clock::now() < end) {
-        if (test::random_control_step(e, rng, isovalues, 0.02)) ++generations;
-        ++control_ops;
-      }
-      e.cancel();
-      // release: pairs with the readers' acquire-loads.
-      finished.store(true, std::memory_order_release);
-      for (auto& r : readers) r.join();
-      EXPECT_EQ(e.statistics().reclamation.retired, generations);
+      generations =
+          test::control_until(e, rng, isovalues, 0.02, end, finished, readers, control_ops);
     }
-    std::multiset<std::uint64_t> expected;
-    for (std::uint64_t g = 0; g <= generations; ++g) expected.insert(g);
-    EXPECT_EQ(reclaimed, expected) << "every root reclaimed exactly once";
+    test::expect_each_root_reclaimed_once(reclaimed, generations);
     std::uint64_t snapshots = 0;
     std::uint64_t violations = 0;
     std::uint64_t triangles = 0;

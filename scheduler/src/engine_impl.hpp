@@ -323,6 +323,13 @@ struct engine_impl : run_control {
                                                       std::uint64_t index, const range_data* rd,
                                                       bool owns_surface) const;
 
+  // A published split (centre, scale, depth; its surface `groups`) counted as a parent of each of
+  // its children; the children it completes are queued (or culled). The one thread of the root's
+  // run: the one-thread loop, or the driver between task runs (settle_leftover).
+  void count_children_alone(engine_root& r, const ipoint& centre, std::int32_t scale, int depth,
+                            const packed_group* groups, std::size_t count, const range_data* rd,
+                            split_tally& tally) const;
+
   // Driver: counts the children of what a deadline published last (engine_root::uncounted)
   // and queues what it left (engine_root::leftover). Before anything reads the queue in a run.
   void settle_leftover(engine_root& r);

@@ -75,36 +75,43 @@ bool engine_impl::queue_if_straddles(engine_root& r, const ipoint& c, std::int32
   return true;
 }
 
+void engine_impl::count_children_alone(engine_root& r, const ipoint& centre, std::int32_t scale,
+                                       int depth, const packed_group* groups, std::size_t count,
+                                       const range_data* rd, split_tally& tally) const {
+  const child_list children = hier.children_of(centre, scale, hierarchy::type_of(centre, scale));
+  for (int i = 0; i < children.count; ++i) {
+    const auto ui = static_cast<std::size_t>(i);
+    const ipoint& c = children.centre[ui];
+    const std::uint64_t ci = hier.index(c);
+    const std::atomic_ref<std::uint8_t> slot(r.parents[ci]);
+    // relaxed: this thread is the only writer and reader while it counts (no other task runs on
+    // the root); atomic_ref keeps the array's one access discipline with the tasks' fetch_add
+    // and the graph's hint loads.
+    const auto parents = static_cast<std::uint8_t>(slot.load(std::memory_order_relaxed) + 1);
+    slot.store(parents, std::memory_order_relaxed);  // relaxed: as the load above
+    if (parents != children.parents[ui]) continue;
+    ++tally.visited;
+    const std::optional<ready_item> child =
+        ready_child(r, c, children.scale, depth + 1, ci, rd, owns_piece(groups, count, ci));
+    if (child) {
+      r.queue.push(*child);
+      if (rd == nullptr) r.unranged = true;
+    } else {
+      ++tally.culled;
+    }
+  }
+}
+
 void engine_impl::settle_leftover(engine_root& r) {
   if (!r.uncounted.empty()) {
     const range_data* rd = built_ranges();
     split_tally tally;
     for (const std::uint32_t i : r.uncounted) {
       const engine_record& rec = r.records[i];
-      const ipoint centre = hier.point(rec.diamond);
-      const child_list children =
-          hier.children_of(centre, rec.scale, hierarchy::type_of(centre, rec.scale));
-      for (int k = 0; k < children.count; ++k) {
-        const auto uk = static_cast<std::size_t>(k);
-        const ipoint& c = children.centre[uk];
-        const std::uint64_t ci = hier.index(c);
-        const std::atomic_ref<std::uint8_t> slot(r.parents[ci]);
-        // relaxed: the driver is the only thread of the root's run between its task runs (the
-        // tasks that wrote these counts were joined).
-        const auto parents = static_cast<std::uint8_t>(slot.load(std::memory_order_relaxed) + 1);
-        slot.store(parents, std::memory_order_relaxed);  // relaxed: as the load above
-        if (parents != children.parents[uk]) continue;
-        ++tally.visited;
-        const std::optional<ready_item> child = ready_child(
-            r, c, children.scale, rec.depth + 1, ci, rd, owns_piece(rec.groups, rec.count, ci));
-        if (child) {
-          r.queue.push(*child);
-          if (rd == nullptr || !errors_needed()) r.unranged = true;
-        } else {
-          ++tally.culled;
-        }
-      }
+      count_children_alone(r, hier.point(rec.diamond), rec.scale, rec.depth, rec.groups, rec.count,
+                           rd, tally);
     }
+    if (!errors_needed() && !r.queue.empty()) r.unranged = true;  // queued by placeholder
     r.uncounted.clear();
     tally.add_to(r);
   }

@@ -81,28 +81,7 @@ void engine_impl::refine_serially(engine_root& r) {
                std::memory_order_relaxed);
     tally.count(s);
 
-    const child_list children = hier.children_of(centre, scale, hierarchy::type_of(centre, scale));
-    const int depth = item.depth + 1;
-    for (int i = 0; i < children.count; ++i) {
-      const auto ui = static_cast<std::size_t>(i);
-      const ipoint& c = children.centre[ui];
-      const std::uint64_t ci = hier.index(c);
-      const std::atomic_ref<std::uint8_t> slot(r.parents[ci]);
-      // relaxed: this thread is the only writer and reader while the run lasts (no compute
-      // tasks); atomic_ref keeps the array's one access discipline with the graph's hint loads.
-      const auto parents = static_cast<std::uint8_t>(slot.load(std::memory_order_relaxed) + 1);
-      slot.store(parents, std::memory_order_relaxed);  // relaxed: as the load above
-      if (parents != children.parents[ui]) continue;
-      ++tally.visited;
-      const std::optional<ready_item> child = ready_child(
-          r, c, children.scale, depth, ci, rd, owns_piece(groups.data(), groups.size(), ci));
-      if (child) {
-        r.queue.push(*child);
-        if (rd == nullptr) r.unranged = true;
-      } else {
-        ++tally.culled;
-      }
-    }
+    count_children_alone(r, centre, scale, item.depth, groups.data(), groups.size(), rd, tally);
     last_depth = item.depth;
     if (tally.splits == serial_publish_step) publish();
   }

@@ -1,24 +1,31 @@
 // tests/support/engine_stress.hpp — what the stress tests of the 3D and the contour engine share:
-// the control thread's random operations.
+// the control thread's random operations, and the reclamation check at the end.
 #pragma once
 
+#include <atomic>
 #include <chrono>
 #include <cstddef>
+#include <cstdint>
 #include <random>
+#include <set>
 #include <thread>
 #include <vector>
+
+#include <gtest/gtest.h>
 
 #include <progiso/scheduler/engine.hpp>
 
 namespace progiso::test {
 
-/// One random control operation on an engine (3D or contour): an isovalue change (2 in 6),
-/// a full run, an error run to `error_goal`, a cancel, or a deadline run of 0–3 ms; then a
-/// pause of 0–1.2 ms. Returns whether the isovalue changed.
+/// One random control operation on an engine (3D or contour): an isovalue change (2 in 7),
+/// a full run, an error run to `error_goal`, a cancel, a deadline run of 0–3 ms, or a run to a
+/// budget of 50–20 000 triangles (segments); then a pause of 0–1.2 ms. Returns whether the
+/// isovalue changed.
 template <class Engine, class Rng>
 bool random_control_step(Engine& e, Rng& rng, const std::vector<double>& isovalues,
                          double error_goal) {
-  std::uniform_int_distribution<int> action(0, 5);
+  std::uniform_int_distribution<int> action(0, 6);
+  std::uniform_int_distribution<std::uint64_t> budget(50, 20000);
   std::uniform_int_distribution<std::size_t> pick(0, isovalues.size() - 1);
   std::uniform_int_distribution<int> ms(0, 3);
   bool changed = false;
@@ -40,9 +47,41 @@ bool random_control_step(Engine& e, Rng& rng, const std::vector<double>& isovalu
     case 5:
       e.refine_for(std::chrono::milliseconds(ms(rng)));
       break;
+    case 6:
+      e.start(refine_goal::triangles(budget(rng)));
+      break;
   }
   std::this_thread::sleep_for(std::chrono::microseconds(ms(rng) * 400));
   return changed;
+}
+
+/// The control thread of a stress test: random_control_step() until `end`, then cancel(), then
+/// `finished` set (release: pairs with the readers' acquire loads of it) and the readers joined;
+/// checks that the engine retired a root per isovalue change. Returns the isovalue changes;
+/// `ops` counts the steps.
+template <class Engine, class Rng, class TimePoint>
+std::uint64_t control_until(Engine& e, Rng& rng, const std::vector<double>& isovalues,
+                            double error_goal, TimePoint end, std::atomic<bool>& finished,
+                            std::vector<std::thread>& readers, std::uint64_t& ops) {
+  std::uint64_t changes = 0;
+  while (std::chrono::steady_clock::now() < end) {
+    if (random_control_step(e, rng, isovalues, error_goal)) ++changes;
+    ++ops;
+  }
+  e.cancel();
+  finished.store(true, std::memory_order_release);  // release: see above
+  for (auto& r : readers) r.join();
+  EXPECT_EQ(e.statistics().reclamation.retired, changes);
+  return changes;
+}
+
+/// Every root of generations 0 … `generations` reclaimed exactly once (engine_options::on_reclaim
+/// recorded them in `reclaimed`).
+inline void expect_each_root_reclaimed_once(const std::multiset<std::uint64_t>& reclaimed,
+                                            std::uint64_t generations) {
+  std::multiset<std::uint64_t> expected;
+  for (std::uint64_t g = 0; g <= generations; ++g) expected.insert(g);
+  EXPECT_EQ(reclaimed, expected) << "every root reclaimed exactly once";
 }
 
 }  // namespace progiso::test
