@@ -17,8 +17,10 @@
 // ranked below the band waits for a later one. A child's error is at most its parent's, so each
 // band is taken once, and the order is the one-thread loop's up to the order inside a band. The
 // flow graph (refinement_schedule::flow_graph: compute tasks feeding a serial commit node that
-// makes every child ready) runs priority refinement at 0.52–0.58× the splits per second of full
-// refinement on two threads, its commit node the cap; these tasks at 0.64–0.76×.
+// makes every child ready) runs priority refinement at about the same splits per second on two
+// threads (Marschner–Lobb 257³: 0.55–0.66× full refinement's, these tasks 0.59–0.69×), but from a
+// fresh engine it publishes two to three times fewer splits by a deadline (15–31 k against 57–92
+// k in 28 ms), and a deadline buys correspondingly less surface (docs/ARCHITECTURE.md).
 
 #include "engine_impl.hpp"
 

@@ -83,7 +83,8 @@ struct engine_progress {
 /// use tasks; one thread always runs a loop in the driver.
 enum class refinement_schedule {
   /// Tasks over subtrees, band by band of the priority queue (the default: on Marschner–Lobb
-  /// 257³ at 2 threads, 1.2–1.4× the splits per second of the flow graph).
+  /// 257³ at 2 threads a deadline of Flying Edges' time buys 0.68–0.72 of the surface within a
+  /// voxel, against 0.39–0.44 on the flow graph).
   tasks,
   /// A oneTBB flow graph: compute tasks in batches feeding a serial commit node.
   flow_graph,
