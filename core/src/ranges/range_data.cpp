@@ -430,8 +430,9 @@ class typed_range_data final : public range_data::impl {
       for (std::int32_t z = 0; z < coarse.n[2]; ++z) {
         for (std::int32_t y = 0; y < coarse.n[1]; ++y) {
           for (std::int32_t x = 0; x < coarse.n[0]; ++x) {
-            brick m = fine.at(2 * x, 2 * y, 2 * z);
-            m.error = error_t{};
+            // lo and hi only: a level-0 brick's error is unwritten until the error pass.
+            const brick& first = fine.at(2 * x, 2 * y, 2 * z);
+            brick m{first.lo, first.hi, error_t{}};
             for (std::int32_t d = 1; d < 8; ++d) {
               const std::int32_t fx = 2 * x + (d & 1);
               const std::int32_t fy = 2 * y + ((d >> 1) & 1);
