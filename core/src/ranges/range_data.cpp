@@ -195,7 +195,7 @@ class typed_range_data final : public range_data::impl {
   };
   // Level 0's bricks are left uninitialised: build_minmax_slab() writes every brick's lo and hi,
   // build_error_slab() every brick's error (read only once errors_exact is set). A zero-filled
-  // vector would fault its pages (3.6 MB on 257³: ~900 pages at ~2 µs) on one thread before the
+  // vector would fault its pages (3.3 MB on 257³: ~800 pages at ~2 µs) on one thread before the
   // parallel slabs start; left to the slabs, each thread faults its own.
   template <class U>
   struct uninitialised_allocator : std::allocator<U> {
