@@ -189,24 +189,82 @@ class typed_range_data2d final : public range_data2d::impl {
 
   // ---- Build: finest stored scale first; within a scale, edge midpoints (type 1, whose
   // children are square centres of half the scale) before square centres (type 0, whose
-  // children are this scale's edge midpoints).
+  // children are this scale's edge midpoints). A diamond whose subtree lies in the data box
+  // (nearly all but a margin of subtree_reach along the border) is summarised from the typed
+  // samples and its children's entries (interior()); the others run the definition.
   void build() {
     const int levels = hier->levels();
     for (int k = first_stored_; k < levels; ++k) {
       level& lv = levels_[static_cast<std::size_t>(k)];
       const std::int32_t h = std::int32_t{1} << k;
+      const bool children_stored = k - 1 >= first_stored_;
       for (const int type : {1, 0}) {
+        const std::int32_t reach = range_data2d::subtree_reach(type, h);
         for (std::int32_t j = 0; j < lv.shape.n[1]; ++j) {
-          for (std::int32_t i = 0; i < lv.shape.n[0]; ++i) {
-            const int odd = (i & 1) + (j & 1);
-            if (odd == 0 || 2 - odd != type) continue;
+          // Type 0: both of i, j odd; type 1: exactly one of them.
+          const bool j_odd = (j & 1) != 0;
+          if (type == 0 && !j_odd) continue;
+          const std::int32_t i0 = type == 0 || !j_odd ? 1 : 0;
+          const bool rows_inside = j * h - reach >= 0 && j * h + reach <= hier->data_max()[1];
+          for (std::int32_t i = i0; i < lv.shape.n[0]; i += 2) {
             const ipoint2 c{i * h, j * h};
             PROGISO_ASSERT(hier->is_diamond(c) && hier->scale_of(c) == h);
-            lv.entries[lv.shape.slot(c, k)] = encode(on_demand(hier->make_diamond(c)));
+            const bool inside =
+                rows_inside && c[0] - reach >= 0 && c[0] + reach <= hier->data_max()[0];
+            lv.entries[lv.shape.slot(c, k)] =
+                encode(inside ? interior(c, h, k, type, children_stored)
+                              : on_demand(hier->make_diamond(c)));
           }
         }
       }
     }
+  }
+
+  // on_demand() for a diamond of a stored scale whose subtree lies in the data box, so every
+  // point it reads is a data sample in the grid: the same samples, the same arithmetic in double,
+  // hence the same range and error, without making the diamond and its children as objects.
+  // Type 0 (square centre): its 4 corners (spine along the diagonal hierarchy2d::make_diamond
+  // picks) and its edge midpoints of the same scale (stored before it); type 1 (edge midpoint):
+  // spine along its odd axis, apexes along the other, and the 4 square centres of half its scale
+  // (stored one level down, or scale1() at h = 2).
+  [[nodiscard]] diamond_range interior(const ipoint2& c, std::int32_t h, int k, int type,
+                                       bool children_stored) const noexcept {
+    const T* p = samples_ + c[0] + width_ * c[1];
+    const std::int64_t w = width_;
+    const std::int64_t hh = h;
+    std::int64_t spine = 0;  // offset of one spine end (the other is at −spine)
+    std::int64_t ring = 0;   // offset of one apex (the other at −ring)
+    if (type == 0) {
+      const std::int64_t sx = ((c[0] + h) & (4 * h - 1)) == 0 ? 1 : -1;
+      const std::int64_t sy = ((c[1] + h) & (4 * h - 1)) == 0 ? 1 : -1;
+      spine = hh * (sx + w * sy);
+      ring = hh * (sx - w * sy);
+    } else {
+      const bool along_x = ((c[0] >> k) & 1) != 0;
+      spine = along_x ? hh : hh * w;
+      ring = along_x ? hh * w : hh;
+    }
+    const T fc = p[0];
+    const T f0 = p[-spine];
+    const T f1 = p[spine];
+    const T lo = std::min({fc, f0, f1, p[ring], p[-ring]});
+    const T hi = std::max({fc, f0, f1, p[ring], p[-ring]});
+    diamond_range r{static_cast<double>(lo), static_cast<double>(hi),
+                    std::abs(static_cast<double>(fc) -
+                             0.5 * (static_cast<double>(f0) + static_cast<double>(f1)))};
+    if (type == 0) {
+      merge(r, stored({c[0] + h, c[1]}, k));
+      merge(r, stored({c[0] - h, c[1]}, k));
+      merge(r, stored({c[0], c[1] + h}, k));
+      merge(r, stored({c[0], c[1] - h}, k));
+      return r;
+    }
+    const std::int32_t g = h / 2;
+    for (const ipoint2 ch : {ipoint2{c[0] + g, c[1] + g}, ipoint2{c[0] - g, c[1] + g},
+                             ipoint2{c[0] + g, c[1] - g}, ipoint2{c[0] - g, c[1] - g}}) {
+      merge(r, g == 1 ? scale1(ch) : (children_stored ? stored(ch, k - 1) : get_at(ch)));
+    }
+    return r;
   }
 
   // ---- Scale 1 (3/4 of all diamonds), on demand. An edge midpoint (type 1) is a leaf: its own
