@@ -69,15 +69,27 @@ struct ready_item {
 
 inline constexpr std::uint64_t root_alive = 0x70726f6769736f31;  // "progiso1"
 
-// A root's per-grid-vertex arrays (engine_root::record_of and parents), all zero when handed to
-// a root. A reclaimed root gives them back to its engine, cleared, for the next root: a fresh
-// mapping would pay a page fault for every page the next refinement touches, and a TLB flush
-// interrupt on every core for each page first read (by a compute task's hint load or a reader)
-// and then written.
+// A root's per-grid-vertex array (engine_root::record_of), all zero when handed to a root. A
+// reclaimed root gives it back to its engine, cleared, for the next root: a fresh mapping would
+// pay a page fault for every page the next refinement touches, and a TLB flush interrupt on every
+// core for each page first read (by a compute task's hint load or a reader) and then written.
 struct vertex_state {
   zeroed_array<std::uint32_t> record_of;
-  zeroed_array<std::uint8_t> parents;
 };
+
+// A grid vertex's word in engine_root::record_of. 0 while none of the diamond's parents is
+// split; then, while the diamond is unsplit, 2^32 − (its parents split so far), counted down by
+// one per parent; once it is split, the index of its record, stored over the (then complete)
+// count. Readers take a diamond as split in a cut when its word is non-zero and below the cut's
+// watermark, so a count (≥ 2^32 − 4: a diamond has at most 4 parents) reads as "not in this cut",
+// as 0 does. One word where there were two arrays (a 4-byte record index and a 1-byte count):
+// the count and the record of a diamond share a cache line, and a fresh root maps 4 bytes per
+// vertex instead of 5.
+inline constexpr std::size_t max_records = (std::size_t{1} << 32) - 8;
+// Parents counted so far in an unsplit diamond's word.
+[[nodiscard]] constexpr std::uint32_t parents_counted(std::uint32_t word) noexcept {
+  return 0u - word;
+}
 
 // One isovalue's progressive surface. Readers reach it through engine_impl::root (protected by
 // an epoch guard) and read the published prefix of `records` and `record_of`; everything under
@@ -90,7 +102,6 @@ struct engine_root : epoch_object {
         threshold(w),
         generation(gen),
         record_of(std::move(state.record_of)),
-        parents(std::move(state.parents)),
         groups(detail::chunked_store<packed_group>::bits_for(record_of.size())) {}
 
   std::uint64_t magic = root_alive;
@@ -99,15 +110,14 @@ struct engine_root : epoch_object {
   detail::sample_threshold threshold;  // isovalue, as straddle tests compare samples with it
   std::uint64_t generation;
   append_log<engine_record> records;
-  // Per grid vertex: index of the diamond's record, 0 while unsplit. Written once (0 → r) by the
-  // commit step before the release of records.publish(); read by readers through atomic_ref
+  // Per grid vertex: the count of split parents while unsplit, then the index of the diamond's
+  // record (see parents_counted). The count is written by whoever counts the children (the
+  // commit step, the one-thread loop, or full-refinement tasks by fetch_sub); compute tasks load
+  // it, relaxed, as a hint of which parent is last. The record index is written once by the
+  // publisher before the release of records.publish(); readers load it through atomic_ref
   // (relaxed: a value below the reader's watermark was written before that watermark's release,
-  // and any other value means "not in this cut").
+  // which orders it after every count before it; any other value means "not in this cut").
   zeroed_array<std::uint32_t> record_of;
-
-  // Parents split so far, per grid vertex: written by the commit step only (relaxed
-  // atomic_ref stores); compute tasks load it, relaxed, as a hint of which parent is last.
-  zeroed_array<std::uint8_t> parents;
   // Root surface: set before the root is published, immutable afterwards.
   std::vector<owned_triangle> root_triangles;
   // The root diamonds, queued (or culled) by the first run, once the range data exists: the root
@@ -135,7 +145,7 @@ struct engine_root : epoch_object {
   std::vector<std::vector<ready_item>> leftover;
   std::size_t leftover_items = 0;
   // Records a deadline's last publications made without counting their children as split
-  // parents (each child's fetch_add and readiness test: ~0.75 µs a record), counted by the next
+  // parents (each child's count and readiness test: ~0.75 µs a record), counted by the next
   // run on this root (settle_leftover) for the same reason. Commit step and driver (tasks
   // append under publish_mutex).
   std::vector<std::uint32_t> uncounted;
@@ -349,10 +359,10 @@ struct engine_impl : run_control {
 
   // A dying root's arrays become the next root's, cleared on a thread of their own so that
   // neither set_isovalue() nor the next run waits for it (one spare set at most; arrays that
-  // find the spare taken or the cleaner busy are unmapped). The commit step wrote record_of at
-  // each published diamond and parents at each of its children, nothing else: a small cut is
-  // cleared entry by entry, a large one by zeroing the arrays whole (cheaper beyond about one
-  // record per 64 vertices). Control thread, or the engine's destruction (then `recycle` is
+  // find the spare taken or the cleaner busy are unmapped). A run wrote record_of at each
+  // published diamond and at each of its children, nothing else: a small cut is cleared entry by
+  // entry, a large one by zeroing the array whole (cheaper beyond about one record per 64
+  // vertices). Control thread, or the engine's destruction (then `recycle` is
   // false and nothing is kept).
   void keep_vertex_state(engine_root& r) noexcept;
 

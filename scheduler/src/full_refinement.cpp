@@ -223,7 +223,7 @@ bool engine_impl::publish_full_task(full_task& t, bool wait, bool stopped) {
     for (std::size_t i = 0; i < t.pending.size(); ++i) {
       const pending_split& p = t.pending[i];
       const std::size_t index = r.records.size();
-      PROGISO_ASSERT(index < (std::size_t{1} << 32));
+      PROGISO_ASSERT(index < max_records);
       const std::uint64_t after =
           r.cut_triangles + static_cast<unsigned>(p.added) - static_cast<unsigned>(p.removed);
       if (goal.what == refine_goal::kind::triangles && after > goal.max_triangles) {
@@ -300,13 +300,13 @@ bool engine_impl::publish_full_task(full_task& t, bool wait, bool stopped) {
       const auto ui = static_cast<std::size_t>(i);
       const ipoint& c = children.centre[ui];
       const std::uint64_t ci = hier.index(c);
-      // acq_rel: the increments of a child's parents form one release sequence; the last one
+      // acq_rel: the counts of a child's parents form one release sequence; the last one
       // acquires the others, each made after its parent's publication (under publish_mutex
       // above), so the child, computed and published after it, follows all its parents in the
-      // records. Partner: this same fetch_add by the tasks of the child's other parents.
-      const auto before =
-          std::atomic_ref<std::uint8_t>(r.parents[ci]).fetch_add(1, std::memory_order_acq_rel);
-      if (before + 1 != children.parents[ui]) continue;
+      // records. Partner: this same fetch_sub by the tasks of the child's other parents.
+      const std::uint32_t before =
+          std::atomic_ref<std::uint32_t>(r.record_of[ci]).fetch_sub(1, std::memory_order_acq_rel);
+      if (parents_counted(before - 1) != children.parents[ui]) continue;
       ++t.tally.visited;
       const std::optional<ready_item> child =
           ready_child(r, c, children.scale, depth, ci, run.ranges,

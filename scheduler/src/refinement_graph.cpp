@@ -84,11 +84,11 @@ batch* engine_impl::compute_batch(batch* b) {
       // finds all the others already committed looks it up here, in parallel; for the other
       // parents it would be wasted work (a child has up to four). When two last parents are
       // in flight together, neither may look: the commit step then does.
-      const std::uint8_t split_parents =
-          std::atomic_ref<std::uint8_t>(b->root->parents[ci.index])
+      const std::uint32_t split_parents = parents_counted(
+          std::atomic_ref<std::uint32_t>(b->root->record_of[ci.index])
               // relaxed: a hint only; the commit step, the sole writer, decides readiness,
               // and a stale count just moves the lookup to the commit step or repeats it.
-              .load(std::memory_order_relaxed);
+              .load(std::memory_order_relaxed));
       ci.known = rd != nullptr && split_parents + 1 >= ci.parents_needed;
       if (ci.known) {
         const std::optional<ready_item> child =
@@ -125,7 +125,7 @@ void engine_impl::commit_batch(batch* b) {
       const batch_item& it = b->items[i];
       __builtin_prefetch(&r.record_of[it.item.index], 1);
       for (std::size_t c = 0; c < it.children; ++c) {
-        __builtin_prefetch(&r.parents[it.child[c].index], 1);
+        __builtin_prefetch(&r.record_of[it.child[c].index], 1);
       }
     }
     for (std::size_t i = 0; i < b->computed; ++i) {
@@ -142,7 +142,7 @@ void engine_impl::commit_batch(batch* b) {
         break;
       }
       const std::size_t index = r.records.size();
-      PROGISO_ASSERT(index < (std::size_t{1} << 32));
+      PROGISO_ASSERT(index < max_records);
       r.cut_triangles = after;
       r.records.push_back({it.item.index,
                            r.groups.append_contiguous(b->groups.data() + it.first, it.count),
@@ -158,11 +158,11 @@ void engine_impl::commit_batch(batch* b) {
       ++tally.configurations[static_cast<std::size_t>(it.configuration)];
       for (std::size_t c = 0; c < it.children; ++c) {
         const child_info& ci = it.child[c];
-        const std::atomic_ref<std::uint8_t> slot(r.parents[ci.index]);
+        const std::atomic_ref<std::uint32_t> slot(r.record_of[ci.index]);
         // relaxed: the commit step is the only writer; compute tasks read a hint.
-        const auto count = static_cast<std::uint8_t>(slot.load(std::memory_order_relaxed) + 1);
-        slot.store(count, std::memory_order_relaxed);  // relaxed: as the load above
-        if (count != ci.parents_needed) continue;
+        const std::uint32_t word = slot.load(std::memory_order_relaxed) - 1;
+        slot.store(word, std::memory_order_relaxed);  // relaxed: as the load above
+        if (parents_counted(word) != ci.parents_needed) continue;
         ++tally.visited;
         if (ci.known) {
           if (ci.straddles) {

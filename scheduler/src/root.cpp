@@ -83,13 +83,13 @@ void engine_impl::count_children_alone(engine_root& r, const ipoint& centre, std
     const auto ui = static_cast<std::size_t>(i);
     const ipoint& c = children.centre[ui];
     const std::uint64_t ci = hier.index(c);
-    const std::atomic_ref<std::uint8_t> slot(r.parents[ci]);
-    // relaxed: this thread is the only writer and reader while it counts (no other task runs on
-    // the root); atomic_ref keeps the array's one access discipline with the tasks' fetch_add
-    // and the graph's hint loads.
-    const auto parents = static_cast<std::uint8_t>(slot.load(std::memory_order_relaxed) + 1);
-    slot.store(parents, std::memory_order_relaxed);  // relaxed: as the load above
-    if (parents != children.parents[ui]) continue;
+    const std::atomic_ref<std::uint32_t> slot(r.record_of[ci]);
+    // relaxed: this thread is the only writer while it counts (no other task runs on the root);
+    // atomic_ref keeps the array's one access discipline with the tasks' fetch_sub, the graph's
+    // hint loads and readers' loads (a count reads as "not in this cut" to them).
+    const std::uint32_t word = slot.load(std::memory_order_relaxed) - 1;
+    slot.store(word, std::memory_order_relaxed);  // relaxed: as the load above
+    if (parents_counted(word) != children.parents[ui]) continue;
     ++tally.visited;
     const std::optional<ready_item> child =
         ready_child(r, c, children.scale, depth + 1, ci, rd, owns_piece(groups, count, ci));
@@ -158,7 +158,7 @@ vertex_state engine_impl::take_vertex_state() {
     return s;
   }
   const std::size_t n = hier.vertex_count();
-  return {zeroed_array<std::uint32_t>(n), zeroed_array<std::uint8_t>(n)};
+  return {zeroed_array<std::uint32_t>(n)};
 }
 
 void engine_impl::keep_vertex_state(engine_root& r) noexcept {
@@ -177,21 +177,18 @@ void engine_impl::keep_vertex_state(engine_root& r) noexcept {
       written.emplace_back(rec.diamond, rec.scale);
     }
   }
-  vertex_state s{std::move(r.record_of), std::move(r.parents)};
+  vertex_state s{std::move(r.record_of)};
   const bool whole = written.empty() && n > 1;
   cleaner_done.store(false, std::memory_order_relaxed);  // relaxed: the thread start orders it
   try {
     cleaner = std::thread([this, s = std::move(s), written = std::move(written), whole]() mutable {
-      if (whole) {
-        s.record_of.zero();
-        s.parents.zero();
-      }
+      if (whole) s.record_of.zero();
       for (const auto& [d, h] : written) {
         s.record_of[d] = 0;
         const ipoint c = hier.point(d);
         const child_list children = hier.children_of(c, h, hierarchy::type_of(c, h));
         for (int k = 0; k < children.count; ++k) {
-          s.parents[hier.index(children.centre[static_cast<std::size_t>(k)])] = 0;
+          s.record_of[hier.index(children.centre[static_cast<std::size_t>(k)])] = 0;
         }
       }
       spare = std::move(s);

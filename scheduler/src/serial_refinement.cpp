@@ -70,7 +70,7 @@ void engine_impl::refine_serially(engine_root& r) {
     }
     r.queue.pop();
     const std::size_t index = r.records.size();
-    PROGISO_ASSERT(index < (std::size_t{1} << 32));
+    PROGISO_ASSERT(index < max_records);
     r.cut_triangles = after;
     r.records.push_back({item.index, r.groups.append_contiguous(groups.data(), groups.size()),
                          static_cast<std::uint32_t>(groups.size()), item.depth, scale, s.crossed,
