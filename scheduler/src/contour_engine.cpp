@@ -215,14 +215,14 @@ struct contour_engine_impl : run_control {
     contour_tally t;
     seed(*r, rd, t);
     std::uint64_t unpublished = 0;
-    std::array<placed_segment, max_record_segments> placed{};
     while (!stopping() && !r->queue.empty()) {
       const contour_ready next = r->queue.top();
       if (goal.what == refine_goal::kind::error && !(next.error > goal.max_error)) break;
       if (goal.what == refine_goal::kind::deadline && clock::now() >= goal.deadline) break;
       const diamond2 d = hier.make_diamond(next.centre);
       scratch.clear();
-      const contour_split_summary s = compute_contour_split(hier, image, r->isovalue, d, scratch);
+      const contour_split_summary s =
+          compute_placed_contour_split(hier, image, r->isovalue, d, scratch);
       const std::uint64_t after = r->cut_segments + static_cast<std::uint64_t>(s.added_segments) -
                                   static_cast<std::uint64_t>(s.removed_segments);
       if (goal.what == refine_goal::kind::triangles && after > goal.max_triangles) {
@@ -232,14 +232,8 @@ struct contour_engine_impl : run_control {
       r->queue.pop();
       PROGISO_ASSERT(scratch.size() <= max_record_segments);
       const auto count = static_cast<std::uint32_t>(scratch.size());
-      for (std::uint32_t i = 0; i < count; ++i) {
-        const owned_segment& seg = scratch[i];
-        placed[i] = {seg,
-                     {place_contour_vertex(hier, image, r->isovalue, seg.keys[0]),
-                      place_contour_vertex(hier, image, r->isovalue, seg.keys[1])}};
-      }
       const placed_segment* at =
-          count == 0 ? nullptr : r->segments.append_contiguous(placed.data(), count);
+          count == 0 ? nullptr : r->segments.append_contiguous(scratch.data(), count);
       const auto rec = static_cast<std::uint32_t>(r->records.size());
       r->records.push_back({next.index, at, count, next.error, after});
       // relaxed: readers order it by the watermark (see contour_root::record_of).
@@ -319,7 +313,7 @@ struct contour_engine_impl : run_control {
   bool budget_hit = false;
   int last_depth = 0;
   std::uint64_t since_progress = 0;
-  std::vector<owned_segment> scratch;
+  std::vector<placed_segment> scratch;
   std::uint64_t generation = 0;  // guarded by control
 };
 

@@ -10,6 +10,7 @@
 #include <set>
 
 #include <progiso/core/contour/contour_refiner.hpp>
+#include <progiso/core/contour/detail/contour_frontier.hpp>
 #include <progiso/core/ranges/range_data2d.hpp>
 
 #include <gtest/gtest.h>
@@ -266,6 +267,53 @@ TEST(ContourSplit, segments_keep_the_larger_values_on_their_left) {
   const std::int64_t cross =
       std::int64_t{q[0] - p[0]} * (0 - p[1]) - std::int64_t{q[1] - p[1]} * (0 - p[0]);
   EXPECT_GT(cross, 0);
+}
+
+TEST(ContourSplit, placed_split_gives_the_segments_and_the_vertex_positions_of_their_keys) {
+  // The refiners publish segments with positions computed while marching; readers and tests
+  // place a key from its edge's ends (place_contour_vertex). Every diamond of a padded noisy
+  // image with plateaus (values equal to w), at three isovalues: the same segments, in the same
+  // order, and exactly the same positions, both ends.
+  const std::int64_t width = 23;
+  const std::int64_t height = 14;
+  std::vector<std::byte> bytes(static_cast<std::size_t>(width * height));
+  for (std::int64_t y = 0; y < height; ++y) {
+    for (std::int64_t x = 0; x < width; ++x) {
+      const std::uint64_t s = (static_cast<std::uint64_t>(x) * 0x9E3779B97F4A7C15u) ^
+                              (static_cast<std::uint64_t>(y) * 0xC2B2AE3D27D4EB4Fu);
+      bytes[static_cast<std::size_t>(x + width * y)] = static_cast<std::byte>(((s >> 29) % 7) * 40);
+    }
+  }
+  const volume img({width, height, 1}, sample_type::u8, std::move(bytes));
+  const hierarchy2d hier(width, height);
+  std::size_t placed_total = 0;
+  for (const double w : {40.0, 100.0, 120.5}) {
+    for (std::int32_t y = 0; y <= hier.grid_max()[1]; ++y) {
+      for (std::int32_t x = 0; x <= hier.grid_max()[0]; ++x) {
+        if (!hier.is_diamond({x, y})) continue;
+        const diamond2 d = hier.make_diamond({x, y});
+        std::vector<owned_segment> plain;
+        std::vector<detail::placed_segment> placed;
+        const contour_split_summary a = compute_contour_split(hier, img, w, d, plain);
+        const contour_split_summary b =
+            detail::compute_placed_contour_split(hier, img, w, d, placed);
+        EXPECT_EQ(a.added_segments, b.added_segments);
+        EXPECT_EQ(a.removed_segments, b.removed_segments);
+        ASSERT_EQ(plain.size(), placed.size());
+        for (std::size_t i = 0; i < plain.size(); ++i) {
+          EXPECT_EQ(placed[i].seg.owner, plain[i].owner);
+          EXPECT_EQ(placed[i].seg.keys, plain[i].keys);
+          for (std::size_t e = 0; e < 2; ++e) {
+            EXPECT_EQ(placed[i].pos[e],
+                      detail::place_contour_vertex(hier, img, w, plain[i].keys[e]))
+                << "diamond (" << x << ", " << y << "), w " << w << ", segment " << i;
+          }
+        }
+        placed_total += placed.size();
+      }
+    }
+  }
+  EXPECT_GT(placed_total, 200u);
 }
 
 }  // namespace

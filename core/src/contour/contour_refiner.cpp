@@ -63,23 +63,22 @@ bool contour_refiner::split_next(std::uint64_t max_segments) {
   if (queue_->empty()) return false;
   const detail::contour_ready next = queue_->top();
   const diamond2 d = hier_.make_diamond(next.centre);
-  scratch_.clear();
-  const contour_split_summary s = compute_contour_split(hier_, image_, isovalue_, d, scratch_);
+  const std::uint64_t first = segments_.size();
+  const contour_split_summary s =
+      detail::compute_placed_contour_split(hier_, image_, isovalue_, d, segments_);
   const std::uint64_t after = stats_.segments + static_cast<std::uint64_t>(s.added_segments) -
                               static_cast<std::uint64_t>(s.removed_segments);
-  if (after > max_segments) return false;
-  queue_->pop();
-  const std::uint64_t first = segments_.size();
-  for (const owned_segment& seg : scratch_) {
-    segments_.push_back({seg,
-                         {detail::place_contour_vertex(hier_, image_, isovalue_, seg.keys[0]),
-                          detail::place_contour_vertex(hier_, image_, isovalue_, seg.keys[1])}});
+  if (after > max_segments) {
+    segments_.resize(first);
+    return false;
   }
+  queue_->pop();
+  const std::uint64_t count = segments_.size() - first;
   record_of_.get()[next.index] = static_cast<std::uint32_t>(records_.size());
   records_.push_back(
-      {next.index, next.centre, first, static_cast<std::uint32_t>(scratch_.size()), next.error});
+      {next.index, next.centre, first, static_cast<std::uint32_t>(count), next.error});
   stats_.segments = after;
-  stats_.record_segments += scratch_.size();
+  stats_.record_segments += count;
   ++stats_.splits;
   ++stats_.cases[static_cast<std::size_t>(s.kind)];
   for (int i = 0; i < s.op_count; ++i) {

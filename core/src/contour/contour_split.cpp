@@ -3,6 +3,7 @@
 #include <algorithm>
 
 #include <progiso/core/base/error.hpp>
+#include <progiso/core/contour/detail/contour_frontier.hpp>
 #include <progiso/core/surface/marching.hpp>
 
 namespace progiso {
@@ -32,8 +33,13 @@ vec2 interpolate2(const ipoint2& a, double fa, const ipoint2& b, double fb,
           static_cast<double>(p[1]) + t * static_cast<double>(q[1] - p[1])};
 }
 
-bool march_triangle(const std::array<ipoint2, 3>& p, const std::array<double, 3>& f,
-                    double isovalue, std::array<std::uint64_t, 2>& out) noexcept {
+namespace {
+
+// march_triangle(), also naming the corners its segment joins: ends[k] = {lone corner, other
+// corner} of the edge of out[k].
+bool march_corners(const std::array<ipoint2, 3>& p, const std::array<double, 3>& f, double isovalue,
+                   std::array<std::uint64_t, 2>& out,
+                   std::array<std::array<std::size_t, 2>, 2>& ends) noexcept {
   const bool b0 = f[0] > isovalue;
   const bool b1 = f[1] > isovalue;
   const bool b2 = f[2] > isovalue;
@@ -43,6 +49,7 @@ bool march_triangle(const std::array<ipoint2, 3>& p, const std::array<double, 3>
   const std::size_t o1 = (lone + 1) % 3;
   const std::size_t o2 = (lone + 2) % 3;
   out = {edge_key2(p[lone], p[o1]), edge_key2(p[lone], p[o2])};
+  ends = {{{lone, o1}, {lone, o2}}};
   const bool lone_black = (lone == 0 ? b0 : (lone == 1 ? b1 : b2));
   const ipoint2& black = lone_black ? p[lone] : p[o1];
   const ipoint2 m1 = edge_key2_point(out[0]);
@@ -50,8 +57,19 @@ bool march_triangle(const std::array<ipoint2, 3>& p, const std::array<double, 3>
   const std::int64_t ux = m2[0] - m1[0], uy = m2[1] - m1[1];
   const std::int64_t vx = 2 * std::int64_t{black[0]} - m1[0];
   const std::int64_t vy = 2 * std::int64_t{black[1]} - m1[1];
-  if (ux * vy - uy * vx < 0) std::swap(out[0], out[1]);
+  if (ux * vy - uy * vx < 0) {
+    std::swap(out[0], out[1]);
+    std::swap(ends[0], ends[1]);
+  }
   return true;
+}
+
+}  // namespace
+
+bool march_triangle(const std::array<ipoint2, 3>& p, const std::array<double, 3>& f,
+                    double isovalue, std::array<std::uint64_t, 2>& out) noexcept {
+  std::array<std::array<std::size_t, 2>, 2> ends{};
+  return march_corners(p, f, isovalue, out, ends);
 }
 
 namespace {
@@ -87,8 +105,13 @@ struct op_list {
 
 }  // namespace
 
-contour_split_summary compute_contour_split(const hierarchy2d& hier, const volume& image, double w,
-                                            const diamond2& d, std::vector<owned_segment>& out) {
+namespace {
+
+// compute_contour_split(), each new segment handed to emit(owner, keys, triangle, values, ends)
+// (ends as march_corners()).
+template <class Emit>
+contour_split_summary split_diamond(const hierarchy2d& hier, const volume& image, double w,
+                                    const diamond2& d, Emit&& emit) {
   contour_split_summary s;
   const auto value = [&](const ipoint2& p) { return image.value(p[0], p[1], 0); };
   const ipoint2& c = d.spine[0];
@@ -121,8 +144,9 @@ contour_split_summary compute_contour_split(const hierarchy2d& hier, const volum
           half == 0 ? std::array<ipoint2, 3>{c, e, x.p} : std::array<ipoint2, 3>{e, dd, x.p};
       const std::array<double, 3> f =
           half == 0 ? std::array<double, 3>{fc, fe, x.f} : std::array<double, 3>{fe, fd, x.f};
-      if (march_triangle(t, f, w, k)) {
-        out.push_back({owner_of(hier, t), k});
+      std::array<std::array<std::size_t, 2>, 2> ends{};
+      if (march_corners(t, f, w, k, ends)) {
+        emit(owner_of(hier, t), k, t, f, ends);
         ++s.added_segments;
       }
     }
@@ -191,6 +215,38 @@ contour_split_summary compute_contour_split(const hierarchy2d& hier, const volum
   }
   return s;
 }
+
+}  // namespace
+
+contour_split_summary compute_contour_split(const hierarchy2d& hier, const volume& image, double w,
+                                            const diamond2& d, std::vector<owned_segment>& out) {
+  return split_diamond(hier, image, w, d,
+                       [&out](std::uint64_t owner, const std::array<std::uint64_t, 2>& k,
+                              const std::array<ipoint2, 3>&, const std::array<double, 3>&,
+                              const std::array<std::array<std::size_t, 2>, 2>&) {
+                         out.push_back({owner, k});
+                       });
+}
+
+namespace detail {
+
+contour_split_summary compute_placed_contour_split(const hierarchy2d& hier, const volume& image,
+                                                   double isovalue, const diamond2& d,
+                                                   std::vector<placed_segment>& out) {
+  return split_diamond(
+      hier, image, isovalue, d,
+      [&out, isovalue](std::uint64_t owner, const std::array<std::uint64_t, 2>& k,
+                       const std::array<ipoint2, 3>& t, const std::array<double, 3>& f,
+                       const std::array<std::array<std::size_t, 2>, 2>& ends) {
+        const auto at = [&](std::size_t e) {
+          const auto [a, b] = ends[e];
+          return interpolate2(t[a], f[a], t[b], f[b], isovalue);
+        };
+        out.push_back({{owner, k}, {at(0), at(1)}});
+      });
+}
+
+}  // namespace detail
 
 namespace {
 

@@ -113,7 +113,6 @@ class contour_refiner {
   std::array<double, 2> spacing_{};
   detail::contour_frontier frontier_;  // per grid vertex: split flag, split parents
   std::vector<detail::placed_segment> segments_;
-  std::vector<owned_segment> scratch_;
   std::vector<record> records_;
   // Record of each split diamond, by grid index (untouched pages cost nothing).
   zeroed_array<std::uint32_t> record_of_;

@@ -47,6 +47,13 @@ struct contour_ready {
 [[nodiscard]] vec2 place_contour_vertex(const hierarchy2d& hier, const volume& image,
                                         double isovalue, std::uint64_t key) noexcept;
 
+/// compute_contour_split() with each new segment's vertices placed: appended to `out` with the
+/// positions place_contour_vertex() gives their keys (interpolate2 of the crossed edge's ends in
+/// canonical order), from the samples the split has read already.
+contour_split_summary compute_placed_contour_split(const hierarchy2d& hier, const volume& image,
+                                                   double isovalue, const diamond2& d,
+                                                   std::vector<placed_segment>& out);
+
 /// The root cut: appends the placed segments of the root triangles to `segments` and the
 /// centres of the root diamonds (roots of size ≥ 2) to `roots`. Reads 4 samples per root
 /// square: no pass over the image beyond them.
