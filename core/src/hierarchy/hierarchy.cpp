@@ -9,11 +9,6 @@
 namespace progiso {
 namespace {
 
-int trailing_zeros(std::int32_t v, int cap) noexcept {
-  if (v == 0) return cap;
-  return std::min(cap, std::countr_zero(static_cast<std::uint32_t>(v)));
-}
-
 ipoint add(const ipoint& a, const ipoint& b) noexcept {
   return {a[0] + b[0], a[1] + b[1], a[2] + b[2]};
 }
@@ -68,12 +63,6 @@ hierarchy::hierarchy(const index3& data_dims) {
   vertex_count_ = stride_z_ * (static_cast<std::uint64_t>(grid_max_[2]) + 1);
   inverse_y_ = 1.0 / static_cast<double>(stride_y_);
   inverse_z_ = 1.0 / static_cast<double>(stride_z_);
-}
-
-std::int32_t hierarchy::scale_of(const ipoint& p) const noexcept {
-  const int t = std::min({trailing_zeros(p[0], levels_), trailing_zeros(p[1], levels_),
-                          trailing_zeros(p[2], levels_)});
-  return std::int32_t{1} << t;
 }
 
 bool hierarchy::is_diamond(const ipoint& p) const noexcept {
@@ -233,13 +222,6 @@ int hierarchy::children_at(const ipoint& c, std::int32_t h, int type,
     push(add(c, axis(q, -h)));
   }
   return n;
-}
-
-int hierarchy::type_of(const ipoint& c, std::int32_t h) noexcept {
-  const int lg = std::countr_zero(static_cast<std::uint32_t>(h));
-  int odd = 0;
-  for (std::size_t q = 0; q < 3; ++q) odd += (c[q] >> lg) & 1;
-  return 3 - odd;
 }
 
 // Parent counts from the parent's side (DESIGN.md §2 facts, as parent_count() applies them):

@@ -1,6 +1,7 @@
 #include <progiso/core/surface/detail/mesh_builder.hpp>
 
 #include <algorithm>
+#include <atomic>
 #include <bit>
 #include <utility>
 
@@ -31,16 +32,31 @@ triangle_mesh mesh_builder::finish() {
 // Every vertex is used (in order of first use) unless clipping left one of its triangles' inside
 // corners out (a corner on the box's face with the rest of the piece beyond it) and no other
 // triangle uses it: then the unused ones are dropped.
-void drop_unused(triangle_mesh& m, const std::vector<std::uint32_t>& suspects) {
+void drop_unused(triangle_mesh& m, const std::vector<std::uint32_t>& suspects,
+                 const parallel_loop& run, std::size_t parts) {
   if (suspects.empty()) return;
   const std::size_t count = m.vertices.size();
   {
-    std::vector<bool> used(count, false);
-    for (const auto& t : m.triangles) {
-      for (const std::uint32_t v : t) used[v] = true;
-    }
-    if (std::all_of(suspects.begin(), suspects.end(),
-                    [&used](std::uint32_t v) { return used[v]; })) {
+    // The suspects marked, then each mark a triangle meets cleared: a byte read per corner,
+    // written only at suspects (a bit vector of all vertices set for every corner cost a
+    // read-modify-write per corner, and ran on one thread).
+    std::vector<std::uint8_t> unused(count, 0);
+    for (const std::uint32_t v : suspects) unused[v] = 1;
+    const std::size_t n = m.triangles.size();
+    parts = std::clamp<std::size_t>(parts, 1, std::max<std::size_t>(n, 1));
+    run_loop(run, parts, [&](std::size_t k) {
+      const std::size_t lo = k * (n / parts) + std::min(k, n % parts);
+      const std::size_t hi = (k + 1) * (n / parts) + std::min(k + 1, n % parts);
+      for (std::size_t i = lo; i < hi; ++i) {
+        for (const std::uint32_t v : m.triangles[i]) {
+          const std::atomic_ref<std::uint8_t> mark(unused[v]);
+          // relaxed: the parallel loop's join orders these stores before the check below.
+          if (mark.load(std::memory_order_relaxed) != 0) mark.store(0, std::memory_order_relaxed);
+        }
+      }
+    });
+    if (std::none_of(suspects.begin(), suspects.end(),
+                     [&unused](std::uint32_t v) { return unused[v] != 0; })) {
       return;
     }
   }

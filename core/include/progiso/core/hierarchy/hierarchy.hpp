@@ -30,6 +30,7 @@
 #pragma once
 
 #include <array>
+#include <bit>
 #include <cstdint>
 #include <utility>
 
@@ -97,8 +98,14 @@ class hierarchy {
 
   /// True when p is a grid vertex that is the centre of a diamond (not a root-cube corner).
   [[nodiscard]] bool is_diamond(const ipoint& p) const noexcept;
-  /// Scale of a centre: 2^min(tz), tz capped at L.
-  [[nodiscard]] std::int32_t scale_of(const ipoint& p) const noexcept;
+  /// Scale of a centre: 2^min(tz), tz capped at L (the cap as a set bit: the min of the
+  /// coordinates' trailing zeros and L is the trailing zeros of their union with 2^L). Inline:
+  /// the refiners ask it per split and per child.
+  [[nodiscard]] std::int32_t scale_of(const ipoint& p) const noexcept {
+    const std::uint32_t bits = static_cast<std::uint32_t>(p[0]) | static_cast<std::uint32_t>(p[1]) |
+                               static_cast<std::uint32_t>(p[2]) | (std::uint32_t{1} << levels_);
+    return std::int32_t{1} << std::countr_zero(bits);
+  }
   /// Depth of a diamond centre (see diamond::depth).
   [[nodiscard]] int depth_of(const ipoint& p) const noexcept;
   /// Everything about the diamond centred at c. Precondition: is_diamond(c).
@@ -116,8 +123,12 @@ class hierarchy {
   /// whose scale is h and type is `type` (as scale_of and make_diamond give them): what
   /// children() and parent_count() give, in one pass, from facts known at the parent.
   [[nodiscard]] child_list children_of(const ipoint& c, std::int32_t h, int type) const noexcept;
-  /// Type of the diamond centred at c, whose scale is h (diamond::type, without the diamond).
-  [[nodiscard]] static int type_of(const ipoint& c, std::int32_t h) noexcept;
+  /// Type of the diamond centred at c, whose scale is h (diamond::type, without the diamond):
+  /// 3 minus the number of axes odd at scale h.
+  [[nodiscard]] static int type_of(const ipoint& c, std::int32_t h) noexcept {
+    const int lg = std::countr_zero(static_cast<std::uint32_t>(h));
+    return 3 - static_cast<int>(((c[0] >> lg) & 1) + ((c[1] >> lg) & 1) + ((c[2] >> lg) & 1));
+  }
 
   /// Root cubes' centres (the root diamonds when N ≥ 2), and their 6 tetrahedra each.
   [[nodiscard]] std::uint64_t root_count() const noexcept {

@@ -201,7 +201,7 @@ class cut_mesher {
     run_loop(run, parts_, [this](std::size_t k) { triangulate(k); });
     join_triangles(run);
     clip_pieces();
-    drop_unused(mesh_, suspects_);
+    drop_unused(mesh_, suspects_, run, parts_);
     return std::move(mesh_);
   }
 
@@ -226,17 +226,19 @@ class cut_mesher {
     std::array<std::uint32_t, 3> ids;
   };
 
-  // Maps the pages of a buffer about to be written everywhere, one slice per piece of work: a
-  // fault per page costs about 2 µs on our virtual machines, a mapped range about 60% of that,
-  // and the pieces run in parallel (prefault.hpp).
+  // Maps the pages of a buffer about to be written everywhere, in up to one slice per piece of
+  // work, each of at least prefault_min_bytes (below it prefault() does nothing), so that a
+  // buffer of a few MiB still spreads over the threads: a fault per page costs about 2 µs on
+  // our virtual machines, a mapped range about 60% of that (prefault.hpp).
   void prefault_in_parts(const parallel_loop& run, const void* p, std::size_t bytes) const {
-    const std::size_t slice = (bytes / parts_ + 4095) & ~std::size_t{4095};
-    if (parts_ == 1 || slice < prefault_min_bytes) {
+    const std::size_t slices = std::min(parts_, bytes / prefault_min_bytes);
+    if (slices <= 1) {
       prefault(p, bytes);
       return;
     }
+    const std::size_t slice = (bytes / slices + 4095) & ~std::size_t{4095};
     const auto* at = static_cast<const unsigned char*>(p);
-    run_loop(run, parts_, [&](std::size_t k) {
+    run_loop(run, slices, [&](std::size_t k) {
       const std::size_t lo = std::min(bytes, k * slice);
       const std::size_t hi = std::min(bytes, lo + slice);
       if (hi > lo) prefault(at + lo, hi - lo);

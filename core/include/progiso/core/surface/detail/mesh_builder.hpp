@@ -103,8 +103,10 @@ struct position_hash {
 }
 
 /// Drops the vertices no triangle uses, when one of `suspects` (vertex ids) is among them,
-/// renumbering the rest in order of first use.
-void drop_unused(triangle_mesh& m, const std::vector<std::uint32_t>& suspects);
+/// renumbering the rest in order of first use. Whether one is: one scan of the triangles, in
+/// `parts` pieces through `run` (on this thread when `run` is empty).
+void drop_unused(triangle_mesh& m, const std::vector<std::uint32_t>& suspects,
+                 const parallel_loop& run = {}, std::size_t parts = 1);
 
 class mesh_builder {
  public:
