@@ -45,9 +45,7 @@ void drop_unused(triangle_mesh& m, const std::vector<std::uint32_t>& suspects,
     const std::size_t n = m.triangles.size();
     parts = std::clamp<std::size_t>(parts, 1, std::max<std::size_t>(n, 1));
     run_loop(run, parts, [&](std::size_t k) {
-      const std::size_t lo = k * (n / parts) + std::min(k, n % parts);
-      const std::size_t hi = (k + 1) * (n / parts) + std::min(k + 1, n % parts);
-      for (std::size_t i = lo; i < hi; ++i) {
+      for (std::uint64_t i = piece_begin(n, parts, k); i < piece_begin(n, parts, k + 1); ++i) {
         for (const std::uint32_t v : m.triangles[i]) {
           const std::atomic_ref<std::uint8_t> mark(unused[v]);
           // relaxed: the parallel loop's join orders these stores before the check below.

@@ -2,7 +2,9 @@
 // on a thread library: the caller (the engine, with oneTBB) passes the loop.
 #pragma once
 
+#include <algorithm>
 #include <cstddef>
+#include <cstdint>
 #include <functional>
 
 namespace progiso {
@@ -19,6 +21,13 @@ inline void run_loop(const parallel_loop& run, std::size_t n,
   } else {
     for (std::size_t i = 0; i < n; ++i) body(i);
   }
+}
+
+/// The first of `items` items in piece k of `parts` near-equal pieces, in order (piece k is
+/// [piece_begin(items, parts, k), piece_begin(items, parts, k + 1))).
+[[nodiscard]] constexpr std::uint64_t piece_begin(std::uint64_t items, std::uint64_t parts,
+                                                  std::uint64_t k) noexcept {
+  return k * (items / parts) + std::min(k, items % parts);
 }
 
 }  // namespace progiso

@@ -104,9 +104,7 @@ class cut_index {
     before_.resize(words);
     parts = std::clamp<std::size_t>(parts, 1, std::max<std::size_t>(words, 1));
     std::vector<std::uint64_t> sums(parts + 1, 0);
-    const auto first = [&](std::size_t k) {
-      return k * (words / parts) + std::min(k, words % parts);
-    };
+    const auto first = [&](std::size_t k) { return piece_begin(words, parts, k); };
     run_loop(run, parts, [&](std::size_t k) {
       std::uint64_t n = 0;
       for (std::size_t w = first(k); w < first(k + 1); ++w) n += bit_count(bits_[w]);
@@ -247,7 +245,7 @@ class cut_mesher {
 
   // Piece k of n items: [first(n, k), first(n, k + 1)).
   [[nodiscard]] std::uint64_t first(std::uint64_t items, std::size_t k) const noexcept {
-    return k * (items / parts_) + std::min<std::uint64_t>(k, items % parts_);
+    return piece_begin(items, parts_, k);
   }
   [[nodiscard]] bool take(std::uint64_t owner) const noexcept {
     return owner == no_owner || !index_.contains(owner);
