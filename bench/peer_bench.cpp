@@ -278,16 +278,24 @@ void BM_peer_image(benchmark::State& state) {
   report(state, s, "segments");
 }
 
+/// 1, 2, 4, … doubling below `cores`, then `cores` itself: {1, 2} on two cores, {1, 2, 4, 8, 16}
+/// on sixteen, {1, 2, 4, 6} on six.
+std::vector<unsigned> thread_counts(unsigned cores) {
+  std::vector<unsigned> counts;
+  for (unsigned t = 1; t < cores; t *= 2) counts.push_back(t);
+  counts.push_back(cores);
+  return counts;
+}
+
 void register_all() {
   const unsigned cores = std::max(1u, static_cast<unsigned>(scheduler::default_concurrency()));
   for (std::size_t i = 0; i < volumes().size(); ++i) {
-    for (unsigned t = 1; t <= cores; t = t < 2 ? 2 : t * 4) {
+    for (const unsigned t : thread_counts(cores)) {
       benchmark::RegisterBenchmark(("BM_peer_volume/" + volumes()[i].name).c_str(), BM_peer_volume)
           ->Args({static_cast<std::int64_t>(i), static_cast<std::int64_t>(t)})
           ->Iterations(volumes()[i].pairs)
           ->UseManualTime()
           ->Unit(benchmark::kMillisecond);
-      if (t == cores) break;
     }
   }
   for (std::size_t i = 0; i < volumes().size(); ++i) {
