@@ -113,10 +113,11 @@ struct engine_root : epoch_object {
   // Per grid vertex: the count of split parents while unsplit, then the index of the diamond's
   // record (see parents_counted). The count is written by whoever counts the children (the
   // commit step, the one-thread loop, or full-refinement tasks by fetch_sub); compute tasks load
-  // it, relaxed, as a hint of which parent is last. The record index is written once by the
-  // publisher before the release of records.publish(); readers load it through atomic_ref
-  // (relaxed: a value below the reader's watermark was written before that watermark's release,
-  // which orders it after every count before it; any other value means "not in this cut").
+  // it, relaxed, as a hint of which parent is last. The record index is written once, by the
+  // thread that fills the record, before the release of records.publish() that first covers
+  // it (full-refinement tasks: ordered before it by publish_mutex); readers load it through
+  // atomic_ref (relaxed: a value below the reader's watermark was written before that watermark's
+  // release, which orders it after every count before it; any other value means "not in this cut").
   zeroed_array<std::uint32_t> record_of;
   // Root surface: set before the root is published, immutable afterwards.
   std::vector<owned_triangle> root_triangles;
@@ -421,8 +422,9 @@ struct engine_impl : run_control {
 
   // A run on more than one thread (full_refinement.cpp): tasks over subtrees, each a
   // depth-first loop like refine_serially()'s, publishing its splits every 64 (up to 256 while
-  // another task holds the mutex) under `publish_mutex`; a child becomes ready when the atomic
-  // increment of its last parent, made after that parent's publication, reaches its parent count.
+  // another task holds the mutex): their places in the log reserved under `publish_mutex`,
+  // filled without it, the watermark moved under it again; a child becomes ready when the atomic
+  // decrement of its last parent, made after that parent's place was filled, completes its count.
   // Full refinement is one such run over everything queued; refinement by priority one per band
   // of the queue (a quarter octave of errors), largest first, a child below the band left for a
   // later one. run_graph() takes it on more than one thread (for runs by priority unless
@@ -518,8 +520,9 @@ struct engine_impl : run_control {
   int last_depth = 0;
   // The split groups of refine_serially()'s current diamond (the driver's; kept for capacity).
   std::vector<packed_group> serial_groups;
-  // Full runs in tasks: publication (records, record_of, the root's counters, last_depth,
-  // since_progress, the progress callback) is one task at a time under this mutex.
+  // Full runs in tasks: the reservation of records' and groups' places, the watermark, the
+  // root's counters, last_depth, since_progress and the progress callback are one task at a
+  // time under this mutex (filling the places is not: full_refinement.cpp).
   std::mutex publish_mutex;
   std::uint64_t since_progress = 0;
 

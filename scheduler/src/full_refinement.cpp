@@ -1,11 +1,15 @@
 // Refinement on more than one thread: tasks over subtrees, no serial step per split.
 //
 // Each task refines depth first from its own stack, as the one-thread loop does, and publishes
-// its computed splits every 64 under `publish_mutex` (records, record_of, counters: the critical
-// section copies, it computes nothing). Only then does it count its splits as parents of their
-// children: an atomic increment per child, and the task whose increment completes a child's
-// parent count pushes the child on its own stack. A child is therefore computed, hence published,
-// after every parent was published, so every published prefix of the records is a valid cut. A
+// its computed splits every 64: under `publish_mutex` it reserves their places in the log (and
+// their groups' in the root's store), fills them without the mutex (records, groups, record_of:
+// the copies and the page faults of fresh chunks run on every task at once), and under the
+// mutex again marks them filled and moves the watermark over the filled ranges at the front
+// (tasks reserve in log order but may finish out of order). Only then does it count its splits
+// as parents of their children: an atomic decrement per child, and the task whose decrement
+// completes a child's parent count pushes the child on its own stack. A child is therefore
+// computed, hence reserved, after every parent's place was reserved, so it lies above them in
+// the log, and every published prefix of the records is a valid cut. A
 // task whose stack has work to spare gives the older half (the coarser diamonds, the larger
 // subtrees) to a new task whenever fewer tasks than threads are running; oneTBB's work stealing
 // places it on an idle thread.
@@ -25,6 +29,9 @@
 #include "engine_impl.hpp"
 
 #include <tbb/task_group.h>
+
+#include <algorithm>
+#include <deque>
 
 #include <progiso/core/refine/detail/prefetch.hpp>
 
@@ -49,6 +56,10 @@ struct pending_split {
   std::uint32_t count;
   int added;
   int removed;
+  // Set when publication reserves the split's places: the cut's triangles with it, and where
+  // its groups go in the root's store.
+  std::uint64_t cut_triangles;
+  packed_group* dest;
 };
 
 }  // namespace
@@ -73,6 +84,14 @@ struct engine_impl::full_run {
   // the driver after the run, or, after a deadline, by the next run (engine_root::leftover).
   std::mutex left_mutex;
   std::vector<std::vector<ready_item>> left;
+  // Records reserved by tasks and not yet published, in log order (under publish_mutex): each
+  // range's end and whether its task has filled it. The watermark moves over the filled ranges
+  // at the front; at most one range per task.
+  struct reserved_range {
+    std::size_t end;
+    bool filled;
+  };
+  std::deque<reserved_range> unfilled;
 };
 
 struct engine_impl::full_task {
@@ -178,7 +197,7 @@ void engine_impl::run_full_task(full_task& t) {
       const split_summary s = compute_split(hier, vol, w, centre, scale, t.groups);
       t.pending.push_back({item, scale, s.crossed, static_cast<std::uint32_t>(first),
                            static_cast<std::uint32_t>(t.groups.size() - first), s.added_triangles,
-                           s.removed_triangles});
+                           s.removed_triangles, 0, nullptr});
       t.pending_tally.count(s);
       if (budget) t.summaries.push_back(s);
       // Every 64 splits when the mutex is free; a task that finds it taken goes on computing
@@ -212,6 +231,8 @@ bool engine_impl::publish_full_task(full_task& t, bool wait, bool stopped) {
   engine_root& r = *run.root;
   std::size_t kept = t.pending.size();
   std::size_t first_record = 0;  // of the records published below
+  // 1. Under the mutex: the records' places in the log and the groups' in the root's store
+  //    (the budget's triangle count is sequential), nothing copied.
   {
     std::unique_lock lock(publish_mutex, std::defer_lock);
     if (wait) {
@@ -221,9 +242,7 @@ bool engine_impl::publish_full_task(full_task& t, bool wait, bool stopped) {
     }
     if (stopping() && !stopped) return false;  // the caller returns the pending splits
     for (std::size_t i = 0; i < t.pending.size(); ++i) {
-      const pending_split& p = t.pending[i];
-      const std::size_t index = r.records.size();
-      PROGISO_ASSERT(index < max_records);
+      pending_split& p = t.pending[i];
       const std::uint64_t after =
           r.cut_triangles + static_cast<unsigned>(p.added) - static_cast<unsigned>(p.removed);
       if (goal.what == refine_goal::kind::triangles && after > goal.max_triangles) {
@@ -234,14 +253,11 @@ bool engine_impl::publish_full_task(full_task& t, bool wait, bool stopped) {
         break;
       }
       r.cut_triangles = after;
-      r.records.push_back({p.item.index,
-                           r.groups.append_contiguous(t.groups.data() + p.first, p.count), p.count,
-                           p.item.depth, p.scale, p.crossed, after});
-      std::atomic_ref<std::uint32_t>(r.record_of[p.item.index])
-          .store(static_cast<std::uint32_t>(index),
-                 // relaxed: published by the release in records.publish() below.
-                 std::memory_order_relaxed);
+      p.cut_triangles = after;
+      p.dest = r.groups.reserve_contiguous(p.count);
     }
+    PROGISO_ASSERT(r.records.size() + kept <= max_records);
+    first_record = r.records.reserve(kept);
     if (kept < t.pending.size()) {
       // Counted by pending_tally but not published: counted again from the records kept.
       t.pending_tally = split_tally{};
@@ -250,25 +266,56 @@ bool engine_impl::publish_full_task(full_task& t, bool wait, bool stopped) {
       for (std::size_t i = kept; i < t.pending.size(); ++i) t.stack.push_back(t.pending[i].item);
       t.pending.resize(kept);
     }
-    first_record = r.records.size() - kept;
-    if (kept > 0) {
-      r.records.publish();
-      r.triangles.set(r.cut_triangles);
-      t.pending_tally.add_to(r);
-      t.tally.add_to(r);
-      r.batches.add(1);
-      last_depth = t.pending.back().item.depth;
-      // relaxed: statistics (see full_run::outstanding).
-      r.remaining.set(static_cast<std::uint64_t>(
-          std::max<std::int64_t>(1, run.outstanding.load(std::memory_order_relaxed))));
-      report_progress(r, run.ranges, static_cast<std::uint64_t>(kept));
-      if (stopped) {
-        // A deadline's last publication: the next run counts the children (the run returns).
-        for (std::size_t i = r.records.size() - kept; i < r.records.size(); ++i) {
-          r.uncounted.push_back(static_cast<std::uint32_t>(i));
-        }
+    if (kept == 0) {  // a budget that allows none of them: nothing to publish or count
+      t.summaries.clear();
+      t.groups.clear();
+      return true;
+    }
+    run.unfilled.push_back({first_record + kept, false});
+    if (stopped) {
+      // A deadline's last publication: the next run counts the children (the run returns).
+      for (std::size_t i = 0; i < kept; ++i) {
+        r.uncounted.push_back(static_cast<std::uint32_t>(first_record + i));
       }
     }
+  }
+  // 2. Without it: the records, their groups and the diamonds' record indices, into the places
+  //    reserved (the pages these first touch fault in here, on every task at once).
+  for (std::size_t i = 0; i < kept; ++i) {
+    const pending_split& p = t.pending[i];
+    std::copy_n(t.groups.data() + p.first, p.count, p.dest);
+    r.records.at_unpublished(first_record + i) = {
+        p.item.index, p.dest, p.count, p.item.depth, p.scale, p.crossed, p.cut_triangles};
+    std::atomic_ref<std::uint32_t>(r.record_of[p.item.index])
+        .store(static_cast<std::uint32_t>(first_record + i),
+               // relaxed: published by the release in records.publish() below, which the
+               // mutex orders after this (this task's unlock, the publisher's lock).
+               std::memory_order_relaxed);
+  }
+  // 3. Under the mutex again: this task's places are filled; the watermark moves over every
+  //    filled range that follows it (tasks reserve in order but may finish out of order).
+  {
+    const std::lock_guard lock(publish_mutex);
+    for (full_run::reserved_range& u : run.unfilled) {
+      if (u.end == first_record + kept) u.filled = true;
+    }
+    std::size_t mark = 0;
+    while (!run.unfilled.empty() && run.unfilled.front().filled) {
+      mark = run.unfilled.front().end;
+      run.unfilled.pop_front();
+    }
+    if (mark != 0) {
+      r.records.publish(mark);
+      r.triangles.set(r.records[mark - 1].cut_triangles);
+    }
+    t.pending_tally.add_to(r);
+    t.tally.add_to(r);
+    r.batches.add(1);
+    last_depth = t.pending.back().item.depth;
+    // relaxed: statistics (see full_run::outstanding).
+    r.remaining.set(static_cast<std::uint64_t>(
+        std::max<std::int64_t>(1, run.outstanding.load(std::memory_order_relaxed))));
+    report_progress(r, run.ranges, static_cast<std::uint64_t>(kept));
   }
   const auto published = static_cast<std::int64_t>(kept);
   if (stopped) {
@@ -301,9 +348,10 @@ bool engine_impl::publish_full_task(full_task& t, bool wait, bool stopped) {
       const ipoint& c = children.centre[ui];
       const std::uint64_t ci = hier.index(c);
       // acq_rel: the counts of a child's parents form one release sequence; the last one
-      // acquires the others, each made after its parent's publication (under publish_mutex
-      // above), so the child, computed and published after it, follows all its parents in the
-      // records. Partner: this same fetch_sub by the tasks of the child's other parents.
+      // acquires the others, each made after its parent's place in the log was reserved (under
+      // publish_mutex above), so the child, computed and reserved after it, lies above all its
+      // parents in the records, and the watermark moves over the log in order. Partner: this
+      // same fetch_sub by the tasks of the child's other parents.
       const std::uint32_t before =
           std::atomic_ref<std::uint32_t>(r.record_of[ci]).fetch_sub(1, std::memory_order_acq_rel);
       if (parents_counted(before - 1) != children.parents[ui]) continue;

@@ -10,10 +10,18 @@
 // When to use it: single-producer logs that readers walk by prefix (the engine's split records).
 // Not for several writers, and not for elements that change after publication.
 //
-// Thread safety: push_back(), publish(), size() and back() belong to one writer thread at a
-// time (hand-overs between writers need their own happens-before, e.g. a serial flow-graph node
-// or a mutex). published() and operator[] below a published() value are safe from any thread.
-// Construction and destruction are not concurrent with anything.
+// Several writers: reserve() hands out n slots at the end (one writer at a time, like
+// push_back(): under the writers' mutex); each reserving thread then fills its own slots through
+// at_unpublished() without the mutex, and publish(n) makes a prefix visible once every slot
+// below n is filled (the caller tracks that, and its hand-over to the publishing thread needs a
+// happens-before of its own, e.g. the same mutex). The engine's full-refinement tasks copy their
+// records outside the mutex this way (scheduler/src/full_refinement.cpp).
+//
+// Thread safety: push_back(), reserve(), publish(), size() and back() belong to one writer
+// thread at a time (hand-overs between writers need their own happens-before, e.g. a serial
+// flow-graph node or a mutex). at_unpublished(i) for a reserved, unpublished i belongs to the
+// thread that reserved it. published() and operator[] below a published() value are safe from
+// any thread. Construction and destruction are not concurrent with anything.
 //
 // Progress: every operation is wait-free; push_back() allocates a chunk every 2^ChunkBits
 // elements (throws std::bad_alloc, or std::length_error past MaxChunks chunks, before anything
@@ -32,6 +40,7 @@
 #include <stdexcept>
 #include <type_traits>
 
+#include <progiso/core/base/assert.hpp>
 #include <progiso/core/base/config.hpp>
 #include <progiso/core/base/zeroed_array.hpp>
 
@@ -62,11 +71,36 @@ class append_log {
     chunks_[c][size_ & (chunk_size - 1)] = value;
     ++size_;
   }
+  /// Reserves n slots at the end, allocating their chunks, and returns the first one's index;
+  /// the slots hold garbage until the reserving thread fills them (at_unpublished()). Writer
+  /// only. Throws as push_back() does, before anything changes.
+  [[nodiscard]] std::size_t reserve(std::size_t n) {
+    const std::size_t first = size_;
+    if (n == 0) return first;
+    const std::size_t last_chunk = (first + n - 1) >> ChunkBits;
+    if (last_chunk >= MaxChunks) throw std::length_error("append_log: capacity exceeded");
+    std::size_t c = (first + chunk_size - 1) >> ChunkBits;  // the first chunk not yet allocated
+    try {
+      for (; c <= last_chunk; ++c) chunks_[c] = new T[chunk_size];
+    } catch (...) {
+      for (std::size_t k = (first + chunk_size - 1) >> ChunkBits; k < c; ++k) {
+        delete[] chunks_[k];
+        chunks_[k] = nullptr;
+      }
+      throw;
+    }
+    size_ = first + n;
+    return first;
+  }
   /// Makes every element appended so far visible to readers. Writer only.
-  void publish() noexcept {
+  void publish() noexcept { publish(size_); }
+  /// Makes elements [0, n) visible to readers: n ≤ size(), never below an earlier publish, and
+  /// every element below n filled and ordered before this call. Writer only.
+  void publish(std::size_t n) noexcept {
+    PROGISO_ASSERT(n <= size_ && n >= published_.load(std::memory_order_relaxed));
     // release: pairs with the acquire-load in published(); orders the elements and chunk
     // pointers written before it.
-    published_.store(size_, std::memory_order_release);
+    published_.store(n, std::memory_order_release);
   }
   /// Elements appended (published or not). Writer only.
   [[nodiscard]] std::size_t size() const noexcept { return size_; }

@@ -53,10 +53,16 @@ class chunked_store {
   // Appends n ≤ chunk_size() elements in one piece and returns where they are: when they do not
   // fit in what is left of the current chunk, that rest stays unused (its indices hold nothing).
   const T* append_contiguous(const T* v, std::size_t n) {
+    T* at = reserve_contiguous(n);
+    std::copy(v, v + n, at);
+    return at;
+  }
+  // As append_contiguous, but the n elements are left for the caller to write: it may do so
+  // later, from another thread, while others append (chunks never move).
+  T* reserve_contiguous(std::size_t n) {
     if (n > mask_ + 1 - (size_ & mask_)) size_ = (size_ + mask_) & ~mask_;
     grow_if_full();
     T* at = chunks_[size_ >> bits_].get() + (size_ & mask_);
-    std::copy(v, v + n, at);
     size_ += n;
     return at;
   }
