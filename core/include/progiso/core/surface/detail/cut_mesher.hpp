@@ -29,8 +29,10 @@
 //
 // Passes run over `parts` pieces through a parallel loop: (1) the rank index, from the records in
 // publication order (read in sequence); (2) each split's entry and vertex mask, written at its
-// rank; (3) first ids and vertex positions, over rank ranges; (4) triangles, over rank ranges. The
-// mesh is the same for every part count and thread count.
+// rank; (3) first ids, over rank ranges; (4) triangles, over rank ranges; (5) vertex positions,
+// over rank ranges; then the ranges' triangles are joined. The two arrays of the mesh are sized
+// (std::vector's resize, which writes on one thread) beside passes 4 and 5. The mesh is the same
+// for every part count and thread count.
 #pragma once
 
 #include <algorithm>
@@ -188,16 +190,38 @@ class cut_mesher {
       first_id[k + 1] = c;
     });
     for (std::size_t k = 0; k < parts_; ++k) first_id[k + 1] += first_id[k];
-    PROGISO_ASSERT(first_id[parts_] < mesh_builder_outside);
-    mesh_.vertices.reserve(first_id[parts_]);
-    prefault_in_parts(run, mesh_.vertices.data(), first_id[parts_] * sizeof(vec3));
-    mesh_.vertices.resize(first_id[parts_]);
-    std::copy(root_positions_.begin(), root_positions_.end(), mesh_.vertices.begin());
-    run_loop(run, parts_, [&](std::size_t k) { place(k, first_id[k]); });
+    const std::uint64_t vertices = first_id[parts_];
+    PROGISO_ASSERT(vertices < mesh_builder_outside);
+    run_loop(run, parts_, [&](std::size_t k) { number(k, first_id[k]); });
+    mesh_.vertices.reserve(vertices);
+    prefault_in_parts(run, mesh_.vertices.data(), vertices * sizeof(vec3));
     triangles_.assign(parts_, {});
     clipped_.assign(parts_, {});
-    run_loop(run, parts_, [this](std::size_t k) { triangulate(k); });
-    join_triangles(run);
+    // std::vector's resize writes every element on one thread (6 M vertices: ~23 ms, a tenth of
+    // the extraction on 16 cores), so with more than one part it runs as one more item of the
+    // loop beside a pass that does not need the array: the vertex array's beside the triangles,
+    // the joined triangles' beside the vertex positions. Item 0, which the loop takes first.
+    run_loop(run, parts_ + 1, [&](std::size_t k) {
+      if (k == 0) {
+        mesh_.vertices.resize(vertices);
+        std::copy(root_positions_.begin(), root_positions_.end(), mesh_.vertices.begin());
+      } else {
+        triangulate(k - 1);
+      }
+    });
+    const std::vector<std::size_t> at = triangle_offsets();
+    if (parts_ > 1) {
+      mesh_.triangles.reserve(at.back());
+      prefault_in_parts(run, mesh_.triangles.data(), at.back() * sizeof(mesh_.triangles[0]));
+    }
+    run_loop(run, parts_ + 1, [&](std::size_t k) {
+      if (k == 0) {
+        if (parts_ > 1) mesh_.triangles.resize(at.back());
+      } else {
+        place(k - 1);
+      }
+    });
+    join_triangles(run, at);
     clip_pieces();
     drop_unused(mesh_, suspects_, run, parts_);
     return std::move(mesh_);
@@ -356,12 +380,23 @@ class cut_mesher {
     }
   }
 
-  // Pass 3, over rank range k: first ids, and the positions of the splits' vertices.
-  void place(std::size_t k, std::uint64_t id) {
+  // Pass 3, over rank range k: each split's first vertex id, from the range's first id.
+  void number(std::size_t k, std::uint64_t id) {
     const std::uint64_t n = index_.size();
     for (std::uint64_t i = first(n, k); i < first(n, k + 1); ++i) {
       naming& nm = names_[i];
       nm.base = static_cast<std::uint32_t>(id);
+      id += bit_count(nm.mask);
+    }
+  }
+
+  // Pass 5 (after the triangles, beside the join's resize), over rank range k: the positions of
+  // the splits' vertices.
+  void place(std::size_t k) {
+    const std::uint64_t n = index_.size();
+    for (std::uint64_t i = first(n, k); i < first(n, k + 1); ++i) {
+      const naming& nm = names_[i];
+      std::uint64_t id = nm.base;
       const std::uint32_t m = nm.mask;
       if (m == 0) continue;
       const entry& en = entries_[i];
@@ -494,22 +529,31 @@ class cut_mesher {
     }
   }
 
-  void join_triangles(const parallel_loop& run) {
+  // Where each range's triangles start in the joined array, and their total.
+  [[nodiscard]] std::vector<std::size_t> triangle_offsets() const {
+    std::vector<std::size_t> at(triangles_.size() + 1, 0);
+    for (std::size_t k = 0; k < triangles_.size(); ++k) at[k + 1] = at[k] + triangles_[k].size();
+    return at;
+  }
+
+  // The ranges' triangles into the mesh's array (already of its full size when there is more
+  // than one range), in parallel; the per-rank arrays, no longer needed, are freed beside them.
+  void join_triangles(const parallel_loop& run, const std::vector<std::size_t>& at) {
     if (triangles_.size() == 1) {
       mesh_.triangles = std::move(triangles_[0]);
       return;
     }
-    std::vector<std::size_t> at_(triangles_.size() + 1, 0);
-    for (std::size_t k = 0; k < triangles_.size(); ++k) {
-      at_[k + 1] = at_[k] + triangles_[k].size();
-    }
-    mesh_.triangles.reserve(at_.back());
-    prefault_in_parts(run, mesh_.triangles.data(), at_.back() * sizeof(mesh_.triangles[0]));
-    mesh_.triangles.resize(at_.back());
-    run_loop(run, triangles_.size(), [&](std::size_t k) {
-      std::copy(triangles_[k].begin(), triangles_[k].end(),
-                mesh_.triangles.begin() + static_cast<std::ptrdiff_t>(at_[k]));
-      triangles_[k] = {};
+    const std::size_t n = triangles_.size();
+    run_loop(run, n + 2, [&](std::size_t k) {
+      if (k == n) {
+        entries_.reset();
+      } else if (k == n + 1) {
+        names_.reset();
+      } else {
+        std::copy(triangles_[k].begin(), triangles_[k].end(),
+                  mesh_.triangles.begin() + static_cast<std::ptrdiff_t>(at[k]));
+        triangles_[k] = {};
+      }
     });
   }
 
