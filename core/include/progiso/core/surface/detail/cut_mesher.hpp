@@ -192,42 +192,52 @@ class cut_mesher {
     for (std::size_t k = 0; k < parts_; ++k) first_id[k + 1] += first_id[k];
     const std::uint64_t vertices = first_id[parts_];
     PROGISO_ASSERT(vertices < mesh_builder_outside);
-    run_loop(run, parts_, [&](std::size_t k) { number(k, first_id[k]); });
     mesh_.vertices.reserve(vertices);
     prefault_in_parts(run, mesh_.vertices.data(), vertices * sizeof(vec3));
     triangles_.assign(parts_, {});
     clipped_.assign(parts_, {});
-    // std::vector's resize writes every element on one thread (6 M vertices: ~23 ms, a tenth of
-    // the extraction on 16 cores), so with more than one part it runs as one more item of the
-    // loop beside a pass that does not need the array: the vertex array's beside the triangles,
-    // the joined triangles' beside the vertex positions. Item 0, which the loop takes first.
-    run_loop(run, parts_ + 1, [&](std::size_t k) {
-      if (k == 0) {
-        mesh_.vertices.resize(vertices);
-        std::copy(root_positions_.begin(), root_positions_.end(), mesh_.vertices.begin());
-      } else {
-        triangulate(k - 1);
-      }
-    });
-    const std::vector<std::size_t> at = triangle_offsets();
-    if (parts_ > 1) {
-      mesh_.triangles.reserve(at.back());
-      prefault_in_parts(run, mesh_.triangles.data(), at.back() * sizeof(mesh_.triangles[0]));
+    if (parts_ == 1) {
+      // One part: nothing to size the arrays beside; ids and positions in one pass.
+      size_vertices(vertices);
+      number(0, first_id[0], true);
+      triangulate(0);
+      mesh_.triangles = std::move(triangles_[0]);
+    } else {
+      build_in_parts(run, first_id);
     }
-    run_loop(run, parts_ + 1, [&](std::size_t k) {
-      if (k == 0) {
-        if (parts_ > 1) mesh_.triangles.resize(at.back());
-      } else {
-        place(k - 1);
-      }
-    });
-    join_triangles(run, at);
     clip_pieces();
     drop_unused(mesh_, suspects_, run, parts_);
     return std::move(mesh_);
   }
 
  private:
+  // Passes 3 to 5 and the join, with more than one part.
+  void build_in_parts(const parallel_loop& run, const std::vector<std::uint64_t>& first_id) {
+    run_loop(run, parts_, [&](std::size_t k) { number(k, first_id[k], false); });
+    // std::vector's resize writes every element on one thread (6 M vertices: ~23 ms, a tenth of
+    // the extraction on 16 cores), so it runs as one more item of the loop beside a pass that
+    // does not need the array: the vertex array's beside the triangles, the joined triangles'
+    // beside the vertex positions. Item 0, which the loop takes first.
+    run_loop(run, parts_ + 1, [&](std::size_t k) {
+      if (k == 0) {
+        size_vertices(first_id[parts_]);
+      } else {
+        triangulate(k - 1);
+      }
+    });
+    const std::vector<std::size_t> at = triangle_offsets();
+    mesh_.triangles.reserve(at.back());
+    prefault_in_parts(run, mesh_.triangles.data(), at.back() * sizeof(mesh_.triangles[0]));
+    run_loop(run, parts_ + 1, [&](std::size_t k) {
+      if (k == 0) {
+        mesh_.triangles.resize(at.back());
+      } else {
+        place(k - 1);
+      }
+    });
+    join_triangles(run, at);
+  }
+
   static constexpr std::uint32_t mesh_builder_outside = std::uint32_t{1} << 31;
   static constexpr std::uint32_t outside = ~std::uint32_t{0};  // a vertex past the data box
 
@@ -380,35 +390,43 @@ class cut_mesher {
     }
   }
 
-  // Pass 3, over rank range k: each split's first vertex id, from the range's first id.
-  void number(std::size_t k, std::uint64_t id) {
+  void size_vertices(std::uint64_t vertices) {
+    mesh_.vertices.resize(vertices);
+    std::copy(root_positions_.begin(), root_positions_.end(), mesh_.vertices.begin());
+  }
+
+  // Pass 3, over rank range k: each split's first vertex id, from the range's first id, and with
+  // `place_too` its vertices' positions (one part: the vertex array is sized already).
+  void number(std::size_t k, std::uint64_t id, bool place_too) {
     const std::uint64_t n = index_.size();
     for (std::uint64_t i = first(n, k); i < first(n, k + 1); ++i) {
       naming& nm = names_[i];
       nm.base = static_cast<std::uint32_t>(id);
+      if (place_too && nm.mask != 0) place_split(i, id);
       id += bit_count(nm.mask);
     }
   }
 
-  // Pass 5 (after the triangles, beside the join's resize), over rank range k: the positions of
-  // the splits' vertices.
+  // Pass 5 (after the triangles, beside the joined triangles' resize), over rank range k: the
+  // positions of the splits' vertices.
   void place(std::size_t k) {
     const std::uint64_t n = index_.size();
     for (std::uint64_t i = first(n, k); i < first(n, k + 1); ++i) {
-      const naming& nm = names_[i];
-      std::uint64_t id = nm.base;
-      const std::uint32_t m = nm.mask;
-      if (m == 0) continue;
-      const entry& en = entries_[i];
-      const ipoint& c = en.centre;
-      const double fc = vol_.value(c[0], c[1], c[2]);
-      for (std::uint32_t todo = m; todo != 0; todo &= todo - 1) {
-        const ipoint x = at(c, en.scale, static_cast<unsigned>(std::countr_zero(todo)));
-        const double fx = vol_.value(x[0], x[1], x[2]);
-        const vec3 q =
-            vertex_less(c, x) ? interpolate(c, fc, x, fx, w_) : interpolate(x, fx, c, fc, w_);
-        mesh_.vertices[id++] = physical(q);
-      }
+      if (names_[i].mask != 0) place_split(i, names_[i].base);
+    }
+  }
+
+  // The positions of split i's vertices, from id on.
+  void place_split(std::uint64_t i, std::uint64_t id) {
+    const entry& en = entries_[i];
+    const ipoint& c = en.centre;
+    const double fc = vol_.value(c[0], c[1], c[2]);
+    for (std::uint32_t todo = names_[i].mask; todo != 0; todo &= todo - 1) {
+      const ipoint x = at(c, en.scale, static_cast<unsigned>(std::countr_zero(todo)));
+      const double fx = vol_.value(x[0], x[1], x[2]);
+      const vec3 q =
+          vertex_less(c, x) ? interpolate(c, fc, x, fx, w_) : interpolate(x, fx, c, fc, w_);
+      mesh_.vertices[id++] = physical(q);
     }
   }
 
@@ -536,13 +554,9 @@ class cut_mesher {
     return at;
   }
 
-  // The ranges' triangles into the mesh's array (already of its full size when there is more
-  // than one range), in parallel; the per-rank arrays, no longer needed, are freed beside them.
+  // The ranges' triangles into the mesh's array (already of its full size), in parallel; the
+  // per-rank arrays, no longer needed, are freed beside them.
   void join_triangles(const parallel_loop& run, const std::vector<std::size_t>& at) {
-    if (triangles_.size() == 1) {
-      mesh_.triangles = std::move(triangles_[0]);
-      return;
-    }
     const std::size_t n = triangles_.size();
     run_loop(run, n + 2, [&](std::size_t k) {
       if (k == n) {
