@@ -340,6 +340,11 @@ struct engine_impl : run_control {
   void count_children_alone(engine_root& r, const ipoint& centre, std::int32_t scale, int depth,
                             const packed_group* groups, std::size_t count, const range_data* rd,
                             split_tally& tally) const;
+  // The same with the children already listed (the one-thread loop lists them before the split
+  // to ask for their words early).
+  void count_children_alone(engine_root& r, const child_list& children, int depth,
+                            const packed_group* groups, std::size_t count, const range_data* rd,
+                            split_tally& tally) const;
 
   // Driver: counts the children of what a deadline published last (engine_root::uncounted)
   // and queues what it left (engine_root::leftover). Before anything reads the queue in a run.

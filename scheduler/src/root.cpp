@@ -78,7 +78,13 @@ bool engine_impl::queue_if_straddles(engine_root& r, const ipoint& c, std::int32
 void engine_impl::count_children_alone(engine_root& r, const ipoint& centre, std::int32_t scale,
                                        int depth, const packed_group* groups, std::size_t count,
                                        const range_data* rd, split_tally& tally) const {
-  const child_list children = hier.children_of(centre, scale, hierarchy::type_of(centre, scale));
+  count_children_alone(r, hier.children_of(centre, scale, hierarchy::type_of(centre, scale)), depth,
+                       groups, count, rd, tally);
+}
+
+void engine_impl::count_children_alone(engine_root& r, const child_list& children, int depth,
+                                       const packed_group* groups, std::size_t count,
+                                       const range_data* rd, split_tally& tally) const {
   for (int i = 0; i < children.count; ++i) {
     const auto ui = static_cast<std::size_t>(i);
     const ipoint& c = children.centre[ui];
