@@ -47,7 +47,7 @@ engine::~engine() {
     std::unique_lock lock(impl_->control);
     impl_->stop_and_join(lock);
   }
-  impl_->arena.execute([this] { impl_->graph->wait_for_all(); });
+  if (impl_->graph) impl_->arena.execute([this] { impl_->graph->wait_for_all(); });
   detail::engine_root* r = impl_->current();
   impl_->root.store(nullptr, std::memory_order_relaxed);  // relaxed: no reader is left
   impl_->recycle = false;

@@ -407,6 +407,7 @@ struct engine_impl : run_control {
   // One graph run: the first dispatch goes through the serial commit node too (the queue
   // belongs to it: tasks started by the dispatch loop commit while it still runs).
   void run_graph(engine_root* r);
+  void make_graph();
 
   // Whether a piece of the split surface `groups` lies in diamond `index` (its owner).
   [[nodiscard]] static bool owns_piece(const packed_group* groups, std::size_t count,
@@ -505,6 +506,8 @@ struct engine_impl : run_control {
   std::atomic<engine_root*> root{nullptr};
 
   mutable tbb::task_arena arena;
+  // The flow graph, made by the first run that uses it (make_graph(), driver thread; the
+  // destructor reads it after joining the driver).
   std::unique_ptr<tbb::flow::graph> graph;
   std::unique_ptr<tbb::flow::function_node<batch*, batch*>> compute;
   std::unique_ptr<tbb::flow::function_node<batch*>> commit;

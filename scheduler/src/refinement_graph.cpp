@@ -7,7 +7,9 @@
 
 namespace progiso::detail {
 
-// The engine and its graph: compute (any number in parallel) feeding commit (serial).
+// The engine. Nothing here touches the arena: oneTBB's first use in a process (its scheduler,
+// allocator library and worker threads) costs 0.4–0.9 ms, more than the root surface, so it
+// waits for the first run, after the first surface (see make_graph()).
 engine_impl::engine_impl(std::shared_ptr<const volume> owned, const volume& v, engine_options o)
     : run_control("engine"),
       owned_volume(std::move(owned)),
@@ -18,7 +20,12 @@ engine_impl::engine_impl(std::shared_ptr<const volume> owned, const volume& v, e
       domain(opt.reclamation),
       control_participant(domain),
       readers(domain),
-      arena(static_cast<int>(threads)) {
+      arena(static_cast<int>(threads)) {}
+
+// The graph: compute (any number in parallel) feeding commit (serial), made in the arena (a
+// graph runs its tasks in the arena it was made in) by the first run that uses it.
+void engine_impl::make_graph() {
+  if (graph) return;
   arena.execute([this] {
     graph = std::make_unique<tbb::flow::graph>();
     compute = std::make_unique<tbb::flow::function_node<batch*, batch*>>(
@@ -219,6 +226,7 @@ void engine_impl::run_graph(engine_root* r) {
     refine_in_tasks(*r);
     return;
   }
+  make_graph();
   arena.execute([&] {
     auto* seed = new batch;
     seed->root = r;
