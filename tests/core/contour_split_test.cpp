@@ -269,13 +269,8 @@ TEST(ContourSplit, segments_keep_the_larger_values_on_their_left) {
   EXPECT_GT(cross, 0);
 }
 
-TEST(ContourSplit, placed_split_gives_the_segments_and_the_vertex_positions_of_their_keys) {
-  // The refiners publish segments with positions computed while marching; readers and tests
-  // place a key from its edge's ends (place_contour_vertex). Every diamond of a padded noisy
-  // image with plateaus (values equal to w), at three isovalues: the same segments, in the same
-  // order, and exactly the same positions, both ends.
-  const std::int64_t width = 23;
-  const std::int64_t height = 14;
+// A padded noisy image with plateaus (values equal to some isovalues): 7 levels, 40 apart.
+volume noisy_image(std::int64_t width, std::int64_t height) {
   std::vector<std::byte> bytes(static_cast<std::size_t>(width * height));
   for (std::int64_t y = 0; y < height; ++y) {
     for (std::int64_t x = 0; x < width; ++x) {
@@ -284,7 +279,81 @@ TEST(ContourSplit, placed_split_gives_the_segments_and_the_vertex_positions_of_t
       bytes[static_cast<std::size_t>(x + width * y)] = static_cast<std::byte>(((s >> 29) % 7) * 40);
     }
   }
-  const volume img({width, height, 1}, sample_type::u8, std::move(bytes));
+  return volume({width, height, 1}, sample_type::u8, std::move(bytes));
+}
+
+TEST(ContourSplit, split_segments_are_marching_triangles_of_each_new_triangle_with_its_owner) {
+  // The split marches its new triangles by a table, places each crossed edge once and takes the
+  // owner from the spine end and the apex. Against the definition: for every diamond of a padded
+  // image, at four isovalues, the segments are march_triangle() of (spine0, centre, apex) and then
+  // (centre, spine1, apex) for each apex in the grid, in that order and direction, each owned by
+  // the diamond centred on its triangle's longest edge (none when that edge is a finest one).
+  const volume img = noisy_image(23, 14);
+  const hierarchy2d hier(23, 14);
+  const auto longest_edge_owner = [&](const std::array<ipoint2, 3>& t) {
+    std::int64_t best = -1;
+    ipoint2 sum{};
+    for (std::size_t i = 0; i < 3; ++i) {
+      const std::array<ipoint2, 2> e{t[i], t[(i + 1) % 3]};
+      const std::int64_t dx = e[0][0] - e[1][0], dy = e[0][1] - e[1][1];
+      if (dx * dx + dy * dy > best) {
+        best = dx * dx + dy * dy;
+        sum = {e[0][0] + e[1][0], e[0][1] + e[1][1]};
+      }
+    }
+    if ((sum[0] | sum[1]) & 1) return detail::no_owner2;
+    const ipoint2 m{sum[0] / 2, sum[1] / 2};
+    return hier.is_diamond(m) ? hier.index(m) : detail::no_owner2;
+  };
+  std::size_t total = 0;
+  for (const double w : {40.0, 100.0, 120.5, 200.0}) {
+    for (std::int32_t y = 0; y <= hier.grid_max()[1]; ++y) {
+      for (std::int32_t x = 0; x <= hier.grid_max()[0]; ++x) {
+        if (!hier.is_diamond({x, y})) continue;
+        const diamond2 d = hier.make_diamond({x, y});
+        const auto f = [&](const ipoint2& p) { return img.value(p[0], p[1], 0); };
+        std::vector<owned_segment> want;
+        int removed = 0;
+        for (std::size_t m = 0; m < 2; ++m) {
+          if (!((d.ring_in_grid >> m) & 1u)) continue;
+          const ipoint2& a = d.ring[m];
+          std::array<std::uint64_t, 2> k{};
+          if (march_triangle({d.spine[0], d.spine[1], a}, {f(d.spine[0]), f(d.spine[1]), f(a)}, w,
+                             k)) {
+            ++removed;
+          }
+          for (const std::array<ipoint2, 3>& t :
+               {std::array<ipoint2, 3>{d.spine[0], d.centre, a},
+                std::array<ipoint2, 3>{d.centre, d.spine[1], a}}) {
+            if (march_triangle(t, {f(t[0]), f(t[1]), f(t[2])}, w, k)) {
+              want.push_back({longest_edge_owner(t), k});
+            }
+          }
+        }
+        std::vector<owned_segment> got;
+        const contour_split_summary s = compute_contour_split(hier, img, w, d, got);
+        EXPECT_EQ(s.removed_segments, removed) << "diamond (" << x << ", " << y << "), w " << w;
+        EXPECT_EQ(s.added_segments, static_cast<int>(want.size()));
+        ASSERT_EQ(got.size(), want.size()) << "diamond (" << x << ", " << y << "), w " << w;
+        for (std::size_t i = 0; i < got.size(); ++i) {
+          EXPECT_EQ(got[i].owner, want[i].owner) << "diamond (" << x << ", " << y << "), w " << w;
+          EXPECT_EQ(got[i].keys, want[i].keys) << "diamond (" << x << ", " << y << "), w " << w;
+        }
+        total += got.size();
+      }
+    }
+  }
+  EXPECT_GT(total, 300u);
+}
+
+TEST(ContourSplit, placed_split_gives_the_segments_and_the_vertex_positions_of_their_keys) {
+  // The refiners publish segments with positions computed while marching; readers and tests
+  // place a key from its edge's ends (place_contour_vertex). Every diamond of a padded noisy
+  // image with plateaus (values equal to w), at three isovalues: the same segments, in the same
+  // order, and exactly the same positions, both ends.
+  const std::int64_t width = 23;
+  const std::int64_t height = 14;
+  const volume img = noisy_image(width, height);
   const hierarchy2d hier(width, height);
   std::size_t placed_total = 0;
   for (const double w : {40.0, 100.0, 120.5}) {

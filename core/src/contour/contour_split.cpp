@@ -19,20 +19,6 @@ std::string_view to_string(contour_primitive p) noexcept {
   return names[static_cast<std::size_t>(p)];
 }
 
-vec2 interpolate2(const ipoint2& a, double fa, const ipoint2& b, double fb,
-                  double isovalue) noexcept {
-  const bool swap = vertex_less2(b, a);
-  const ipoint2& p = swap ? b : a;
-  const ipoint2& q = swap ? a : b;
-  const double fp = swap ? fb : fa;
-  const double fq = swap ? fa : fb;
-  double t = (isovalue - fp) / (fq - fp);
-  if (!(t >= interpolation_margin)) t = interpolation_margin;
-  if (t > 1.0 - interpolation_margin) t = 1.0 - interpolation_margin;
-  return {static_cast<double>(p[0]) + t * static_cast<double>(q[0] - p[0]),
-          static_cast<double>(p[1]) + t * static_cast<double>(q[1] - p[1])};
-}
-
 namespace {
 
 // march_triangle(), also naming the corners its segment joins: ends[k] = {lone corner, other
@@ -74,22 +60,13 @@ bool march_triangle(const std::array<ipoint2, 3>& p, const std::array<double, 3>
 
 namespace {
 
-std::uint64_t owner_of(const hierarchy2d& hier, const std::array<ipoint2, 3>& t) noexcept {
-  std::int64_t best = -1;
-  std::size_t bi = 0, bj = 1;
-  for (std::size_t i = 0; i < 3; ++i) {
-    for (std::size_t j = i + 1; j < 3; ++j) {
-      const std::int64_t dx = t[i][0] - t[j][0];
-      const std::int64_t dy = t[i][1] - t[j][1];
-      if (dx * dx + dy * dy > best) {
-        best = dx * dx + dy * dy;
-        bi = i;
-        bj = j;
-      }
-    }
-  }
-  const std::int32_t sx = t[bi][0] + t[bj][0];
-  const std::int32_t sy = t[bi][1] + t[bj][1];
+// The diamond owning a new triangle of a split, (spine end, centre, apex) or (centre, spine end,
+// apex): the one centred on its longest edge, from the spine end to the apex (the halves of a
+// right isosceles triangle are right-angled at the centre), or none when that edge is a finest
+// one (odd doubled midpoint).
+std::uint64_t owner_of(const hierarchy2d& hier, const ipoint2& end, const ipoint2& apex) noexcept {
+  const std::int32_t sx = end[0] + apex[0];
+  const std::int32_t sy = end[1] + apex[1];
   if ((sx | sy) & 1) return ~std::uint64_t{0};
   const ipoint2 m{sx / 2, sy / 2};
   return hier.is_diamond(m) ? hier.index(m) : ~std::uint64_t{0};
@@ -107,13 +84,38 @@ struct op_list {
 
 namespace {
 
-// compute_contour_split(), each new segment handed to emit(owner, keys, triangle, values, ends)
-// (ends as march_corners()).
-template <class Emit>
-contour_split_summary split_diamond(const hierarchy2d& hier, const volume& image, double w,
+// Marching one new triangle of a split by table. Corners 0, 1, 2; edge q joins corners q and
+// q + 1 mod 3 (0: 01, 1: 12, 2: 20). For colour bits b (bit i: corner i black) of a crossed
+// triangle, the lone corner is the one whose colour the other two do not share, and the segment
+// runs from the crossing on the edge (lone, lone + 1) to the one on (lone, lone + 2), swapped so
+// that black lies on its left: march_triangle()'s rule, where the sign of that test is the
+// triangle's orientation, negated when the lone corner is white (tests/core/contour_split_test.cpp
+// checks the two against each other for every colouring).
+struct triangle_case {
+  std::uint8_t crossed;
+  std::uint8_t lone_black;
+  std::array<std::uint8_t, 2> edges;  // edge indices of the two ends, lone corner's order
+};
+constexpr std::array<triangle_case, 8> triangle_cases = [] {
+  std::array<triangle_case, 8> t{};
+  for (unsigned bits = 1; bits < 7; ++bits) {
+    const bool b0 = (bits & 1u) != 0, b1 = (bits & 2u) != 0, b2 = (bits & 4u) != 0;
+    const unsigned lone = b1 == b2 ? 0 : (b0 == b2 ? 1 : 2);
+    // Edge (lone, lone + 1) is edge `lone`; edge (lone, lone + 2) is edge lone + 2 mod 3.
+    t[bits] = {1,
+               static_cast<std::uint8_t>((bits >> lone) & 1u),
+               {static_cast<std::uint8_t>(lone), static_cast<std::uint8_t>((lone + 2) % 3)}};
+  }
+  return t;
+}();
+
+// compute_contour_split(), each new segment handed to emit(owner, keys, positions) (positions
+// computed only when Placed: interpolate2 of each crossed edge, once per edge); value(p) reads
+// the sample at grid point p, clamped into the data box.
+template <bool Placed, class Value, class Emit>
+contour_split_summary split_diamond(const hierarchy2d& hier, Value&& value, double w,
                                     const diamond2& d, Emit&& emit) {
   contour_split_summary s;
-  const auto value = [&](const ipoint2& p) { return image.value(p[0], p[1], 0); };
   const ipoint2& c = d.spine[0];
   const ipoint2& dd = d.spine[1];
   const ipoint2& e = d.centre;
@@ -135,20 +137,45 @@ contour_split_summary split_diamond(const hierarchy2d& hier, const volume& image
   s.boundary = n == 1;
 
   // ---- Segments: old triangles (counted), new triangles (recorded). ------------------------
+  const auto place = [w](const ipoint2& a, double fa, const ipoint2& b, double fb) {
+    if constexpr (Placed) {
+      return interpolate2(a, fa, b, fb, w);
+    } else {
+      return vec2{};
+    }
+  };
+  const vec2 at_ce = bc != be ? place(c, fc, e, fe) : vec2{};
+  const vec2 at_ed = be != bd ? place(e, fe, dd, fd) : vec2{};
+  const std::uint64_t key_ce = edge_key2(c, e);
+  const std::uint64_t key_ed = edge_key2(e, dd);
+  const std::int64_t ux = e[0] - c[0], uy = e[1] - c[1];
   for (int i = 0; i < n; ++i) {
     const side& x = sides[static_cast<std::size_t>(i)];
-    std::array<std::uint64_t, 2> k{};
-    if (march_triangle({c, dd, x.p}, {fc, fd, x.f}, w, k)) ++s.removed_segments;
+    if (bc != bd || bc != x.black) ++s.removed_segments;
+    // Both halves, (c, e, x) and (e, dd, x), turn the same way as (c, e, x): e lies on c–dd.
+    const bool clockwise =
+        ux * (std::int64_t{x.p[1]} - c[1]) - uy * (std::int64_t{x.p[0]} - c[0]) < 0;
+    const vec2 at_ex = be != x.black ? place(e, fe, x.p, x.f) : vec2{};
+    const vec2 at_cx = bc != x.black ? place(c, fc, x.p, x.f) : vec2{};
+    const vec2 at_dx = bd != x.black ? place(dd, fd, x.p, x.f) : vec2{};
+    const std::uint64_t key_ex = edge_key2(e, x.p);
     for (int half = 0; half < 2; ++half) {
-      const std::array<ipoint2, 3> t =
-          half == 0 ? std::array<ipoint2, 3>{c, e, x.p} : std::array<ipoint2, 3>{e, dd, x.p};
-      const std::array<double, 3> f =
-          half == 0 ? std::array<double, 3>{fc, fe, x.f} : std::array<double, 3>{fe, fd, x.f};
-      std::array<std::array<std::size_t, 2>, 2> ends{};
-      if (march_corners(t, f, w, k, ends)) {
-        emit(owner_of(hier, t), k, t, f, ends);
-        ++s.added_segments;
-      }
+      // Corners (c, e, x): edges ce, ex, xc; corners (e, dd, x): edges ed, dx, xe.
+      const unsigned bits = half == 0 ? (bc ? 1u : 0u) | (be ? 2u : 0u) | (x.black ? 4u : 0u)
+                                      : (be ? 1u : 0u) | (bd ? 2u : 0u) | (x.black ? 4u : 0u);
+      const triangle_case& tc = triangle_cases[bits];
+      if (tc.crossed == 0) continue;
+      const std::array<std::uint64_t, 3> keys =
+          half == 0 ? std::array<std::uint64_t, 3>{key_ce, key_ex, edge_key2(c, x.p)}
+                    : std::array<std::uint64_t, 3>{key_ed, edge_key2(dd, x.p), key_ex};
+      const std::array<const vec2*, 3> at =
+          half == 0 ? std::array<const vec2*, 3>{&at_ce, &at_ex, &at_cx}
+                    : std::array<const vec2*, 3>{&at_ed, &at_dx, &at_ex};
+      std::size_t q0 = tc.edges[0], q1 = tc.edges[1];
+      if ((tc.lone_black != 0) == clockwise) std::swap(q0, q1);
+      emit(owner_of(hier, half == 0 ? c : dd, x.p),
+           std::array<std::uint64_t, 2>{keys[q0], keys[q1]}, std::array<vec2, 2>{*at[q0], *at[q1]});
+      ++s.added_segments;
     }
   }
 
@@ -216,16 +243,35 @@ contour_split_summary split_diamond(const hierarchy2d& hier, const volume& image
   return s;
 }
 
+// Calls f(value) with a reader of the image's samples at grid points, clamped into the data box:
+// typed (one switch per split, not one per sample) unless the image is smoothed.
+template <class F>
+decltype(auto) with_sample_reader(const volume& image, F&& f) {
+  if (image.subdivided() != nullptr) {
+    return f([&image](const ipoint2& p) { return image.value(p[0], p[1], 0); });
+  }
+  const std::int32_t xmax = static_cast<std::int32_t>(image.dims()[0] - 1);
+  const std::int32_t ymax = static_cast<std::int32_t>(image.dims()[1] - 1);
+  return image.visit_samples([&](const auto* samples) {
+    return f([samples, xmax, ymax](const ipoint2& p) {
+      const std::int64_t x = std::clamp(p[0], 0, xmax);
+      const std::int64_t y = std::clamp(p[1], 0, ymax);
+      return static_cast<double>(samples[x + (std::int64_t{xmax} + 1) * y]);
+    });
+  });
+}
+
 }  // namespace
 
 contour_split_summary compute_contour_split(const hierarchy2d& hier, const volume& image, double w,
                                             const diamond2& d, std::vector<owned_segment>& out) {
-  return split_diamond(hier, image, w, d,
-                       [&out](std::uint64_t owner, const std::array<std::uint64_t, 2>& k,
-                              const std::array<ipoint2, 3>&, const std::array<double, 3>&,
-                              const std::array<std::array<std::size_t, 2>, 2>&) {
-                         out.push_back({owner, k});
-                       });
+  return with_sample_reader(image, [&](auto&& value) {
+    return split_diamond<false>(hier, value, w, d,
+                                [&out](std::uint64_t owner, const std::array<std::uint64_t, 2>& k,
+                                       const std::array<vec2, 2>&) {
+                                  out.push_back({owner, k});
+                                });
+  });
 }
 
 namespace detail {
@@ -233,17 +279,13 @@ namespace detail {
 contour_split_summary compute_placed_contour_split(const hierarchy2d& hier, const volume& image,
                                                    double isovalue, const diamond2& d,
                                                    std::vector<placed_segment>& out) {
-  return split_diamond(
-      hier, image, isovalue, d,
-      [&out, isovalue](std::uint64_t owner, const std::array<std::uint64_t, 2>& k,
-                       const std::array<ipoint2, 3>& t, const std::array<double, 3>& f,
-                       const std::array<std::array<std::size_t, 2>, 2>& ends) {
-        const auto at = [&](std::size_t e) {
-          const auto [a, b] = ends[e];
-          return interpolate2(t[a], f[a], t[b], f[b], isovalue);
-        };
-        out.push_back({{owner, k}, {at(0), at(1)}});
-      });
+  return with_sample_reader(image, [&](auto&& value) {
+    return split_diamond<true>(hier, value, isovalue, d,
+                               [&out](std::uint64_t owner, const std::array<std::uint64_t, 2>& k,
+                                      const std::array<vec2, 2>& pos) {
+                                 out.push_back({{owner, k}, pos});
+                               });
+  });
 }
 
 }  // namespace detail

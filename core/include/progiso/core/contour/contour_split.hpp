@@ -47,6 +47,7 @@
 #include <progiso/core/contour/contour.hpp>
 #include <progiso/core/field/volume.hpp>
 #include <progiso/core/hierarchy/hierarchy2d.hpp>
+#include <progiso/core/surface/marching.hpp>
 
 namespace progiso {
 
@@ -100,9 +101,21 @@ struct contour_split_summary {
 [[nodiscard]] bool march_triangle(const std::array<ipoint2, 3>& p, const std::array<double, 3>& f,
                                   double isovalue, std::array<std::uint64_t, 2>& out) noexcept;
 
-/// Contour vertex on crossed edge (a, b): canonical order, clamped t (as marching.hpp).
-[[nodiscard]] vec2 interpolate2(const ipoint2& a, double fa, const ipoint2& b, double fb,
-                                double isovalue) noexcept;
+/// Contour vertex on crossed edge (a, b): canonical order, clamped t (as marching.hpp). Inline:
+/// a split places up to eight ends, and their divisions overlap only when the compiler sees them.
+[[nodiscard]] inline vec2 interpolate2(const ipoint2& a, double fa, const ipoint2& b, double fb,
+                                       double isovalue) noexcept {
+  const bool swap = vertex_less2(b, a);
+  const ipoint2& p = swap ? b : a;
+  const ipoint2& q = swap ? a : b;
+  const double fp = swap ? fb : fa;
+  const double fq = swap ? fa : fb;
+  double t = (isovalue - fp) / (fq - fp);
+  if (!(t >= interpolation_margin)) t = interpolation_margin;
+  if (t > 1.0 - interpolation_margin) t = 1.0 - interpolation_margin;
+  return {static_cast<double>(p[0]) + t * static_cast<double>(q[0] - p[0]),
+          static_cast<double>(p[1]) + t * static_cast<double>(q[1] - p[1])};
+}
 
 /// Computes diamond d's split record at isovalue w: appends the new segments to `out`.
 contour_split_summary compute_contour_split(const hierarchy2d& hier, const volume& image,
