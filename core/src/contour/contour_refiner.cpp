@@ -24,6 +24,7 @@ contour_refiner::contour_refiner(const volume& image, const hierarchy2d& hier,
       ranges_(ranges),
       isovalue_(isovalue),
       frontier_(hier),
+      segments_(detail::chunked_store<detail::placed_segment>::bits_for(hier.vertex_count())),
       record_of_(hier.vertex_count()),
       queue_(std::make_unique<queue>(order == contour_order::breadth_first
                                          ? detail::queue_discipline::fifo
@@ -33,9 +34,9 @@ contour_refiner::contour_refiner(const volume& image, const hierarchy2d& hier,
   }
   origin_ = {image.origin()[0], image.origin()[1]};
   spacing_ = {image.spacing()[0], image.spacing()[1]};
-  records_.push_back({no_owner2, {0, 0}, 0, 0, 0.0});
   std::vector<ipoint2> roots;
-  detail::root_contour(hier_, image_, isovalue_, segments_, roots);
+  detail::root_contour(hier_, image_, isovalue_, root_segments_, roots);
+  records_.push_back({no_owner2, {0, 0}, root_segments_.data(), 0, 0.0});
   for (const ipoint2& c : roots) {
     ++stats_.visited;
     if (const auto r = detail::ready_contour_diamond(ranges_, isovalue_, c, hier_.index(c), 0)) {
@@ -44,9 +45,9 @@ contour_refiner::contour_refiner(const volume& image, const hierarchy2d& hier,
       ++stats_.culled;
     }
   }
-  records_[0].count = static_cast<std::uint32_t>(segments_.size());
-  stats_.segments = segments_.size();
-  stats_.record_segments = segments_.size();
+  records_[0].count = static_cast<std::uint32_t>(root_segments_.size());
+  stats_.segments = root_segments_.size();
+  stats_.record_segments = root_segments_.size();
 }
 
 contour_refiner::~contour_refiner() = default;
@@ -63,20 +64,18 @@ bool contour_refiner::split_next(std::uint64_t max_segments) {
   if (queue_->empty()) return false;
   const detail::contour_ready next = queue_->top();
   const diamond2 d = hier_.make_diamond(next.centre);
-  const std::uint64_t first = segments_.size();
+  scratch_.clear();
   const contour_split_summary s =
-      detail::compute_placed_contour_split(hier_, image_, isovalue_, d, segments_);
+      detail::compute_placed_contour_split(hier_, image_, isovalue_, d, scratch_);
   const std::uint64_t after = stats_.segments + static_cast<std::uint64_t>(s.added_segments) -
                               static_cast<std::uint64_t>(s.removed_segments);
-  if (after > max_segments) {
-    segments_.resize(first);
-    return false;
-  }
+  if (after > max_segments) return false;
   queue_->pop();
-  const std::uint64_t count = segments_.size() - first;
+  const auto count = static_cast<std::uint32_t>(scratch_.size());
+  const detail::placed_segment* at =
+      count == 0 ? nullptr : segments_.append_contiguous(scratch_.data(), count);
   record_of_.get()[next.index] = static_cast<std::uint32_t>(records_.size());
-  records_.push_back(
-      {next.index, next.centre, first, static_cast<std::uint32_t>(count), next.error});
+  records_.push_back({next.index, next.centre, at, count, next.error});
   stats_.segments = after;
   stats_.record_segments += count;
   ++stats_.splits;
@@ -120,13 +119,13 @@ contour_set contour_refiner::build(InCut&& in_cut) const {
   detail::contour_assembler out(hier_, isovalue_, static_cast<std::size_t>(stats_.segments));
   for (const record& r : records_) {
     if (!in_cut(r.diamond, r.centre, r.error, true)) continue;
-    for (std::uint64_t i = r.first; i < r.first + r.count; ++i) {
-      const owned_segment& s = segments_[i].seg;
+    for (const detail::placed_segment* p = r.segments; p != r.segments + r.count; ++p) {
+      const owned_segment& s = p->seg;
       if (s.owner != no_owner2 && frontier_.is_split(s.owner) &&
           in_cut(s.owner, ipoint2{}, 0.0, false)) {
         continue;
       }
-      out.add(segments_[i]);
+      out.add(*p);
     }
   }
   return out.finish(origin_, spacing_);

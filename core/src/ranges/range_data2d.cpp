@@ -187,6 +187,29 @@ class typed_range_data2d final : public range_data2d::impl {
     return r;
   }
 
+  // Scale-1 square centres (both coordinates odd) of the two rows last asked for. Each is a child
+  // of two edge midpoints of scale 2, one in the row above it and one below, so building scale 2
+  // row by row computes each of them once instead of twice.
+  struct square_rows {
+    std::array<std::int32_t, 2> y{-1, -1};
+    std::array<std::vector<diamond_range>, 2> ranges;
+    void fill(const typed_range_data2d& data, std::int32_t row) {
+      if (y[0] == row || y[1] == row) return;
+      const std::size_t slot = y[0] < y[1] ? 0 : 1;  // the older row
+      y[slot] = row;
+      std::vector<diamond_range>& out = ranges[slot];
+      const std::int32_t xmax = data.hier->grid_max()[0];
+      out.resize(static_cast<std::size_t>(xmax / 2));
+      for (std::int32_t x = 1; x < xmax; x += 2) {
+        out[static_cast<std::size_t>(x / 2)] = data.scale1({x, row});
+      }
+    }
+    [[nodiscard]] const diamond_range& at(const ipoint2& c) const noexcept {
+      PROGISO_ASSERT(c[1] == y[0] || c[1] == y[1]);
+      return ranges[c[1] == y[0] ? 0 : 1][static_cast<std::size_t>(c[0] / 2)];
+    }
+  };
+
   // ---- Build: finest stored scale first; within a scale, edge midpoints (type 1, whose
   // children are square centres of half the scale) before square centres (type 0, whose
   // children are this scale's edge midpoints). A diamond whose subtree lies in the data box
@@ -194,6 +217,7 @@ class typed_range_data2d final : public range_data2d::impl {
   // samples and its children's entries (interior()); the others run the definition.
   void build() {
     const int levels = hier->levels();
+    square_rows squares;
     for (int k = first_stored_; k < levels; ++k) {
       level& lv = levels_[static_cast<std::size_t>(k)];
       const std::int32_t h = std::int32_t{1} << k;
@@ -206,14 +230,27 @@ class typed_range_data2d final : public range_data2d::impl {
           if (type == 0 && !j_odd) continue;
           const std::int32_t i0 = type == 0 || !j_odd ? 1 : 0;
           const bool rows_inside = j * h - reach >= 0 && j * h + reach <= hier->data_max()[1];
+          const bool from_square_rows = h == 2 && type == 1 && rows_inside;
+          if (from_square_rows) {
+            squares.fill(*this, j * h - 1);
+            squares.fill(*this, j * h + 1);
+          }
           for (std::int32_t i = i0; i < lv.shape.n[0]; i += 2) {
             const ipoint2 c{i * h, j * h};
             PROGISO_ASSERT(hier->is_diamond(c) && hier->scale_of(c) == h);
             const bool inside =
                 rows_inside && c[0] - reach >= 0 && c[0] + reach <= hier->data_max()[0];
-            lv.entries[lv.shape.slot(c, k)] =
-                encode(inside ? interior(c, h, k, type, children_stored)
-                              : on_demand(hier->make_diamond(c)));
+            diamond_range r;
+            if (!inside) {
+              r = on_demand(hier->make_diamond(c));
+            } else if (from_square_rows) {
+              r = interior(c, h, k, type, [&](const ipoint2& ch) { return squares.at(ch); });
+            } else {
+              r = interior(c, h, k, type, [&](const ipoint2& ch) {
+                return children_stored ? stored(ch, k - 1) : get_at(ch);
+              });
+            }
+            lv.entries[lv.shape.slot(c, k)] = encode(r);
           }
         }
       }
@@ -226,9 +263,10 @@ class typed_range_data2d final : public range_data2d::impl {
   // Type 0 (square centre): its 4 corners (spine along the diagonal hierarchy2d::make_diamond
   // picks) and its edge midpoints of the same scale (stored before it); type 1 (edge midpoint):
   // spine along its odd axis, apexes along the other, and the 4 square centres of half its scale
-  // (stored one level down, or scale1() at h = 2).
+  // (child(centre): stored one level down, or scale1() at h = 2).
+  template <class Child>
   [[nodiscard]] diamond_range interior(const ipoint2& c, std::int32_t h, int k, int type,
-                                       bool children_stored) const noexcept {
+                                       Child&& child) const noexcept {
     const T* p = samples_ + c[0] + width_ * c[1];
     const std::int64_t w = width_;
     const std::int64_t hh = h;
@@ -262,7 +300,7 @@ class typed_range_data2d final : public range_data2d::impl {
     const std::int32_t g = h / 2;
     for (const ipoint2 ch : {ipoint2{c[0] + g, c[1] + g}, ipoint2{c[0] - g, c[1] + g},
                              ipoint2{c[0] + g, c[1] - g}, ipoint2{c[0] - g, c[1] - g}}) {
-      merge(r, g == 1 ? scale1(ch) : (children_stored ? stored(ch, k - 1) : get_at(ch)));
+      merge(r, child(ch));
     }
     return r;
   }

@@ -26,6 +26,7 @@
 
 #include <progiso/core/base/config.hpp>
 #include <progiso/core/base/detail/borrow.hpp>
+#include <progiso/core/base/detail/chunked_store.hpp>
 #include <progiso/core/base/error.hpp>
 #include <progiso/core/base/zeroed_array.hpp>
 #include <progiso/core/contour/contour.hpp>
@@ -96,7 +97,7 @@ class contour_refiner {
   struct record {
     std::uint64_t diamond;  // grid index, or ~0 for the root record
     ipoint2 centre;
-    std::uint64_t first;
+    const detail::placed_segment* segments;  // in segments_ (root_segments_ for the root)
     std::uint32_t count;
     double error;
   };
@@ -112,7 +113,11 @@ class contour_refiner {
   std::array<double, 2> origin_{};  // copied so that extraction never reads the image
   std::array<double, 2> spacing_{};
   detail::contour_frontier frontier_;  // per grid vertex: split flag, split parents
-  std::vector<detail::placed_segment> segments_;
+  // The root record's segments (any number), then every split's (at most 4 each) in chunks that
+  // never move: growth copies nothing.
+  std::vector<detail::placed_segment> root_segments_;
+  detail::chunked_store<detail::placed_segment> segments_;
+  std::vector<detail::placed_segment> scratch_;  // one split's segments
   std::vector<record> records_;
   // Record of each split diamond, by grid index (untouched pages cost nothing).
   zeroed_array<std::uint32_t> record_of_;
