@@ -2,6 +2,7 @@
 // tetrahedron in the diamond's subtree), sound for culling, and within the volume's own bytes.
 #include <progiso/core/field/analytic.hpp>
 #include <progiso/core/field/smoothing.hpp>
+#include <progiso/core/ranges/detail/range_entry.hpp>
 #include <progiso/core/ranges/range_data.hpp>
 
 #include <cmath>
@@ -109,6 +110,28 @@ void check_all_diamonds(const volume& v, bool exact_errors = true) {
           }
         }
       }
+}
+
+TEST(RangeData, stored_integer_errors_are_rounded_up_and_saturated) {
+  // Errors of integer samples are halves of integers, stored as the unsigned type of the
+  // samples' width: rounded up (never below the error, so the bound stays sound) and saturated.
+  using detail::quantize_error;
+  EXPECT_EQ(quantize_error<std::uint8_t>(0.0), 0);
+  EXPECT_EQ(quantize_error<std::uint8_t>(0.5), 1);
+  EXPECT_EQ(quantize_error<std::uint8_t>(1.0), 1);
+  EXPECT_EQ(quantize_error<std::uint8_t>(1e-300), 1);
+  EXPECT_EQ(quantize_error<std::uint8_t>(127.5), 128);
+  EXPECT_EQ(quantize_error<std::uint8_t>(254.5), 255);
+  EXPECT_EQ(quantize_error<std::uint8_t>(255.0), 255);
+  EXPECT_EQ(quantize_error<std::uint8_t>(300.0), 255);
+  EXPECT_EQ(quantize_error<std::uint16_t>(65534.5), 65535);
+  EXPECT_EQ(quantize_error<std::uint16_t>(1e30), 65535);
+  EXPECT_EQ(quantize_error<std::uint32_t>(4294967294.5), 4294967295u);
+  EXPECT_EQ(quantize_error<std::uint32_t>(3000000000.25), 3000000001u);
+  EXPECT_EQ(quantize_error<std::uint32_t>(std::nan("")), 4294967295u);
+  EXPECT_EQ(quantize_error<float>(0.7), std::nextafter(0.7f, 1.0f));  // 0.7f lies below 0.7
+  EXPECT_GE(static_cast<double>(quantize_error<float>(0.7)), 0.7);
+  EXPECT_EQ(quantize_error<float>(0.5), 0.5f);
 }
 
 TEST(RangeData, ranges_cover_every_subtree_and_are_nested_on_a_power_of_two_grid) {

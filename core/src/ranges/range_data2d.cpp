@@ -171,6 +171,13 @@ class typed_range_data2d final : public range_data2d::impl {
     return e;
   }
 
+  // The stored entry of centre c (scale 2^k), or the empty one beyond the clipped extent.
+  [[nodiscard]] entry<T> stored_entry(const ipoint2& c, int k) const noexcept {
+    const level& lv = levels_[static_cast<std::size_t>(k)];
+    const std::size_t s = lv.shape.slot(c, k);
+    return s == lv.entries.size() ? empty_entry() : lv.entries[s];
+  }
+
   [[nodiscard]] diamond_range stored(const ipoint2& c, int k) const noexcept {
     const level& lv = levels_[static_cast<std::size_t>(k)];
     const std::size_t s = lv.shape.slot(c, k);
@@ -192,21 +199,21 @@ class typed_range_data2d final : public range_data2d::impl {
   // row by row computes each of them once instead of twice.
   struct square_rows {
     std::array<std::int32_t, 2> y{-1, -1};
-    std::array<std::vector<diamond_range>, 2> ranges;
+    std::array<std::vector<entry<T>>, 2> entries;
     void fill(const typed_range_data2d& data, std::int32_t row) {
       if (y[0] == row || y[1] == row) return;
       const std::size_t slot = y[0] < y[1] ? 0 : 1;  // the older row
       y[slot] = row;
-      std::vector<diamond_range>& out = ranges[slot];
+      std::vector<entry<T>>& out = entries[slot];
       const std::int32_t xmax = data.hier->grid_max()[0];
       out.resize(static_cast<std::size_t>(xmax / 2));
       for (std::int32_t x = 1; x < xmax; x += 2) {
-        out[static_cast<std::size_t>(x / 2)] = data.scale1({x, row});
+        out[static_cast<std::size_t>(x / 2)] = encode(data.scale1({x, row}));
       }
     }
-    [[nodiscard]] const diamond_range& at(const ipoint2& c) const noexcept {
+    [[nodiscard]] const entry<T>& at(const ipoint2& c) const noexcept {
       PROGISO_ASSERT(c[1] == y[0] || c[1] == y[1]);
-      return ranges[c[1] == y[0] ? 0 : 1][static_cast<std::size_t>(c[0] / 2)];
+      return entries[c[1] == y[0] ? 0 : 1][static_cast<std::size_t>(c[0] / 2)];
     }
   };
 
@@ -240,33 +247,37 @@ class typed_range_data2d final : public range_data2d::impl {
             PROGISO_ASSERT(hier->is_diamond(c) && hier->scale_of(c) == h);
             const bool inside =
                 rows_inside && c[0] - reach >= 0 && c[0] + reach <= hier->data_max()[0];
-            diamond_range r;
+            entry<T>& out = lv.entries[lv.shape.slot(c, k)];
             if (!inside) {
-              r = on_demand(hier->make_diamond(c));
+              out = encode(on_demand(hier->make_diamond(c)));
+            } else if (type == 0) {
+              out = interior(c, h, k, type, [&](const ipoint2& ch) { return stored_entry(ch, k); });
             } else if (from_square_rows) {
-              r = interior(c, h, k, type, [&](const ipoint2& ch) { return squares.at(ch); });
+              out = interior(c, h, k, type, [&](const ipoint2& ch) { return squares.at(ch); });
+            } else if (children_stored) {
+              out = interior(c, h, k, type,
+                             [&](const ipoint2& ch) { return stored_entry(ch, k - 1); });
             } else {
-              r = interior(c, h, k, type, [&](const ipoint2& ch) {
-                return children_stored ? stored(ch, k - 1) : get_at(ch);
-              });
+              out = interior(c, h, k, type, [&](const ipoint2& ch) { return encode(get_at(ch)); });
             }
-            lv.entries[lv.shape.slot(c, k)] = encode(r);
           }
         }
       }
     }
   }
 
-  // on_demand() for a diamond of a stored scale whose subtree lies in the data box, so every
-  // point it reads is a data sample in the grid: the same samples, the same arithmetic in double,
-  // hence the same range and error, without making the diamond and its children as objects.
-  // Type 0 (square centre): its 4 corners (spine along the diagonal hierarchy2d::make_diamond
-  // picks) and its edge midpoints of the same scale (stored before it); type 1 (edge midpoint):
-  // spine along its odd axis, apexes along the other, and the 4 square centres of half its scale
-  // (child(centre): stored one level down, or scale1() at h = 2).
+  // The entry on_demand() gives a diamond of a stored scale whose subtree lies in the data box,
+  // so every point it reads is a data sample in the grid: the same samples and the same own
+  // error in double, merged with the children's entries in the sample type (an entry's bounds
+  // are samples, and rounding an error up commutes with taking the largest), hence the same
+  // entry, without making the diamond and its children as objects. Type 0 (square centre): its 4
+  // corners (spine along the diagonal hierarchy2d::make_diamond picks) and its edge midpoints of
+  // the same scale (stored before it); type 1 (edge midpoint): spine along its odd axis, apexes
+  // along the other, and the 4 square centres of half its scale (child(centre): stored one level
+  // down, or scale 1's from the row buffers).
   template <class Child>
-  [[nodiscard]] diamond_range interior(const ipoint2& c, std::int32_t h, int k, int type,
-                                       Child&& child) const noexcept {
+  [[nodiscard]] entry<T> interior(const ipoint2& c, std::int32_t h, int k, int type,
+                                  Child&& child) const noexcept {
     const T* p = samples_ + c[0] + width_ * c[1];
     const std::int64_t w = width_;
     const std::int64_t hh = h;
@@ -285,24 +296,24 @@ class typed_range_data2d final : public range_data2d::impl {
     const T fc = p[0];
     const T f0 = p[-spine];
     const T f1 = p[spine];
-    const T lo = std::min({fc, f0, f1, p[ring], p[-ring]});
-    const T hi = std::max({fc, f0, f1, p[ring], p[-ring]});
-    diamond_range r{static_cast<double>(lo), static_cast<double>(hi),
-                    std::abs(static_cast<double>(fc) -
-                             0.5 * (static_cast<double>(f0) + static_cast<double>(f1)))};
-    if (type == 0) {
-      merge(r, stored({c[0] + h, c[1]}, k));
-      merge(r, stored({c[0] - h, c[1]}, k));
-      merge(r, stored({c[0], c[1] + h}, k));
-      merge(r, stored({c[0], c[1] - h}, k));
-      return r;
+    entry<T> e{
+        std::min({fc, f0, f1, p[ring], p[-ring]}), std::max({fc, f0, f1, p[ring], p[-ring]}),
+        quantize_error<error_type<T>>(std::abs(
+            static_cast<double>(fc) - 0.5 * (static_cast<double>(f0) + static_cast<double>(f1))))};
+    const std::int32_t g = type == 0 ? h : h / 2;
+    const std::array<ipoint2, 4> children =
+        type == 0
+            ? std::array<ipoint2, 4>{ipoint2{c[0] + h, c[1]}, ipoint2{c[0] - h, c[1]},
+                                     ipoint2{c[0], c[1] + h}, ipoint2{c[0], c[1] - h}}
+            : std::array<ipoint2, 4>{ipoint2{c[0] + g, c[1] + g}, ipoint2{c[0] - g, c[1] + g},
+                                     ipoint2{c[0] + g, c[1] - g}, ipoint2{c[0] - g, c[1] - g}};
+    for (const ipoint2& ch : children) {
+      const entry<T>& x = child(ch);
+      e.lo = std::min(e.lo, x.lo);
+      e.hi = std::max(e.hi, x.hi);
+      e.error = std::max(e.error, x.error);
     }
-    const std::int32_t g = h / 2;
-    for (const ipoint2 ch : {ipoint2{c[0] + g, c[1] + g}, ipoint2{c[0] - g, c[1] + g},
-                             ipoint2{c[0] + g, c[1] - g}, ipoint2{c[0] - g, c[1] - g}}) {
-      merge(r, child(ch));
-    }
-    return r;
+    return e;
   }
 
   // ---- Scale 1 (3/4 of all diamonds), on demand. An edge midpoint (type 1) is a leaf: its own

@@ -9,6 +9,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <limits>
 #include <type_traits>
 
@@ -49,10 +50,13 @@ E quantize_error(double e) noexcept {
     if (static_cast<double>(f) < e) f = std::nextafter(f, std::numeric_limits<float>::infinity());
     return f;
   } else {
-    const double c = std::ceil(e);
-    if (c >= static_cast<double>(std::numeric_limits<E>::max())) {
+    // ceil(e), saturated. Not std::ceil: without SSE4.1 that is a library call, and this runs
+    // once per stored diamond. e ≥ 0 (an absolute difference); NaN saturates.
+    if (!(e < static_cast<double>(std::numeric_limits<E>::max()))) {
       return std::numeric_limits<E>::max();
     }
+    auto c = static_cast<std::uint64_t>(e);
+    if (static_cast<double>(c) < e) ++c;
     return static_cast<E>(c);
   }
 }
