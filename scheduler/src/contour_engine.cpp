@@ -184,7 +184,8 @@ struct contour_engine_impl : run_control {
     r.seeded = true;
     for (const ipoint2& c : r.root_centres) {
       ++t.visited;
-      if (const auto item = ready_contour_diamond(rd, r.isovalue, c, hier.index(c), 0)) {
+      if (const auto item =
+              ready_contour_diamond(rd, r.isovalue, c, hier.scale_of(c), hier.index(c), 0)) {
         r.queue.push(*item);
       } else {
         ++t.culled;
@@ -246,9 +247,9 @@ struct contour_engine_impl : run_control {
       for (int i = 0; i < s.op_count; ++i) {
         ++t.primitives[static_cast<std::size_t>(s.ops[static_cast<std::size_t>(i)].kind)];
       }
-      r->frontier.split(d, next.index, [&](const ipoint2& c, std::uint64_t ci) {
+      r->frontier.split(d, next.index, [&](const ipoint2& c, std::uint64_t ci, std::int32_t h) {
         ++t.visited;
-        if (const auto item = ready_contour_diamond(rd, r->isovalue, c, ci, d.depth + 1)) {
+        if (const auto item = ready_contour_diamond(rd, r->isovalue, c, h, ci, d.depth + 1)) {
           r->queue.push(*item);
         } else {
           ++t.culled;

@@ -5,6 +5,7 @@
 #include <progiso/core/contour/contour_refiner.hpp>
 #include <progiso/core/contour/contour_split.hpp>
 
+#include <algorithm>
 #include <cmath>
 #include <map>
 #include <memory>
@@ -70,6 +71,56 @@ TEST(ContourRefiner, full_resolution_equals_marching_triangles_on_every_shared_i
       expect_full_equals_reference(img, w);
     }
   }
+}
+
+TEST(ContourRefiner, last_split_gives_the_split_just_made_with_its_vertex_keys) {
+  // The summary is made again on demand. For each of the first splits (the diamond found as the
+  // one point that became split): its segment counts follow the cut's, and its primitive
+  // sequence turns the marching-triangles segments of the diamond's triangles into those of the
+  // triangles that replace them.
+  fixture f(make_image(41, 37, waves));
+  const double w = 0.1;
+  contour_refiner r(f.img, f.h, f.ranges, w);
+  EXPECT_EQ(r.last_split().op_count, 0);  // nothing split yet
+  const auto val = [&](const ipoint2& p) { return f.img.value(p[0], p[1], 0); };
+  const auto segment = [&](const std::array<ipoint2, 3>& t, std::vector<key_segment>& out) {
+    std::array<std::uint64_t, 2> k{};
+    if (march_triangle(t, {val(t[0]), val(t[1]), val(t[2])}, w, k)) {
+      out.push_back(k[0] < k[1] ? key_segment{k[0], k[1]} : key_segment{k[1], k[0]});
+    }
+  };
+  std::vector<std::uint8_t> was_split(static_cast<std::size_t>(f.h.vertex_count()), 0);
+  std::uint64_t segments = r.segment_count();
+  int with_ops = 0;
+  for (int i = 0; i < 300 && r.split_next(); ++i) {
+    std::vector<ipoint2> fresh;
+    for (std::int32_t y = 0; y <= f.h.grid_max()[1]; ++y) {
+      for (std::int32_t x = 0; x <= f.h.grid_max()[0]; ++x) {
+        auto& seen = was_split[static_cast<std::size_t>(f.h.index({x, y}))];
+        if (r.is_split({x, y}) && seen == 0) fresh.push_back({x, y});
+        seen = r.is_split({x, y}) ? 1 : 0;
+      }
+    }
+    ASSERT_EQ(fresh.size(), 1u);
+    const diamond2 d = f.h.make_diamond(fresh[0]);
+    const contour_split_summary s = r.last_split();
+    EXPECT_EQ(r.segment_count(), segments + static_cast<std::uint64_t>(s.added_segments) -
+                                     static_cast<std::uint64_t>(s.removed_segments));
+    segments = r.segment_count();
+    std::vector<key_segment> before, after;
+    for (std::size_t m = 0; m < 2; ++m) {
+      if (!((d.ring_in_grid >> m) & 1u)) continue;
+      segment({d.spine[0], d.spine[1], d.ring[m]}, before);
+      segment({d.spine[0], d.centre, d.ring[m]}, after);
+      segment({d.centre, d.spine[1], d.ring[m]}, after);
+    }
+    apply_contour_ops(before, s.ops.data(), s.op_count);
+    std::sort(before.begin(), before.end());
+    std::sort(after.begin(), after.end());
+    EXPECT_EQ(before, after) << "split " << i;
+    with_ops += s.op_count > 0 ? 1 : 0;
+  }
+  EXPECT_GT(with_ops, 20);
 }
 
 TEST(ContourRefiner, random_cuts_are_valid_contours) {

@@ -39,7 +39,8 @@ contour_refiner::contour_refiner(const volume& image, const hierarchy2d& hier,
   records_.push_back({no_owner2, {0, 0}, root_segments_.data(), 0, 0.0});
   for (const ipoint2& c : roots) {
     ++stats_.visited;
-    if (const auto r = detail::ready_contour_diamond(ranges_, isovalue_, c, hier_.index(c), 0)) {
+    if (const auto r = detail::ready_contour_diamond(ranges_, isovalue_, c, hier_.scale_of(c),
+                                                     hier_.index(c), 0)) {
       queue_->push(*r);
     } else {
       ++stats_.culled;
@@ -83,16 +84,27 @@ bool contour_refiner::split_next(std::uint64_t max_segments) {
   for (int i = 0; i < s.op_count; ++i) {
     ++stats_.primitives[static_cast<std::size_t>(s.ops[static_cast<std::size_t>(i)].kind)];
   }
-  last_ = s;
-  frontier_.split(d, next.index, [&](const ipoint2& c, std::uint64_t ci) {
+  last_index_ = next.index;
+  frontier_.split(d, next.index, [&](const ipoint2& c, std::uint64_t ci, std::int32_t h) {
     ++stats_.visited;
-    if (const auto r = detail::ready_contour_diamond(ranges_, isovalue_, c, ci, d.depth + 1)) {
+    if (const auto r = detail::ready_contour_diamond(ranges_, isovalue_, c, h, ci, d.depth + 1)) {
       queue_->push(*r);
     } else {
       ++stats_.culled;
     }
   });
   return true;
+}
+
+contour_split_summary contour_refiner::last_split() const {
+  if (last_index_ == no_owner2) return {};
+  // Made again from the image: a split's sequence with its keys is wanted rarely, and making it
+  // for every split cost a tenth of the split.
+  const auto stride = static_cast<std::uint64_t>(hier_.grid_max()[0]) + 1;
+  const ipoint2 c{static_cast<std::int32_t>(last_index_ % stride),
+                  static_cast<std::int32_t>(last_index_ / stride)};
+  std::vector<owned_segment> unused;
+  return compute_contour_split(hier_, image_, isovalue_, hier_.make_diamond(c), unused);
 }
 
 void contour_refiner::refine_full() {

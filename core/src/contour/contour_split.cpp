@@ -72,11 +72,18 @@ std::uint64_t owner_of(const hierarchy2d& hier, const ipoint2& end, const ipoint
   return hier.is_diamond(m) ? hier.index(m) : ~std::uint64_t{0};
 }
 
+// The primitive sequence of a split; with Keys false only the primitives' kinds (what the
+// refiners count), and the keys naming their vertices are never computed.
+template <bool Keys>
 struct op_list {
   contour_split_summary& s;
   void add(contour_primitive k, std::uint64_t a0, std::uint64_t a1 = no_key,
            std::uint64_t a2 = no_key, std::uint64_t a3 = no_key) {
-    s.ops[static_cast<std::size_t>(s.op_count++)] = contour_op{k, {a0, a1, a2, a3}};
+    if constexpr (Keys) {
+      s.ops[static_cast<std::size_t>(s.op_count++)] = contour_op{k, {a0, a1, a2, a3}};
+    } else {
+      s.ops[static_cast<std::size_t>(s.op_count++)].kind = k;
+    }
   }
 };
 
@@ -110,9 +117,9 @@ constexpr std::array<triangle_case, 8> triangle_cases = [] {
 }();
 
 // compute_contour_split(), each new segment handed to emit(owner, keys, positions) (positions
-// computed only when Placed: interpolate2 of each crossed edge, once per edge); value(p) reads
-// the sample at grid point p, clamped into the data box.
-template <bool Placed, class Value, class Emit>
+// computed only when Placed: interpolate2 of each crossed edge, once per edge; the primitives'
+// keys only when Keys); value(p) reads the sample at grid point p, clamped into the data box.
+template <bool Placed, bool Keys, class Value, class Emit>
 contour_split_summary split_diamond(const hierarchy2d& hier, Value&& value, double w,
                                     const diamond2& d, Emit&& emit) {
   contour_split_summary s;
@@ -181,7 +188,7 @@ contour_split_summary split_diamond(const hierarchy2d& hier, Value&& value, doub
 
   // ---- Case and primitives. -----------------------------------------------------------------
   const auto K = [](const ipoint2& p, const ipoint2& q) { return edge_key2(p, q); };
-  op_list ops{s};
+  op_list<Keys> ops{s};
   if (n == 0) return s;
   const side& sa = sides[0];
   if (bc != bd) {
@@ -266,11 +273,12 @@ decltype(auto) with_sample_reader(const volume& image, F&& f) {
 contour_split_summary compute_contour_split(const hierarchy2d& hier, const volume& image, double w,
                                             const diamond2& d, std::vector<owned_segment>& out) {
   return with_sample_reader(image, [&](auto&& value) {
-    return split_diamond<false>(hier, value, w, d,
-                                [&out](std::uint64_t owner, const std::array<std::uint64_t, 2>& k,
-                                       const std::array<vec2, 2>&) {
-                                  out.push_back({owner, k});
-                                });
+    return split_diamond<false, true>(
+        hier, value, w, d,
+        [&out](std::uint64_t owner, const std::array<std::uint64_t, 2>& k,
+               const std::array<vec2, 2>&) {
+          out.push_back({owner, k});
+        });
   });
 }
 
@@ -280,11 +288,12 @@ contour_split_summary compute_placed_contour_split(const hierarchy2d& hier, cons
                                                    double isovalue, const diamond2& d,
                                                    std::vector<placed_segment>& out) {
   return with_sample_reader(image, [&](auto&& value) {
-    return split_diamond<true>(hier, value, isovalue, d,
-                               [&out](std::uint64_t owner, const std::array<std::uint64_t, 2>& k,
-                                      const std::array<vec2, 2>& pos) {
-                                 out.push_back({{owner, k}, pos});
-                               });
+    return split_diamond<true, false>(
+        hier, value, isovalue, d,
+        [&out](std::uint64_t owner, const std::array<std::uint64_t, 2>& k,
+               const std::array<vec2, 2>& pos) {
+          out.push_back({{owner, k}, pos});
+        });
   });
 }
 

@@ -20,6 +20,10 @@ struct range_data2d::impl {
   virtual ~impl() = default;
   [[nodiscard]] virtual diamond_range get(const diamond2& d) const noexcept = 0;
   [[nodiscard]] virtual diamond_range get_at(const ipoint2& c) const noexcept = 0;
+  // get_at() for a caller that knows c's scale.
+  [[nodiscard]] virtual diamond_range get_scaled(const ipoint2& c, std::int32_t) const noexcept {
+    return get_at(c);
+  }
   [[nodiscard]] virtual std::size_t byte_size() const noexcept = 0;
   [[nodiscard]] virtual std::int32_t finest_stored_scale() const noexcept = 0;
   const volume* image = nullptr;
@@ -136,7 +140,11 @@ class typed_range_data2d final : public range_data2d::impl {
   }
 
   [[nodiscard]] diamond_range get_at(const ipoint2& c) const noexcept override {
-    const std::int32_t h = hier->scale_of(c);
+    return get_scaled(c, hier->scale_of(c));
+  }
+
+  [[nodiscard]] diamond_range get_scaled(const ipoint2& c, std::int32_t h) const noexcept override {
+    PROGISO_ASSERT(h == hier->scale_of(c));
     if (h == 1) return scale1(c);
     const int k = std::countr_zero(static_cast<std::uint32_t>(h));
     if (k < first_stored_) return on_demand(hier->make_diamond(c));
@@ -461,6 +469,9 @@ range_data2d& range_data2d::operator=(range_data2d&&) noexcept = default;
 diamond_range range_data2d::get(const diamond2& d) const noexcept { return impl_->get(d); }
 diamond_range range_data2d::get(const ipoint2& centre) const noexcept {
   return impl_->get_at(centre);
+}
+diamond_range range_data2d::get(const ipoint2& centre, std::int32_t scale) const noexcept {
+  return impl_->get_scaled(centre, scale);
 }
 diamond_range range_data2d::own(const diamond2& d) const noexcept { return impl_->own(d); }
 std::size_t range_data2d::byte_size() const noexcept { return impl_->byte_size(); }

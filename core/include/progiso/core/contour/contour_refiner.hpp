@@ -83,7 +83,7 @@ class contour_refiner {
   [[nodiscard]] const contour_statistics& statistics() const noexcept { return stats_; }
   [[nodiscard]] bool is_split(const ipoint2& centre) const noexcept;
   /// Summary (case, primitives) of the most recent split.
-  [[nodiscard]] const contour_split_summary& last_split() const noexcept { return last_; }
+  [[nodiscard]] contour_split_summary last_split() const;
 
   /// The current cut as polylines (pixel units, clipped to the image).
   [[nodiscard]] contour_set extract() const;
@@ -123,7 +123,7 @@ class contour_refiner {
   zeroed_array<std::uint32_t> record_of_;
   std::unique_ptr<queue> queue_;
   contour_statistics stats_;
-  contour_split_summary last_;
+  std::uint64_t last_index_ = ~std::uint64_t{0};  // grid index of the last split diamond
 };
 
 // -------------------------------------------------------------------------------------------

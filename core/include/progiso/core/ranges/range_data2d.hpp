@@ -68,6 +68,8 @@ class range_data2d {
   [[nodiscard]] diamond_range get(const diamond2& d) const noexcept;
   /// The same for the diamond centred at `centre` (precondition: hier.is_diamond(centre)).
   [[nodiscard]] diamond_range get(const ipoint2& centre) const noexcept;
+  /// The same, for a caller that knows the diamond's scale (hier.scale_of(centre)).
+  [[nodiscard]] diamond_range get(const ipoint2& centre, std::int32_t scale) const noexcept;
   /// Own (not nested) range and split error of d: centre, spine ends and in-grid apexes;
   /// empty with error 0 when d lies wholly beyond the data box.
   [[nodiscard]] diamond_range own(const diamond2& d) const noexcept;

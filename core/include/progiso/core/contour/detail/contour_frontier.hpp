@@ -49,7 +49,8 @@ struct contour_ready {
 
 /// compute_contour_split() with each new segment's vertices placed: appended to `out` with the
 /// positions place_contour_vertex() gives their keys (interpolate2 of the crossed edge's ends in
-/// canonical order), from the samples the split has read already.
+/// canonical order), from the samples the split has read already. The summary's primitives
+/// carry their kinds only (their keys are no_key): what the refiners count.
 contour_split_summary compute_placed_contour_split(const hierarchy2d& hier, const volume& image,
                                                    double isovalue, const diamond2& d,
                                                    std::vector<placed_segment>& out);
@@ -62,12 +63,10 @@ void root_contour(const hierarchy2d& hier, const volume& image, double isovalue,
 
 /// The readiness rule: the diamond centred at c (parents all split) is queued by its nested
 /// error when its range straddles the isovalue, and culled (nothing) otherwise.
-[[nodiscard]] inline std::optional<contour_ready> ready_contour_diamond(const range_data2d& ranges,
-                                                                        double isovalue,
-                                                                        const ipoint2& c,
-                                                                        std::uint64_t index,
-                                                                        int depth) noexcept {
-  const diamond_range r = ranges.get(c);
+[[nodiscard]] inline std::optional<contour_ready> ready_contour_diamond(
+    const range_data2d& ranges, double isovalue, const ipoint2& c, std::int32_t scale,
+    std::uint64_t index, int depth) noexcept {
+  const diamond_range r = ranges.get(c, scale);
   if (!r.straddles(isovalue)) return std::nullopt;
   return contour_ready{r.error, depth, index, c};
 }
@@ -80,22 +79,45 @@ class contour_frontier {
   [[nodiscard]] bool is_split(std::uint64_t index) const noexcept {
     return (state_.get()[index] & split_bit) != 0;
   }
-  /// Marks diamond d (grid index `index`) split and calls ready(child centre, child index) for
-  /// each child whose parents are now all split. Returns d's child count.
+  /// Marks diamond d (grid index `index`) split and calls ready(child centre, child index, child
+  /// scale) for each child whose parents are now all split, in hierarchy2d::children()'s order.
+  /// Returns d's child count. The children's scales and parent counts follow from d's type (as
+  /// hierarchy2d::parent_count() gives them): a square centre's children are the edge midpoints
+  /// of its sides, of its scale, whose parents are the square centres on either side that lie in
+  /// the grid; an edge midpoint's are square centres of half its scale, with two parents each.
   template <class Ready>
   int split(const diamond2& d, std::uint64_t index, Ready&& ready) {
     std::uint8_t* state = state_.get();
     state[index] = static_cast<std::uint8_t>(state[index] | split_bit);
-    std::array<ipoint2, 4> children{};
-    const int nc = hier_->children(d, children);
-    for (int i = 0; i < nc; ++i) {
-      const ipoint2& c = children[static_cast<std::size_t>(i)];
-      const std::uint64_t ci = hier_->index(c);
+    const ipoint2& c = d.centre;
+    const std::int32_t h = d.scale;
+    const ipoint2& gmax = hier_->grid_max();
+    int n = 0;
+    const auto visit = [&](const ipoint2& child, std::int32_t scale, int parents) {
+      const std::uint64_t ci = hier_->index(child);
       const auto count = static_cast<std::uint8_t>((state[ci] & parent_count_mask) + 1);
       state[ci] = static_cast<std::uint8_t>((state[ci] & ~parent_count_mask) | count);
-      if (count == hier_->parent_count(c)) ready(c, ci);
+      ++n;
+      if (count == parents) ready(child, ci, scale);
+    };
+    if (d.type == 0) {
+      // Along axis q the child's parents lie at ± h along q.
+      const auto side = [&](const ipoint2& child, std::size_t q) {
+        if (!hier_->in_grid(child)) return;
+        visit(child, h, (child[q] - h >= 0 ? 1 : 0) + (child[q] + h <= gmax[q] ? 1 : 0));
+      };
+      side({c[0] + h, c[1]}, 0);
+      side({c[0] - h, c[1]}, 0);
+      side({c[0], c[1] + h}, 1);
+      side({c[0], c[1] - h}, 1);
+    } else if (h >= 2) {
+      const std::int32_t g = h / 2;
+      for (const ipoint2 child : {ipoint2{c[0] + g, c[1] + g}, ipoint2{c[0] - g, c[1] + g},
+                                  ipoint2{c[0] + g, c[1] - g}, ipoint2{c[0] - g, c[1] - g}}) {
+        if (hier_->in_grid(child)) visit(child, g, 2);
+      }
     }
-    return nc;
+    return n;
   }
 
  private:
