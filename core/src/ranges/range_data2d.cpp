@@ -208,6 +208,10 @@ class typed_range_data2d final : public range_data2d::impl {
   struct square_rows {
     std::array<std::int32_t, 2> y{-1, -1};
     std::array<std::vector<entry<T>>, 2> entries;
+    // Integer samples: per column of the row, lo, hi and the split errors, in the sample type.
+    std::vector<T> lo, hi;
+    std::vector<error_type<T>> across, vertical, main_diagonal, other_diagonal;
+
     void fill(const typed_range_data2d& data, std::int32_t row) {
       if (y[0] == row || y[1] == row) return;
       const std::size_t slot = y[0] < y[1] ? 0 : 1;  // the older row
@@ -215,10 +219,88 @@ class typed_range_data2d final : public range_data2d::impl {
       std::vector<entry<T>>& out = entries[slot];
       const std::int32_t xmax = data.hier->grid_max()[0];
       out.resize(static_cast<std::size_t>(xmax / 2));
+      const ipoint2& dmax = data.hier->data_max();
+      // Columns whose 13 samples lie in the data box: 2 ≤ x ≤ dmax − 2 (rows likewise).
+      std::int32_t x0 = 3, x1 = dmax[0] - 2;  // odd x in [x0, x1] run in columns
+      if constexpr (std::is_integral_v<T>) {
+        if (row < 2 || row + 2 > dmax[1] || x1 < x0) x1 = x0 - 2;
+      } else {
+        x1 = x0 - 2;
+      }
       for (std::int32_t x = 1; x < xmax; x += 2) {
-        out[static_cast<std::size_t>(x / 2)] = encode(data.scale1({x, row}));
+        if (x == x0 && x1 >= x0) {
+          fill_columns(data, row, x0, x1, out);
+          x = x1;
+          continue;
+        }
+        out[static_cast<std::size_t>(x / 2)] = data.scale1_entry({x, row});
       }
     }
+
+    // scale1_entry() of the odd columns x0..x1 of `row`, all in the data box, integer samples:
+    // each quantity over every column x0 − 1 .. x1 + 1 first (loops the compiler vectorises),
+    // then the odd columns picked. The same samples and integer arithmetic, so the same entries.
+    void fill_columns(const typed_range_data2d& data, std::int32_t row, std::int32_t x0,
+                      std::int32_t x1, std::vector<entry<T>>& out) {
+      using wide = std::conditional_t<(sizeof(T) < 4), std::int32_t, std::int64_t>;
+      const auto n = static_cast<std::size_t>(x1 - x0 + 3);  // columns x0 − 1 .. x1 + 1
+      lo.resize(n);
+      hi.resize(n);
+      across.resize(n);
+      vertical.resize(n);
+      main_diagonal.resize(n);
+      other_diagonal.resize(n);
+      const std::int64_t w = data.width_;
+      // Restrict: the sample type may be a character type, which would alias every output.
+      const T* __restrict r0 = data.samples_ + (x0 - 1) + w * row;  // column x0 − 1 of the row
+      const T* __restrict rn = r0 - w;
+      const T* __restrict rs = r0 + w;
+      const T* __restrict rnn = r0 - 2 * w;
+      const T* __restrict rss = r0 + 2 * w;
+      T* __restrict out_lo = lo.data();
+      T* __restrict out_hi = hi.data();
+      error_type<T>* __restrict out_vertical = vertical.data();
+      error_type<T>* __restrict out_across = across.data();
+      error_type<T>* __restrict out_main = main_diagonal.data();
+      error_type<T>* __restrict out_other = other_diagonal.data();
+      const auto err = [](T mid, T a, T b) {
+        wide v = 2 * static_cast<wide>(mid) - static_cast<wide>(a) - static_cast<wide>(b);
+        v = v < 0 ? -v : v;
+        return static_cast<error_type<T>>((v + 1) >> 1);
+      };
+      // Quantities at column i ≥ 1 read columns i − 1 .. i + 1 (and i ± 2 on the row itself).
+      for (std::size_t i = 1; i + 1 < n; ++i) {
+        const T a = std::min(std::min(rn[i - 1], rn[i]), rn[i + 1]);
+        const T b = std::min(std::min(rs[i - 1], rs[i]), rs[i + 1]);
+        const T c = std::min(std::min(r0[i - 2], r0[i - 1]), std::min(r0[i], r0[i + 1]));
+        const T d = std::min(std::min(r0[i + 2], rnn[i]), rss[i]);
+        out_lo[i] = std::min(std::min(a, b), std::min(c, d));
+      }
+      for (std::size_t i = 1; i + 1 < n; ++i) {
+        const T a = std::max(std::max(rn[i - 1], rn[i]), rn[i + 1]);
+        const T b = std::max(std::max(rs[i - 1], rs[i]), rs[i + 1]);
+        const T c = std::max(std::max(r0[i - 2], r0[i - 1]), std::max(r0[i], r0[i + 1]));
+        const T d = std::max(std::max(r0[i + 2], rnn[i]), rss[i]);
+        out_hi[i] = std::max(std::max(a, b), std::max(c, d));
+      }
+      for (std::size_t i = 0; i < n; ++i) out_vertical[i] = err(r0[i], rn[i], rs[i]);
+      for (std::size_t i = 1; i + 1 < n; ++i) {
+        out_across[i] =
+            std::max(err(rn[i], rn[i - 1], rn[i + 1]), err(rs[i], rs[i - 1], rs[i + 1]));
+        out_main[i] = err(r0[i], rn[i - 1], rs[i + 1]);
+        out_other[i] = err(r0[i], rn[i + 1], rs[i - 1]);
+      }
+      for (std::int32_t x = x0; x <= x1; x += 2) {
+        const auto i = static_cast<std::size_t>(x - x0 + 1);
+        // As scale1(): the own spine joins the corners ≡ 0 mod 4 when c ≡ (1, 1) or (3, 3) mod 4.
+        const bool main = ((x ^ row) & 2) == 0;
+        const error_type<T> e =
+            std::max(std::max(main ? main_diagonal[i] : other_diagonal[i], across[i]),
+                     std::max(vertical[i - 1], vertical[i + 1]));
+        out[static_cast<std::size_t>(x / 2)] = {lo[i], hi[i], e};
+      }
+    }
+
     [[nodiscard]] const entry<T>& at(const ipoint2& c) const noexcept {
       PROGISO_ASSERT(c[1] == y[0] || c[1] == y[1]);
       return entries[c[1] == y[0] ? 0 : 1][static_cast<std::size_t>(c[0] / 2)];
@@ -304,10 +386,8 @@ class typed_range_data2d final : public range_data2d::impl {
     const T fc = p[0];
     const T f0 = p[-spine];
     const T f1 = p[spine];
-    entry<T> e{
-        std::min({fc, f0, f1, p[ring], p[-ring]}), std::max({fc, f0, f1, p[ring], p[-ring]}),
-        quantize_error<error_type<T>>(std::abs(
-            static_cast<double>(fc) - 0.5 * (static_cast<double>(f0) + static_cast<double>(f1))))};
+    entry<T> e{std::min({fc, f0, f1, p[ring], p[-ring]}), std::max({fc, f0, f1, p[ring], p[-ring]}),
+               stored_split_error(fc, f0, f1)};
     const std::int32_t g = type == 0 ? h : h / 2;
     const std::array<ipoint2, 4> children =
         type == 0
@@ -322,6 +402,51 @@ class typed_range_data2d final : public range_data2d::impl {
       e.error = std::max(e.error, x.error);
     }
     return e;
+  }
+
+  // The stored (rounded up) form of the split error |mid − (a + b) / 2|: for integer samples
+  // ⌈|2 mid − a − b| / 2⌉ in integers (the error is a half-integer, exact in double, so this is
+  // quantize_error() of it), else quantize_error() of the double.
+  static error_type<T> stored_split_error(T mid, T a, T b) noexcept {
+    if constexpr (std::is_integral_v<T>) {
+      using wide = std::conditional_t<(sizeof(T) < 4), std::int32_t, std::int64_t>;
+      wide v = 2 * static_cast<wide>(mid) - static_cast<wide>(a) - static_cast<wide>(b);
+      v = v < 0 ? -v : v;
+      return static_cast<error_type<T>>((v + 1) >> 1);
+    } else {
+      return quantize_error<error_type<T>>(std::abs(
+          static_cast<double>(mid) - 0.5 * (static_cast<double>(a) + static_cast<double>(b))));
+    }
+  }
+
+  // The stored entry of a scale-1 square centre (both coordinates odd): scale1() rounded as
+  // encode() rounds it, from the samples in the sample type where its 13 lie in the data box.
+  [[nodiscard]] entry<T> scale1_entry(const ipoint2& c) const noexcept {
+    const ipoint2& dmax = hier->data_max();
+    if (c[0] < 2 || c[1] < 2 || c[0] + 2 > dmax[0] || c[1] + 2 > dmax[1]) return encode(scale1(c));
+    const T* p = samples_ + c[0] + width_ * c[1];
+    const std::int64_t w = width_;
+    const T nw = p[-w - 1], n = p[-w], ne = p[-w + 1];
+    const T west = p[-1], m = p[0], east = p[1];
+    const T sw = p[w - 1], s = p[w], se = p[w + 1];
+    const T far_n = p[-2 * w], far_s = p[2 * w], far_w = p[-2], far_e = p[2];
+    const auto lo3 = [](T a, T b, T x) { return std::min(std::min(a, b), x); };
+    const auto hi3 = [](T a, T b, T x) { return std::max(std::max(a, b), x); };
+    const T lo = std::min(
+        std::min(lo3(nw, n, ne), lo3(west, m, east)),
+        std::min(lo3(sw, s, se), std::min(std::min(far_n, far_s), std::min(far_w, far_e))));
+    const T hi = std::max(
+        std::max(hi3(nw, n, ne), hi3(west, m, east)),
+        std::max(hi3(sw, s, se), std::max(std::max(far_n, far_s), std::max(far_w, far_e))));
+    // As scale1(): the own spine joins the corners ≡ 0 mod 4 when c ≡ (1, 1) or (3, 3) mod 4.
+    const bool main_diagonal = ((c[0] ^ c[1]) & 2) == 0;
+    const error_type<T> own =
+        main_diagonal ? stored_split_error(m, nw, se) : stored_split_error(m, ne, sw);
+    const error_type<T> err =
+        std::max(std::max(own, stored_split_error(n, nw, ne)),
+                 std::max(std::max(stored_split_error(s, sw, se), stored_split_error(west, nw, sw)),
+                          stored_split_error(east, ne, se)));
+    return {lo, hi, err};
   }
 
   // ---- Scale 1 (3/4 of all diamonds), on demand. An edge midpoint (type 1) is a leaf: its own
