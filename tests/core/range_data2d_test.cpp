@@ -33,6 +33,9 @@ volume make_image(std::int64_t w, std::int64_t h, F&& f) {
   sample_type type = sample_type::u8;
   if constexpr (std::is_same_v<T, std::uint16_t>) type = sample_type::u16;
   if constexpr (std::is_same_v<T, std::int16_t>) type = sample_type::i16;
+  if constexpr (std::is_same_v<T, std::int8_t>) type = sample_type::i8;
+  if constexpr (std::is_same_v<T, std::uint32_t>) type = sample_type::u32;
+  if constexpr (std::is_same_v<T, std::int32_t>) type = sample_type::i32;
   if constexpr (std::is_same_v<T, float>) type = sample_type::f32;
   if constexpr (std::is_same_v<T, double>) type = sample_type::f64;
   return volume({w, h, 1}, type, std::move(bytes));
@@ -203,6 +206,23 @@ TEST(RangeData2d, equals_the_definition_on_padded_images) {
   }
   check_all_diamonds(noisy_image<std::int16_t>(20, 14, 3000));
   check_all_diamonds(noisy_image<std::int16_t>(35, 10, -3000));
+}
+
+TEST(RangeData2d, equals_the_definition_for_every_integer_sample_type) {
+  // The stored errors of integer images are rounded up in integers (the row-wise build of scale
+  // 1's square centres and the own errors of stored diamonds), in 32 bits for samples below 4
+  // bytes and 64 above: down to the extremes of each type, where |2 mid - a - b| needs them.
+  check_all_diamonds(noisy_image<std::int8_t>(40, 37, 127));
+  check_all_diamonds(noisy_image<std::int8_t>(40, 37, -128));
+  check_all_diamonds(noisy_image<std::uint32_t>(40, 37, 4294967295.0));
+  check_all_diamonds(noisy_image<std::int32_t>(40, 37, 2147483647.0));
+  check_all_diamonds(noisy_image<std::int32_t>(40, 37, -2147483648.0));
+  // Alternating extremes: split errors near the largest the error type holds.
+  check_all_diamonds(make_image<std::int32_t>(37, 40, [](std::int64_t x, std::int64_t y) {
+    return ((x + y) % 3 == 0) ? 2147483647.0 : -2147483648.0;
+  }));
+  check_all_diamonds(make_image<std::uint8_t>(
+      37, 40, [](std::int64_t x, std::int64_t y) { return ((x * 7 + y) % 3 == 0) ? 255.0 : 0.0; }));
 }
 
 TEST(RangeData2d, equals_the_definition_for_floating_point_images) {
