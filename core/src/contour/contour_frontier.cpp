@@ -37,7 +37,11 @@ contour_assembler::contour_assembler(const hierarchy2d& hier, double isovalue, s
     : bx_(static_cast<double>(hier.data_max()[0])),
       by_(static_cast<double>(hier.data_max()[1])),
       isovalue_(isovalue),
-      ids_(expected + 16) {}
+      ids_(expected + 16) {
+  // About one vertex per segment on closed contours: neither array grows by copying.
+  out_.vertices.reserve(expected + 16);
+  segs_.reserve(expected);
+}
 
 std::uint32_t contour_assembler::key_id(std::uint64_t key, const vec2& p) {
   const auto [id, inserted] =

@@ -25,6 +25,7 @@ contour_refiner::contour_refiner(const volume& image, const hierarchy2d& hier,
       isovalue_(isovalue),
       frontier_(hier),
       segments_(detail::chunked_store<detail::placed_segment>::bits_for(hier.vertex_count())),
+      records_(detail::chunked_store<record>::bits_for(hier.vertex_count())),
       record_of_(hier.vertex_count()),
       queue_(std::make_unique<queue>(order == contour_order::breadth_first
                                          ? detail::queue_discipline::fifo
@@ -65,16 +66,20 @@ bool contour_refiner::split_next(std::uint64_t max_segments) {
   if (queue_->empty()) return false;
   const detail::contour_ready next = queue_->top();
   const diamond2 d = hier_.make_diamond(next.centre);
-  scratch_.clear();
+  // Written in place: room for the most a split adds, the rest given back.
+  detail::placed_segment* at = segments_.reserve_contiguous(detail::max_split_segments);
   const contour_split_summary s =
-      detail::compute_placed_contour_split(hier_, image_, isovalue_, d, scratch_);
+      detail::compute_placed_contour_split(hier_, image_, isovalue_, d, at);
+  const auto count = static_cast<std::uint32_t>(s.added_segments);
+  segments_.trim(detail::max_split_segments - count);
   const std::uint64_t after = stats_.segments + static_cast<std::uint64_t>(s.added_segments) -
                               static_cast<std::uint64_t>(s.removed_segments);
-  if (after > max_segments) return false;
+  if (after > max_segments) {
+    segments_.trim(count);
+    return false;
+  }
   queue_->pop();
-  const auto count = static_cast<std::uint32_t>(scratch_.size());
-  const detail::placed_segment* at =
-      count == 0 ? nullptr : segments_.append_contiguous(scratch_.data(), count);
+  if (count == 0) at = nullptr;
   record_of_.get()[next.index] = static_cast<std::uint32_t>(records_.size());
   records_.push_back({next.index, next.centre, at, count, next.error});
   stats_.segments = after;
@@ -129,7 +134,8 @@ void contour_refiner::refine_until(std::chrono::steady_clock::time_point deadlin
 template <class InCut>
 contour_set contour_refiner::build(InCut&& in_cut) const {
   detail::contour_assembler out(hier_, isovalue_, static_cast<std::size_t>(stats_.segments));
-  for (const record& r : records_) {
+  for (std::size_t i = 0; i < records_.size(); ++i) {
+    const record& r = records_[i];
     if (!in_cut(r.diamond, r.centre, r.error, true)) continue;
     for (const detail::placed_segment* p = r.segments; p != r.segments + r.count; ++p) {
       const owned_segment& s = p->seg;
@@ -266,6 +272,8 @@ contour_result extract_contours(const volume& image, const std::vector<double>& 
     if (options.frame) finished.push_back(c);
     if (options.sink) {
       timed([&] { options.sink(c, k); });
+    } else if (res.contours.vertices.empty() && res.contours.polylines.empty()) {
+      res.contours = std::move(c);  // the first isovalue's: no copy of every polyline
     } else {
       append(res.contours, c);
     }

@@ -297,6 +297,19 @@ contour_split_summary compute_placed_contour_split(const hierarchy2d& hier, cons
   });
 }
 
+contour_split_summary compute_placed_contour_split(const hierarchy2d& hier, const volume& image,
+                                                   double isovalue, const diamond2& d,
+                                                   placed_segment* out) {
+  return with_sample_reader(image, [&](auto&& value) {
+    return split_diamond<true, false>(
+        hier, value, isovalue, d,
+        [&out](std::uint64_t owner, const std::array<std::uint64_t, 2>& k,
+               const std::array<vec2, 2>& pos) {
+          *out++ = {{owner, k}, pos};
+        });
+  });
+}
+
 }  // namespace detail
 
 namespace {

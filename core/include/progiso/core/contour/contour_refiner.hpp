@@ -117,8 +117,7 @@ class contour_refiner {
   // never move: growth copies nothing.
   std::vector<detail::placed_segment> root_segments_;
   detail::chunked_store<detail::placed_segment> segments_;
-  std::vector<detail::placed_segment> scratch_;  // one split's segments
-  std::vector<record> records_;
+  detail::chunked_store<record> records_;
   // Record of each split diamond, by grid index (untouched pages cost nothing).
   zeroed_array<std::uint32_t> record_of_;
   std::unique_ptr<queue> queue_;

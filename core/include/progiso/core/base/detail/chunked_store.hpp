@@ -66,6 +66,10 @@ class chunked_store {
     size_ += n;
     return at;
   }
+  // Drops the last n elements (n ≤ what the last reserve_contiguous() gave): a writer that
+  // reserved room for the most it could write gives back what it did not use.
+  void trim(std::size_t n) noexcept { size_ -= n; }
+  [[nodiscard]] T& operator[](std::size_t i) noexcept { return chunks_[i >> bits_][i & mask_]; }
   [[nodiscard]] const T& operator[](std::size_t i) const noexcept {
     return chunks_[i >> bits_][i & mask_];
   }

@@ -54,6 +54,12 @@ struct contour_ready {
 contour_split_summary compute_placed_contour_split(const hierarchy2d& hier, const volume& image,
                                                    double isovalue, const diamond2& d,
                                                    std::vector<placed_segment>& out);
+/// The same, written to out[0 .. added_segments) (room for max_split_segments).
+contour_split_summary compute_placed_contour_split(const hierarchy2d& hier, const volume& image,
+                                                   double isovalue, const diamond2& d,
+                                                   placed_segment* out);
+/// The most segments a split adds: one per new triangle.
+inline constexpr std::size_t max_split_segments = 4;
 
 /// The root cut: appends the placed segments of the root triangles to `segments` and the
 /// centres of the root diamonds (roots of size ≥ 2) to `roots`. Reads 4 samples per root
