@@ -13,6 +13,8 @@
 #include <cstdint>
 #include <cstring>
 #include <memory>
+#include <new>
+#include <type_traits>
 #include <vector>
 
 namespace progiso::detail {
@@ -84,14 +86,25 @@ class chunked_store {
   }
 
  private:
+  // Chunks are raw storage: elements are written before they are read, and a type with default
+  // member initialisers (a 2D segment's owner) would otherwise have every element of a fresh
+  // chunk written once for nothing. T is an implicit-lifetime type, so the allocation holds its
+  // objects (C++20).
+  static_assert(std::is_trivially_copyable_v<T> && std::is_trivially_destructible_v<T>);
+  struct free_chunk {
+    void operator()(T* p) const noexcept {
+      ::operator delete (static_cast<void*>(p), std::align_val_t{alignof(T)});
+    }
+  };
   void grow_if_full() {
     if ((size_ & mask_) == 0 && (size_ >> bits_) == chunks_.size()) {
-      chunks_.push_back(std::make_unique_for_overwrite<T[]>(mask_ + 1));
+      chunks_.emplace_back(
+          static_cast<T*>(::operator new ((mask_ + 1) * sizeof(T), std::align_val_t{alignof(T)})));
     }
   }
   int bits_;
   std::size_t mask_;
-  std::vector<std::unique_ptr<T[]>> chunks_;
+  std::vector<std::unique_ptr<T[], free_chunk>> chunks_;
   std::size_t size_ = 0;
 };
 
