@@ -54,6 +54,15 @@ TEST(ContourRefiner, full_resolution_equals_marching_triangles_on_analytic_image
   expect_full_equals_reference(make_image(50, 29, edge_cut), 20.0);  // open chains, padding
 }
 
+TEST(ContourRefiner, full_resolution_equals_marching_triangles_on_images_wider_than_compact_keys) {
+  // Vertex keys go into the assembler's table of 8-byte slots while the grid's doubled
+  // coordinates fit in 16 bits (grid up to 32767 a side), else into the general one: both sides
+  // of the limit (a 32769-sample side has a 32768 grid), on either axis.
+  expect_full_equals_reference(make_image(32767, 3, waves), 0.1);
+  expect_full_equals_reference(make_image(32769, 3, waves), 0.1);
+  expect_full_equals_reference(make_image(3, 32769, waves), 0.1);
+}
+
 TEST(ContourRefiner, coordinates_are_physical_with_spacing_and_origin) {
   const volume grid = make_image(37, 26, waves);
   std::vector<std::byte> copy(grid.bytes(), grid.bytes() + grid.byte_size());

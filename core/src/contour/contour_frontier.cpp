@@ -1,5 +1,6 @@
 #include <progiso/core/contour/detail/contour_frontier.hpp>
 
+#include <bit>
 #include <utility>
 
 namespace progiso::detail {
@@ -33,17 +34,62 @@ void root_contour(const hierarchy2d& hier, const volume& image, double isovalue,
   }
 }
 
+namespace {
+constexpr std::uint64_t empty_slot = ~std::uint64_t{0};
+}  // namespace
+
 contour_assembler::contour_assembler(const hierarchy2d& hier, double isovalue, std::size_t expected)
     : bx_(static_cast<double>(hier.data_max()[0])),
       by_(static_cast<double>(hier.data_max()[1])),
       isovalue_(isovalue),
-      ids_(expected + 16) {
+      compact_keys_(2 * std::int64_t{hier.grid_max()[0]} < 65536 &&
+                    2 * std::int64_t{hier.grid_max()[1]} < 65536),
+      ids_(compact_keys_ ? 16 : expected + 16) {
+  if (compact_keys_) {
+    std::size_t capacity = 16;
+    while (capacity < 2 * (expected + 16)) capacity *= 2;
+    compact_.assign(capacity, empty_slot);
+    compact_shift_ = 32 - std::countr_zero(capacity);
+  }
   // About one vertex per segment on closed contours: neither array grows by copying.
   out_.vertices.reserve(expected + 16);
   segs_.reserve(expected);
 }
 
+std::uint32_t contour_assembler::compact_id(std::uint32_t key, const vec2& p) {
+  const std::size_t mask = compact_.size() - 1;
+  std::size_t i = (key * 0x9E3779B1u) >> compact_shift_;
+  while (true) {
+    const std::uint64_t s = compact_[i];
+    if (s == empty_slot) break;
+    if (static_cast<std::uint32_t>(s >> 32) == key) return static_cast<std::uint32_t>(s);
+    i = (i + 1) & mask;
+  }
+  const auto id = static_cast<std::uint32_t>(out_.vertices.size());
+  out_.vertices.push_back(p);
+  compact_[i] = (std::uint64_t{key} << 32) | id;
+  if (2 * ++compact_size_ > compact_.size()) grow_compact();
+  return id;
+}
+
+void contour_assembler::grow_compact() {
+  std::vector<std::uint64_t> old(2 * compact_.size(), empty_slot);
+  old.swap(compact_);
+  --compact_shift_;
+  const std::size_t mask = compact_.size() - 1;
+  for (const std::uint64_t s : old) {
+    if (s == empty_slot) continue;
+    std::size_t i = (static_cast<std::uint32_t>(s >> 32) * 0x9E3779B1u) >> compact_shift_;
+    while (compact_[i] != empty_slot) i = (i + 1) & mask;
+    compact_[i] = s;
+  }
+}
+
 std::uint32_t contour_assembler::key_id(std::uint64_t key, const vec2& p) {
+  if (compact_keys_) {
+    // Doubled coordinates below 2^16: x | y << 16. (No slot is all ones: its id would be 2^32−1.)
+    return compact_id(static_cast<std::uint32_t>((key & 0xFFFFu) | ((key >> 16) & 0xFFFF0000u)), p);
+  }
   const auto [id, inserted] =
       ids_.try_emplace(key, static_cast<std::uint32_t>(out_.vertices.size()));
   if (inserted) out_.vertices.push_back(p);

@@ -150,10 +150,20 @@ class contour_assembler {
   std::uint32_t key_id(std::uint64_t key, const vec2& p);
   std::uint32_t point_id(const vec2& p);
 
+  // Vertex ids by key. Keys whose doubled coordinates fit in 16 bits each (images up to 32768
+  // samples a side) live in a table of 8-byte slots (key << 32 | id; half the bytes of
+  // flat_map's, so twice the slots stay in cache), others in flat_map.
+  std::uint32_t compact_id(std::uint32_t key, const vec2& p);
+  void grow_compact();
+
   double bx_;
   double by_;
   double isovalue_;
   contour_set out_;
+  bool compact_keys_;
+  std::vector<std::uint64_t> compact_;
+  std::uint32_t compact_size_ = 0;
+  int compact_shift_ = 32;
   flat_map ids_;
   std::map<vec2, std::uint32_t> clipped_;  // clipped ends, by exact position
   std::vector<std::array<std::uint32_t, 2>> segs_;
