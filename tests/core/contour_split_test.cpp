@@ -93,6 +93,20 @@ void check_all_colourings(const ipoint2& centre, const std::vector<std::size_t>&
     EXPECT_EQ(undirected(segs), undirected(fresh))
         << "mask " << mask << " case " << to_string(s.kind);
     EXPECT_EQ(segs.size(), fresh.size()) << "mask " << mask;
+    // The refiners' split takes the case and the primitives' kinds from its class's table entry
+    // instead of the rules above: the same, and the class names them too.
+    std::vector<detail::placed_segment> placed;
+    const contour_split_summary p = detail::compute_placed_contour_split(h, img, 0.5, d, placed);
+    const contour_split_class& k = contour_split_class_info(s.split_class);
+    EXPECT_EQ(p.split_class, s.split_class) << "mask " << mask;
+    EXPECT_EQ(p.kind, s.kind) << "mask " << mask;
+    EXPECT_EQ(k.kind, s.kind) << "mask " << mask;
+    ASSERT_EQ(p.op_count, s.op_count) << "mask " << mask;
+    ASSERT_EQ(static_cast<int>(k.op_count), s.op_count) << "mask " << mask;
+    for (std::size_t i = 0; i < static_cast<std::size_t>(s.op_count); ++i) {
+      EXPECT_EQ(p.ops[i].kind, s.ops[i].kind) << "mask " << mask << " op " << i;
+      EXPECT_EQ(k.ops[i], s.ops[i].kind) << "mask " << mask << " op " << i;
+    }
     ++seen[static_cast<std::size_t>(s.kind)];
   }
   for (std::size_t k = 0; k < contour_case_count; ++k) {

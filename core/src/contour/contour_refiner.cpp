@@ -85,10 +85,8 @@ bool contour_refiner::split_next(std::uint64_t max_segments) {
   stats_.segments = after;
   stats_.record_segments += count;
   ++stats_.splits;
-  ++stats_.cases[static_cast<std::size_t>(s.kind)];
-  for (int i = 0; i < s.op_count; ++i) {
-    ++stats_.primitives[static_cast<std::size_t>(s.ops[static_cast<std::size_t>(i)].kind)];
-  }
+  ++class_counts_[s.split_class];
+  counts_pending_ = true;
   last_index_ = next.index;
   frontier_.split(d, next.index, [&](const ipoint2& c, std::uint64_t ci, std::int32_t h) {
     ++stats_.visited;
@@ -99,6 +97,23 @@ bool contour_refiner::split_next(std::uint64_t max_segments) {
     }
   });
   return true;
+}
+
+const contour_statistics& contour_refiner::statistics() const noexcept {
+  if (counts_pending_) {
+    for (std::size_t k = 0; k < contour_split_classes; ++k) {
+      const std::uint64_t n = class_counts_[k];
+      if (n == 0) continue;
+      const contour_split_class& c = contour_split_class_info(k);
+      stats_.cases[static_cast<std::size_t>(c.kind)] += n;
+      for (std::size_t i = 0; i < c.op_count; ++i) {
+        stats_.primitives[static_cast<std::size_t>(c.ops[i])] += n;
+      }
+      class_counts_[k] = 0;
+    }
+    counts_pending_ = false;
+  }
+  return stats_;
 }
 
 contour_split_summary contour_refiner::last_split() const {

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 
+#include <progiso/core/base/assert.hpp>
 #include <progiso/core/base/error.hpp>
 #include <progiso/core/contour/detail/contour_frontier.hpp>
 #include <progiso/core/surface/marching.hpp>
@@ -116,6 +117,60 @@ constexpr std::array<triangle_case, 8> triangle_cases = [] {
   return t;
 }();
 
+// The split class's case and primitive kinds, by the rules split_diamond() follows with keys
+// (tests/core/contour_split_test.cpp checks the two against each other for every colouring).
+// Bits: 1 spine0 (c) black, 2 spine1 (d) black, 4 centre (e) black, 8 first apex in the grid
+// black, 16 second black; then 32 × triangle count.
+constexpr contour_split_class classify(unsigned k) noexcept {
+  contour_split_class out;
+  const bool bc = (k & 1u) != 0, bd = (k & 2u) != 0, be = (k & 4u) != 0;
+  const bool a = (k & 8u) != 0, b = (k & 16u) != 0;
+  const unsigned n = k >> 5;
+  const auto add = [&out](contour_primitive p) { out.ops[out.op_count++] = p; };
+  if (n == 0) return out;
+  if (bc != bd) {
+    add(contour_primitive::vertex_move);
+    if (a != be) add(contour_primitive::vertex_split);
+    if (n == 2 && b != be) add(contour_primitive::vertex_split);
+    out.kind = n == 2 && a != b ? contour_case::c : (a == be ? contour_case::a : contour_case::b);
+  } else if (be == bc) {
+    if (a != bc) add(contour_primitive::vertex_split);
+    if (n == 2 && b != bc) add(contour_primitive::vertex_split);
+    out.kind =
+        n == 2 && a != b ? contour_case::e : (a == bc ? contour_case::none : contour_case::d);
+  } else if (n == 2) {
+    if (a == bc && b == bc) {
+      out.kind = contour_case::g;
+      add(contour_primitive::new_loop);
+    } else if (a != bc && b != bc) {
+      out.kind = contour_case::h;
+      add(contour_primitive::edge_flip);
+      add(contour_primitive::vertex_split);
+      add(contour_primitive::vertex_split);
+    } else {
+      out.kind = contour_case::f;
+      add(contour_primitive::vertex_split);
+      add(contour_primitive::vertex_split);
+      add(contour_primitive::vertex_split);
+    }
+  } else if (a == bc) {
+    out.kind = contour_case::g;
+    add(contour_primitive::new_edge);
+    add(contour_primitive::vertex_split);
+  } else {
+    out.kind = contour_case::h;
+    add(contour_primitive::vertex_split);
+    add(contour_primitive::vertex_open);
+  }
+  return out;
+}
+
+constexpr std::array<contour_split_class, contour_split_classes> split_classes = [] {
+  std::array<contour_split_class, contour_split_classes> t{};
+  for (unsigned k = 0; k < contour_split_classes; ++k) t[k] = classify(k);
+  return t;
+}();
+
 // compute_contour_split(), each new segment handed to emit(owner, keys, positions) (positions
 // computed only when Placed: interpolate2 of each crossed edge, once per edge; the primitives'
 // keys only when Keys); value(p) reads the sample at grid point p, clamped into the data box.
@@ -187,6 +242,17 @@ contour_split_summary split_diamond(const hierarchy2d& hier, Value&& value, doub
   }
 
   // ---- Case and primitives. -----------------------------------------------------------------
+  s.split_class = static_cast<std::uint8_t>(
+      (bc ? 1u : 0u) | (bd ? 2u : 0u) | (be ? 4u : 0u) | (n >= 1 && sides[0].black ? 8u : 0u) |
+      (n == 2 && sides[1].black ? 16u : 0u) | (static_cast<unsigned>(n) << 5));
+  if constexpr (!Keys) {
+    // The kinds alone, by table: no branch on the colours.
+    const contour_split_class& k = split_classes[s.split_class];
+    s.kind = k.kind;
+    s.op_count = k.op_count;
+    for (std::size_t i = 0; i < 4; ++i) s.ops[i].kind = k.ops[i];
+    return s;
+  }
   const auto K = [](const ipoint2& p, const ipoint2& q) { return edge_key2(p, q); };
   op_list<Keys> ops{s};
   if (n == 0) return s;
@@ -269,6 +335,11 @@ decltype(auto) with_sample_reader(const volume& image, F&& f) {
 }
 
 }  // namespace
+
+const contour_split_class& contour_split_class_info(std::size_t k) noexcept {
+  PROGISO_ASSERT(k < contour_split_classes);
+  return split_classes[k];
+}
 
 contour_split_summary compute_contour_split(const hierarchy2d& hier, const volume& image, double w,
                                             const diamond2& d, std::vector<owned_segment>& out) {

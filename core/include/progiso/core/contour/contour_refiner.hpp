@@ -80,7 +80,7 @@ class contour_refiner {
   void refine_until(std::chrono::steady_clock::time_point deadline);
 
   [[nodiscard]] std::uint64_t segment_count() const noexcept { return stats_.segments; }
-  [[nodiscard]] const contour_statistics& statistics() const noexcept { return stats_; }
+  [[nodiscard]] const contour_statistics& statistics() const noexcept;
   [[nodiscard]] bool is_split(const ipoint2& centre) const noexcept;
   /// Summary (case, primitives) of the most recent split.
   [[nodiscard]] contour_split_summary last_split() const;
@@ -121,7 +121,10 @@ class contour_refiner {
   // Record of each split diamond, by grid index (untouched pages cost nothing).
   zeroed_array<std::uint32_t> record_of_;
   std::unique_ptr<queue> queue_;
-  contour_statistics stats_;
+  // Cases and primitives are counted by split class and added up when the statistics are read.
+  mutable contour_statistics stats_;
+  mutable std::array<std::uint64_t, contour_split_classes> class_counts_{};
+  mutable bool counts_pending_ = false;
   std::uint64_t last_index_ = ~std::uint64_t{0};  // grid index of the last split diamond
 };
 

@@ -94,7 +94,25 @@ struct contour_split_summary {
   int added_segments = 0;
   std::array<contour_op, 4> ops{};
   int op_count = 0;
+  /// The split's colouring and triangle count, one of contour_split_classes: it alone gives the
+  /// case and the primitives' kinds (contour_split_class_info()), so a refiner counts it and
+  /// adds the cases and primitives up when its statistics are read.
+  std::uint8_t split_class = 0;
 };
+
+/// Number of split classes: 5 colour bits (spine ends, centre, first and second apex in the
+/// grid) and the triangle count 0, 1 or 2.
+inline constexpr std::size_t contour_split_classes = 96;
+
+/// What a split class determines: the case and the kinds of its primitive sequence.
+struct contour_split_class {
+  contour_case kind = contour_case::none;
+  std::uint8_t op_count = 0;
+  std::array<contour_primitive, 4> ops{};
+};
+
+/// The case and primitive kinds of split class k (< contour_split_classes).
+[[nodiscard]] const contour_split_class& contour_split_class_info(std::size_t k) noexcept;
 
 /// Oriented marching-triangles segment of triangle p (values f) at isovalue w, if crossed.
 /// Keys are edge_key2 of the crossed edges; black (f > w) lies on the segment's left.
