@@ -10,9 +10,7 @@ vec3 interpolate(const ipoint& a, double fa, const ipoint& b, double fb, double 
   const ipoint& q = swap ? a : b;
   const double fp = swap ? fb : fa;
   const double fq = swap ? fa : fb;
-  double t = (isovalue - fp) / (fq - fp);
-  if (!(t >= interpolation_margin)) t = interpolation_margin;
-  if (t > 1.0 - interpolation_margin) t = 1.0 - interpolation_margin;
+  const double t = crossing_parameter(fp, fq, isovalue);
   vec3 r{};
   for (std::size_t k = 0; k < 3; ++k) {
     r[k] = static_cast<double>(p[k]) + t * static_cast<double>(q[k] - p[k]);

@@ -126,11 +126,7 @@ struct contour_split_class {
   const bool swap = vertex_less2(b, a);
   const ipoint2& p = swap ? b : a;
   const ipoint2& q = swap ? a : b;
-  const double fp = swap ? fb : fa;
-  const double fq = swap ? fa : fb;
-  double t = (isovalue - fp) / (fq - fp);
-  if (!(t >= interpolation_margin)) t = interpolation_margin;
-  if (t > 1.0 - interpolation_margin) t = 1.0 - interpolation_margin;
+  const double t = crossing_parameter(swap ? fb : fa, swap ? fa : fb, isovalue);
   return {static_cast<double>(p[0]) + t * static_cast<double>(q[0] - p[0]),
           static_cast<double>(p[1]) + t * static_cast<double>(q[1] - p[1])};
 }

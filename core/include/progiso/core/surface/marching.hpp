@@ -40,6 +40,16 @@ using ipoint = std::array<std::int32_t, 3>;
 /// Surface vertices are kept at least this fraction of an edge away from its ends.
 inline constexpr double interpolation_margin = 1.0 / 4096.0;
 
+/// Where isovalue w crosses the edge from the value fp to fq: t = (w − fp) / (fq − fp), clamped
+/// into [interpolation_margin, 1 − interpolation_margin] (a NaN t takes the lower bound). Both
+/// interpolate() and the 2D interpolate2() call it with the edge's ends in canonical order.
+[[nodiscard]] inline double crossing_parameter(double fp, double fq, double w) noexcept {
+  double t = (w - fp) / (fq - fp);
+  if (!(t >= interpolation_margin)) t = interpolation_margin;
+  if (t > 1.0 - interpolation_margin) t = 1.0 - interpolation_margin;
+  return t;
+}
+
 /// Bits per axis in an edge key: doubled coordinates below 2^21.
 inline constexpr int edge_key_bits = 21;
 
