@@ -199,7 +199,7 @@ contour_split_summary split_diamond(const hierarchy2d& hier, Value&& value, doub
   s.boundary = n == 1;
 
   // ---- Segments: old triangles (counted), new triangles (recorded). ------------------------
-  const auto place = [w](const ipoint2& a, double fa, const ipoint2& b, double fb) {
+  const auto place = [&](const ipoint2& a, double fa, const ipoint2& b, double fb) {
     if constexpr (Placed) {
       return interpolate2(a, fa, b, fb, w);
     } else {
