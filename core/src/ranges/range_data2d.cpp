@@ -243,13 +243,15 @@ class typed_range_data2d final : public range_data2d::impl {
     void fill_columns(const typed_range_data2d& data, std::int32_t row, std::int32_t x0,
                       std::int32_t x1, std::vector<entry<T>>& out) {
       using wide = std::conditional_t<(sizeof(T) < 4), std::int32_t, std::int64_t>;
-      const auto n = static_cast<std::size_t>(x1 - x0 + 3);  // columns x0 − 1 .. x1 + 1
-      lo.resize(n);
-      hi.resize(n);
-      across.resize(n);
-      vertical.resize(n);
-      main_diagonal.resize(n);
-      other_diagonal.resize(n);
+      // Signed column indices: column i reads i − 2 .. i + 2, and i − 2 is −1 at i = 1.
+      const std::ptrdiff_t n = x1 - x0 + 3;  // columns x0 − 1 .. x1 + 1
+      const auto size = static_cast<std::size_t>(n);
+      lo.resize(size);
+      hi.resize(size);
+      across.resize(size);
+      vertical.resize(size);
+      main_diagonal.resize(size);
+      other_diagonal.resize(size);
       const std::int64_t w = data.width_;
       // Restrict: the sample type may be a character type, which would alias every output.
       const T* __restrict r0 = data.samples_ + (x0 - 1) + w * row;  // column x0 − 1 of the row
@@ -269,22 +271,22 @@ class typed_range_data2d final : public range_data2d::impl {
         return static_cast<error_type<T>>((v + 1) >> 1);
       };
       // Quantities at column i ≥ 1 read columns i − 1 .. i + 1 (and i ± 2 on the row itself).
-      for (std::size_t i = 1; i + 1 < n; ++i) {
+      for (std::ptrdiff_t i = 1; i + 1 < n; ++i) {
         const T a = std::min(std::min(rn[i - 1], rn[i]), rn[i + 1]);
         const T b = std::min(std::min(rs[i - 1], rs[i]), rs[i + 1]);
         const T c = std::min(std::min(r0[i - 2], r0[i - 1]), std::min(r0[i], r0[i + 1]));
         const T d = std::min(std::min(r0[i + 2], rnn[i]), rss[i]);
         out_lo[i] = std::min(std::min(a, b), std::min(c, d));
       }
-      for (std::size_t i = 1; i + 1 < n; ++i) {
+      for (std::ptrdiff_t i = 1; i + 1 < n; ++i) {
         const T a = std::max(std::max(rn[i - 1], rn[i]), rn[i + 1]);
         const T b = std::max(std::max(rs[i - 1], rs[i]), rs[i + 1]);
         const T c = std::max(std::max(r0[i - 2], r0[i - 1]), std::max(r0[i], r0[i + 1]));
         const T d = std::max(std::max(r0[i + 2], rnn[i]), rss[i]);
         out_hi[i] = std::max(std::max(a, b), std::max(c, d));
       }
-      for (std::size_t i = 0; i < n; ++i) out_vertical[i] = err(r0[i], rn[i], rs[i]);
-      for (std::size_t i = 1; i + 1 < n; ++i) {
+      for (std::ptrdiff_t i = 0; i < n; ++i) out_vertical[i] = err(r0[i], rn[i], rs[i]);
+      for (std::ptrdiff_t i = 1; i + 1 < n; ++i) {
         out_across[i] =
             std::max(err(rn[i], rn[i - 1], rn[i + 1]), err(rs[i], rs[i - 1], rs[i + 1]));
         out_main[i] = err(r0[i], rn[i - 1], rs[i + 1]);
