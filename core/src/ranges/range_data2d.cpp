@@ -233,11 +233,11 @@ class typed_range_data2d final : public range_data2d::impl {
           x = x1;
           continue;
         }
-        out[static_cast<std::size_t>(x / 2)] = data.scale1_entry({x, row});
+        out[static_cast<std::size_t>(x / 2)] = encode(data.scale1({x, row}));
       }
     }
 
-    // scale1_entry() of the odd columns x0..x1 of `row`, all in the data box, integer samples:
+    // encode(scale1()) of the odd columns x0..x1 of `row`, all in the data box, integer samples:
     // each quantity over every column x0 − 1 .. x1 + 1 first (loops the compiler vectorises),
     // then the odd columns picked. The same samples and integer arithmetic, so the same entries.
     void fill_columns(const typed_range_data2d& data, std::int32_t row, std::int32_t x0,
@@ -419,36 +419,6 @@ class typed_range_data2d final : public range_data2d::impl {
       return quantize_error<error_type<T>>(std::abs(
           static_cast<double>(mid) - 0.5 * (static_cast<double>(a) + static_cast<double>(b))));
     }
-  }
-
-  // The stored entry of a scale-1 square centre (both coordinates odd): scale1() rounded as
-  // encode() rounds it, from the samples in the sample type where its 13 lie in the data box.
-  [[nodiscard]] entry<T> scale1_entry(const ipoint2& c) const noexcept {
-    const ipoint2& dmax = hier->data_max();
-    if (c[0] < 2 || c[1] < 2 || c[0] + 2 > dmax[0] || c[1] + 2 > dmax[1]) return encode(scale1(c));
-    const T* p = samples_ + c[0] + width_ * c[1];
-    const std::int64_t w = width_;
-    const T nw = p[-w - 1], n = p[-w], ne = p[-w + 1];
-    const T west = p[-1], m = p[0], east = p[1];
-    const T sw = p[w - 1], s = p[w], se = p[w + 1];
-    const T far_n = p[-2 * w], far_s = p[2 * w], far_w = p[-2], far_e = p[2];
-    const auto lo3 = [](T a, T b, T x) { return std::min(std::min(a, b), x); };
-    const auto hi3 = [](T a, T b, T x) { return std::max(std::max(a, b), x); };
-    const T lo = std::min(
-        std::min(lo3(nw, n, ne), lo3(west, m, east)),
-        std::min(lo3(sw, s, se), std::min(std::min(far_n, far_s), std::min(far_w, far_e))));
-    const T hi = std::max(
-        std::max(hi3(nw, n, ne), hi3(west, m, east)),
-        std::max(hi3(sw, s, se), std::max(std::max(far_n, far_s), std::max(far_w, far_e))));
-    // As scale1(): the own spine joins the corners ≡ 0 mod 4 when c ≡ (1, 1) or (3, 3) mod 4.
-    const bool main_diagonal = ((c[0] ^ c[1]) & 2) == 0;
-    const error_type<T> own =
-        main_diagonal ? stored_split_error(m, nw, se) : stored_split_error(m, ne, sw);
-    const error_type<T> err =
-        std::max(std::max(own, stored_split_error(n, nw, ne)),
-                 std::max(std::max(stored_split_error(s, sw, se), stored_split_error(west, nw, sw)),
-                          stored_split_error(east, ne, se)));
-    return {lo, hi, err};
   }
 
   // ---- Scale 1 (3/4 of all diamonds), on demand. An edge midpoint (type 1) is a leaf: its own

@@ -14,6 +14,7 @@
 #include <optional>
 #include <vector>
 
+#include <progiso/core/base/assert.hpp>
 #include <progiso/core/base/config.hpp>
 #include <progiso/core/base/detail/flat_map.hpp>
 #include <progiso/core/base/zeroed_array.hpp>
@@ -104,6 +105,7 @@ class contour_frontier {
       const auto count = static_cast<std::uint8_t>((state[ci] & parent_count_mask) + 1);
       state[ci] = static_cast<std::uint8_t>((state[ci] & ~parent_count_mask) | count);
       ++n;
+      PROGISO_ASSERT(scale == hier_->scale_of(child) && parents == hier_->parent_count(child));
       if (count == parents) ready(child, ci, scale);
     };
     if (d.type == 0) {
