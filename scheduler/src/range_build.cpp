@@ -52,7 +52,7 @@ bool engine_impl::build_ranges(clock::time_point until, bool stop_requests, bool
         }
         pieces_built += step;
       }
-      if (pieces_built == n && !rd.complete()) rd.finish();
+      if (pieces_built == n && !rd.complete()) rd.finish(tbb_loop);
       if (!errors || !rd.complete()) return;
       while (error_pieces_built < m) {
         const std::size_t step = unlimited ? m - error_pieces_built
@@ -61,7 +61,7 @@ bool engine_impl::build_ranges(clock::time_point until, bool stop_requests, bool
         rd.build_error_pieces(error_pieces_built, error_pieces_built + step, tbb_loop);
         error_pieces_built += step;
       }
-      if (error_pieces_built == m && !rd.errors_exact()) rd.finish_errors();
+      if (error_pieces_built == m && !rd.errors_exact()) rd.finish_errors(tbb_loop);
     });
   });
   const double spent = std::chrono::duration<double>(clock::now() - t0).count();

@@ -5,6 +5,7 @@
 #include <progiso/core/ranges/detail/range_entry.hpp>
 #include <progiso/core/ranges/range_data.hpp>
 
+#include <algorithm>
 #include <cmath>
 #include <functional>
 #include <map>
@@ -186,23 +187,29 @@ TEST(RangeData, memory_stays_below_the_volume_bytes) {
 }
 
 // The build's slabs run in any order and on any threads: every range and error is the same.
+// A parallel loop on three threads, each running its items in reverse order.
+void on_three_threads(std::size_t n, const std::function<void(std::size_t)>& f) {
+  std::vector<std::thread> pool;
+  for (std::size_t t = 0; t < 3; ++t) {
+    pool.emplace_back([&f, n, t] {
+      for (std::size_t i = n; i-- > 0;) {
+        if (i % 3 == t) f(i);
+      }
+    });
+  }
+  for (auto& th : pool) th.join();
+}
+
 TEST(RangeData, built_in_parallel_slabs_it_equals_the_sequential_build) {
   for (const volume& v :
        {make_gaussian_blobs({37, 29, 45}, 6, 5u), make_marschner_lobb({33, 33, 33})}) {
     const hierarchy h(v.dims());
     const range_data seq(v, h);
     std::size_t slabs = 0;
+    // The most items of one loop: the slabs (the coarser levels' loops have fewer).
     const range_data par(v, h, [&slabs](std::size_t n, const std::function<void(std::size_t)>& f) {
-      slabs = n;
-      std::vector<std::thread> pool;
-      for (std::size_t t = 0; t < 3; ++t) {
-        pool.emplace_back([&f, n, t] {
-          for (std::size_t i = n; i-- > 0;) {
-            if (i % 3 == t) f(i);
-          }
-        });
-      }
-      for (auto& th : pool) th.join();
+      slabs = std::max(slabs, n);
+      on_three_threads(n, f);
     });
     EXPECT_GT(slabs, 1u);
     for (std::int32_t z = 0; z <= h.grid_max()[2]; ++z)
@@ -287,6 +294,58 @@ TEST(RangeData, a_staged_build_in_any_order_equals_the_one_pass_build) {
           ASSERT_EQ(a.error, b.error);
         }
   }
+}
+
+// The coarser levels and their errors made through a parallel loop (the engine's oneTBB loop:
+// one plane of a level per item) equal the one-thread build on every diamond; with the items
+// run on three threads in reverse order, and with a volume whose levels have many planes.
+TEST(RangeData, coarser_levels_built_through_a_parallel_loop_equal_the_one_thread_build) {
+  const parallel_loop three_threads = on_three_threads;
+  std::size_t items = 0;
+  const parallel_loop counting = [&](std::size_t n, const std::function<void(std::size_t)>& body) {
+    items += n;
+    on_three_threads(n, body);
+  };
+  const volume v = make_gaussian_blobs({70, 61, 53}, 9, 11u);
+  const hierarchy h(v.dims());
+  const range_data serial(v, h);
+  const range_data parallel(v, h, three_threads);
+  range_data staged(v, h, range_data::staged);
+  staged.build_pieces(0, staged.piece_count());
+  items = 0;
+  staged.finish(counting);
+  // Level 0 has about 53 / 4 planes, so the levels above it have 8, 4, 2 and 1.
+  EXPECT_GE(items, 15u);
+  const auto each_diamond = [&](auto&& f) {
+    for (std::int32_t z = 0; z <= h.grid_max()[2]; ++z)
+      for (std::int32_t y = 0; y <= h.grid_max()[1]; ++y)
+        for (std::int32_t x = 0; x <= h.grid_max()[0]; ++x) {
+          const ipoint c{x, y, z};
+          if (h.is_diamond(c) && h.scale_of(c) >= 2) f(c);
+        }
+  };
+  each_diamond([&](const ipoint& c) {
+    const diamond_range a = serial.get(c);
+    const diamond_range b = staged.get(c);
+    ASSERT_EQ(a.lo, b.lo);
+    ASSERT_EQ(a.hi, b.hi);
+  });
+  staged.build_error_pieces(0, staged.error_piece_count());
+  items = 0;
+  staged.finish_errors(counting);
+  EXPECT_GE(items, 15u);
+  std::size_t nonzero = 0;
+  each_diamond([&](const ipoint& c) {
+    const diamond_range a = serial.get(c);
+    for (const range_data* other : {&parallel, static_cast<const range_data*>(&staged)}) {
+      const diamond_range b = other->get(c);
+      ASSERT_EQ(a.lo, b.lo);
+      ASSERT_EQ(a.hi, b.hi);
+      ASSERT_EQ(a.error, b.error);
+    }
+    if (a.error > 0.0) ++nonzero;
+  });
+  EXPECT_GT(nonzero, 0u);
 }
 
 }  // namespace

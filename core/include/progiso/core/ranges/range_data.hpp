@@ -75,16 +75,16 @@ class range_data {
   /// the same time.
   [[nodiscard]] std::size_t piece_count() const noexcept;
   void build_pieces(std::size_t first, std::size_t last, const parallel_loop& run = {});
-  /// The coarser levels, once every piece is built; then complete(): ranges are final, and
-  /// errors of scale ≥ 2 are the bound hi − lo (sound and nested, but coarser) until the error
-  /// pass is finished too.
-  void finish();
+  /// The coarser levels, once every piece is built (independent planes of each level through
+  /// `run` when given); then complete(): ranges are final, and errors of scale ≥ 2 are the bound
+  /// hi − lo (sound and nested, but coarser) until the error pass is finished too.
+  void finish(const parallel_loop& run = {});
   [[nodiscard]] bool complete() const noexcept { return complete_; }
   /// The error pass, after finish(): pieces in any order and grouping (concurrently with get()
   /// calls from other threads), then finish_errors(); errors_exact() from then on.
   [[nodiscard]] std::size_t error_piece_count() const noexcept;
   void build_error_pieces(std::size_t first, std::size_t last, const parallel_loop& run = {});
-  void finish_errors();
+  void finish_errors(const parallel_loop& run = {});
   [[nodiscard]] bool errors_exact() const noexcept;
   /// Both passes of pieces [first, last) at once, each piece's samples read into cache once;
   /// only when error_piece_count() == piece_count() (no error pass counts as already done).
