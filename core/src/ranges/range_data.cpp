@@ -431,27 +431,17 @@ class typed_range_data final : public range_data::impl {
       coarse.bricks.resize(static_cast<std::size_t>(coarse.n[0]) *
                            static_cast<std::size_t>(coarse.n[1]) *
                            static_cast<std::size_t>(coarse.n[2]));
-      run_loop(run, static_cast<std::size_t>(coarse.n[2]), [&](std::size_t item) {
-        const auto z = static_cast<std::int32_t>(item);
-        brick* out = &coarse.bricks[static_cast<std::size_t>(coarse.n[0]) *
-                                    static_cast<std::size_t>(coarse.n[1]) * item];
-        for (std::int32_t y = 0; y < coarse.n[1]; ++y) {
-          for (std::int32_t x = 0; x < coarse.n[0]; ++x) {
-            // lo and hi only: a level-0 brick's error is unwritten until the error pass.
-            const brick& first = fine.at(2 * x, 2 * y, 2 * z);
-            brick m{first.lo, first.hi, error_t{}};
-            for (std::int32_t d = 1; d < 8; ++d) {
-              const std::int32_t fx = 2 * x + (d & 1);
-              const std::int32_t fy = 2 * y + ((d >> 1) & 1);
-              const std::int32_t fz = 2 * z + ((d >> 2) & 1);
-              if (fx >= fine.n[0] || fy >= fine.n[1] || fz >= fine.n[2]) continue;
-              const brick& b = fine.at(fx, fy, fz);
-              m.lo = b.lo < m.lo ? b.lo : m.lo;
-              m.hi = b.hi > m.hi ? b.hi : m.hi;
-            }
-            *out++ = m;
-          }
+      by_planes(coarse, run, [&](brick& out, std::int32_t x, std::int32_t y, std::int32_t z) {
+        // lo and hi only: a level-0 brick's error is unwritten until the error pass.
+        const brick& first = fine.at(2 * x, 2 * y, 2 * z);
+        brick m{first.lo, first.hi, error_t{}};
+        for (int d = 1; d < 8; ++d) {
+          const brick* b = covered(fine, x, y, z, d);
+          if (b == nullptr) continue;
+          m.lo = b->lo < m.lo ? b->lo : m.lo;
+          m.hi = b->hi > m.hi ? b->hi : m.hi;
         }
+        out = m;
       });
       levels_.push_back(std::move(coarse));
     }
@@ -464,24 +454,13 @@ class typed_range_data final : public range_data::impl {
     for (std::size_t k = 1; k < levels_.size(); ++k) {
       const level& fine = levels_[k - 1];
       level& coarse = levels_[k];
-      run_loop(run, static_cast<std::size_t>(coarse.n[2]), [&](std::size_t item) {
-        const auto z = static_cast<std::int32_t>(item);
-        brick* out = &coarse.bricks[static_cast<std::size_t>(coarse.n[0]) *
-                                    static_cast<std::size_t>(coarse.n[1]) * item];
-        for (std::int32_t y = 0; y < coarse.n[1]; ++y) {
-          for (std::int32_t x = 0; x < coarse.n[0]; ++x) {
-            error_t m{};
-            for (std::int32_t d = 0; d < 8; ++d) {
-              const std::int32_t fx = 2 * x + (d & 1);
-              const std::int32_t fy = 2 * y + ((d >> 1) & 1);
-              const std::int32_t fz = 2 * z + ((d >> 2) & 1);
-              if (fx >= fine.n[0] || fy >= fine.n[1] || fz >= fine.n[2]) continue;
-              const error_t e = fine.at(fx, fy, fz).error;
-              m = e > m ? e : m;
-            }
-            (out++)->error = m;
-          }
+      by_planes(coarse, run, [&](brick& out, std::int32_t x, std::int32_t y, std::int32_t z) {
+        error_t m{};
+        for (int d = 0; d < 8; ++d) {
+          const brick* b = covered(fine, x, y, z, d);
+          if (b != nullptr) m = b->error > m ? b->error : m;
         }
+        out.error = m;
       });
     }
     // release: pairs with the acquire in get_at(); the errors above are written before it.
@@ -489,6 +468,31 @@ class typed_range_data final : public range_data::impl {
   }
 
  private:
+  // f(brick, x, y, z) for every brick of `lv`, one plane (z) per item of `run`: each item writes
+  // only the bricks of its own plane.
+  template <class F>
+  static void by_planes(level& lv, const range_data::parallel_loop& run, const F& f) {
+    run_loop(run, static_cast<std::size_t>(lv.n[2]), [&](std::size_t item) {
+      const auto z = static_cast<std::int32_t>(item);
+      brick* out =
+          &lv.bricks[static_cast<std::size_t>(lv.n[0]) * static_cast<std::size_t>(lv.n[1]) * item];
+      for (std::int32_t y = 0; y < lv.n[1]; ++y) {
+        for (std::int32_t x = 0; x < lv.n[0]; ++x) f(*out++, x, y, z);
+      }
+    });
+  }
+
+  // Brick d (0 … 7) of `fine` under the brick (x, y, z) of the level above it, or null past
+  // the far faces of an odd-sized `fine`.
+  [[nodiscard]] static const brick* covered(const level& fine, std::int32_t x, std::int32_t y,
+                                            std::int32_t z, int d) noexcept {
+    const std::int32_t fx = 2 * x + (d & 1);
+    const std::int32_t fy = 2 * y + ((d >> 1) & 1);
+    const std::int32_t fz = 2 * z + ((d >> 2) & 1);
+    if (fx >= fine.n[0] || fy >= fine.n[1] || fz >= fine.n[2]) return nullptr;
+    return &fine.at(fx, fy, fz);
+  }
+
   // One slab of level-0 bricks' errors: 4 planes of vertices, row by row. Bricks whose vertices
   // and spine ends all lie in the data box take fixed offsets, by the row's kind (which axes of y,
   // z are odd) and x mod 4; the others, and vertices of scale ≥ 4, take own_error().
