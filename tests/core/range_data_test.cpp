@@ -186,7 +186,6 @@ TEST(RangeData, memory_stays_below_the_volume_bytes) {
   }
 }
 
-// The build's slabs run in any order and on any threads: every range and error is the same.
 // A parallel loop on three threads, each running its items in reverse order.
 void on_three_threads(std::size_t n, const std::function<void(std::size_t)>& f) {
   std::vector<std::thread> pool;
@@ -200,6 +199,7 @@ void on_three_threads(std::size_t n, const std::function<void(std::size_t)>& f) 
   for (auto& th : pool) th.join();
 }
 
+// The build's slabs run in any order and on any threads: every range and error is the same.
 TEST(RangeData, built_in_parallel_slabs_it_equals_the_sequential_build) {
   for (const volume& v :
        {make_gaussian_blobs({37, 29, 45}, 6, 5u), make_marschner_lobb({33, 33, 33})}) {
@@ -300,7 +300,6 @@ TEST(RangeData, a_staged_build_in_any_order_equals_the_one_pass_build) {
 // one plane of a level per item) equal the one-thread build on every diamond; with the items
 // run on three threads in reverse order, and with a volume whose levels have many planes.
 TEST(RangeData, coarser_levels_built_through_a_parallel_loop_equal_the_one_thread_build) {
-  const parallel_loop three_threads = on_three_threads;
   std::size_t items = 0;
   const parallel_loop counting = [&](std::size_t n, const std::function<void(std::size_t)>& body) {
     items += n;
@@ -309,7 +308,7 @@ TEST(RangeData, coarser_levels_built_through_a_parallel_loop_equal_the_one_threa
   const volume v = make_gaussian_blobs({70, 61, 53}, 9, 11u);
   const hierarchy h(v.dims());
   const range_data serial(v, h);
-  const range_data parallel(v, h, three_threads);
+  const range_data parallel(v, h, on_three_threads);
   range_data staged(v, h, range_data::staged);
   staged.build_pieces(0, staged.piece_count());
   items = 0;
