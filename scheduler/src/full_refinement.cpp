@@ -60,6 +60,11 @@ struct pending_split {
   // its groups go in the root's store.
   std::uint64_t cut_triangles;
   packed_group* dest;
+  // The split's children, found when it is computed: their words in record_of are requested
+  // then, so that publication's counting, up to 256 splits later, finds them in cache (the
+  // locked decrement waits for its line; without the request it was a third of publication's
+  // time on two threads).
+  child_list children;
 };
 
 }  // namespace
@@ -193,11 +198,17 @@ void engine_impl::run_full_task(full_task& t) {
       }
       const ipoint centre = hier.point(item.index);
       const std::int32_t scale = hier.scale_of(centre);
+      const child_list children =
+          hier.children_of(centre, scale, hierarchy::type_of(centre, scale));
+      for (int i = 0; i < children.count; ++i) {
+        const ipoint& c = children.centre[static_cast<std::size_t>(i)];
+        __builtin_prefetch(&r.record_of[hier.index(c)], 1);
+      }
       const std::size_t first = t.groups.size();
       const split_summary s = compute_split(hier, vol, w, centre, scale, t.groups);
       t.pending.push_back({item, scale, s.crossed, static_cast<std::uint32_t>(first),
                            static_cast<std::uint32_t>(t.groups.size() - first), s.added_triangles,
-                           s.removed_triangles, 0, nullptr});
+                           s.removed_triangles, 0, nullptr, children});
       t.pending_tally.count(s);
       if (budget) t.summaries.push_back(s);
       // Every 64 splits when the mutex is free; a task that finds it taken goes on computing
@@ -339,9 +350,7 @@ bool engine_impl::publish_full_task(full_task& t, bool wait, bool stopped) {
       break;
     }
     const pending_split& p = t.pending[j];
-    const ipoint centre = hier.point(p.item.index);
-    const child_list children =
-        hier.children_of(centre, p.scale, hierarchy::type_of(centre, p.scale));
+    const child_list& children = p.children;
     const int depth = p.item.depth + 1;
     for (int i = 0; i < children.count; ++i) {
       const auto ui = static_cast<std::size_t>(i);
