@@ -237,6 +237,10 @@ void engine_impl::launch(std::unique_lock<std::mutex>& lock, const refine_goal& 
   if (g.what == refine_goal::kind::error) r->queue.aim_at(g.max_error);  // eligible() is exact
   stop.store(false, std::memory_order_relaxed);  // relaxed: the thread start orders it
   budget_hit = false;
+  // An empty task asks oneTBB for the arena's workers now, before the driver thread starts:
+  // workers idle for more than a few milliseconds join new work 0.3–2 ms late, about the whole
+  // of a 257³ range build on two threads (docs/ARCHITECTURE.md, Performance).
+  if (threads > 1) arena.enqueue([] {});
   begin_run([this, r] { drive(r); });
 }
 
