@@ -334,6 +334,18 @@ struct engine_impl : run_control {
                                                       std::uint64_t index, const range_data* rd,
                                                       bool owns_surface) const;
 
+  // The children of the diamond (centre, scale), their words in r.record_of asked for (for
+  // writing) so that counting them after the split finds them in cache: the split's work, or a
+  // task's later splits, overlaps the misses. Any thread (a hint: reads nothing of r's state).
+  [[nodiscard]] child_list children_requested(const engine_root& r, const ipoint& centre,
+                                              std::int32_t scale) const noexcept {
+    const child_list children = hier.children_of(centre, scale, hierarchy::type_of(centre, scale));
+    for (int i = 0; i < children.count; ++i) {
+      __builtin_prefetch(&r.record_of[hier.index(children.centre[static_cast<std::size_t>(i)])], 1);
+    }
+    return children;
+  }
+
   // A published split (centre, scale, depth; its surface `groups`) counted as a parent of each of
   // its children; the children it completes are queued (or culled). The one thread of the root's
   // run: the one-thread loop, or the driver between task runs (settle_leftover).

@@ -198,12 +198,7 @@ void engine_impl::run_full_task(full_task& t) {
       }
       const ipoint centre = hier.point(item.index);
       const std::int32_t scale = hier.scale_of(centre);
-      const child_list children =
-          hier.children_of(centre, scale, hierarchy::type_of(centre, scale));
-      for (int i = 0; i < children.count; ++i) {
-        const ipoint& c = children.centre[static_cast<std::size_t>(i)];
-        __builtin_prefetch(&r.record_of[hier.index(c)], 1);
-      }
+      const child_list children = children_requested(r, centre, scale);
       const std::size_t first = t.groups.size();
       const split_summary s = compute_split(hier, vol, w, centre, scale, t.groups);
       t.pending.push_back({item, scale, s.crossed, static_cast<std::uint32_t>(first),

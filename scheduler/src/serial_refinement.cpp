@@ -60,10 +60,7 @@ void engine_impl::refine_serially(engine_root& r) {
     const std::int32_t scale = hier.scale_of(centre);
     // The children's words are counted after the split: asked for now, their cache misses
     // overlap the split's work.
-    const child_list children = hier.children_of(centre, scale, hierarchy::type_of(centre, scale));
-    for (int i = 0; i < children.count; ++i) {
-      __builtin_prefetch(&r.record_of[hier.index(children.centre[static_cast<std::size_t>(i)])], 1);
-    }
+    const child_list children = children_requested(r, centre, scale);
     groups.clear();
     const split_summary s = compute_split(hier, vol, w, centre, scale, groups);
     const std::uint64_t after = r.cut_triangles + static_cast<unsigned>(s.added_triangles) -
