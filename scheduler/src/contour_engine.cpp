@@ -67,6 +67,8 @@ struct contour_root : epoch_object {
   contour_engine_impl* impl;
   double isovalue;
   std::uint64_t generation;
+  // When the root surface was published (make_root(), just before the store that publishes it).
+  clock::time_point published_at{};
   append_log<contour_record> records;
   // Per grid vertex: the diamond's record, 0 while unsplit. Written once (0 → r) by the driver
   // before the release of records.publish(); read by readers through atomic_ref (relaxed: a
@@ -155,8 +157,13 @@ struct contour_engine_impl : run_control {
     r->segment_count.set(n);
     r->record_segments.set(n);
     r->remaining.set(r->root_centres.size());  // every root may still split
+    r->published_at = clock::now();
     return r;
   }
+
+  // A contour root maps its records' chunk directory fresh, so set_isovalue() stops the run
+  // before making it (swap_root). 2D roots are small and their runs short.
+  [[nodiscard]] static bool can_publish_early() noexcept { return false; }
 
   static void destroy_root(void* p) noexcept {
     auto* r = static_cast<contour_root*>(p);
@@ -508,6 +515,7 @@ contour_engine_statistics contour_engine::statistics() const {
     }
     s.published = r->records.published();
     s.generation = r->generation;
+    s.surface_published_at = r->published_at;
   }
   s.runs = impl_->runs.get();
   s.cancelled_runs = impl_->cancelled_runs.get();

@@ -50,8 +50,8 @@ engine::~engine() {
   if (impl_->graph) impl_->arena.execute([this] { impl_->graph->wait_for_all(); });
   detail::engine_root* r = impl_->current();
   impl_->root.store(nullptr, std::memory_order_relaxed);  // relaxed: no reader is left
+  impl_->stop_reclaimer();                                // destroys the roots it was handed
   impl_->recycle = false;
-  if (impl_->cleaner.joinable()) impl_->cleaner.join();
   impl_->spare.reset();
   detail::engine_impl::destroy_root(r);
   // Participants, then the domain (which drains the retired roots), go with impl_.
@@ -62,8 +62,10 @@ void engine::set_isovalue(double w) {
   detail::engine_impl& e = *impl_;
   detail::swap_root(e, w, [&e](detail::engine_root& old) {
     old.retired_bytes = old.bytes();
-    e.retired_bytes.add(old.retired_bytes);
-    e.peak_retired_bytes.set(std::max(e.peak_retired_bytes.get(), e.retired_bytes.get()));
+    // relaxed: a statistic; the reclaimer's fetch_sub is the other writer.
+    const std::uint64_t now =
+        e.retired_bytes.fetch_add(old.retired_bytes, std::memory_order_relaxed) + old.retired_bytes;
+    e.peak_retired_bytes.set(std::max(e.peak_retired_bytes.get(), now));
   });
 }
 
@@ -117,8 +119,9 @@ engine_statistics engine::statistics() const {
     s.discarded = r->discarded.get();
     s.batches = r->batches.get();
     s.generation = r->generation;
+    s.surface_published_at = r->published_at;
   }
-  s.retired_bytes = impl_->retired_bytes.get();
+  s.retired_bytes = impl_->retired_bytes.load(std::memory_order_relaxed);  // relaxed: a statistic
   s.peak_retired_bytes = impl_->peak_retired_bytes.get();
   s.recycled_roots = impl_->recycled_roots.get();
   s.root_bytes = impl_->root_bytes.get();

@@ -69,12 +69,16 @@ struct ready_item {
 
 inline constexpr std::uint64_t root_alive = 0x70726f6769736f31;  // "progiso1"
 
-// A root's per-grid-vertex array (engine_root::record_of), all zero when handed to a root. A
-// reclaimed root gives it back to its engine, cleared, for the next root: a fresh mapping would
-// pay a page fault for every page the next refinement touches, and a TLB flush interrupt on every
-// core for each page first read (by a compute task's hint load or a reader) and then written.
+// A root's memory that does not depend on its isovalue, handed from a reclaimed root to the next
+// one: the per-grid-vertex array (engine_root::record_of), all zero, and the records' chunk
+// directory, all null. Mapping them fresh would make the next root wait for the address space's
+// lock, which a running refinement's page faults hold (set_isovalue() publishes the new root
+// before it stops the run: swap_root), and would pay a page fault for every page the next
+// refinement touches, and a TLB flush interrupt on every core for each page first read (by a
+// compute task's hint load or a reader) and then written.
 struct vertex_state {
   zeroed_array<std::uint32_t> record_of;
+  zeroed_array<struct engine_record*> record_chunks;
 };
 
 // A grid vertex's word in engine_root::record_of. 0 while none of the diamond's parents is
@@ -101,6 +105,7 @@ struct engine_root : epoch_object {
         isovalue(w),
         threshold(w),
         generation(gen),
+        records(std::move(state.record_chunks)),
         record_of(std::move(state.record_of)),
         groups(detail::chunked_store<packed_group>::bits_for(record_of.size())) {}
 
@@ -109,6 +114,8 @@ struct engine_root : epoch_object {
   double isovalue;
   detail::sample_threshold threshold;  // isovalue, as straddle tests compare samples with it
   std::uint64_t generation;
+  // When the root surface was published (make_root(), just before the store that publishes it).
+  clock::time_point published_at{};
   append_log<engine_record> records;
   // Per grid vertex: the count of split parents while unsplit, then the index of the diamond's
   // record (see parents_counted). The count is written by whoever counts the children (the
@@ -374,15 +381,29 @@ struct engine_impl : run_control {
 
   // The cleared arrays of a reclaimed root if there are any, else fresh ones. Control thread.
   vertex_state take_vertex_state();
+  [[nodiscard]] vertex_state fresh_vertex_state() const;
+  // Whether make_root() will take a reclaimed root's arrays (maps no memory). Only the control
+  // thread takes them, so a true answer holds until its next make_root().
+  [[nodiscard]] bool can_publish_early() {
+    const std::lock_guard lock(reclaim_mutex);
+    return spare.has_value();
+  }
 
-  // A dying root's arrays become the next root's, cleared on a thread of their own so that
-  // neither set_isovalue() nor the next run waits for it (one spare set at most; arrays that
-  // find the spare taken or the cleaner busy are unmapped). A run wrote record_of at each
-  // published diamond and at each of its children, nothing else: a small cut is cleared entry by
-  // entry, a large one by zeroing the array whole (cheaper beyond about one record per 64
-  // vertices). Control thread, or the engine's destruction (then `recycle` is
-  // false and nothing is kept).
-  void keep_vertex_state(engine_root& r) noexcept;
+  // Retired roots are destroyed on a thread of the engine's own (`reclaimer`), so that
+  // set_isovalue() returns without freeing the old root's records and groups or clearing its
+  // per-vertex arrays (up to 3 ms of the call on Marschner–Lobb 257³ at two threads, where the
+  // new root's surface takes 0.04 ms). hand_over() queues a root for it (control thread, from
+  // the domain's flush); it refuses while two are queued, and the caller then destroys the root
+  // itself, so retired memory stays bounded however fast the isovalue moves.
+  [[nodiscard]] bool hand_over(engine_root* r) noexcept;
+  void reclaim_loop() noexcept;
+  // Finishes what is queued and joins the reclaimer (~engine, before the domain drains).
+  void stop_reclaimer() noexcept;
+  // Destroys a root. With `keep`, and no spare arrays waiting, its per-vertex arrays are first
+  // cleared and kept for the next root: a run wrote record_of at each published diamond and at
+  // each of its children, nothing else, so a small cut is cleared entry by entry and a large
+  // one by zeroing the array whole (cheaper beyond about one record per 64 vertices).
+  void reclaim(engine_root& r, bool keep) noexcept;
 
   static void destroy_root(void* p) noexcept;
 
@@ -502,13 +523,18 @@ struct engine_impl : run_control {
   mutable std::atomic<bool> ranges_ready{false};
   mutable std::atomic<double> range_seconds{0.0};
   unsigned threads;
-  // The per-vertex arrays of the last reclaimed root, cleared by `cleaner` (keep_vertex_state),
-  // until the next root takes them; the control thread reads `spare` only after joining the
-  // cleaner. Declared before the domain, which destroys the retired roots when it goes.
-  // `recycle` is cleared by ~engine, after joining the cleaner: roots destroyed then keep nothing.
+  // The reclaimer (hand_over()): its queue, its stop flag and the per-vertex arrays of the
+  // last root it cleared, until the next root takes them, all guarded by reclaim_mutex.
+  // Declared before the domain, which destroys the retired roots when it goes. `recycle` is
+  // cleared by ~engine after stop_reclaimer(): roots destroyed then are destroyed in place and
+  // keep nothing.
+  std::mutex reclaim_mutex;
+  std::condition_variable reclaim_wake;
+  std::vector<engine_root*> reclaim_queue;
+  bool reclaim_quit = false;
   std::optional<vertex_state> spare;
-  std::thread cleaner;
-  std::atomic<bool> cleaner_done{false};
+  bool spare_fresh = false;  // `spare` was mapped fresh (by the reclaimer), not cleared
+  std::thread reclaimer;
   bool recycle = true;
   mutable epoch_domain domain;
   epoch_participant control_participant;  // retires roots; used under `control`
@@ -546,7 +572,9 @@ struct engine_impl : run_control {
   std::mutex publish_mutex;
   std::uint64_t since_progress = 0;
 
-  mutable counter retired_bytes, peak_retired_bytes, root_bytes;
+  // Written by the control thread (a root retired) and the reclaimer (a root destroyed).
+  std::atomic<std::uint64_t> retired_bytes{0};
+  mutable counter peak_retired_bytes, root_bytes;
   counter recycled_roots;
   std::uint64_t generation = 0;  // guarded by control
 };

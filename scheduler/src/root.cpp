@@ -24,6 +24,7 @@ engine_root* engine_impl::make_root(double w, std::uint64_t gen) {
   r->record_triangles.set(r->cut_triangles);
   // Not known before the seeding: every root may still split.
   r->remaining.set(r->root_centres.size());
+  r->published_at = clock::now();
   return r;
 }
 
@@ -156,71 +157,133 @@ void engine_impl::requeue_by_ranges(engine_root& r) {
 }
 
 vertex_state engine_impl::take_vertex_state() {
-  if (cleaner.joinable() && cleaner_done.load(std::memory_order_acquire)) cleaner.join();
-  if (!cleaner.joinable() && spare) {
-    vertex_state s = std::move(*spare);
-    spare.reset();
-    recycled_roots.add(1);
-    return s;
-  }
-  const std::size_t n = hier.vertex_count();
-  return {zeroed_array<std::uint32_t>(n)};
-}
-
-void engine_impl::keep_vertex_state(engine_root& r) noexcept {
-  if (!recycle) return;
-  if (cleaner.joinable()) {
-    if (!cleaner_done.load(std::memory_order_acquire)) return;  // `spare` is the cleaner's
-    cleaner.join();
-  }
-  if (spare) return;
-  const std::size_t n = r.records.size();
-  std::vector<std::pair<std::uint64_t, std::int32_t>> written;  // (diamond, scale)
-  if (n * 64 < r.record_of.size()) {
-    written.reserve(n);
-    for (std::size_t i = 1; i < n; ++i) {
-      const engine_record& rec = r.records.at_unpublished(i);
-      written.emplace_back(rec.diamond, rec.scale);
+  {
+    const std::lock_guard lock(reclaim_mutex);
+    if (spare) {
+      vertex_state s = std::move(*spare);
+      spare.reset();
+      if (!spare_fresh) recycled_roots.add(1);
+      return s;
     }
   }
-  vertex_state s{std::move(r.record_of)};
-  const bool whole = written.empty() && n > 1;
-  cleaner_done.store(false, std::memory_order_relaxed);  // relaxed: the thread start orders it
+  return fresh_vertex_state();
+}
+
+vertex_state engine_impl::fresh_vertex_state() const {
+  return {zeroed_array<std::uint32_t>(hier.vertex_count()),
+          zeroed_array<engine_record*>(append_log<engine_record>::max_chunks)};
+}
+
+bool engine_impl::hand_over(engine_root* r) noexcept {
+  const std::lock_guard lock(reclaim_mutex);
+  if (reclaim_quit || reclaim_queue.size() >= 2) return false;
   try {
-    cleaner = std::thread([this, s = std::move(s), written = std::move(written), whole]() mutable {
-      if (whole) s.record_of.zero();
-      for (const auto& [d, h] : written) {
-        s.record_of[d] = 0;
-        const ipoint c = hier.point(d);
-        const child_list children = hier.children_of(c, h, hierarchy::type_of(c, h));
+    if (!reclaimer.joinable()) {
+      reclaim_queue.reserve(2);
+      reclaimer = std::thread([this] { reclaim_loop(); });
+    }
+  } catch (...) {
+    return false;  // no thread or no memory: the caller destroys the root
+  }
+  reclaim_queue.push_back(r);  // within the reserved capacity
+  reclaim_wake.notify_one();
+  return true;
+}
+
+void engine_impl::reclaim_loop() noexcept {
+  for (;;) {
+    engine_root* r = nullptr;
+    bool need_fresh = false;
+    {
+      std::unique_lock lock(reclaim_mutex);
+      reclaim_wake.wait(lock, [this] { return reclaim_quit || !reclaim_queue.empty(); });
+      if (reclaim_queue.empty()) return;  // quit, and nothing left
+      r = reclaim_queue.front();
+      reclaim_queue.erase(reclaim_queue.begin());
+      need_fresh = !spare;
+    }
+    // First a fresh set for the next root, if there is none (mapped here, where waiting for the
+    // address space's lock delays no caller; nothing is touched, so it costs no memory yet):
+    // clearing the old root's arrays takes milliseconds, and the next isovalue change may come
+    // sooner.
+    if (need_fresh) {
+      try {
+        vertex_state f = fresh_vertex_state();
+        const std::lock_guard lock(reclaim_mutex);
+        if (!spare) {
+          spare = std::move(f);
+          spare_fresh = true;
+        }
+      } catch (...) {
+        // No memory: the next root maps its own.
+      }
+    }
+    reclaim(*r, true);
+  }
+}
+
+void engine_impl::stop_reclaimer() noexcept {
+  {
+    const std::lock_guard lock(reclaim_mutex);
+    reclaim_quit = true;
+  }
+  reclaim_wake.notify_one();
+  if (reclaimer.joinable()) reclaimer.join();
+}
+
+void engine_impl::reclaim(engine_root& r, bool keep) noexcept {
+  PROGISO_ASSERT(r.magic == root_alive);
+  if (keep) {
+    const std::lock_guard lock(reclaim_mutex);
+    keep = !spare || spare_fresh;  // one spare set at most, a cleared one rather than a fresh one
+  }
+  if (keep) {
+    // Before the records are poisoned or freed: they say which words were written.
+    const std::size_t n = r.records.size();
+    zeroed_array<std::uint32_t>& words = r.record_of;
+    if (n * 64 >= words.size()) {
+      if (n > 1) words.zero();
+    } else {
+      for (std::size_t i = 1; i < n; ++i) {
+        const engine_record& rec = r.records.at_unpublished(i);
+        words[rec.diamond] = 0;
+        const ipoint c = hier.point(rec.diamond);
+        const child_list children =
+            hier.children_of(c, rec.scale, hierarchy::type_of(c, rec.scale));
         for (int k = 0; k < children.count; ++k) {
-          s.record_of[hier.index(children.centre[static_cast<std::size_t>(k)])] = 0;
+          words[hier.index(children.centre[static_cast<std::size_t>(k)])] = 0;
         }
       }
-      spare = std::move(s);
-      // release: pairs with the acquire loads in take/keep_vertex_state (they then join).
-      cleaner_done.store(true, std::memory_order_release);
-    });
-  } catch (...) {
-    // No thread: the arrays are freed with the lambda, and the next root maps fresh ones.
+    }
   }
+  if (opt.poison_retired) {
+    r.groups.overwrite(poison_byte);
+    poison_vector(r.root_triangles);
+    poison_log(r.records);
+    r.isovalue = std::nan("");
+  }
+  if (keep) {
+    std::optional<vertex_state> replaced;  // unmapped after the lock is released
+    vertex_state s{std::move(r.record_of), r.records.release_directory()};
+    const std::lock_guard lock(reclaim_mutex);
+    if (!spare || spare_fresh) {
+      replaced = std::move(spare);
+      spare = std::move(s);
+      spare_fresh = false;
+    }
+  }
+  // relaxed: a statistic; the control thread's fetch_add is the other writer.
+  retired_bytes.fetch_sub(r.retired_bytes, std::memory_order_relaxed);
+  r.magic = root_dead;
+  if (opt.on_reclaim) opt.on_reclaim(r.generation);
+  delete &r;
 }
 
 void engine_impl::destroy_root(void* p) noexcept {
   auto* r = static_cast<engine_root*>(p);
-  PROGISO_ASSERT(r->magic == root_alive);
   engine_impl& impl = *r->impl;
-  impl.keep_vertex_state(*r);  // reads the records: before they are poisoned
-  if (impl.opt.poison_retired) {
-    r->groups.overwrite(poison_byte);
-    poison_vector(r->root_triangles);
-    poison_log(r->records);
-    r->isovalue = std::nan("");
-  }
-  impl.retired_bytes.add(0 - r->retired_bytes);  // single writer: control or drain
-  r->magic = root_dead;
-  if (impl.opt.on_reclaim) impl.opt.on_reclaim(r->generation);
-  delete r;
+  if (impl.recycle && impl.hand_over(r)) return;
+  impl.reclaim(*r, false);
 }
 
 }  // namespace progiso::detail

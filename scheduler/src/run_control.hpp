@@ -185,7 +185,8 @@ void require_valid_goal(const refine_goal& goal);
 
 // The control calls both engines make the same way. `Impl` derives from run_control and has
 // `goal`, `generation`, `root` (an atomic root pointer), `control_participant`, current(),
-// make_root(w, generation), launch(lock, goal) and a static destroy_root(void*).
+// make_root(w, generation), can_publish_early(), launch(lock, goal) and a static
+// destroy_root(void*).
 
 // start(): a run towards `goal` in the background (cancelling a run in progress).
 template <class Impl>
@@ -206,8 +207,15 @@ bool refine_blocking(Impl& impl, const refine_goal& goal) {
   return impl.wait_reached(lock);
 }
 
-// set_isovalue(): stops the run, publishes w's root, retires the old one (after
-// `on_retire(old)`, the caller's accounting) and resumes the interrupted goal.
+// set_isovalue(): publishes w's root, stops the run, retires the old root (after
+// `on_retire(old)`, the caller's accounting) and resumes the interrupted goal. The new root's
+// surface reads only the root cubes' (squares') corners and shares nothing with the run on the
+// old root, so where make_root() maps no memory (`can_publish_early()`: the engine holds a
+// reclaimed root's arrays) it is published first, and readers see it within make_root()'s time
+// (tens of microseconds), not after the run's workers have stopped, which on a loaded machine
+// can wait for a scheduler tick. Otherwise the run is stopped first: mapping memory while its
+// workers fault pages in waits for the address space's lock (up to 5 ms, 2 cores). The old root
+// is destroyed by the engine's reclaimer where it has one, not by this call.
 template <class Impl, class OnRetire>
 void swap_root(Impl& impl, double w, OnRetire&& on_retire) {
   require_finite_isovalue(w);
@@ -215,18 +223,20 @@ void swap_root(Impl& impl, double w, OnRetire&& on_retire) {
   std::unique_lock lock(impl.control);
   const bool resume = impl.active;
   const refine_goal goal = impl.goal;
-  impl.stop_and_join(lock);
+  const bool early = impl.can_publish_early();
+  if (!early) impl.stop_and_join(lock);
   auto* old = impl.current();
   auto* fresh = impl.make_root(w, ++impl.generation);
   // seq_cst (the default): release for readers' protect(), and the unlink must be seq_cst for
   // the TSan variant of the reclamation argument (concurrent/epoch.hpp).
   impl.root.store(fresh);
+  if (early) impl.stop_and_join(lock);  // the run on `old` ends before `old` is retired
   on_retire(*old);
   impl.control_participant.retire(old, &Impl::destroy_root, old->birth_era());
+  if (resume) impl.launch(lock, goal);
   // Roots are large and few: reclaim now what no snapshot holds, rather than every
   // reclaim_threshold retirements. A reader stalled in a snapshot pins only its own root.
   impl.control_participant.flush();
-  if (resume) impl.launch(lock, goal);
 }
 
 }  // namespace progiso::detail

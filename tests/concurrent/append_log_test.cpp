@@ -2,6 +2,7 @@
 // writers' mutex, published by watermark in log order (as the engine's full-refinement tasks
 // publish their records).
 #include <progiso/concurrent/append_log.hpp>
+#include <progiso/core/base/zeroed_array.hpp>
 
 #include <algorithm>
 #include <atomic>
@@ -9,7 +10,9 @@
 #include <cstdint>
 #include <deque>
 #include <mutex>
+#include <stdexcept>
 #include <thread>
+#include <utility>
 #include <vector>
 
 #include <gtest/gtest.h>
@@ -50,6 +53,33 @@ TEST(AppendLog, reserve_spans_every_chunk_its_slots_lie_in_and_filled_slots_read
     EXPECT_EQ(log[i].check, i * 3 + 1);
   }
   EXPECT_EQ(log.byte_size(), 4 * 4 * sizeof(item));
+}
+
+TEST(AppendLog, a_log_on_a_released_directory_starts_empty_and_appends_like_a_fresh_one) {
+  using log_t = append_log<item, 2, 8>;  // chunks of 4, at most 8 of them
+  zeroed_array<item*> directory(0);
+  {
+    log_t first;
+    for (std::uint64_t i = 0; i < 13; ++i) first.push_back({i, i * 3 + 1});  // four chunks
+    first.publish();
+    directory = first.release_directory();
+    EXPECT_EQ(first.size(), 0u);
+    EXPECT_EQ(first.published(), 0u);
+    EXPECT_EQ(first.byte_size(), 0u);
+  }  // the emptied log destroys nothing twice (ASan)
+  ASSERT_EQ(directory.size(), log_t::max_chunks);
+  for (std::size_t c = 0; c < directory.size(); ++c) {
+    EXPECT_EQ(directory[c], nullptr) << "chunk " << c << " of the old log is still named";
+  }
+  log_t second(std::move(directory));
+  EXPECT_EQ(second.size(), 0u);
+  EXPECT_EQ(second.published(), 0u);
+  for (std::uint64_t i = 0; i < 32; ++i) second.push_back({i, i * 7});  // every chunk
+  second.publish();
+  ASSERT_EQ(second.published(), 32u);
+  for (std::uint64_t i = 0; i < 32; ++i) EXPECT_EQ(second[i].check, i * 7);
+  EXPECT_THROW(second.push_back({32, 0}), std::length_error);  // 8 chunks of 4: full
+  EXPECT_THROW(log_t(zeroed_array<item*>(3)), std::invalid_argument);
 }
 
 // Writers reserve ranges under a mutex, fill them without it, and move the watermark over the

@@ -545,6 +545,72 @@ TEST(Engine, isovalue_change_publishes_the_new_root_at_once_and_resumes_refining
   EXPECT_EQ(reclaimed, (std::multiset<std::uint64_t>{0, 1})) << "each root reclaimed exactly once";
 }
 
+TEST(Engine, an_isovalue_change_publishes_the_new_surface_before_the_old_run_has_stopped) {
+  // Once the engine holds a reclaimed root's memory, set_isovalue() publishes the new root
+  // before it stops the run on the old one (swap_root). The old run is held in its progress
+  // callback until a reader sees the new isovalue, or 5 s pass; set_isovalue() cannot return
+  // before that run has stopped, so the reader sees the new surface only if it was published
+  // first. Also: the published time lies within the call, and the resumed goal completes.
+  using clock = std::chrono::steady_clock;
+  const volume v = make_marschner_lobb({65, 65, 65});
+  for (const unsigned threads : {1u, 2u}) {
+    SCOPED_TRACE(testing::Message() << threads << " threads");
+    std::atomic<int> phase{0};  // 1 armed, 2 the run is held, 3 the reader saw the new surface
+    std::atomic<int> reclaimed{0};
+    engine_options o = with_threads(threads);
+    o.progress_interval = 1;
+    o.progress = [&](const engine_progress&) {
+      int armed = 1;
+      // acq_rel: pairs with the test thread's release-store of 1 and its acquire-loads of 2.
+      if (!phase.compare_exchange_strong(armed, 2, std::memory_order_acq_rel)) return;
+      const auto until = clock::now() + 5s;
+      // acquire: pairs with the reader's release-store of 3.
+      while (phase.load(std::memory_order_acquire) != 3 && clock::now() < until) {
+        std::this_thread::sleep_for(100us);
+      }
+    };
+    // relaxed: a count polled by this thread; the reclaimer's own mutex orders its spare.
+    o.on_reclaim = [&](std::uint64_t) { reclaimed.fetch_add(1, std::memory_order_relaxed); };
+    engine e(v, 0.5, o);
+    e.set_isovalue(0.4);  // nothing reclaimed yet: this change maps the new root's memory
+    const auto give_up = clock::now() + 5s;
+    // relaxed: see on_reclaim.
+    while (reclaimed.load(std::memory_order_relaxed) == 0 && clock::now() < give_up) {
+      std::this_thread::sleep_for(1ms);
+    }
+    ASSERT_EQ(reclaimed.load(std::memory_order_relaxed), 1) << "the first root was not reclaimed";
+    phase.store(1, std::memory_order_release);  // release: pairs with the callback's acq_rel
+    e.start(refine_goal::full());
+    // acquire: pairs with the callback's acq_rel.
+    while (phase.load(std::memory_order_acquire) != 2 && clock::now() < give_up) {
+      std::this_thread::sleep_for(100us);
+    }
+    ASSERT_EQ(phase.load(std::memory_order_acquire), 2) << "the run never called back";
+    const auto t0 = clock::now();
+    std::thread changer([&] { e.set_isovalue(0.3); });
+    bool seen = false;
+    for (const auto until = clock::now() + 5s; clock::now() < until;) {
+      if (e.isovalue() == 0.3) {
+        seen = true;
+        break;
+      }
+      std::this_thread::sleep_for(50us);
+    }
+    phase.store(3, std::memory_order_release);  // release: pairs with the callback's acquire
+    changer.join();
+    const auto t1 = clock::now();
+    EXPECT_TRUE(seen) << "the new surface was not published while the old run was held";
+    const engine_statistics st = e.statistics();
+    EXPECT_GE(st.surface_published_at, t0);
+    EXPECT_LE(st.surface_published_at, t1);
+    EXPECT_EQ(st.generation, 2u);
+    e.wait();
+    EXPECT_TRUE(e.done()) << "the interrupted full goal resumes at the new isovalue";
+    EXPECT_TRUE(
+        test::same_surface(e.snapshot().mesh(), test::reference_marching_tetrahedra(v, 0.3).mesh));
+  }
+}
+
 TEST(Engine, a_root_on_a_reclaimed_roots_cleared_arrays_refines_exactly_as_a_fresh_engine) {
   // Each isovalue change hands the old root's per-vertex arrays, cleared on a thread of their
   // own, to a later root: entry by entry after a small cut, whole after a large one. A missed entry

@@ -39,6 +39,7 @@
 #include <new>
 #include <stdexcept>
 #include <type_traits>
+#include <utility>
 
 #include <progiso/core/base/assert.hpp>
 #include <progiso/core/base/config.hpp>
@@ -52,12 +53,20 @@ class append_log {
 
  public:
   static constexpr std::size_t chunk_size = std::size_t{1} << ChunkBits;
+  static constexpr std::size_t max_chunks = MaxChunks;
   static constexpr std::size_t max_size = chunk_size * MaxChunks;
 
-  append_log() : chunks_(MaxChunks) {}
-  ~append_log() {
-    for (std::size_t c = 0; c * chunk_size < size_; ++c) delete[] chunks_[c];
+  append_log() : append_log(zeroed_array<T*>(MaxChunks)) {}
+  /// A log on a chunk directory of MaxChunks null pointers: a fresh one, or one that another
+  /// log handed back (release_directory()), so that the new log maps no memory (the directory
+  /// is a mapping of 8 MiB, and mapping waits for the address space's lock, which threads
+  /// faulting pages in hold: up to 5 ms on a loaded 2-core machine).
+  explicit append_log(zeroed_array<T*>&& directory) : chunks_(std::move(directory)) {
+    if (chunks_.size() != MaxChunks) {
+      throw std::invalid_argument("append_log: a chunk directory of the wrong size");
+    }
   }
+  ~append_log() { free_chunks(); }
   append_log(const append_log&) = delete;
   append_log& operator=(const append_log&) = delete;
 
@@ -118,12 +127,27 @@ class append_log {
   [[nodiscard]] T& at_unpublished(std::size_t i) noexcept {
     return chunks_[i >> ChunkBits][i & (chunk_size - 1)];
   }
+  /// Frees the chunks and hands back the chunk directory, every entry null again, for a new log;
+  /// this log is then empty and has no directory (destroy it). Only once no thread reads it.
+  [[nodiscard]] zeroed_array<T*> release_directory() noexcept {
+    free_chunks();
+    size_ = 0;
+    published_.store(0, std::memory_order_relaxed);  // relaxed: no reader is left
+    return std::move(chunks_);
+  }
   /// Bytes held by chunks (writer, or any thread once the writer is quiet).
   [[nodiscard]] std::size_t byte_size() const noexcept {
     return ((size_ + chunk_size - 1) >> ChunkBits) * chunk_size * sizeof(T);
   }
 
  private:
+  void free_chunks() noexcept {
+    for (std::size_t c = 0; c * chunk_size < size_; ++c) {
+      delete[] chunks_[c];
+      chunks_[c] = nullptr;
+    }
+  }
+
   zeroed_array<T*> chunks_;
   std::size_t size_ = 0;
   alignas(64) std::atomic<std::size_t> published_{0};

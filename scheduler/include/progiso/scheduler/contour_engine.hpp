@@ -78,7 +78,9 @@ struct contour_engine_statistics {
   contour_statistics refine;     ///< of the current root (isovalue)
   std::uint64_t published = 0;   ///< records published (including the root record)
   std::uint64_t generation = 0;  ///< isovalue changes so far
-  std::uint64_t runs = 0;        ///< runs started (engine life)
+  /// When the current isovalue's first contour (its root contour) became visible to snapshots.
+  std::chrono::steady_clock::time_point surface_published_at{};
+  std::uint64_t runs = 0;  ///< runs started (engine life)
   std::uint64_t cancelled_runs = 0;
   epoch_statistics reclamation;
   std::uint64_t snapshot_retries = 0;

@@ -139,11 +139,14 @@ struct refine_goal {
 /// Counters of the current isovalue's refinement (and of the engine's life). Readable while
 /// running: each counter is exact at some moment of the run, not all at the same moment.
 struct engine_statistics {
-  refine_statistics refine;              ///< of the current root (isovalue)
-  std::uint64_t published = 0;           ///< records published (including the root record)
-  std::uint64_t discarded = 0;           ///< splits computed but not published (cancel, deadline)
-  std::uint64_t batches = 0;             ///< compute tasks run for this root
-  std::uint64_t generation = 0;          ///< isovalue changes so far
+  refine_statistics refine;      ///< of the current root (isovalue)
+  std::uint64_t published = 0;   ///< records published (including the root record)
+  std::uint64_t discarded = 0;   ///< splits computed but not published (cancel, deadline)
+  std::uint64_t batches = 0;     ///< compute tasks run for this root
+  std::uint64_t generation = 0;  ///< isovalue changes so far
+  /// When the current isovalue's first surface (its root surface) became visible to snapshots:
+  /// set_isovalue() may publish it before the run on the old isovalue has stopped.
+  std::chrono::steady_clock::time_point surface_published_at{};
   std::uint64_t runs = 0;                ///< runs started (engine life)
   std::uint64_t cancelled_runs = 0;      ///< runs stopped before reaching their goal
   epoch_statistics reclamation;          ///< retired/reclaimed roots
