@@ -14,6 +14,7 @@
 #include <atomic>
 #include <chrono>
 #include <cmath>
+#include <memory>
 #include <random>
 #include <thread>
 #include <vector>
@@ -255,6 +256,62 @@ BENCHMARK(BM_full_refine)
     ->Unit(benchmark::kMillisecond)
     ->UseRealTime()
     ->MinTime(1.0);
+
+// ---------------------------------------------------------------------------------------------
+// The one-thread engine against the sequential refiner (issue 12: at most 1.1×), in pairs: every
+// iteration refines fully with a fresh refiner and a fresh one-thread engine (range data built
+// beforehand, construction and teardown untimed), the order alternating, and the counter is
+// the median of the per-pair ratios engine / refiner. Arg: volume side.
+void BM_engine_over_refiner(benchmark::State& state) {
+  const volume& v = ml(state.range(0));
+  const hierarchy h(v.dims());
+  const range_data ranges(v, h);
+  engine_options o;
+  o.threads = 1;
+  std::vector<double> ratios;
+  double refiner_s = 0.0;
+  double engine_s = 0.0;
+  bool engine_first = false;
+  for (auto _ : state) {
+    double t_refiner = 0.0;
+    double t_engine = 0.0;
+    const auto run_refiner = [&] {
+      auto r = std::make_unique<refiner>(v, h, ranges, 0.5, refine_order::depth_first);
+      const auto t0 = clock::now();
+      r->refine_full();
+      t_refiner = std::chrono::duration<double>(clock::now() - t0).count();
+    };
+    const auto run_engine = [&] {
+      auto e = std::make_unique<engine>(v, 0.5, o);
+      (void)e->ranges();
+      const auto t0 = clock::now();
+      e->refine_full();
+      t_engine = std::chrono::duration<double>(clock::now() - t0).count();
+    };
+    if (engine_first) {
+      run_engine();
+      run_refiner();
+    } else {
+      run_refiner();
+      run_engine();
+    }
+    engine_first = !engine_first;
+    ratios.push_back(t_engine / t_refiner);
+    refiner_s += t_refiner;
+    engine_s += t_engine;
+    state.SetIterationTime(t_engine);
+  }
+  std::sort(ratios.begin(), ratios.end());
+  const auto n = static_cast<double>(ratios.size());
+  state.counters["ratio_median"] = ratios[ratios.size() / 2];
+  state.counters["refiner_ms"] = refiner_s / n * 1e3;
+  state.counters["engine_ms"] = engine_s / n * 1e3;
+}
+BENCHMARK(BM_engine_over_refiner)
+    ->Arg(257)
+    ->Iterations(15)
+    ->UseManualTime()
+    ->Unit(benchmark::kMillisecond);
 
 // ---------------------------------------------------------------------------------------------
 // Extraction of the finest cut from a snapshot (mesh()), on N threads, after one full run:

@@ -364,6 +364,32 @@ struct engine_impl : run_control {
   void count_children_alone(engine_root& r, const child_list& children, int depth,
                             const packed_group* groups, std::size_t count, const range_data* rd,
                             split_tally& tally) const;
+  // The same, handing each child made ready (and not culled) to `ready` instead of the queue.
+  template <class Sink>
+  void count_children(engine_root& r, const child_list& children, int depth,
+                      const packed_group* groups, std::size_t count, const range_data* rd,
+                      split_tally& tally, Sink&& ready) const {
+    for (int i = 0; i < children.count; ++i) {
+      const auto ui = static_cast<std::size_t>(i);
+      const ipoint& c = children.centre[ui];
+      const std::uint64_t ci = hier.index(c);
+      const std::atomic_ref<std::uint32_t> slot(r.record_of[ci]);
+      // relaxed: this thread is the only writer while it counts (no other task runs on the
+      // root); atomic_ref keeps the array's one access discipline with the tasks' fetch_sub, the
+      // graph's hint loads and readers' loads (a count reads as "not in this cut" to them).
+      const std::uint32_t word = slot.load(std::memory_order_relaxed) - 1;
+      slot.store(word, std::memory_order_relaxed);  // relaxed: as the load above
+      if (parents_counted(word) != children.parents[ui]) continue;
+      ++tally.visited;
+      const std::optional<ready_item> child =
+          ready_child(r, c, children.scale, depth + 1, ci, rd, owns_piece(groups, count, ci));
+      if (child) {
+        ready(*child);
+      } else {
+        ++tally.culled;
+      }
+    }
+  }
 
   // Driver: counts the children of what a deadline published last (engine_root::uncounted)
   // and queues what it left (engine_root::leftover). Before anything reads the queue in a run.
@@ -458,6 +484,18 @@ struct engine_impl : run_control {
   // goals and statistics as the graph, split by split in the driver thread, published every
   // 64 splits. run_graph() takes it when the engine has one thread.
   void refine_serially(engine_root& r);
+  // refine_serially()'s split of `item`: computes it, appends its record (published by the
+  // caller's next publication) and counts its children, handing those it makes ready to
+  // `ready`; `take()` is called once the split is kept. False, with nothing changed, when a
+  // triangle budget refuses the split.
+  template <class Take, class Sink>
+  bool split_alone(engine_root& r, const ready_item& item, const ipoint& centre,
+                   const range_data* rd, split_tally& tally, Take&& take, Sink&& ready);
+  // refine_serially()'s full goal: the ready diamonds taken by grid plane, lowest first
+  // (serial_refinement.cpp); `swept` counts those waiting in sweep_planes.
+  template <class Publish>
+  void sweep_alone(engine_root& r, const range_data* rd, split_tally& tally, std::uint64_t& swept,
+                   Publish&& publish);
 
   // A run on more than one thread (full_refinement.cpp): tasks over subtrees, each a
   // depth-first loop like refine_serially()'s, publishing its splits every 64 (up to 256 while
@@ -566,6 +604,9 @@ struct engine_impl : run_control {
   int last_depth = 0;
   // The split groups of refine_serially()'s current diamond (the driver's; kept for capacity).
   std::vector<packed_group> serial_groups;
+  // sweep_alone()'s ready diamonds, a list per grid plane (the driver's; empty between runs,
+  // kept for their capacity).
+  std::vector<std::vector<std::uint64_t>> sweep_planes;
   // Full runs in tasks: the reservation of records' and groups' places, the watermark, the
   // root's counters, last_depth, since_progress and the progress callback are one task at a
   // time under this mutex (filling the places is not: full_refinement.cpp).

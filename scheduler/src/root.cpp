@@ -86,27 +86,10 @@ void engine_impl::count_children_alone(engine_root& r, const ipoint& centre, std
 void engine_impl::count_children_alone(engine_root& r, const child_list& children, int depth,
                                        const packed_group* groups, std::size_t count,
                                        const range_data* rd, split_tally& tally) const {
-  for (int i = 0; i < children.count; ++i) {
-    const auto ui = static_cast<std::size_t>(i);
-    const ipoint& c = children.centre[ui];
-    const std::uint64_t ci = hier.index(c);
-    const std::atomic_ref<std::uint32_t> slot(r.record_of[ci]);
-    // relaxed: this thread is the only writer while it counts (no other task runs on the root);
-    // atomic_ref keeps the array's one access discipline with the tasks' fetch_sub, the graph's
-    // hint loads and readers' loads (a count reads as "not in this cut" to them).
-    const std::uint32_t word = slot.load(std::memory_order_relaxed) - 1;
-    slot.store(word, std::memory_order_relaxed);  // relaxed: as the load above
-    if (parents_counted(word) != children.parents[ui]) continue;
-    ++tally.visited;
-    const std::optional<ready_item> child =
-        ready_child(r, c, children.scale, depth + 1, ci, rd, owns_piece(groups, count, ci));
-    if (child) {
-      r.queue.push(*child);
-      if (rd == nullptr) r.unranged = true;
-    } else {
-      ++tally.culled;
-    }
-  }
+  count_children(r, children, depth, groups, count, rd, tally, [&r, rd](const ready_item& child) {
+    r.queue.push(child);
+    if (rd == nullptr) r.unranged = true;
+  });
 }
 
 void engine_impl::settle_leftover(engine_root& r) {

@@ -3,8 +3,13 @@
 // trip (a compute task writes each diamond's split and children into its batch, the commit step
 // reads them back) cost as much as the splits themselves (Marschner–Lobb 257³, full refinement:
 // 515 ms on the graph against the sequential refiner's 287 ms).
+//
+// A full goal, which splits every straddling diamond in any order, takes the ready diamonds by
+// grid plane instead of from the queue (sweep_alone): see there.
 
 #include "engine_impl.hpp"
+
+#include <algorithm>
 
 #include <progiso/core/refine/detail/prefetch.hpp>
 
@@ -16,7 +21,7 @@ namespace {
 // (about 15 µs), and the watermark's release store and the counters are paid once per step.
 constexpr std::size_t serial_publish_step = 64;
 // A deadline is checked every this many splits (a clock read costs ~4% of a split), as the
-// commit step does.
+// commit step does; a sweep checks for a stop request as often.
 constexpr std::size_t serial_clock_step = 8;
 // Samples of the diamond this many places ahead in the queue are asked for (volumes larger than
 // the cache only), as the sequential refiner does.
@@ -24,14 +29,47 @@ constexpr std::size_t serial_prefetch_distance = 8;
 
 }  // namespace
 
+template <class Take, class Sink>
+bool engine_impl::split_alone(engine_root& r, const ready_item& item, const ipoint& centre,
+                              const range_data* rd, split_tally& tally, Take&& take, Sink&& ready) {
+  const std::int32_t scale = hier.scale_of(centre);
+  // The children's words are counted after the split: asked for now, their cache misses
+  // overlap the split's work.
+  const child_list children = children_requested(r, centre, scale);
+  std::vector<packed_group>& groups = serial_groups;
+  groups.clear();
+  const split_summary s = compute_split(hier, vol, r.isovalue, centre, scale, groups);
+  const std::uint64_t after = r.cut_triangles + static_cast<unsigned>(s.added_triangles) -
+                              static_cast<unsigned>(s.removed_triangles);
+  if (goal.what == refine_goal::kind::triangles && after > goal.max_triangles) {
+    budget_hit = true;
+    ++tally.discarded;  // computed, not published; it stays queued
+    return false;
+  }
+  take();
+  const std::size_t index = r.records.size();
+  PROGISO_ASSERT(index < max_records);
+  r.cut_triangles = after;
+  r.records.push_back({item.index, r.groups.append_contiguous(groups.data(), groups.size()),
+                       static_cast<std::uint32_t>(groups.size()), item.depth, scale, s.crossed,
+                       after});
+  std::atomic_ref<std::uint32_t>(r.record_of[item.index])
+      .store(static_cast<std::uint32_t>(index),
+             // relaxed: published by the release in records.publish() (the caller's publish).
+             std::memory_order_relaxed);
+  tally.count(s);
+  count_children(r, children, item.depth, groups.data(), groups.size(), rd, tally, ready);
+  last_depth = item.depth;
+  return true;
+}
+
 void engine_impl::refine_serially(engine_root& r) {
   seed_roots(r);  // a no-op once seeded
   const range_data* rd = built_ranges();
   note_keys(r, rd);
-  const double w = r.isovalue;
   const bool prefetch = vol.byte_size() > prefetch_min_bytes;
-  std::vector<packed_group>& groups = serial_groups;
   split_tally tally;
+  std::uint64_t swept = 0;  // ready diamonds in sweep_planes (sweep_alone)
 
   const auto publish = [&] {
     r.records.publish();
@@ -40,10 +78,20 @@ void engine_impl::refine_serially(engine_root& r) {
     const std::uint64_t published = tally.splits;
     tally.add_to(r);
     r.batches.add(1);
-    r.remaining.set(r.queue.size());
+    r.remaining.set(r.queue.size() + swept);
     report_progress(r, rd, published);
   };
 
+  if (goal.what == refine_goal::kind::full && rd != nullptr) {
+    sweep_alone(r, rd, tally, swept, publish);
+    publish();
+    return;
+  }
+
+  const auto push = [&r, rd](const ready_item& child) {
+    r.queue.push(child);
+    if (rd == nullptr) r.unranged = true;
+  };
   for (std::size_t n = 0; !stopping() && eligible(r); ++n) {
     if (n % serial_clock_step == 0 && past_deadline()) {
       request_stop();
@@ -56,39 +104,65 @@ void engine_impl::refine_serially(engine_root& r) {
         prefetch_diamond_samples(vol, a, hier.scale_of(a));
       }
     }
-    const ipoint centre = hier.point(item.index);
-    const std::int32_t scale = hier.scale_of(centre);
-    // The children's words are counted after the split: asked for now, their cache misses
-    // overlap the split's work.
-    const child_list children = children_requested(r, centre, scale);
-    groups.clear();
-    const split_summary s = compute_split(hier, vol, w, centre, scale, groups);
-    const std::uint64_t after = r.cut_triangles + static_cast<unsigned>(s.added_triangles) -
-                                static_cast<unsigned>(s.removed_triangles);
-    if (goal.what == refine_goal::kind::triangles && after > goal.max_triangles) {
-      budget_hit = true;
-      ++tally.discarded;  // computed, not published; it stays queued
+    if (!split_alone(
+            r, item, hier.point(item.index), rd, tally, [&r] { r.queue.pop(); }, push)) {
       request_stop();
       break;
     }
-    r.queue.pop();
-    const std::size_t index = r.records.size();
-    PROGISO_ASSERT(index < max_records);
-    r.cut_triangles = after;
-    r.records.push_back({item.index, r.groups.append_contiguous(groups.data(), groups.size()),
-                         static_cast<std::uint32_t>(groups.size()), item.depth, scale, s.crossed,
-                         after});
-    std::atomic_ref<std::uint32_t>(r.record_of[item.index])
-        .store(static_cast<std::uint32_t>(index),
-               // relaxed: published by the release in records.publish() (publish above).
-               std::memory_order_relaxed);
-    tally.count(s);
-
-    count_children_alone(r, children, item.depth, groups.data(), groups.size(), rd, tally);
-    last_depth = item.depth;
     if (tally.splits == serial_publish_step) publish();
   }
   publish();
+}
+
+// Full refinement splits every straddling diamond, in any order that splits parents first, so
+// the one-thread loop need not follow the queue. It takes the ready diamonds by grid plane
+// (sweep_planes: one list per z), always from the lowest plane that has any, last in first out
+// within a plane. A split's children lie at most its scale away, so the fine levels, which hold
+// nearly all the splits, advance together as one front through the volume: the samples and
+// per-vertex words of a few planes around the front are all a run touches at a time, and they
+// stay in the cache, where the queue's depth-first order jumps between subtrees and misses on a
+// third of the children's words. The records come out in that order too, and so do the later
+// passes over them (extraction). Readiness, culling and the statistics are the queue loop's
+// (count_children); only the order differs. A stopped sweep hands what is left back to the
+// queue, keyed as a full run keys it.
+template <class Publish>
+void engine_impl::sweep_alone(engine_root& r, const range_data* rd, split_tally& tally,
+                              std::uint64_t& swept, Publish&& publish) {
+  const auto planes = static_cast<std::size_t>(hier.grid_max()[2]) + 1;
+  if (sweep_planes.size() != planes) sweep_planes.assign(planes, {});
+  const std::uint64_t plane_size = hier.vertex_count() / planes;
+  std::size_t lowest = planes;  // no list below it has items
+  const auto mark = [&](const ready_item& child) {
+    const auto z = static_cast<std::size_t>(child.index / plane_size);
+    sweep_planes[z].push_back(child.index);
+    lowest = std::min(lowest, z);
+    ++swept;
+  };
+  while (!r.queue.empty()) {
+    mark(r.queue.top());
+    r.queue.pop();
+  }
+  for (std::size_t n = 0; swept != 0; ++n) {
+    if (n % serial_clock_step == 0 && stopping()) break;
+    while (sweep_planes[lowest].empty()) ++lowest;
+    std::vector<std::uint64_t>& list = sweep_planes[lowest];
+    const std::uint64_t index = list.back();
+    list.pop_back();
+    --swept;
+    const ipoint centre = hier.point(index);
+    (void)split_alone(
+        r, {unranged_error(0), hier.depth_of(centre), index}, centre, rd, tally, [] {}, mark);
+    if (tally.splits == serial_publish_step) publish();
+  }
+  // Stopped: what is ready goes back to the queue, keyed by placeholder as a full run queues.
+  for (std::vector<std::uint64_t>& list : sweep_planes) {
+    for (const std::uint64_t index : list) {
+      const int depth = hier.depth_of(hier.point(index));
+      r.queue.push({unranged_error(depth), depth, index});
+    }
+    swept -= list.size();
+    list.clear();
+  }
 }
 
 }  // namespace progiso::detail

@@ -69,14 +69,6 @@ bool hierarchy::is_diamond(const ipoint& p) const noexcept {
   return in_grid(p) && scale_of(p) < root_;
 }
 
-int hierarchy::depth_of(const ipoint& p) const noexcept {
-  const std::int32_t h = scale_of(p);
-  const int lg = std::countr_zero(static_cast<std::uint32_t>(h));
-  int odd = 0;
-  for (std::size_t q = 0; q < 3; ++q) odd += (p[q] >> lg) & 1;
-  return 3 * (levels_ - 1 - lg) + (3 - odd);
-}
-
 diamond hierarchy::make_diamond(const ipoint& c) const noexcept {
   PROGISO_ASSERT(is_diamond(c));
   diamond d;

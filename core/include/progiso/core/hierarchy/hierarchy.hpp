@@ -106,8 +106,13 @@ class hierarchy {
                                static_cast<std::uint32_t>(p[2]) | (std::uint32_t{1} << levels_);
     return std::int32_t{1} << std::countr_zero(bits);
   }
-  /// Depth of a diamond centre (see diamond::depth).
-  [[nodiscard]] int depth_of(const ipoint& p) const noexcept;
+  /// Depth of a diamond centre (see diamond::depth). Inline: a full run on one thread asks it
+  /// per split.
+  [[nodiscard]] int depth_of(const ipoint& p) const noexcept {
+    const int lg = std::countr_zero(static_cast<std::uint32_t>(scale_of(p)));
+    const int odd = static_cast<int>(((p[0] >> lg) & 1) + ((p[1] >> lg) & 1) + ((p[2] >> lg) & 1));
+    return 3 * (levels_ - 1 - lg) + (3 - odd);
+  }
   /// Everything about the diamond centred at c. Precondition: is_diamond(c).
   [[nodiscard]] diamond make_diamond(const ipoint& c) const noexcept;
 
