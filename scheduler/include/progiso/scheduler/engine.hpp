@@ -107,7 +107,8 @@ struct engine_options {
   /// Fill retired roots with a poison pattern before freeing them (stress tests: a use after
   /// free reads poison that snapshot::check_integrity() reports).
   bool poison_retired = false;
-  /// Called with the generation of every root as it is destroyed (stress tests count them).
+  /// Called with the generation of every root as it is destroyed (stress tests count them), on
+  /// the engine's reclaimer thread or in ~engine.
   std::function<void(std::uint64_t generation)> on_reclaim;
   /// Called from the commit step about every `progress_interval` splits (keep it short). It may
   /// call engine::cancel() (a stop request) and any reader; an exception it throws stops the
@@ -232,9 +233,12 @@ class engine {
   engine(const engine&) = delete;
   engine& operator=(const engine&) = delete;
 
-  /// Swaps to isovalue w: cancels in-flight work, publishes w's root surface, retires the old
-  /// root, and resumes the interrupted run's goal (if a run was active). Throws progiso::error
-  /// for a non-finite w, and when called from the progress callback.
+  /// Swaps to isovalue w: publishes w's root surface, cancels in-flight work, retires the old
+  /// root, and resumes the interrupted run's goal (if a run was active). Once a retired root's
+  /// memory is waiting for reuse (after the first change), the new surface is published before
+  /// the old run has stopped; the old root is destroyed on the engine's reclaimer thread, not in
+  /// this call. Throws progiso::error for a non-finite w, and when called from the progress
+  /// callback.
   void set_isovalue(double w);
   /// Starts refining towards `goal` in the background (cancelling a run in progress). Throws
   /// progiso::error when called from the progress callback.
