@@ -33,6 +33,7 @@
 #include <progiso/core/base/detail/chunked_store.hpp>
 #include <progiso/core/base/zeroed_array.hpp>
 #include <progiso/core/field/detail/sample_threshold.hpp>
+#include <progiso/core/refine/detail/plane_lists.hpp>
 #include <progiso/core/refine/detail/ready_queue.hpp>
 #include <progiso/scheduler/engine.hpp>
 #include <progiso/scheduler/tbb_environment.hpp>
@@ -304,6 +305,17 @@ struct engine_impl : run_control {
     }();
     return keys[static_cast<std::size_t>(std::clamp(depth, 0, 60))];
   }
+  // A ready diamond of a full run given by its grid index (plane_lists keep only that), keyed
+  // by placeholder as full refinement queues its children.
+  [[nodiscard]] ready_item full_item(std::uint64_t index) const noexcept {
+    const int depth = hier.depth_of(hier.point(index));
+    return {unranged_error(depth), depth, index};
+  }
+  // Empties `planes` and shapes them for this grid (one list per z plane).
+  void reset_planes(plane_lists& planes) const {
+    const auto count = static_cast<std::size_t>(hier.grid_max()[2]) + 1;
+    planes.reset(count, hier.vertex_count() / count);
+  }
   // oneTBB's pool has default_concurrency() threads; asking an arena for more only warns.
   static unsigned effective_threads(unsigned requested) {
     const auto available = static_cast<unsigned>(scheduler::default_concurrency());
@@ -492,10 +504,9 @@ struct engine_impl : run_control {
   bool split_alone(engine_root& r, const ready_item& item, const ipoint& centre,
                    const range_data* rd, split_tally& tally, Take&& take, Sink&& ready);
   // refine_serially()'s full goal: the ready diamonds taken by grid plane, lowest first
-  // (serial_refinement.cpp); `swept` counts those waiting in sweep_planes.
+  // (serial_refinement.cpp), from sweep_planes.
   template <class Publish>
-  void sweep_alone(engine_root& r, const range_data* rd, split_tally& tally, std::uint64_t& swept,
-                   Publish&& publish);
+  void sweep_alone(engine_root& r, const range_data* rd, split_tally& tally, Publish&& publish);
 
   // A run on more than one thread (full_refinement.cpp): tasks over subtrees, each a
   // depth-first loop like refine_serially()'s, publishing its splits every 64 (up to 256 while
@@ -514,6 +525,8 @@ struct engine_impl : run_control {
   // children ready; without `wait`, only if publish_mutex is free; once the run is stopping, only
   // when `stopped` (a deadline's last publication). Returns whether it published.
   bool publish_full_task(full_task& t, bool wait, bool stopped = false);
+  // Runs run_full_task(*part) as a task of the run's group.
+  void spawn_full_task(full_run& run, std::shared_ptr<full_task> part);
 
   // After a graph run that stopped at the end of its slice (not at the goal's deadline): clears
   // the stop request and returns true, unless the user or the progress callback stopped the run
@@ -604,9 +617,8 @@ struct engine_impl : run_control {
   int last_depth = 0;
   // The split groups of refine_serially()'s current diamond (the driver's; kept for capacity).
   std::vector<packed_group> serial_groups;
-  // sweep_alone()'s ready diamonds, a list per grid plane (the driver's; empty between runs,
-  // kept for their capacity).
-  std::vector<std::vector<std::uint64_t>> sweep_planes;
+  // sweep_alone()'s ready diamonds (the driver's; empty between runs, kept for their capacity).
+  plane_lists sweep_planes;
   // Full runs in tasks: the reservation of records' and groups' places, the watermark, the
   // root's counters, last_depth, since_progress and the progress callback are one task at a
   // time under this mutex (filling the places is not: full_refinement.cpp).

@@ -1,18 +1,25 @@
-// Refinement on more than one thread: tasks over subtrees, no serial step per split.
+// Refinement on more than one thread: tasks over parts of the volume or of a band, no serial
+// step per split.
 //
-// Each task refines depth first from its own stack, as the one-thread loop does, and publishes
-// its computed splits every 64: under `publish_mutex` it reserves their places in the log (and
-// their groups' in the root's store), fills them without the mutex (records, groups, record_of:
-// the copies and the page faults of fresh chunks run on every task at once), and under the
-// mutex again marks them filled and moves the watermark over the filled ranges at the front
-// (tasks reserve in log order but may finish out of order). Only then does it count its splits
-// as parents of their children: an atomic decrement per child, and the task whose decrement
-// completes a child's parent count pushes the child on its own stack. A child is therefore
-// computed, hence reserved, after every parent's place was reserved, so it lies above them in
-// the log, and every published prefix of the records is a valid cut. A
-// task whose stack has work to spare gives the older half (the coarser diamonds, the larger
-// subtrees) to a new task whenever fewer tasks than threads are running; oneTBB's work stealing
+// Each task refines from its own ready diamonds and publishes its computed splits every 64:
+// under `publish_mutex` it reserves their places in the log (and their groups' in the root's
+// store), fills them without the mutex (records, groups, record_of: the copies and the page
+// faults of fresh chunks run on every task at once), and under the mutex again marks them
+// filled and moves the watermark over the filled ranges at the front (tasks reserve in log
+// order but may finish out of order). Only then does it count its splits as parents of their
+// children: an atomic decrement per child, and the task whose decrement completes a child's
+// parent count makes the child ready in its own lists. A child is therefore computed, hence
+// reserved, after every parent's place was reserved, so it lies above them in the log, and
+// every published prefix of the records is a valid cut. A task with work to spare gives half
+// of it to a new task whenever fewer tasks than threads are running; oneTBB's work stealing
 // places it on an idle thread.
+//
+// In full refinement a task takes its diamonds by grid plane, as the one-thread sweep does
+// (plane_lists.hpp): the run starts with the volume cut into one slab of planes per thread, and
+// a task gives away the planes above the middle of those it holds, so that each task's front
+// stays in its own part of the volume and in its own cache. In a band of a priority run a task
+// refines depth first from a stack and gives away the older half (the coarser diamonds, the
+// larger subtrees).
 //
 // Full refinement splits every straddling diamond whatever the order: one run over everything
 // queued, so the split set and the mesh are those of one thread. Refinement by priority (a
@@ -32,6 +39,7 @@
 
 #include <algorithm>
 #include <deque>
+#include <memory>
 
 #include <progiso/core/refine/detail/prefetch.hpp>
 
@@ -78,6 +86,8 @@ struct engine_impl::full_run {
   // later band. Off in full refinement.
   bool banded = false;
   std::uint64_t floor = 0;
+  // Full refinement: the tasks take their diamonds by grid plane (plane_lists), not depth first.
+  bool swept = false;
   // Tasks running or spawned: a hint for sharing work (relaxed; a stale value only shares a
   // little early or late).
   std::atomic<unsigned> active{0};
@@ -101,7 +111,10 @@ struct engine_impl::full_run {
 
 struct engine_impl::full_task {
   full_run* run = nullptr;
-  std::vector<ready_item> stack;  // next diamond at the back
+  // Ready diamonds: by grid plane in full refinement (the one-thread sweep's order), on a stack
+  // (next at the back: depth first) in a band of a priority run.
+  plane_lists planes;
+  std::vector<ready_item> stack;
   std::vector<ready_item> below;  // children ranked below the band
   std::vector<pending_split> pending;
   std::vector<packed_group> groups;  // of the pending splits
@@ -137,23 +150,39 @@ void engine_impl::refine_in_tasks(engine_root& r) {
     run.ranges = rd;
     run.banded = banded;
     run.floor = floor;
+    run.swept = !banded;
     run.outstanding.store(static_cast<std::int64_t>(items.size()), std::memory_order_relaxed);
     arena.execute([&] {
       tbb::task_group group;
       run.group = &group;
-      const std::size_t tasks = std::min<std::size_t>(threads, items.size());
-      for (std::size_t k = 0; k < tasks; ++k) {
-        const std::size_t lo = items.size() * k / tasks;
-        const std::size_t hi = items.size() * (k + 1) / tasks;
-        std::vector<ready_item> part(items.begin() + static_cast<std::ptrdiff_t>(lo),
-                                     items.begin() + static_cast<std::ptrdiff_t>(hi));
-        run.active.fetch_add(1, std::memory_order_relaxed);  // relaxed: a hint (see full_run)
-        group.run([this, &run, part = std::move(part)] {
-          full_task t;
-          t.run = &run;
-          t.stack = part;  // oneTBB calls the body as const: one copy per task
-          run_full_task(t);
-        });
+      if (!run.swept) {
+        // A band: its diamonds in queue order, cut into one run of consecutive ones per thread.
+        const std::size_t tasks = std::min<std::size_t>(threads, items.size());
+        for (std::size_t k = 0; k < tasks; ++k) {
+          const std::size_t lo = items.size() * k / tasks;
+          const std::size_t hi = items.size() * (k + 1) / tasks;
+          auto part = std::make_shared<full_task>();
+          part->stack.assign(items.begin() + static_cast<std::ptrdiff_t>(lo),
+                             items.begin() + static_cast<std::ptrdiff_t>(hi));
+          spawn_full_task(run, std::move(part));
+        }
+      } else {
+        // Full refinement: the volume cut into slabs of planes, one per thread, each swept
+        // from its lowest plane up; the slab with the most diamonds is halved until there are
+        // as many as threads.
+        std::vector<std::shared_ptr<full_task>> parts;
+        parts.push_back(std::make_shared<full_task>());
+        reset_planes(parts[0]->planes);
+        for (const ready_item& it : items) parts[0]->planes.push(it.index);
+        while (parts.size() < threads) {
+          full_task& most = **std::max_element(
+              parts.begin(), parts.end(),
+              [](const auto& a, const auto& b) { return a->planes.size() < b->planes.size(); });
+          if (most.planes.size() < 2) break;
+          parts.push_back(std::make_shared<full_task>());
+          most.planes.give_upper_half(parts.back()->planes);
+        }
+        for (std::shared_ptr<full_task>& part : parts) spawn_full_task(run, std::move(part));
       }
       group.wait();
     });
@@ -183,20 +212,30 @@ void engine_impl::run_full_task(full_task& t) {
   const bool prefetch = vol.byte_size() > prefetch_min_bytes;
   const bool deadline = goal.what == refine_goal::kind::deadline;
   const bool budget = goal.what == refine_goal::kind::triangles;
+  const bool swept = run.swept;
   std::size_t n = 0;
   for (;;) {
-    while (!t.stack.empty() && !stopping()) {
+    while (!(swept ? t.planes.empty() : t.stack.empty()) && !stopping()) {
       if (deadline && n++ % task_clock_step == 0 && past_deadline()) {
         request_stop();
         break;
       }
-      const ready_item item = t.stack.back();
-      t.stack.pop_back();
-      if (prefetch && t.stack.size() > task_prefetch_distance) {
-        const ipoint a = hier.point(t.stack[t.stack.size() - 1 - task_prefetch_distance].index);
-        prefetch_diamond_samples(vol, a, hier.scale_of(a));
+      ready_item item;
+      ipoint centre;
+      if (swept) {
+        item.index = t.planes.pop();
+        centre = hier.point(item.index);
+        item.depth = hier.depth_of(centre);
+        item.error = unranged_error(item.depth);
+      } else {
+        item = t.stack.back();
+        t.stack.pop_back();
+        if (prefetch && t.stack.size() > task_prefetch_distance) {
+          const ipoint a = hier.point(t.stack[t.stack.size() - 1 - task_prefetch_distance].index);
+          prefetch_diamond_samples(vol, a, hier.scale_of(a));
+        }
+        centre = hier.point(item.index);
       }
-      const ipoint centre = hier.point(item.index);
       const std::int32_t scale = hier.scale_of(centre);
       const child_list children = children_requested(r, centre, scale);
       const std::size_t first = t.groups.size();
@@ -218,6 +257,7 @@ void engine_impl::run_full_task(full_task& t) {
   // At a deadline what is computed is published (a stop by the user or the callback discards
   // it): the deadline is the run's goal, and a cut with these splits is as valid.
   if (!t.pending.empty() && deadline && past_deadline()) (void)publish_full_task(t, true, true);
+  t.planes.drain([&](std::uint64_t index) { t.stack.push_back(full_item(index)); });
   if (!t.pending.empty() || !t.stack.empty() || !t.below.empty()) {
     t.tally.discarded += t.pending.size();
     for (const pending_split& p : t.pending) t.stack.push_back(p.item);
@@ -365,6 +405,9 @@ bool engine_impl::publish_full_task(full_task& t, bool wait, bool stopped) {
                       owns_piece(t.groups.data() + p.first, p.count, ci));
       if (!child) {
         ++t.tally.culled;
+      } else if (run.swept) {
+        t.planes.push(ci);
+        ++pushed;
       } else if (run.banded && r.queue.rank(child->error) < run.floor) {
         t.below.push_back(*child);  // a later band's
       } else {
@@ -379,21 +422,29 @@ bool engine_impl::publish_full_task(full_task& t, bool wait, bool stopped) {
   t.summaries.clear();
   t.groups.clear();
 
-  // Work to spare for an idle thread: the older half of the stack (coarser diamonds).
+  // Work to spare for an idle thread: the planes ahead of the front in full refinement (about
+  // half the volume left), the older half of the stack (coarser diamonds) in a band.
   // relaxed: a hint (see full_run::active).
-  if (t.stack.size() >= 2 && run.active.load(std::memory_order_relaxed) < threads) {
-    const auto half = static_cast<std::ptrdiff_t>(t.stack.size() / 2);
-    std::vector<ready_item> part(t.stack.begin(), t.stack.begin() + half);
-    t.stack.erase(t.stack.begin(), t.stack.begin() + half);
-    run.active.fetch_add(1, std::memory_order_relaxed);  // relaxed: a hint (see full_run)
-    run.group->run([this, &run, part = std::move(part)] {
-      full_task nt;
-      nt.run = &run;
-      nt.stack = part;  // oneTBB calls the body as const: one copy per task
-      run_full_task(nt);
-    });
+  if ((t.planes.size() >= 2 || t.stack.size() >= 2) &&
+      run.active.load(std::memory_order_relaxed) < threads) {
+    auto part = std::make_shared<full_task>();
+    if (run.swept) {
+      t.planes.give_upper_half(part->planes);
+    } else {
+      const auto half = static_cast<std::ptrdiff_t>(t.stack.size() / 2);
+      part->stack.assign(t.stack.begin(), t.stack.begin() + half);
+      t.stack.erase(t.stack.begin(), t.stack.begin() + half);
+    }
+    spawn_full_task(run, std::move(part));
   }
   return true;
+}
+
+void engine_impl::spawn_full_task(full_run& run, std::shared_ptr<full_task> part) {
+  part->run = &run;
+  run.active.fetch_add(1, std::memory_order_relaxed);  // relaxed: a hint (see full_run)
+  // oneTBB calls the body as const: the task's state is held by pointer, not copied.
+  run.group->run([this, part = std::move(part)] { run_full_task(*part); });
 }
 
 }  // namespace progiso::detail

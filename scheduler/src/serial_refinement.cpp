@@ -69,7 +69,6 @@ void engine_impl::refine_serially(engine_root& r) {
   note_keys(r, rd);
   const bool prefetch = vol.byte_size() > prefetch_min_bytes;
   split_tally tally;
-  std::uint64_t swept = 0;  // ready diamonds in sweep_planes (sweep_alone)
 
   const auto publish = [&] {
     r.records.publish();
@@ -78,12 +77,12 @@ void engine_impl::refine_serially(engine_root& r) {
     const std::uint64_t published = tally.splits;
     tally.add_to(r);
     r.batches.add(1);
-    r.remaining.set(r.queue.size() + swept);
+    r.remaining.set(r.queue.size() + sweep_planes.size());  // sweep_alone's ready diamonds
     report_progress(r, rd, published);
   };
 
   if (goal.what == refine_goal::kind::full && rd != nullptr) {
-    sweep_alone(r, rd, tally, swept, publish);
+    sweep_alone(r, rd, tally, publish);
     publish();
     return;
   }
@@ -115,54 +114,32 @@ void engine_impl::refine_serially(engine_root& r) {
 }
 
 // Full refinement splits every straddling diamond, in any order that splits parents first, so
-// the one-thread loop need not follow the queue. It takes the ready diamonds by grid plane
-// (sweep_planes: one list per z), always from the lowest plane that has any, last in first out
-// within a plane. A split's children lie at most its scale away, so the fine levels, which hold
-// nearly all the splits, advance together as one front through the volume: the samples and
-// per-vertex words of a few planes around the front are all a run touches at a time, and they
-// stay in the cache, where the queue's depth-first order jumps between subtrees and misses on a
-// third of the children's words. The records come out in that order too, and so do the later
-// passes over them (extraction). Readiness, culling and the statistics are the queue loop's
-// (count_children); only the order differs. A stopped sweep hands what is left back to the
-// queue, keyed as a full run keys it.
+// the one-thread loop need not follow the queue: it takes the ready diamonds by grid plane
+// (plane_lists.hpp: the lowest plane first, last in first out within a plane), so that the fine
+// levels advance as one front and what they touch stays in the cache. The records come out in
+// that order too, and so do the later passes over them (extraction). Readiness, culling and the
+// statistics are the queue loop's (count_children); only the order differs. A stopped sweep
+// hands what is left back to the queue, keyed as a full run keys it.
 template <class Publish>
 void engine_impl::sweep_alone(engine_root& r, const range_data* rd, split_tally& tally,
-                              std::uint64_t& swept, Publish&& publish) {
-  const auto planes = static_cast<std::size_t>(hier.grid_max()[2]) + 1;
-  if (sweep_planes.size() != planes) sweep_planes.assign(planes, {});
-  const std::uint64_t plane_size = hier.vertex_count() / planes;
-  std::size_t lowest = planes;  // no list below it has items
-  const auto mark = [&](const ready_item& child) {
-    const auto z = static_cast<std::size_t>(child.index / plane_size);
-    sweep_planes[z].push_back(child.index);
-    lowest = std::min(lowest, z);
-    ++swept;
-  };
+                              Publish&& publish) {
+  plane_lists& planes = sweep_planes;
+  reset_planes(planes);
+  const auto mark = [&planes](const ready_item& child) { planes.push(child.index); };
   while (!r.queue.empty()) {
     mark(r.queue.top());
     r.queue.pop();
   }
-  for (std::size_t n = 0; swept != 0; ++n) {
+  for (std::size_t n = 0; !planes.empty(); ++n) {
     if (n % serial_clock_step == 0 && stopping()) break;
-    while (sweep_planes[lowest].empty()) ++lowest;
-    std::vector<std::uint64_t>& list = sweep_planes[lowest];
-    const std::uint64_t index = list.back();
-    list.pop_back();
-    --swept;
+    const std::uint64_t index = planes.pop();
     const ipoint centre = hier.point(index);
     (void)split_alone(
         r, {unranged_error(0), hier.depth_of(centre), index}, centre, rd, tally, [] {}, mark);
     if (tally.splits == serial_publish_step) publish();
   }
   // Stopped: what is ready goes back to the queue, keyed by placeholder as a full run queues.
-  for (std::vector<std::uint64_t>& list : sweep_planes) {
-    for (const std::uint64_t index : list) {
-      const int depth = hier.depth_of(hier.point(index));
-      r.queue.push({unranged_error(depth), depth, index});
-    }
-    swept -= list.size();
-    list.clear();
-  }
+  planes.drain([&](std::uint64_t index) { r.queue.push(full_item(index)); });
 }
 
 }  // namespace progiso::detail

@@ -480,47 +480,51 @@ TEST(Engine, cancel_during_a_deadline_runs_range_build_stops_the_build) {
   EXPECT_GE(e.statistics().cancelled_runs, 1u);
 }
 
-TEST(Engine, a_one_thread_full_run_stopped_mid_sweep_hands_every_ready_diamond_back) {
-  // One thread takes a full goal's ready diamonds in passes over the grid (sweep_alone), not
-  // from the queue; stopped, it hands them back to the queue, keyed as a full run keys them.
-  // A run to ε from there must split exactly the straddling diamonds of error > ε not yet split
-  // (their ancestors straddle with larger errors: nested ranges), so the final split set is the
-  // stopped cut's plus those: a ready diamond lost or kept twice in the handover changes it.
+TEST(Engine, a_full_run_stopped_mid_sweep_hands_every_ready_diamond_back) {
+  // A full goal's ready diamonds are taken by grid plane (plane_lists), not from the queue: by
+  // the one-thread loop (sweep_alone) and by each task on more threads; stopped, they are
+  // handed back to the queue, keyed as a full run keys them. A run to ε from there must split
+  // exactly the straddling diamonds of error > ε not yet split (their ancestors straddle with
+  // larger errors: nested ranges), so the final split set is the stopped cut's plus those: a
+  // ready diamond lost or kept twice in the handover changes it.
   const volume v = make_marschner_lobb({65, 65, 65});
-  bool armed = true;  // the driver's only (the callback runs there)
-  engine_options o = with_threads(1);
-  o.progress_interval = 1;
-  engine* self = nullptr;
-  o.progress = [&](const engine_progress& p) {
-    if (armed && p.splits >= 3000) self->cancel();  // from the callback: a stop request
-  };
-  engine e(v, 0.5, o);
-  self = &e;
-  EXPECT_FALSE(e.refine_full()) << "the callback's stop did not stop the run";
-  const surface_snapshot stopped = e.snapshot();
-  std::unordered_set<std::uint64_t> before;
-  stopped.for_each_split([&](std::uint64_t d) { before.insert(d); });
-  ASSERT_GE(before.size(), 3000u);
-  EXPECT_FALSE(e.done());
-  EXPECT_TRUE(test::same_surface(stopped.mesh(), replay(e, stopped)));
-  armed = false;
-  const double eps = 0.02;
-  EXPECT_TRUE(e.refine_until(eps));
-  std::unordered_set<std::uint64_t> expected = before;
-  const hierarchy& h = e.hierarchy_of();
-  const range_data& rd = e.ranges();
-  std::size_t added = 0;
-  for (std::uint64_t i = 0; i < h.vertex_count(); ++i) {
-    const ipoint c = h.point(i);
-    if (!h.is_diamond(c)) continue;
-    const diamond_range dr = rd.get(c);
-    if (dr.straddles(0.5) && dr.error > eps && expected.insert(i).second) ++added;
+  for (const unsigned threads : {1u, 2u, 3u}) {
+    SCOPED_TRACE(threads);
+    std::atomic<bool> armed{true};  // the callback runs on the driver or on a task
+    engine_options o = with_threads(threads);
+    o.progress_interval = 1;
+    engine* self = nullptr;
+    o.progress = [&](const engine_progress& p) {
+      if (armed && p.splits >= 3000) self->cancel();  // from the callback: a stop request
+    };
+    engine e(v, 0.5, o);
+    self = &e;
+    EXPECT_FALSE(e.refine_full()) << "the callback's stop did not stop the run";
+    const surface_snapshot stopped = e.snapshot();
+    std::unordered_set<std::uint64_t> before;
+    stopped.for_each_split([&](std::uint64_t d) { before.insert(d); });
+    ASSERT_GE(before.size(), 3000u);
+    EXPECT_FALSE(e.done());
+    EXPECT_TRUE(test::same_surface(stopped.mesh(), replay(e, stopped)));
+    armed = false;
+    const double eps = 0.02;
+    EXPECT_TRUE(e.refine_until(eps));
+    std::unordered_set<std::uint64_t> expected = before;
+    const hierarchy& h = e.hierarchy_of();
+    const range_data& rd = e.ranges();
+    std::size_t added = 0;
+    for (std::uint64_t i = 0; i < h.vertex_count(); ++i) {
+      const ipoint c = h.point(i);
+      if (!h.is_diamond(c)) continue;
+      const diamond_range dr = rd.get(c);
+      if (dr.straddles(0.5) && dr.error > eps && expected.insert(i).second) ++added;
+    }
+    ASSERT_GT(added, 0u) << "choose a smaller eps: the stopped cut already holds every such split";
+    std::unordered_set<std::uint64_t> after;
+    e.snapshot().for_each_split([&](std::uint64_t d) { after.insert(d); });
+    EXPECT_EQ(after.size(), expected.size());
+    EXPECT_TRUE(after == expected) << "the run to eps split a different set";
   }
-  ASSERT_GT(added, 0u) << "choose a smaller eps: the stopped cut already holds every such split";
-  std::unordered_set<std::uint64_t> after;
-  e.snapshot().for_each_split([&](std::uint64_t d) { after.insert(d); });
-  EXPECT_EQ(after.size(), expected.size());
-  EXPECT_TRUE(after == expected) << "the run to eps split a different set";
 }
 
 TEST(Engine, cancel_from_another_thread_stops_every_worker_and_keeps_what_was_published) {
