@@ -275,8 +275,9 @@ struct engine_impl : run_control {
   bool build_ranges(clock::time_point until, bool stop_requests, bool errors) const;
   // Wall seconds per piece of the min/max pass so far, steps of `threads` pieces in parallel,
   // not counting the data's allocation (0 before the first). Caller holds build_mutex.
-  [[nodiscard]] double seconds_per_piece() const {
-    return min_max_pieces == 0 ? 0.0 : piece_seconds / static_cast<double>(min_max_pieces);
+  // Seconds per unit of range_data::piece_work() in the min/max pieces built alone so far.
+  [[nodiscard]] double seconds_per_work() const {
+    return min_max_work == 0 ? 0.0 : piece_seconds / static_cast<double>(min_max_work);
   }
   // The range data inside a run's tasks when it is complete, else null (a deadline run that
   // refines before it is built): then only ranges_for_empty() may be asked.
@@ -537,14 +538,17 @@ struct engine_impl : run_control {
   // preprocessing"): slices of the build alternate with slices of refinement without culling
   // (placeholder order: coarse first), each twice as long as the one before, from 1 ms, a build
   // slice never more than half the time left and never a step expected to end past its slice;
-  // once the pieces left are estimated to fit in the time left, the build runs to the end. When the
+  // once the estimate for the pieces left (weighed by range_data::piece_work) and a quarter more
+  // fits in the time left, the build runs to the end, but for nine tenths of that time at most
+  // (plan_deadline_build(), core/refine/deadline.hpp): refinement always keeps time. When the
   // data is complete the queue is culled and ordered by it, and the run goes on as usual. What the
   // build did is kept for the next run; what refinement did is a valid cut. Only the first step of
   // all, which has no estimate, can overrun a deadline (by one slab per thread). Deadlines shorter
   // than a step refine without building: the data is then built by the first run with time for it,
-  // or by any other kind of run. Why the build wins whenever it fits: refinement culled by the data
-  // buys far more surface per millisecond than refinement without it (brainsmall, 1 thread: 40 ms
-  // gave 118 K triangles with the data built after 10.5 ms; 20 ms spent half on each gave 5 K).
+  // or by any other kind of run. Why the build goes first whenever it fits: refinement culled by
+  // the data buys far more surface per millisecond than refinement without it (brainsmall, 1
+  // thread: 40 ms gave 118 K triangles with the data built after 10.5 ms; 20 ms spent half on each
+  // gave 5 K).
   void drive_unranged(engine_root* r);
 
   // The driver thread of one run.
@@ -566,9 +570,10 @@ struct engine_impl : run_control {
   mutable std::mutex build_mutex;
   mutable std::optional<range_data> ranges_;
   // Guarded by build_mutex: pieces of the min/max pass built (min_max_pieces of them alone,
-  // in piece_seconds), pieces of the error pass built.
+  // of min_max_work, in piece_seconds), pieces of the error pass built.
   mutable std::size_t pieces_built = 0;
   mutable std::size_t min_max_pieces = 0;
+  mutable std::uint64_t min_max_work = 0;
   mutable double piece_seconds = 0.0;
   mutable std::size_t error_pieces_built = 0;
   mutable std::atomic<bool> ranges_ready{false};

@@ -26,8 +26,9 @@ bool engine_impl::build_ranges(clock::time_point until, bool stop_requests, bool
   const bool fuse = errors && m == n;
   // No step that is expected to end past `until` (the first has no estimate yet).
   const auto fits = [&](std::size_t step) {
-    const auto expected =
-        std::chrono::duration<double>(seconds_per_piece() * static_cast<double>(step));
+    const auto expected = std::chrono::duration<double>(
+        seconds_per_work() *
+        static_cast<double>(rd.piece_work(pieces_built, std::min(n, pieces_built + step))));
     return clock::now() + std::chrono::duration_cast<clock::duration>(expected) < until &&
            !(stop_requests && stopping());
   };
@@ -49,6 +50,7 @@ bool engine_impl::build_ranges(clock::time_point until, bool stop_requests, bool
           rd.build_pieces(pieces_built, pieces_built + step, tbb_loop);
           piece_seconds += std::chrono::duration<double>(clock::now() - p0).count();
           min_max_pieces += step;
+          min_max_work += rd.piece_work(pieces_built, pieces_built + step);
         }
         pieces_built += step;
       }

@@ -226,6 +226,32 @@ TEST(RangeData, built_in_parallel_slabs_it_equals_the_sequential_build) {
   }
 }
 
+// piece_work() weighs a staged build's pieces by the sample planes they read, so that the
+// engine's estimate of the time a build has left is not misled by the first pieces (padding
+// mostly: one plane where the others read four). It adds up over ranges, reads every plane of
+// the data, and each piece reads at most four planes, at least one.
+TEST(RangeData, piece_work_counts_the_sample_planes_each_piece_reads) {
+  for (const index3 dims : {index3{9, 7, 33}, index3{12, 12, 17}, index3{5, 6, 64}}) {
+    const volume v = make_marschner_lobb(dims);
+    const hierarchy h(v.dims());
+    const range_data rd(v, h, range_data::staged);
+    const std::size_t n = rd.piece_count();
+    ASSERT_GT(n, 2u);
+    std::uint64_t total = 0;
+    for (std::size_t k = 0; k < n; ++k) {
+      const std::uint64_t w = rd.piece_work(k, k + 1);
+      EXPECT_GE(w, 1u) << k;
+      EXPECT_LE(w, 4u) << k;
+      total += w;
+    }
+    EXPECT_EQ(rd.piece_work(0, n), total);
+    EXPECT_EQ(rd.piece_work(0, n / 2) + rd.piece_work(n / 2, n), total);
+    EXPECT_EQ(rd.piece_work(n / 2, n / 2), 0u);
+    EXPECT_GE(total, static_cast<std::uint64_t>(dims[2])) << "a plane of the data read by none";
+    EXPECT_LT(rd.piece_work(0, 1), rd.piece_work(1, 2)) << "the first piece is mostly padding";
+  }
+}
+
 // The staged build (the engine's, spread over runs): pieces built in any grouping and order,
 // then finish(), then the error pass's pieces and finish_errors(), give the one-pass data
 // exactly; empty() answers before any piece is built; between the passes the ranges are final

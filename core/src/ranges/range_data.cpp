@@ -32,6 +32,11 @@ struct range_data::impl {
   // The staged build (range_data(…, staged)): independent pieces of the min/max pass, then
   // finish(); then those of the error pass, then finish_errors(), which sets errors_exact.
   [[nodiscard]] virtual std::size_t piece_count() const noexcept = 0;
+  // Pieces read about the same unless an implementation knows better.
+  [[nodiscard]] virtual std::uint64_t piece_work(std::size_t first,
+                                                 std::size_t last) const noexcept {
+    return last - first;
+  }
   virtual void build_pieces(std::size_t first, std::size_t last, const parallel_loop& run) = 0;
   virtual void finish(const parallel_loop& run) = 0;
   [[nodiscard]] virtual std::size_t error_piece_count() const noexcept = 0;
@@ -236,6 +241,19 @@ class typed_range_data final : public range_data::impl {
 
   [[nodiscard]] std::size_t piece_count() const noexcept override {
     return static_cast<std::size_t>(levels_[0].n[2]);
+  }
+  // The sample planes each slab reads (build_minmax_slab's clamped z range).
+  [[nodiscard]] std::uint64_t piece_work(std::size_t first,
+                                         std::size_t last) const noexcept override {
+    const std::int32_t dz = hier->data_max()[2];
+    std::uint64_t planes = 0;
+    for (std::size_t k = first; k < last; ++k) {
+      const auto kz = static_cast<std::int32_t>(k);
+      const std::int32_t z0 = std::clamp(origin + 4 * kz, 0, dz);
+      const std::int32_t z1 = std::clamp(origin + 4 * kz + 3, 0, dz);
+      planes += static_cast<std::uint64_t>(z1 - z0 + 1);
+    }
+    return planes;
   }
   void build_pieces(std::size_t first, std::size_t last,
                     const range_data::parallel_loop& run) override {
@@ -987,6 +1005,10 @@ range_data::range_data(const volume& vol, const hierarchy& hier, staged_t /*unus
 }
 
 std::size_t range_data::piece_count() const noexcept { return impl_->piece_count(); }
+std::uint64_t range_data::piece_work(std::size_t first, std::size_t last) const noexcept {
+  PROGISO_ASSERT(first <= last && last <= piece_count());
+  return impl_->piece_work(first, last);
+}
 void range_data::build_pieces(std::size_t first, std::size_t last, const parallel_loop& run) {
   PROGISO_ASSERT(!complete_ && first <= last && last <= piece_count());
   impl_->build_pieces(first, last, run);

@@ -74,6 +74,11 @@ class range_data {
   /// Independent pieces of the pass (slabs of bricks): two calls may build different pieces at
   /// the same time.
   [[nodiscard]] std::size_t piece_count() const noexcept;
+  /// The relative cost of building pieces [first, last) of the min/max pass: the sample planes
+  /// they read. Pieces differ (the first and last slabs lie mostly in the padding and read one
+  /// plane each; the others four), so a caller estimating the time a staged build has left
+  /// from the pieces built so far weighs them by this.
+  [[nodiscard]] std::uint64_t piece_work(std::size_t first, std::size_t last) const noexcept;
   void build_pieces(std::size_t first, std::size_t last, const parallel_loop& run = {});
   /// The coarser levels, once every piece is built (independent planes of each level through
   /// `run` when given); then complete(): ranges are final, and errors of scale ≥ 2 are the bound

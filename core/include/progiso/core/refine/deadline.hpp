@@ -8,7 +8,9 @@
 // before the clock's end is no deadline at all, which is the honest meaning of such a budget.
 #pragma once
 
+#include <algorithm>
 #include <chrono>
+#include <optional>
 #include <type_traits>
 
 #include <progiso/core/base/config.hpp>
@@ -43,5 +45,33 @@ requires std::is_integral_v<Rep>
   }
   return start + std::chrono::duration_cast<clock::duration>(budget);
 }
+
+namespace detail {
+
+/// The build's share of a deadline run's next step while the range data is incomplete (the
+/// engine alternates slices of the build with slices of refinement without culling).
+struct deadline_build_step {
+  bool to_the_end;  ///< build what is left now, then refine culled
+  double seconds;   ///< the most this step may build
+};
+
+/// `estimate`: seconds the pieces left are expected to take, from the pieces built so far
+/// (nothing when none is built yet); `left`: seconds to the deadline; `slice`: the alternation's
+/// current slice. The build goes to the end when its estimate, with a quarter more for error,
+/// fits in the time left, and then stops at nine tenths of it whatever it has done, so that
+/// refinement always keeps time; otherwise the step builds for one slice, at most half the time
+/// left. Committing pays whenever the build ends with time to spare, since culled refinement
+/// buys several times the surface per millisecond of unculled refinement; but a build that runs
+/// into the deadline leaves the root surface alone: with the estimate alone (no margin, no cap)
+/// a deadline of 1/8 of Flying Edges' time on the 512³ wavelet, one thread, bought 2 k
+/// triangles (0.05 of the area) where two threads, which never committed, bought 56 k (0.47).
+[[nodiscard]] inline deadline_build_step plan_deadline_build(std::optional<double> estimate,
+                                                             double left, double slice) noexcept {
+  left = std::max(left, 0.0);
+  if (estimate && 1.25 * *estimate <= left) return {true, 0.9 * left};
+  return {false, std::min(slice, 0.5 * left)};
+}
+
+}  // namespace detail
 
 }  // namespace progiso
