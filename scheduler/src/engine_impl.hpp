@@ -309,7 +309,11 @@ struct engine_impl : run_control {
   // A ready diamond of a full run given by its grid index (plane_lists keep only that), keyed
   // by placeholder as full refinement queues its children.
   [[nodiscard]] ready_item full_item(std::uint64_t index) const noexcept {
-    const int depth = hier.depth_of(hier.point(index));
+    return full_item(index, hier.point(index));
+  }
+  // The same when the diamond's centre (hier.point(index)) is at hand.
+  [[nodiscard]] ready_item full_item(std::uint64_t index, const ipoint& centre) const noexcept {
+    const int depth = hier.depth_of(centre);
     return {unranged_error(depth), depth, index};
   }
   // Empties `planes` and shapes them for this grid (one list per z plane).
@@ -372,12 +376,16 @@ struct engine_impl : run_control {
   void count_children_alone(engine_root& r, const ipoint& centre, std::int32_t scale, int depth,
                             const packed_group* groups, std::size_t count, const range_data* rd,
                             split_tally& tally) const;
-  // The same with the children already listed (the one-thread loop lists them before the split
-  // to ask for their words early).
-  void count_children_alone(engine_root& r, const child_list& children, int depth,
-                            const packed_group* groups, std::size_t count, const range_data* rd,
-                            split_tally& tally) const;
-  // The same, handing each child made ready (and not culled) to `ready` instead of the queue.
+  // count_children()'s sink that queues a ready child in the root's queue (keyed by placeholder
+  // while `rd` is null). The one thread of the root's run.
+  [[nodiscard]] static auto queue_sink(engine_root& r, const range_data* rd) noexcept {
+    return [&r, rd](const ready_item& child) {
+      r.queue.push(child);
+      if (rd == nullptr) r.unranged = true;
+    };
+  }
+  // The same with the children listed, handing each child made ready (and not culled) to
+  // `ready` (queue_sink(), or the sweeps' plane lists).
   template <class Sink>
   void count_children(engine_root& r, const child_list& children, int depth,
                       const packed_group* groups, std::size_t count, const range_data* rd,
@@ -569,10 +577,9 @@ struct engine_impl : run_control {
   // complete once ranges_ready is set.
   mutable std::mutex build_mutex;
   mutable std::optional<range_data> ranges_;
-  // Guarded by build_mutex: pieces of the min/max pass built (min_max_pieces of them alone,
-  // of min_max_work, in piece_seconds), pieces of the error pass built.
+  // Guarded by build_mutex: pieces of the min/max pass built (min_max_work of them, by
+  // range_data::piece_work, alone, in piece_seconds), pieces of the error pass built.
   mutable std::size_t pieces_built = 0;
-  mutable std::size_t min_max_pieces = 0;
   mutable std::uint64_t min_max_work = 0;
   mutable double piece_seconds = 0.0;
   mutable std::size_t error_pieces_built = 0;

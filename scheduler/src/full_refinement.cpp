@@ -86,8 +86,6 @@ struct engine_impl::full_run {
   // later band. Off in full refinement.
   bool banded = false;
   std::uint64_t floor = 0;
-  // Full refinement: the tasks take their diamonds by grid plane (plane_lists), not depth first.
-  bool swept = false;
   // Tasks running or spawned: a hint for sharing work (relaxed; a stale value only shares a
   // little early or late).
   std::atomic<unsigned> active{0};
@@ -150,12 +148,11 @@ void engine_impl::refine_in_tasks(engine_root& r) {
     run.ranges = rd;
     run.banded = banded;
     run.floor = floor;
-    run.swept = !banded;
     run.outstanding.store(static_cast<std::int64_t>(items.size()), std::memory_order_relaxed);
     arena.execute([&] {
       tbb::task_group group;
       run.group = &group;
-      if (!run.swept) {
+      if (banded) {
         // A band: its diamonds in queue order, cut into one run of consecutive ones per thread.
         const std::size_t tasks = std::min<std::size_t>(threads, items.size());
         for (std::size_t k = 0; k < tasks; ++k) {
@@ -212,7 +209,7 @@ void engine_impl::run_full_task(full_task& t) {
   const bool prefetch = vol.byte_size() > prefetch_min_bytes;
   const bool deadline = goal.what == refine_goal::kind::deadline;
   const bool budget = goal.what == refine_goal::kind::triangles;
-  const bool swept = run.swept;
+  const bool swept = !run.banded;  // full refinement: by grid plane (plane_lists)
   std::size_t n = 0;
   for (;;) {
     while (!(swept ? t.planes.empty() : t.stack.empty()) && !stopping()) {
@@ -223,10 +220,9 @@ void engine_impl::run_full_task(full_task& t) {
       ready_item item;
       ipoint centre;
       if (swept) {
-        item.index = t.planes.pop();
-        centre = hier.point(item.index);
-        item.depth = hier.depth_of(centre);
-        item.error = unranged_error(item.depth);
+        const std::uint64_t index = t.planes.pop();
+        centre = hier.point(index);
+        item = full_item(index, centre);
       } else {
         item = t.stack.back();
         t.stack.pop_back();
@@ -405,10 +401,10 @@ bool engine_impl::publish_full_task(full_task& t, bool wait, bool stopped) {
                       owns_piece(t.groups.data() + p.first, p.count, ci));
       if (!child) {
         ++t.tally.culled;
-      } else if (run.swept) {
-        t.planes.push(ci);
+      } else if (!run.banded) {
+        t.planes.push(ci);  // full refinement: by grid plane
         ++pushed;
-      } else if (run.banded && r.queue.rank(child->error) < run.floor) {
+      } else if (r.queue.rank(child->error) < run.floor) {
         t.below.push_back(*child);  // a later band's
       } else {
         t.stack.push_back(*child);
@@ -428,7 +424,7 @@ bool engine_impl::publish_full_task(full_task& t, bool wait, bool stopped) {
   if ((t.planes.size() >= 2 || t.stack.size() >= 2) &&
       run.active.load(std::memory_order_relaxed) < threads) {
     auto part = std::make_shared<full_task>();
-    if (run.swept) {
+    if (!run.banded) {
       t.planes.give_upper_half(part->planes);
     } else {
       const auto half = static_cast<std::ptrdiff_t>(t.stack.size() / 2);

@@ -49,7 +49,6 @@ bool engine_impl::build_ranges(clock::time_point until, bool stop_requests, bool
         } else {
           rd.build_pieces(pieces_built, pieces_built + step, tbb_loop);
           piece_seconds += std::chrono::duration<double>(clock::now() - p0).count();
-          min_max_pieces += step;
           min_max_work += rd.piece_work(pieces_built, pieces_built + step);
         }
         pieces_built += step;

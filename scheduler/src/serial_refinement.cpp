@@ -87,10 +87,7 @@ void engine_impl::refine_serially(engine_root& r) {
     return;
   }
 
-  const auto push = [&r, rd](const ready_item& child) {
-    r.queue.push(child);
-    if (rd == nullptr) r.unranged = true;
-  };
+  const auto push = queue_sink(r, rd);
   for (std::size_t n = 0; !stopping() && eligible(r); ++n) {
     if (n % serial_clock_step == 0 && past_deadline()) {
       request_stop();
@@ -135,7 +132,7 @@ void engine_impl::sweep_alone(engine_root& r, const range_data* rd, split_tally&
     const std::uint64_t index = planes.pop();
     const ipoint centre = hier.point(index);
     (void)split_alone(
-        r, {unranged_error(0), hier.depth_of(centre), index}, centre, rd, tally, [] {}, mark);
+        r, full_item(index, centre), centre, rd, tally, [] {}, mark);
     if (tally.splits == serial_publish_step) publish();
   }
   // Stopped: what is ready goes back to the queue, keyed by placeholder as a full run queues.
