@@ -394,12 +394,12 @@ struct engine_impl : run_control {
       const auto ui = static_cast<std::size_t>(i);
       const ipoint& c = children.centre[ui];
       const std::uint64_t ci = hier.index(c);
-      const std::atomic_ref<std::uint32_t> slot(r.record_of[ci]);
-      // relaxed: this thread is the only writer while it counts (no other task runs on the
-      // root); atomic_ref keeps the array's one access discipline with the tasks' fetch_sub, the
-      // graph's hint loads and readers' loads (a count reads as "not in this cut" to them).
-      const std::uint32_t word = slot.load(std::memory_order_relaxed) - 1;
-      slot.store(word, std::memory_order_relaxed);  // relaxed: as the load above
+      // This thread is the only writer while it counts (no other task runs on the root); the
+      // tasks' fetch_sub, the graph's hint loads and readers' loads are atomic accesses of the
+      // same word (a count reads as "not in this cut" to readers). One read-modify-write
+      // instruction, not a load and a store: a fresh page of the words is first touched by a
+      // write (add_in_place() says why that matters).
+      const std::uint32_t word = add_in_place(r.record_of[ci], ~std::uint32_t{0});
       if (parents_counted(word) != children.parents[ui]) continue;
       ++tally.visited;
       const std::optional<ready_item> child =

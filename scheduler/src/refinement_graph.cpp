@@ -165,10 +165,8 @@ void engine_impl::commit_batch(batch* b) {
       ++tally.configurations[static_cast<std::size_t>(it.configuration)];
       for (std::size_t c = 0; c < it.children; ++c) {
         const child_info& ci = it.child[c];
-        const std::atomic_ref<std::uint32_t> slot(r.record_of[ci.index]);
-        // relaxed: the commit step is the only writer; compute tasks read a hint.
-        const std::uint32_t word = slot.load(std::memory_order_relaxed) - 1;
-        slot.store(word, std::memory_order_relaxed);  // relaxed: as the load above
+        // The commit step is the only writer; compute tasks read a hint (relaxed atomic loads).
+        const std::uint32_t word = add_in_place(r.record_of[ci.index], ~std::uint32_t{0});
         if (parents_counted(word) != ci.parents_needed) continue;
         ++tally.visited;
         if (ci.known) {

@@ -165,8 +165,10 @@ bool refiner::split(std::uint64_t max_triangles) {
     const auto ui = static_cast<std::size_t>(i);
     const ipoint& c = children.centre[ui];
     const std::uint64_t ci = hier_.index(c);
-    const auto count = static_cast<std::uint8_t>((state[ci] & parent_count_mask) + 1);
-    state[ci] = static_cast<std::uint8_t>((state[ci] & ~parent_count_mask) | count);
+    // The count is the low bits and never exceeds the parent count: the add carries into
+    // nothing else. One read-modify-write, so a fresh page is first touched by a write.
+    const auto count =
+        static_cast<std::uint8_t>(add_in_place(state[ci], std::uint8_t{1}) & parent_count_mask);
     if (count != children.parents[ui]) continue;
     ++stats_.visited;
     // A piece of surface in one of the child's tetrahedra: its range straddles w unless it is

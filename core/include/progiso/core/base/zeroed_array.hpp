@@ -17,12 +17,28 @@
 
 #include <sys/mman.h>
 
+#include <atomic>
 #include <cstddef>
+#include <cstdint>
 #include <cstdlib>
 #include <cstring>
 #include <new>
 #include <type_traits>
 #include <utility>
+
+// ThreadSanitizer builds take add_in_place()'s atomic_ref form (cmake/progiso_options.cmake
+// defines PROGISO_TSAN; the compiler's own macros as concurrent/detail/memory_order.hpp reads
+// them).
+#if defined(PROGISO_TSAN) || defined(__SANITIZE_THREAD__)
+#define PROGISO_ADD_IN_PLACE_ATOMIC 1
+#elif defined(__has_feature)
+#if __has_feature(thread_sanitizer)
+#define PROGISO_ADD_IN_PLACE_ATOMIC 1
+#endif
+#endif
+#if !defined(PROGISO_ADD_IN_PLACE_ATOMIC)
+#define PROGISO_ADD_IN_PLACE_ATOMIC 0
+#endif
 
 namespace progiso {
 
@@ -80,5 +96,35 @@ class zeroed_array {
   std::size_t bytes_;
   T* data_ = nullptr;
 };
+
+/// Adds `delta` to `word` (wrapping) and returns the new value, with one read-modify-write
+/// instruction where the target has one (x86-64), so that the first touch of a fresh page of a
+/// zeroed_array is a write: one page fault, which maps a fresh page. A load and then a store take
+/// two: the load maps the shared zero page, and the store's fault replaces it and flushes the TLB
+/// of every core running one of the process's threads (an interrupt to each; on a virtual
+/// machine an exit each). A refiner counting parents in per-vertex words touches every page of
+/// them this way; while a second thread of the process was busy (the engine's reclaimer clearing
+/// a fully refined root after an isovalue change), the interrupts left a one-thread run of 16 ms
+/// 0.9–1.2 k splits where it makes about 40 k (bench/engine_bench.cpp, BM_deadline_after_full).
+/// Not an atomic read-modify-write: the caller must be the word's only writer. Relaxed atomic
+/// loads of the word from other threads read the old or the new value (one aligned access); under
+/// ThreadSanitizer the add is an atomic_ref load and store instead, which the tool sees.
+template <class T>
+T add_in_place(T& word, T delta) noexcept {
+  static_assert(std::is_same_v<T, std::uint8_t> || std::is_same_v<T, std::uint32_t>);
+#if defined(__x86_64__) && !PROGISO_ADD_IN_PLACE_ATOMIC
+  if constexpr (sizeof(T) == 1) {
+    asm volatile("addb %1, %0" : "+m"(word) : "iq"(delta) : "cc");
+  } else {
+    asm volatile("addl %1, %0" : "+m"(word) : "ir"(delta) : "cc");
+  }
+  return std::atomic_ref<T>(word).load(std::memory_order_relaxed);  // relaxed: only writer
+#else
+  const std::atomic_ref<T> w(word);
+  const auto sum = static_cast<T>(w.load(std::memory_order_relaxed) + delta);  // relaxed: as above
+  w.store(sum, std::memory_order_relaxed);                                     // relaxed: as above
+  return sum;
+#endif
+}
 
 }  // namespace progiso

@@ -102,8 +102,10 @@ class contour_frontier {
     int n = 0;
     const auto visit = [&](const ipoint2& child, std::int32_t scale, int parents) {
       const std::uint64_t ci = hier_->index(child);
-      const auto count = static_cast<std::uint8_t>((state[ci] & parent_count_mask) + 1);
-      state[ci] = static_cast<std::uint8_t>((state[ci] & ~parent_count_mask) | count);
+      // The count is the low bits and never exceeds the parent count: the add carries into
+      // nothing else. One read-modify-write, so a fresh page is first touched by a write.
+      const auto count =
+          static_cast<std::uint8_t>(add_in_place(state[ci], std::uint8_t{1}) & parent_count_mask);
       ++n;
       PROGISO_ASSERT(scale == hier_->scale_of(child) && parents == hier_->parent_count(child));
       if (count == parents) ready(child, ci, scale);
