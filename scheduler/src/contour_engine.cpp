@@ -192,7 +192,7 @@ struct contour_engine_impl : run_control {
     for (const ipoint2& c : r.root_centres) {
       ++t.visited;
       if (const auto item =
-              ready_contour_diamond(rd, r.isovalue, c, hier.scale_of(c), hier.index(c), 0)) {
+              ready_contour_diamond(rd, r.isovalue, c, hier.scale_of(c), hier.index(c))) {
         r.queue.push(*item);
       } else {
         ++t.culled;
@@ -227,7 +227,7 @@ struct contour_engine_impl : run_control {
       const contour_ready next = r->queue.top();
       if (goal.what == refine_goal::kind::error && !(next.error > goal.max_error)) break;
       if (goal.what == refine_goal::kind::deadline && clock::now() >= goal.deadline) break;
-      const diamond2 d = hier.make_diamond(next.centre);
+      const diamond2 d = hier.make_diamond(hier.point(next.index));
       scratch.clear();
       const contour_split_summary s =
           compute_placed_contour_split(hier, image, r->isovalue, d, scratch);
@@ -256,7 +256,7 @@ struct contour_engine_impl : run_control {
       }
       r->frontier.split(d, next.index, [&](const ipoint2& c, std::uint64_t ci, std::int32_t h) {
         ++t.visited;
-        if (const auto item = ready_contour_diamond(rd, r->isovalue, c, h, ci, d.depth + 1)) {
+        if (const auto item = ready_contour_diamond(rd, r->isovalue, c, h, ci)) {
           r->queue.push(*item);
         } else {
           ++t.culled;

@@ -283,6 +283,21 @@ TEST(Hierarchy2d, root_size_is_largest_power_of_two_within_the_smaller_side) {
   EXPECT_EQ(hierarchy2d(129, 5).squares(), (ipoint2{32, 1}));
 }
 
+TEST(Hierarchy2d, point_inverts_index_over_the_whole_grid) {
+  for (const auto& [w, h] : {std::pair{5, 9}, std::pair{17, 4}, std::pair{40, 33}}) {
+    const hierarchy2d hier(w, h);
+    std::uint64_t expected = 0;
+    for (std::int32_t y = 0; y <= hier.grid_max()[1]; ++y) {
+      for (std::int32_t x = 0; x <= hier.grid_max()[0]; ++x, ++expected) {
+        const ipoint2 p{x, y};
+        ASSERT_EQ(hier.index(p), expected);
+        ASSERT_EQ(hier.point(expected), p) << w << "x" << h;
+      }
+    }
+    EXPECT_EQ(expected, hier.vertex_count());
+  }
+}
+
 TEST(Hierarchy2d, rejects_too_small_and_too_large_images) {
   EXPECT_THROW(hierarchy2d(1, 5), error);
   EXPECT_THROW(hierarchy2d(5, 1), error);

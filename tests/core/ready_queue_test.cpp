@@ -128,6 +128,31 @@ TEST(ReadyQueue, an_aimed_target_takes_every_item_above_it_before_any_other) {
   EXPECT_EQ(rest.size(), 2001 - above + 1);
 }
 
+TEST(ReadyQueue, first_in_first_out_keeps_order_across_interleaved_pushes_pops_and_peeks) {
+  // Far more items than one block of the queue's storage, with pops in between, so that the
+  // front advances through blocks while the back grows.
+  ready_queue<item> q(queue_discipline::fifo);
+  std::uint64_t next_in = 0;
+  std::uint64_t next_out = 0;
+  for (int round = 0; round < 200; ++round) {
+    for (int k = 0; k < 150; ++k, ++next_in) q.push({1.0, 0, next_in});
+    for (int k = 0; k < 100; ++k, ++next_out) {
+      ASSERT_EQ(q.top().index, next_out);
+      const item* ahead = q.peek(7);
+      ASSERT_NE(ahead, nullptr);
+      EXPECT_EQ(ahead->index, next_out + 7);
+      q.pop();
+    }
+    ASSERT_EQ(q.size(), next_in - next_out);
+  }
+  EXPECT_EQ(q.peek(q.size()), nullptr);
+  while (!q.empty()) {
+    ASSERT_EQ(q.top().index, next_out++);
+    q.pop();
+  }
+  EXPECT_EQ(next_out, next_in);
+}
+
 TEST(ReadyQueue, switching_disciplines_keeps_every_item) {
   ready_queue<item> q(queue_discipline::lifo);
   for (std::uint64_t i = 0; i < 300; ++i)

@@ -37,11 +37,11 @@ contour_refiner::contour_refiner(const volume& image, const hierarchy2d& hier,
   spacing_ = {image.spacing()[0], image.spacing()[1]};
   std::vector<ipoint2> roots;
   detail::root_contour(hier_, image_, isovalue_, root_segments_, roots);
-  records_.push_back({no_owner2, {0, 0}, root_segments_.data(), 0, 0.0});
+  records_.push_back({no_owner2, root_segments_.data(), 0, 0.0});
   for (const ipoint2& c : roots) {
     ++stats_.visited;
     if (const auto r = detail::ready_contour_diamond(ranges_, isovalue_, c, hier_.scale_of(c),
-                                                     hier_.index(c), 0)) {
+                                                     hier_.index(c))) {
       queue_->push(*r);
     } else {
       ++stats_.culled;
@@ -56,7 +56,9 @@ contour_refiner::~contour_refiner() = default;
 
 bool contour_refiner::done() const noexcept { return queue_->empty(); }
 double contour_refiner::next_error() const noexcept { return done() ? 0.0 : queue_->top().error; }
-int contour_refiner::next_depth() const noexcept { return done() ? -1 : queue_->top().depth; }
+int contour_refiner::next_depth() const noexcept {
+  return done() ? -1 : hier_.make_diamond(hier_.point(queue_->top().index)).depth;
+}
 
 bool contour_refiner::is_split(const ipoint2& c) const noexcept {
   return hier_.in_grid(c) && frontier_.is_split(hier_.index(c));
@@ -65,7 +67,7 @@ bool contour_refiner::is_split(const ipoint2& c) const noexcept {
 bool contour_refiner::split_next(std::uint64_t max_segments) {
   if (queue_->empty()) return false;
   const detail::contour_ready next = queue_->top();
-  const diamond2 d = hier_.make_diamond(next.centre);
+  const diamond2 d = hier_.make_diamond(hier_.point(next.index));
   // Written in place: room for the most a split adds, the rest given back.
   detail::placed_segment* at = segments_.reserve_contiguous(detail::max_split_segments);
   const contour_split_summary s =
@@ -81,7 +83,7 @@ bool contour_refiner::split_next(std::uint64_t max_segments) {
   queue_->pop();
   if (count == 0) at = nullptr;
   record_of_.get()[next.index] = static_cast<std::uint32_t>(records_.size());
-  records_.push_back({next.index, next.centre, at, count, next.error});
+  records_.push_back({next.index, at, count, next.error});
   stats_.segments = after;
   stats_.record_segments += count;
   ++stats_.splits;
@@ -90,7 +92,7 @@ bool contour_refiner::split_next(std::uint64_t max_segments) {
   last_index_ = next.index;
   frontier_.split(d, next.index, [&](const ipoint2& c, std::uint64_t ci, std::int32_t h) {
     ++stats_.visited;
-    if (const auto r = detail::ready_contour_diamond(ranges_, isovalue_, c, h, ci, d.depth + 1)) {
+    if (const auto r = detail::ready_contour_diamond(ranges_, isovalue_, c, h, ci)) {
       queue_->push(*r);
     } else {
       ++stats_.culled;
@@ -120,9 +122,7 @@ contour_split_summary contour_refiner::last_split() const {
   if (last_index_ == no_owner2) return {};
   // Made again from the image: a split's sequence with its keys is wanted rarely, and making it
   // for every split cost a tenth of the split.
-  const auto stride = static_cast<std::uint64_t>(hier_.grid_max()[0]) + 1;
-  const ipoint2 c{static_cast<std::int32_t>(last_index_ % stride),
-                  static_cast<std::int32_t>(last_index_ / stride)};
+  const ipoint2 c = hier_.point(last_index_);
   std::vector<owned_segment> unused;
   return compute_contour_split(hier_, image_, isovalue_, hier_.make_diamond(c), unused);
 }
@@ -151,11 +151,10 @@ contour_set contour_refiner::build(InCut&& in_cut) const {
   detail::contour_assembler out(hier_, isovalue_, static_cast<std::size_t>(stats_.segments));
   for (std::size_t i = 0; i < records_.size(); ++i) {
     const record& r = records_[i];
-    if (!in_cut(r.diamond, r.centre, r.error, true)) continue;
+    if (!in_cut(r.diamond, r.error, true)) continue;
     for (const detail::placed_segment* p = r.segments; p != r.segments + r.count; ++p) {
       const owned_segment& s = p->seg;
-      if (s.owner != no_owner2 && frontier_.is_split(s.owner) &&
-          in_cut(s.owner, ipoint2{}, 0.0, false)) {
+      if (s.owner != no_owner2 && frontier_.is_split(s.owner) && in_cut(s.owner, 0.0, false)) {
         continue;
       }
       out.add(*p);
@@ -165,13 +164,13 @@ contour_set contour_refiner::build(InCut&& in_cut) const {
 }
 
 contour_set contour_refiner::extract() const {
-  return build([](std::uint64_t, const ipoint2&, double, bool) { return true; });
+  return build([](std::uint64_t, double, bool) { return true; });
 }
 
 contour_set contour_refiner::extract_cut(double max_error) const {
   // A split owner is in the cut when its own record's error exceeds max_error: records only,
   // no image and no range data.
-  return build([&](std::uint64_t diamond, const ipoint2&, double err, bool is_record) {
+  return build([&](std::uint64_t diamond, double err, bool is_record) {
     if (diamond == no_owner2) return true;
     if (is_record) return err > max_error;
     return records_[record_of_.get()[diamond]].error > max_error;
@@ -179,13 +178,11 @@ contour_set contour_refiner::extract_cut(double max_error) const {
 }
 
 contour_set contour_refiner::extract_region(double x0, double y0, double x1, double y1) const {
-  const auto stride = static_cast<std::uint64_t>(hier_.grid_max()[0]) + 1;
   // The subtree of a diamond of scale h reaches 3h (square centre) or 2h (edge midpoint) per
   // axis; these boxes nest from parent to child, so the selection is parent-closed.
-  return build([&](std::uint64_t diamond, const ipoint2&, double, bool) {
+  return build([&](std::uint64_t diamond, double, bool) {
     if (diamond == no_owner2) return true;
-    const ipoint2 c{static_cast<std::int32_t>(diamond % stride),
-                    static_cast<std::int32_t>(diamond / stride)};
+    const ipoint2 c = hier_.point(diamond);
     const diamond2 d = hier_.make_diamond(c);
     const double reach = (d.type == 0 ? 3.0 : 2.0) * d.scale;
     return c[0] + reach >= x0 && c[0] - reach <= x1 && c[1] + reach >= y0 && c[1] - reach <= y1;

@@ -95,8 +95,7 @@ class contour_refiner {
 
  private:
   struct record {
-    std::uint64_t diamond;  // grid index, or ~0 for the root record
-    ipoint2 centre;
+    std::uint64_t diamond;                   // grid index, or ~0 for the root record
     const detail::placed_segment* segments;  // in segments_ (root_segments_ for the root)
     std::uint32_t count;
     double error;

@@ -80,6 +80,11 @@ class hierarchy2d {
   [[nodiscard]] std::uint64_t index(const ipoint2& p) const noexcept {
     return static_cast<std::uint64_t>(p[0]) + stride_ * static_cast<std::uint64_t>(p[1]);
   }
+  /// The grid vertex of a linear index (the inverse of index()).
+  [[nodiscard]] ipoint2 point(std::uint64_t index) const noexcept {
+    const std::uint64_t y = index / stride_;
+    return {static_cast<std::int32_t>(index - y * stride_), static_cast<std::int32_t>(y)};
+  }
   [[nodiscard]] bool is_diamond(const ipoint2& p) const noexcept;
   [[nodiscard]] std::int32_t scale_of(const ipoint2& p) const noexcept;
   [[nodiscard]] int depth_of(const ipoint2& p) const noexcept;
