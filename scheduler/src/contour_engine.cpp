@@ -355,6 +355,7 @@ contour_set contour_snapshot::build(InCut&& in_cut) const {
   // also answers "is this segment's owner split in the cut" from cache); a sparse one (below
   // about one split per 64 vertices) sorts its diamonds and asks record_of.
   const auto add_live = [&](const detail::contour_record& rec, auto&& split_in_cut) {
+    out.begin_record(rec.diamond);
     for (std::uint32_t i = 0; i < rec.count; ++i) {
       const detail::placed_segment& s = rec.segments[i];
       if (s.seg.owner == detail::no_owner2 || !split_in_cut(s.seg.owner)) out.add(s);

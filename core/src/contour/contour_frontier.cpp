@@ -39,7 +39,8 @@ constexpr std::uint64_t empty_slot = ~std::uint64_t{0};
 }  // namespace
 
 contour_assembler::contour_assembler(const hierarchy2d& hier, double isovalue, std::size_t expected)
-    : bx_(static_cast<double>(hier.data_max()[0])),
+    : hier_(&hier),
+      bx_(static_cast<double>(hier.data_max()[0])),
       by_(static_cast<double>(hier.data_max()[1])),
       isovalue_(isovalue),
       compact_keys_(2 * std::int64_t{hier.grid_max()[0]} < 65536 &&
@@ -96,6 +97,40 @@ std::uint32_t contour_assembler::key_id(std::uint64_t key, const vec2& p) {
   return id;
 }
 
+void contour_assembler::begin_record(std::uint64_t diamond) {
+  local_count_ = 0;
+  local_ = false;
+  if (diamond == no_owner2) return;
+  const ipoint2 c = hier_->point(diamond);
+  // Scale 1 and an edge midpoint: exactly one coordinate odd.
+  if (((c[0] ^ c[1]) & 1) == 0) return;
+  local_ = true;
+  local_x_ = 2 * std::int64_t{c[0]};
+  local_y_ = 2 * std::int64_t{c[1]};
+}
+
+std::uint32_t contour_assembler::end_id(std::uint64_t key, const vec2& p) {
+  if (local_) {
+    // An edge incident to the centre has its doubled midpoint one step from the doubled centre
+    // along an axis; the others (the diamond's sides) are one step along both.
+    const ipoint2 m = edge_key2_point(key);
+    const std::int64_t dx = m[0] - local_x_;
+    const std::int64_t dy = m[1] - local_y_;
+    if ((dx == 0) != (dy == 0)) {
+      for (std::uint32_t i = 0; i < local_count_; ++i) {
+        if (local_keys_[i] == key) return local_ids_[i];
+      }
+      const auto id = static_cast<std::uint32_t>(out_.vertices.size());
+      out_.vertices.push_back(p);
+      PROGISO_ASSERT(local_count_ < local_keys_.size());
+      local_keys_[local_count_] = key;
+      local_ids_[local_count_++] = id;
+      return id;
+    }
+  }
+  return key_id(key, p);
+}
+
 std::uint32_t contour_assembler::point_id(const vec2& p) {
   const auto [it, inserted] =
       clipped_.try_emplace(p, static_cast<std::uint32_t>(out_.vertices.size()));
@@ -108,7 +143,7 @@ void contour_assembler::add(const placed_segment& ps) {
   const vec2 p = ps.pos[0];
   const vec2 q = ps.pos[1];
   if (p[0] <= bx_ && p[1] <= by_ && q[0] <= bx_ && q[1] <= by_) {
-    segs_.push_back({key_id(s.keys[0], p), key_id(s.keys[1], q)});
+    segs_.push_back({end_id(s.keys[0], p), end_id(s.keys[1], q)});
     return;
   }
   // Clip against x ≤ bx and y ≤ by; crossings computed from the lexicographically ordered
@@ -136,8 +171,8 @@ void contour_assembler::add(const placed_segment& ps) {
     }
   }
   if (a == b) return;
-  const std::uint32_t ia = a_orig ? key_id(s.keys[0], p) : point_id(a);
-  const std::uint32_t ib = b_orig ? key_id(s.keys[1], q) : point_id(b);
+  const std::uint32_t ia = a_orig ? end_id(s.keys[0], p) : point_id(a);
+  const std::uint32_t ib = b_orig ? end_id(s.keys[1], q) : point_id(b);
   if (ia != ib) segs_.push_back({ia, ib});
 }
 

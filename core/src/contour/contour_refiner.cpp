@@ -152,6 +152,7 @@ contour_set contour_refiner::build(InCut&& in_cut) const {
   for (std::size_t i = 0; i < records_.size(); ++i) {
     const record& r = records_[i];
     if (!in_cut(r.diamond, r.error, true)) continue;
+    out.begin_record(r.diamond);
     for (const detail::placed_segment* p = r.segments; p != r.segments + r.count; ++p) {
       const owned_segment& s = p->seg;
       if (s.owner != no_owner2 && frontier_.is_split(s.owner) && in_cut(s.owner, 0.0, false)) {

@@ -87,15 +87,18 @@ struct level_shape {
     return static_cast<std::size_t>((n[1] + 1) / 2) * even_row +
            static_cast<std::size_t>(n[1] / 2) * odd_row;
   }
+  // Slot of the first entry of row j (0 ≤ j < n[1]).
+  [[nodiscard]] std::size_t row_begin(std::int32_t j) const noexcept {
+    return static_cast<std::size_t>((j + 1) / 2) * even_row +
+           static_cast<std::size_t>(j / 2) * odd_row;
+  }
   // Slot of centre c (c / h has an odd coordinate); size() when beyond the clipped extent.
   [[nodiscard]] std::size_t slot(const ipoint2& c, int k) const noexcept {
     const std::int32_t i = c[0] >> k;
     const std::int32_t j = c[1] >> k;
     if (i >= n[0] || j >= n[1]) return size();
     PROGISO_ASSERT(((i | j) & 1) != 0);
-    const std::size_t row = static_cast<std::size_t>((j + 1) / 2) * even_row +
-                            static_cast<std::size_t>(j / 2) * odd_row;
-    return row + static_cast<std::size_t>((j & 1) != 0 ? i : i / 2);
+    return row_begin(j) + static_cast<std::size_t>((j & 1) != 0 ? i : i / 2);
   }
 };
 
@@ -179,13 +182,6 @@ class typed_range_data2d final : public range_data2d::impl {
     return e;
   }
 
-  // The stored entry of centre c (scale 2^k), or the empty one beyond the clipped extent.
-  [[nodiscard]] entry<T> stored_entry(const ipoint2& c, int k) const noexcept {
-    const level& lv = levels_[static_cast<std::size_t>(k)];
-    const std::size_t s = lv.shape.slot(c, k);
-    return s == lv.entries.size() ? empty_entry() : lv.entries[s];
-  }
-
   [[nodiscard]] diamond_range stored(const ipoint2& c, int k) const noexcept {
     const level& lv = levels_[static_cast<std::size_t>(k)];
     const std::size_t s = lv.shape.slot(c, k);
@@ -193,9 +189,36 @@ class typed_range_data2d final : public range_data2d::impl {
     return decode(lv.entries[s]);
   }
 
+  // own(), reading the typed samples (clamped into the data box, as volume::value() does) with
+  // no switch on the sample type per sample: the same values, so the same range and error.
+  [[nodiscard]] diamond_range typed_own(const diamond2& d) const noexcept {
+    diamond_range r;
+    if (hier->outside_data(d.centre, d.scale)) return r;
+    const ipoint2& dmax = hier->data_max();
+    const auto at = [&](const ipoint2& q) {
+      return samples_[std::clamp(q[0], 0, dmax[0]) + width_ * std::clamp(q[1], 0, dmax[1])];
+    };
+    const T fc = at(d.centre);
+    const T f0 = at(d.spine[0]);
+    const T f1 = at(d.spine[1]);
+    T lo = std::min({fc, f0, f1});
+    T hi = std::max({fc, f0, f1});
+    for (std::size_t m = 0; m < 2; ++m) {
+      if (!((d.ring_in_grid >> m) & 1u)) continue;
+      const T f = at(d.ring[m]);
+      lo = std::min(lo, f);
+      hi = std::max(hi, f);
+    }
+    r.lo = static_cast<double>(lo);
+    r.hi = static_cast<double>(hi);
+    r.error = std::abs(static_cast<double>(fc) -
+                       0.5 * (static_cast<double>(f0) + static_cast<double>(f1)));
+    return r;
+  }
+
   // The definition for a diamond of an unstored scale ≥ 2: own range and children's.
   [[nodiscard]] diamond_range on_demand(const diamond2& d) const noexcept {
-    diamond_range r = own(d);
+    diamond_range r = typed_own(d);
     std::array<ipoint2, 4> ch{};
     const int n = hier->children(d, ch);
     for (int i = 0; i < n; ++i) merge(r, get_at(ch[static_cast<std::size_t>(i)]));
@@ -286,12 +309,14 @@ class typed_range_data2d final : public range_data2d::impl {
         out_hi[i] = std::max(std::max(a, b), std::max(c, d));
       }
       for (std::ptrdiff_t i = 0; i < n; ++i) out_vertical[i] = err(r0[i], rn[i], rs[i]);
+      // One output per loop: with three, the compiler's aliasing checks outnumber its limit and
+      // the loop stays scalar.
       for (std::ptrdiff_t i = 1; i + 1 < n; ++i) {
         out_across[i] =
             std::max(err(rn[i], rn[i - 1], rn[i + 1]), err(rs[i], rs[i - 1], rs[i + 1]));
-        out_main[i] = err(r0[i], rn[i - 1], rs[i + 1]);
-        out_other[i] = err(r0[i], rn[i + 1], rs[i - 1]);
       }
+      for (std::ptrdiff_t i = 1; i + 1 < n; ++i) out_main[i] = err(r0[i], rn[i - 1], rs[i + 1]);
+      for (std::ptrdiff_t i = 1; i + 1 < n; ++i) out_other[i] = err(r0[i], rn[i + 1], rs[i - 1]);
       for (std::int32_t x = x0; x <= x1; x += 2) {
         const auto i = static_cast<std::size_t>(x - x0 + 1);
         // As scale1(): the own spine joins the corners ≡ 0 mod 4 when c ≡ (1, 1) or (3, 3) mod 4.
@@ -313,7 +338,8 @@ class typed_range_data2d final : public range_data2d::impl {
   // children are square centres of half the scale) before square centres (type 0, whose
   // children are this scale's edge midpoints). A diamond whose subtree lies in the data box
   // (nearly all but a margin of subtree_reach along the border) is summarised from the typed
-  // samples and its children's entries (interior()); the others run the definition.
+  // samples and its children's entries, a row's run of them in one loop (interior_run(); the
+  // same entries as interior(), one diamond at a time); the others run the definition.
   void build() {
     const int levels = hier->levels();
     square_rows squares;
@@ -334,27 +360,108 @@ class typed_range_data2d final : public range_data2d::impl {
             squares.fill(*this, j * h - 1);
             squares.fill(*this, j * h + 1);
           }
+          // The entries whose subtree lies in the data box, i in [ia, ib], in one run.
+          std::int32_t ia = lv.shape.n[0];
+          std::int32_t ib = -1;
+          if (rows_inside && (type == 0 || from_square_rows || children_stored)) {
+            ia = (reach + h - 1) / h;
+            ia += (ia - i0) & 1;
+            ib = std::min(lv.shape.n[0] - 1, (hier->data_max()[0] - reach) / h);
+            ib -= (ib - i0) & 1;
+          }
           for (std::int32_t i = i0; i < lv.shape.n[0]; i += 2) {
+            if (i == ia && ia <= ib) {
+              interior_run(lv, k, type, j, ia, ib, squares);
+              i = ib;
+              continue;
+            }
             const ipoint2 c{i * h, j * h};
             PROGISO_ASSERT(hier->is_diamond(c) && hier->scale_of(c) == h);
             const bool inside =
                 rows_inside && c[0] - reach >= 0 && c[0] + reach <= hier->data_max()[0];
             entry<T>& out = lv.entries[lv.shape.slot(c, k)];
+            // Inside with its children at hand, an entry is part of the run above; inside
+            // otherwise only in a tiny padded image's first stored level (children on demand).
             if (!inside) {
               out = encode(on_demand(hier->make_diamond(c)));
-            } else if (type == 0) {
-              out = interior(c, h, k, type, [&](const ipoint2& ch) { return stored_entry(ch, k); });
-            } else if (from_square_rows) {
-              out = interior(c, h, k, type, [&](const ipoint2& ch) { return squares.at(ch); });
-            } else if (children_stored) {
-              out = interior(c, h, k, type,
-                             [&](const ipoint2& ch) { return stored_entry(ch, k - 1); });
             } else {
               out = interior(c, h, k, type, [&](const ipoint2& ch) { return encode(get_at(ch)); });
             }
           }
         }
       }
+    }
+  }
+
+  // interior() of the entries i = ia, ia + 2, …, ib of row j of level k (type `type`, every
+  // subtree in the data box), in one loop: the children's entries are read through four
+  // pointers that each step by a fixed stride, the samples through one, and the entries are
+  // written in slot order (every other slot in odd rows). Type 1's children: scale 1's square
+  // centres from the row buffers (scale 2) or level k − 1's (both indices odd: 2i ± 1, 2j ± 1);
+  // type 0's: this level's edge midpoints in row j (i ± 1) and in rows j ± 1 (i / 2).
+  void interior_run(level& lv, int k, int type, std::int32_t j, std::int32_t ia, std::int32_t ib,
+                    const square_rows& squares) {
+    const std::int32_t h = std::int32_t{1} << k;
+    const std::int64_t w = width_;
+    const std::int64_t hh = h;
+    const std::int64_t y = std::int64_t{j} * h;
+    const T* p = samples_ + std::int64_t{ia} * h + w * y;
+    entry<T>* out = lv.entries.data() + lv.shape.slot({ia * h, j * h}, k);
+    // An odd row holds every i (its edge midpoints and square centres interleave), an even row
+    // odd i only.
+    const std::ptrdiff_t out_stride = (j & 1) != 0 ? 2 : 1;
+    std::array<const entry<T>*, 4> ch{};
+    std::array<std::ptrdiff_t, 4> stride{};
+    std::int64_t spine = 0;
+    std::int64_t ring = 0;
+    if (type == 1) {
+      const bool along_x = (ia & 1) != 0;
+      spine = along_x ? hh : hh * w;
+      ring = along_x ? hh * w : hh;
+      if (h == 2) {
+        const entry<T>* up = &squares.at({2 * ia - 1, j * h - 1});
+        const entry<T>* down = &squares.at({2 * ia - 1, j * h + 1});
+        ch = {up, up + 1, down, down + 1};
+        stride = {2, 2, 2, 2};
+      } else {
+        const level& fine = levels_[static_cast<std::size_t>(k - 1)];
+        const entry<T>* up = fine.entries.data() + fine.shape.row_begin(2 * j - 1) + (2 * ia - 1);
+        const entry<T>* down = fine.entries.data() + fine.shape.row_begin(2 * j + 1) + (2 * ia - 1);
+        ch = {up, up + 2, down, down + 2};
+        stride = {4, 4, 4, 4};
+      }
+    } else {
+      const entry<T>* same = lv.entries.data() + lv.shape.row_begin(j) + (ia - 1);
+      ch = {same, same + 2, lv.entries.data() + lv.shape.row_begin(j - 1) + ia / 2,
+            lv.entries.data() + lv.shape.row_begin(j + 1) + ia / 2};
+      stride = {2, 2, 1, 1};
+    }
+    // Type 0's spine: sy per row; sx alternates along the row (x + h ≡ 0 or 2h mod 4h).
+    const std::int64_t sy = ((y + h) & (4 * hh - 1)) == 0 ? 1 : -1;
+    std::int64_t sx = ((std::int64_t{ia} * h + h) & (4 * hh - 1)) == 0 ? 1 : -1;
+    for (std::int32_t i = ia; i <= ib; i += 2) {
+      if (type == 0) {
+        spine = hh * (sx + w * sy);
+        ring = hh * (sx - w * sy);
+        sx = -sx;
+      }
+      const T fc = p[0];
+      const T f0 = p[-spine];
+      const T f1 = p[spine];
+      const T g0 = p[ring];
+      const T g1 = p[-ring];
+      entry<T> e{std::min({fc, f0, f1, g0, g1}), std::max({fc, f0, f1, g0, g1}),
+                 stored_split_error(fc, f0, f1)};
+      for (std::size_t m = 0; m < 4; ++m) {
+        const entry<T>& x = *ch[m];
+        e.lo = std::min(e.lo, x.lo);
+        e.hi = std::max(e.hi, x.hi);
+        e.error = std::max(e.error, x.error);
+        ch[m] += stride[m];
+      }
+      *out = e;
+      out += out_stride;
+      p += 2 * hh;
     }
   }
 
@@ -436,11 +543,11 @@ class typed_range_data2d final : public range_data2d::impl {
         c[0] >= reach && c[1] >= reach && c[0] + reach <= dmax[0] && c[1] + reach <= dmax[1];
     if (!inside) {
       const diamond2 d = hier->make_diamond(c);
-      diamond_range r = own(d);
+      diamond_range r = typed_own(d);
       std::array<ipoint2, 4> ch{};
       const int n = hier->children(d, ch);
       for (int i = 0; i < n; ++i) {
-        merge(r, own(hier->make_diamond(ch[static_cast<std::size_t>(i)])));
+        merge(r, typed_own(hier->make_diamond(ch[static_cast<std::size_t>(i)])));
       }
       return r;
     }

@@ -144,7 +144,14 @@ class contour_assembler {
  public:
   /// `expected` segments size the key table (a hint).
   contour_assembler(const hierarchy2d& hier, double isovalue, std::size_t expected);
-  /// Adds one live segment of the cut.
+  /// Starts the live segments of the record of diamond `diamond` (its grid index; no_owner2 for
+  /// the root record): add() then gives the vertices that only this record's segments can
+  /// reference their ids here, without the key table. Those are the crossings on the edges
+  /// incident to the centre of a finest diamond (scale 1, an edge midpoint: its split is never
+  /// followed by another inside its region, so the four triangles around its centre are the
+  /// only ones that hold those edges, in every cut).
+  void begin_record(std::uint64_t diamond);
+  /// Adds one live segment of the cut (of the record begun last, if any).
   void add(const placed_segment& s);
   /// The polylines, with positions origin + p × spacing. Once.
   [[nodiscard]] contour_set finish(const std::array<double, 2>& origin,
@@ -152,6 +159,8 @@ class contour_assembler {
 
  private:
   std::uint32_t key_id(std::uint64_t key, const vec2& p);
+  // key_id(), or the record's own id for a key on an edge incident to a finest centre.
+  std::uint32_t end_id(std::uint64_t key, const vec2& p);
   std::uint32_t point_id(const vec2& p);
 
   // Vertex ids by key. Keys whose doubled coordinates fit in 16 bits each (images up to 32768
@@ -160,6 +169,15 @@ class contour_assembler {
   std::uint32_t compact_id(std::uint32_t key, const vec2& p);
   void grow_compact();
 
+  const hierarchy2d* hier_;
+  // The record begun last: its centre's doubled coordinates when it is a finest edge midpoint
+  // (else local_ is false), and the ids given to its own keys so far.
+  bool local_ = false;
+  std::int64_t local_x_ = 0;
+  std::int64_t local_y_ = 0;
+  std::array<std::uint64_t, 4> local_keys_{};
+  std::array<std::uint32_t, 4> local_ids_{};
+  std::uint32_t local_count_ = 0;
   double bx_;
   double by_;
   double isovalue_;
