@@ -10,6 +10,7 @@
 #include <map>
 #include <memory>
 #include <random>
+#include <string>
 
 #include <gtest/gtest.h>
 
@@ -52,6 +53,22 @@ TEST(ContourRefiner, full_resolution_equals_marching_triangles_on_analytic_image
   expect_full_equals_reference(make_image(33, 33, circle), 12.25);   // 2^L + 1
   expect_full_equals_reference(make_image(70, 45, waves), 0.1);      // many components
   expect_full_equals_reference(make_image(50, 29, edge_cut), 20.0);  // open chains, padding
+}
+
+TEST(ContourRefiner, full_resolution_equals_marching_triangles_on_every_small_image_size) {
+  // Border-heavy grids of every parity, root squares of side 1 (whose root record holds unit
+  // edges: their vertices go through the key table) to 8: a split's record names the vertices
+  // on its unit edges itself (contour_assembler::begin_record), the others go through the table.
+  for (std::int64_t w = 2; w <= 11; ++w) {
+    for (std::int64_t h = 2; h <= 11; ++h) {
+      SCOPED_TRACE(std::to_string(w) + "x" + std::to_string(h));
+      expect_full_equals_reference(make_image(w, h, waves), 0.1);
+      expect_full_equals_reference(make_image(w, h, circle), 18.0);
+    }
+  }
+  // Two samples thick: the root record alone holds every segment, many on unit edges.
+  expect_full_equals_reference(make_image(2, 64, waves), 0.1);
+  expect_full_equals_reference(make_image(64, 2, waves), 0.1);
 }
 
 TEST(ContourRefiner, full_resolution_equals_marching_triangles_on_images_wider_than_compact_keys) {

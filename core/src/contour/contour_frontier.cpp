@@ -39,8 +39,7 @@ constexpr std::uint64_t empty_slot = ~std::uint64_t{0};
 }  // namespace
 
 contour_assembler::contour_assembler(const hierarchy2d& hier, double isovalue, std::size_t expected)
-    : hier_(&hier),
-      bx_(static_cast<double>(hier.data_max()[0])),
+    : bx_(static_cast<double>(hier.data_max()[0])),
       by_(static_cast<double>(hier.data_max()[1])),
       isovalue_(isovalue),
       compact_keys_(2 * std::int64_t{hier.grid_max()[0]} < 65536 &&
@@ -48,7 +47,7 @@ contour_assembler::contour_assembler(const hierarchy2d& hier, double isovalue, s
       ids_(compact_keys_ ? 16 : expected + 16) {
   if (compact_keys_) {
     std::size_t capacity = 16;
-    while (capacity < 2 * (expected + 16)) capacity *= 2;
+    while (capacity < expected + 16) capacity *= 2;
     compact_.assign(capacity, empty_slot);
     compact_shift_ = 32 - std::countr_zero(capacity);
   }
@@ -98,35 +97,25 @@ std::uint32_t contour_assembler::key_id(std::uint64_t key, const vec2& p) {
 }
 
 void contour_assembler::begin_record(std::uint64_t diamond) {
+  local_ = diamond != no_owner2;
   local_count_ = 0;
-  local_ = false;
-  if (diamond == no_owner2) return;
-  const ipoint2 c = hier_->point(diamond);
-  // Scale 1 and an edge midpoint: exactly one coordinate odd.
-  if (((c[0] ^ c[1]) & 1) == 0) return;
-  local_ = true;
-  local_x_ = 2 * std::int64_t{c[0]};
-  local_y_ = 2 * std::int64_t{c[1]};
 }
 
 std::uint32_t contour_assembler::end_id(std::uint64_t key, const vec2& p) {
-  if (local_) {
-    // An edge incident to the centre has its doubled midpoint one step from the doubled centre
-    // along an axis; the others (the diamond's sides) are one step along both.
-    const ipoint2 m = edge_key2_point(key);
-    const std::int64_t dx = m[0] - local_x_;
-    const std::int64_t dy = m[1] - local_y_;
-    if ((dx == 0) != (dy == 0)) {
-      for (std::uint32_t i = 0; i < local_count_; ++i) {
-        if (local_keys_[i] == key) return local_ids_[i];
-      }
-      const auto id = static_cast<std::uint32_t>(out_.vertices.size());
-      out_.vertices.push_back(p);
-      PROGISO_ASSERT(local_count_ < local_keys_.size());
-      local_keys_[local_count_] = key;
-      local_ids_[local_count_++] = id;
-      return id;
+  // A unit edge (its doubled midpoint has exactly one odd coordinate) is held only by the four
+  // triangles around the finest edge midpoint at one of its ends, which that diamond's split
+  // makes and nothing splits again: its vertex is named here. Other keys go through the table.
+  const ipoint2 m = edge_key2_point(key);
+  if (local_ && ((m[0] ^ m[1]) & 1) != 0) {
+    for (std::uint32_t i = 0; i < local_count_; ++i) {
+      if (local_keys_[i] == key) return local_ids_[i];
     }
+    const auto id = static_cast<std::uint32_t>(out_.vertices.size());
+    out_.vertices.push_back(p);
+    PROGISO_ASSERT(local_count_ < local_keys_.size());
+    local_keys_[local_count_] = key;
+    local_ids_[local_count_++] = id;
+    return id;
   }
   return key_id(key, p);
 }

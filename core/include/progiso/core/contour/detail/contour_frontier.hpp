@@ -145,11 +145,11 @@ class contour_assembler {
   /// `expected` segments size the key table (a hint).
   contour_assembler(const hierarchy2d& hier, double isovalue, std::size_t expected);
   /// Starts the live segments of the record of diamond `diamond` (its grid index; no_owner2 for
-  /// the root record): add() then gives the vertices that only this record's segments can
-  /// reference their ids here, without the key table. Those are the crossings on the edges
-  /// incident to the centre of a finest diamond (scale 1, an edge midpoint: its split is never
-  /// followed by another inside its region, so the four triangles around its centre are the
-  /// only ones that hold those edges, in every cut).
+  /// the root record). A vertex on a unit edge (a finest triangle's leg) belongs to one split's
+  /// record in every cut: the split of the finest edge midpoint at one of the edge's ends makes
+  /// the only four triangles that hold the edge, and nothing splits them again. add() names such
+  /// vertices within the record, without the key table; only the vertices on the diagonals,
+  /// which neighbouring splits share, go through it.
   void begin_record(std::uint64_t diamond);
   /// Adds one live segment of the cut (of the record begun last, if any).
   void add(const placed_segment& s);
@@ -169,12 +169,9 @@ class contour_assembler {
   std::uint32_t compact_id(std::uint32_t key, const vec2& p);
   void grow_compact();
 
-  const hierarchy2d* hier_;
-  // The record begun last: its centre's doubled coordinates when it is a finest edge midpoint
-  // (else local_ is false), and the ids given to its own keys so far.
+  // The record begun last: whether it is a split's (not the root record's), and the ids given
+  // to its unit edges' vertices so far (a finest edge midpoint's split has four unit edges).
   bool local_ = false;
-  std::int64_t local_x_ = 0;
-  std::int64_t local_y_ = 0;
   std::array<std::uint64_t, 4> local_keys_{};
   std::array<std::uint32_t, 4> local_ids_{};
   std::uint32_t local_count_ = 0;
