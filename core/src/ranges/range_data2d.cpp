@@ -472,8 +472,9 @@ class typed_range_data2d final : public range_data2d::impl {
   // entry, without making the diamond and its children as objects. Type 0 (square centre): its 4
   // corners (spine along the diagonal hierarchy2d::make_diamond picks) and its edge midpoints of
   // the same scale (stored before it); type 1 (edge midpoint): spine along its odd axis, apexes
-  // along the other, and the 4 square centres of half its scale (child(centre): stored one level
-  // down, or scale 1's from the row buffers).
+  // along the other, and the 4 square centres of half its scale (child(centre) gives a child's
+  // entry). interior_run() does the same over a row's run, reading the children's stored entries;
+  // this one serves a tiny padded image's first stored scale, whose children are not stored.
   template <class Child>
   [[nodiscard]] entry<T> interior(const ipoint2& c, std::int32_t h, int k, int type,
                                   Child&& child) const noexcept {

@@ -159,7 +159,7 @@ class contour_assembler {
 
  private:
   std::uint32_t key_id(std::uint64_t key, const vec2& p);
-  // key_id(), or the record's own id for a key on an edge incident to a finest centre.
+  // key_id(), or the record's own id for a key on a unit edge (see begin_record()).
   std::uint32_t end_id(std::uint64_t key, const vec2& p);
   std::uint32_t point_id(const vec2& p);
 
