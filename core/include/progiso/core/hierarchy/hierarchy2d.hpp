@@ -22,8 +22,10 @@
 #pragma once
 
 #include <array>
+#include <bit>
 #include <cstdint>
 
+#include <progiso/core/base/assert.hpp>
 #include <progiso/core/base/config.hpp>
 #include <progiso/core/base/error.hpp>
 #include <progiso/core/field/volume.hpp>
@@ -119,5 +121,50 @@ class hierarchy2d {
   std::uint64_t stride_ = 0;
   std::uint64_t vertex_count_ = 0;
 };
+
+// Inline: the refiners make a diamond per split.
+inline std::int32_t hierarchy2d::scale_of(const ipoint2& p) const noexcept {
+  // min(tz(x), tz(y)) = tz(x | y); 0 (both zero) has 32 trailing zeros, capped like the others.
+  return std::int32_t{1} << std::min(
+             std::countr_zero(static_cast<std::uint32_t>(p[0]) | static_cast<std::uint32_t>(p[1])),
+             levels_);
+}
+
+inline bool hierarchy2d::is_diamond(const ipoint2& p) const noexcept {
+  return in_grid(p) && scale_of(p) < root_;
+}
+
+inline diamond2 hierarchy2d::make_diamond(const ipoint2& c) const noexcept {
+  PROGISO_ASSERT(is_diamond(c));
+  diamond2 d;
+  d.centre = c;
+  const int lg = std::countr_zero(static_cast<std::uint32_t>(scale_of(c)));
+  const std::int32_t h = std::int32_t{1} << lg;
+  d.scale = h;
+  // On an odd axis (c_q / h odd) the spine steps +1 when (c_q + h) mod 4h = 0, else −1.
+  const bool odd_x = ((c[0] >> lg) & 1) != 0;
+  const bool odd_y = ((c[1] >> lg) & 1) != 0;
+  const std::int32_t sx = odd_x ? (((c[0] + h) & (4 * h - 1)) == 0 ? 1 : -1) : 0;
+  const std::int32_t sy = odd_y ? (((c[1] + h) & (4 * h - 1)) == 0 ? 1 : -1) : 0;
+  d.type = 2 - (odd_x ? 1 : 0) - (odd_y ? 1 : 0);
+  d.depth = 2 * (levels_ - 1 - lg) + d.type;
+  d.spine[0] = {c[0] - h * sx, c[1] - h * sy};
+  d.spine[1] = {c[0] + h * sx, c[1] + h * sy};
+  if (d.type == 0) {
+    // The square's other two corners.
+    d.ring[0] = {c[0] + h * sx, c[1] - h * sy};
+    d.ring[1] = {c[0] - h * sx, c[1] + h * sy};
+  } else if (odd_x) {
+    // Across the axis edge: the centres of the two squares that share it.
+    d.ring[0] = {c[0], c[1] + h};
+    d.ring[1] = {c[0], c[1] - h};
+  } else {
+    d.ring[0] = {c[0] + h, c[1]};
+    d.ring[1] = {c[0] - h, c[1]};
+  }
+  d.ring_in_grid =
+      static_cast<std::uint8_t>((in_grid(d.ring[0]) ? 1u : 0u) | (in_grid(d.ring[1]) ? 2u : 0u));
+  return d;
+}
 
 }  // namespace progiso
