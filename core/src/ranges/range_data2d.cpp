@@ -445,18 +445,9 @@ class typed_range_data2d final : public range_data2d::impl {
         ring = hh * (sx - w * sy);
         sx = -sx;
       }
-      const T fc = p[0];
-      const T f0 = p[-spine];
-      const T f1 = p[spine];
-      const T g0 = p[ring];
-      const T g1 = p[-ring];
-      entry<T> e{std::min({fc, f0, f1, g0, g1}), std::max({fc, f0, f1, g0, g1}),
-                 stored_split_error(fc, f0, f1)};
+      entry<T> e = own_entry(p, spine, ring);
       for (std::size_t m = 0; m < 4; ++m) {
-        const entry<T>& x = *ch[m];
-        e.lo = std::min(e.lo, x.lo);
-        e.hi = std::max(e.hi, x.hi);
-        e.error = std::max(e.error, x.error);
+        merge_entry(e, *ch[m]);
         ch[m] += stride[m];
       }
       *out = e;
@@ -493,11 +484,7 @@ class typed_range_data2d final : public range_data2d::impl {
       spine = along_x ? hh : hh * w;
       ring = along_x ? hh * w : hh;
     }
-    const T fc = p[0];
-    const T f0 = p[-spine];
-    const T f1 = p[spine];
-    entry<T> e{std::min({fc, f0, f1, p[ring], p[-ring]}), std::max({fc, f0, f1, p[ring], p[-ring]}),
-               stored_split_error(fc, f0, f1)};
+    entry<T> e = own_entry(p, spine, ring);
     const std::int32_t g = type == 0 ? h : h / 2;
     const std::array<ipoint2, 4> children =
         type == 0
@@ -505,13 +492,26 @@ class typed_range_data2d final : public range_data2d::impl {
                                      ipoint2{c[0], c[1] + h}, ipoint2{c[0], c[1] - h}}
             : std::array<ipoint2, 4>{ipoint2{c[0] + g, c[1] + g}, ipoint2{c[0] - g, c[1] + g},
                                      ipoint2{c[0] + g, c[1] - g}, ipoint2{c[0] - g, c[1] - g}};
-    for (const ipoint2& ch : children) {
-      const entry<T>& x = child(ch);
-      e.lo = std::min(e.lo, x.lo);
-      e.hi = std::max(e.hi, x.hi);
-      e.error = std::max(e.error, x.error);
-    }
+    for (const ipoint2& ch : children) merge_entry(e, child(ch));
     return e;
+  }
+
+  // The entry of a diamond's own samples, centred at p (spine ends at ± spine, apexes at ± ring,
+  // all in the data box): their range and the split error, in the stored form.
+  static entry<T> own_entry(const T* p, std::int64_t spine, std::int64_t ring) noexcept {
+    const T fc = p[0];
+    const T f0 = p[-spine];
+    const T f1 = p[spine];
+    const T g0 = p[ring];
+    const T g1 = p[-ring];
+    return {std::min({fc, f0, f1, g0, g1}), std::max({fc, f0, f1, g0, g1}),
+            stored_split_error(fc, f0, f1)};
+  }
+  // A child's entry merged into its parent's (bounds are samples; errors already rounded up).
+  static void merge_entry(entry<T>& e, const entry<T>& x) noexcept {
+    e.lo = std::min(e.lo, x.lo);
+    e.hi = std::max(e.hi, x.hi);
+    e.error = std::max(e.error, x.error);
   }
 
   // The stored (rounded up) form of the split error |mid − (a + b) / 2|: for integer samples
