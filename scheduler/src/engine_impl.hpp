@@ -521,7 +521,8 @@ struct engine_impl : run_control {
   // depth-first loop like refine_serially()'s, publishing its splits every 64 (up to 256 while
   // another task holds the mutex): their places in the log reserved under `publish_mutex`,
   // filled without it, the watermark moved under it again; a child becomes ready when the atomic
-  // decrement of its last parent, made after that parent's place was filled, completes its count.
+  // decrement of its last parent, made after that parent's place was reserved, completes its
+  // count.
   // Full refinement is one such run over everything queued; refinement by priority one per band
   // of the queue (a quarter octave of errors), largest first, a child below the band left for a
   // later one. run_graph() takes it on more than one thread (for runs by priority unless
@@ -534,6 +535,9 @@ struct engine_impl : run_control {
   // children ready; without `wait`, only if publish_mutex is free; once the run is stopping, only
   // when `stopped` (a deadline's last publication). Returns whether it published.
   bool publish_full_task(full_task& t, bool wait, bool stopped = false);
+  // The children of the task's pending splits, whose places start at `first_record`: counted,
+  // and those whose count completes made ready on the task's lists. Returns how many it queued.
+  std::int64_t count_full_task_children(full_task& t, std::size_t first_record);
   // Runs run_full_task(*part) as a task of the run's group.
   void spawn_full_task(full_run& run, std::shared_ptr<full_task> part);
 

@@ -3,16 +3,16 @@
 //
 // Each task refines from its own ready diamonds and publishes its computed splits every 64:
 // under `publish_mutex` it reserves their places in the log (and their groups' in the root's
-// store), fills them without the mutex (records, groups, record_of: the copies and the page
-// faults of fresh chunks run on every task at once), and under the mutex again marks them
-// filled and moves the watermark over the filled ranges at the front (tasks reserve in log
-// order but may finish out of order). Only then does it count its splits as parents of their
-// children: an atomic decrement per child, and the task whose decrement completes a child's
-// parent count makes the child ready in its own lists. A child is therefore computed, hence
-// reserved, after every parent's place was reserved, so it lies above them in the log, and
-// every published prefix of the records is a valid cut. A task with work to spare gives half
-// of it to a new task whenever fewer tasks than threads are running; oneTBB's work stealing
-// places it on an idle thread.
+// store); without the mutex it counts its splits as parents of their children (an atomic
+// decrement per child: the task whose decrement completes a child's parent count makes the child
+// ready in its own lists) and then fills the places (records, groups, record_of: the copies and
+// the page faults of fresh chunks run on every task at once); under the mutex again it marks
+// them filled and moves the watermark over the filled ranges at the front (tasks reserve in log
+// order but may finish out of order). A child is therefore computed, hence reserved, after
+// every parent's place was reserved, so it lies above them in the log; the watermark passes no
+// range before it is filled, so every published prefix of the records is a valid cut. A task with
+// work to spare gives half of it to a new task whenever fewer tasks than threads are running;
+// oneTBB's work stealing places it on an idle thread.
 //
 // In full refinement a task takes its diamonds by grid plane, as the one-thread sweep does
 // (plane_lists.hpp): the run starts with the volume cut into one slab of planes per thread, and
@@ -321,7 +321,17 @@ bool engine_impl::publish_full_task(full_task& t, bool wait, bool stopped) {
       }
     }
   }
-  // 2. Without it: the records, their groups and the diamonds' record indices, into the places
+  // 2. Still without it, and before the records are filled: the children of these splits.
+  //    The decrement that completes a child's parent count makes it ready, on this task's own
+  //    lists. A child needs its parents' places reserved (step 1), not filled: it is computed,
+  //    hence reserved, after them, so it lies above them in the log, and the watermark (step 4)
+  //    passes no range that is not filled yet. Counting before filling keeps the locked
+  //    decrements clear of the fill's stores to fresh pages, which each of them would otherwise
+  //    wait for (x86 drains its store buffer at a locked instruction). A deadline that passes
+  //    meanwhile leaves the rest to the next run (engine_root::uncounted): up to 256 records
+  //    here are ~0.2 ms.
+  const std::int64_t pushed = stopped ? 0 : count_full_task_children(t, first_record);
+  // 3. Without it: the records, their groups and the diamonds' record indices, into the places
   //    reserved (the pages these first touch fault in here, on every task at once).
   for (std::size_t i = 0; i < kept; ++i) {
     const pending_split& p = t.pending[i];
@@ -334,7 +344,7 @@ bool engine_impl::publish_full_task(full_task& t, bool wait, bool stopped) {
                // mutex orders after this (this task's unlock, the publisher's lock).
                std::memory_order_relaxed);
   }
-  // 3. Under the mutex again: this task's places are filled; the watermark moves over every
+  // 4. Under the mutex again: this task's places are filled; the watermark moves over every
   //    filled range that follows it (tasks reserve in order but may finish out of order).
   {
     const std::lock_guard lock(publish_mutex);
@@ -360,16 +370,34 @@ bool engine_impl::publish_full_task(full_task& t, bool wait, bool stopped) {
     report_progress(r, run.ranges, static_cast<std::uint64_t>(kept));
   }
   const auto published = static_cast<std::int64_t>(kept);
-  if (stopped) {
-    run.outstanding.fetch_sub(published, std::memory_order_relaxed);  // relaxed: statistics
-    t.pending.clear();
-    t.summaries.clear();
-    t.groups.clear();
-    return true;
+  // relaxed: statistics (see full_run::outstanding).
+  run.outstanding.fetch_add(pushed - published, std::memory_order_relaxed);
+  t.pending.clear();
+  t.summaries.clear();
+  t.groups.clear();
+  if (stopped) return true;
+
+  // Work to spare for an idle thread: the planes ahead of the front in full refinement (about
+  // half the volume left), the older half of the stack (coarser diamonds) in a band.
+  // relaxed: a hint (see full_run::active).
+  if ((t.planes.size() >= 2 || t.stack.size() >= 2) &&
+      run.active.load(std::memory_order_relaxed) < threads) {
+    auto part = std::make_shared<full_task>();
+    if (!run.banded) {
+      t.planes.give_upper_half(part->planes);
+    } else {
+      const auto half = static_cast<std::ptrdiff_t>(t.stack.size() / 2);
+      part->stack.assign(t.stack.begin(), t.stack.begin() + half);
+      t.stack.erase(t.stack.begin(), t.stack.begin() + half);
+    }
+    spawn_full_task(run, std::move(part));
   }
-  // The children of the splits just published: the increment that completes a child's parent
-  // count makes it ready, on this task's stack. A deadline that passes meanwhile leaves the
-  // rest to the next run (engine_root::uncounted): up to 256 records here are ~0.2 ms.
+  return true;
+}
+
+std::int64_t engine_impl::count_full_task_children(full_task& t, std::size_t first_record) {
+  full_run& run = *t.run;
+  engine_root& r = *run.root;
   std::int64_t pushed = 0;
   const bool deadline = goal.what == refine_goal::kind::deadline;
   for (std::size_t j = 0; j < t.pending.size(); ++j) {
@@ -412,28 +440,7 @@ bool engine_impl::publish_full_task(full_task& t, bool wait, bool stopped) {
       }
     }
   }
-  // relaxed: statistics (see full_run::outstanding).
-  run.outstanding.fetch_add(pushed - published, std::memory_order_relaxed);
-  t.pending.clear();
-  t.summaries.clear();
-  t.groups.clear();
-
-  // Work to spare for an idle thread: the planes ahead of the front in full refinement (about
-  // half the volume left), the older half of the stack (coarser diamonds) in a band.
-  // relaxed: a hint (see full_run::active).
-  if ((t.planes.size() >= 2 || t.stack.size() >= 2) &&
-      run.active.load(std::memory_order_relaxed) < threads) {
-    auto part = std::make_shared<full_task>();
-    if (!run.banded) {
-      t.planes.give_upper_half(part->planes);
-    } else {
-      const auto half = static_cast<std::ptrdiff_t>(t.stack.size() / 2);
-      part->stack.assign(t.stack.begin(), t.stack.begin() + half);
-      t.stack.erase(t.stack.begin(), t.stack.begin() + half);
-    }
-    spawn_full_task(run, std::move(part));
-  }
-  return true;
+  return pushed;
 }
 
 void engine_impl::spawn_full_task(full_run& run, std::shared_ptr<full_task> part) {
