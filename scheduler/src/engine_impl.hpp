@@ -203,17 +203,37 @@ struct split_tally {
   }
   // Adds everything to r's counters (their one writer at a time) and starts again from zero.
   void add_to(engine_root& r) noexcept {
-    r.splits.add(splits);
-    r.record_triangles.add(added);
-    r.visited.add(visited);
-    r.culled.add(culled);
-    r.discarded.add(discarded);
+    add_counts_to(r);
     for (std::size_t k = 0; k < tet_case_count; ++k) r.cases[k].add(cases[k]);
     for (std::size_t k = 0; k < primitive_count; ++k) r.primitives[k].add(primitives[k]);
     for (std::size_t k = 0; k < split_configuration_count; ++k) {
       r.configurations[k].add(configurations[k]);
     }
     *this = split_tally{};
+  }
+  // Adds the counts (splits, triangles, visited, culled, discarded) to r's counters and zeroes
+  // them; the histograms (cases, primitives, configurations) stay for a later add_to().
+  void add_counts_to(engine_root& r) noexcept {
+    r.splits.add(splits);
+    r.record_triangles.add(added);
+    r.visited.add(visited);
+    r.culled.add(culled);
+    r.discarded.add(discarded);
+    splits = added = visited = culled = discarded = 0;
+  }
+  // Adds o's tallies to these (o is then zero).
+  void take(split_tally& o) noexcept {
+    splits += o.splits;
+    added += o.added;
+    visited += o.visited;
+    culled += o.culled;
+    discarded += o.discarded;
+    for (std::size_t k = 0; k < tet_case_count; ++k) cases[k] += o.cases[k];
+    for (std::size_t k = 0; k < primitive_count; ++k) primitives[k] += o.primitives[k];
+    for (std::size_t k = 0; k < split_configuration_count; ++k) {
+      configurations[k] += o.configurations[k];
+    }
+    o = split_tally{};
   }
 };
 
