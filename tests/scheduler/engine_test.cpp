@@ -756,19 +756,17 @@ TEST(Engine, every_cut_seen_while_tasks_publish_counts_its_own_triangles) {
     SCOPED_TRACE(n);
     engine e(v, 0.5, with_threads(n));
     e.start(refine_goal::full());
-    std::size_t checked = 0;
+    // None required mid-run: on a loaded machine the run may finish before this thread looks.
     while (e.running()) {
       const surface_snapshot s = e.snapshot();
       if (s.split_count() == 0) continue;
       EXPECT_EQ(s.mesh().triangles.size(), s.triangle_count()) << s.split_count() << " splits";
-      ++checked;
     }
     e.wait();
     const surface_snapshot last = e.snapshot();
     EXPECT_EQ(last.mesh().triangles.size(), last.triangle_count());
     EXPECT_EQ(last.triangle_count(), e.statistics().refine.triangles);
     EXPECT_TRUE(e.done());
-    (void)checked;  // none required: on a loaded machine the run may finish first
   }
 }
 
