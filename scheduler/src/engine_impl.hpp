@@ -34,6 +34,7 @@
 #include <progiso/core/base/zeroed_array.hpp>
 #include <progiso/core/field/detail/sample_threshold.hpp>
 #include <progiso/core/refine/detail/plane_lists.hpp>
+#include <progiso/core/refine/detail/prefetch.hpp>
 #include <progiso/core/refine/detail/ready_queue.hpp>
 #include <progiso/scheduler/engine.hpp>
 #include <progiso/scheduler/tbb_environment.hpp>
@@ -388,6 +389,27 @@ struct engine_impl : run_control {
       __builtin_prefetch(&r.record_of[hier.index(children.centre[static_cast<std::size_t>(i)])], 1);
     }
     return children;
+  }
+
+  // Asks for the data a split of the diamond `index` reads first: its samples and the rows of
+  // per-vertex words around its centre (its children's, at ± its scale). For a cold queue item a
+  // few cold items ahead (ready_queue::cold_ahead): in priority order such an item lies anywhere
+  // in the grid, and its first reads miss. Any thread (a hint: reads nothing of r's state).
+  void request_diamond(const engine_root& r, std::uint64_t index) const noexcept {
+    const ipoint c = hier.point(index);
+    const std::int32_t h = hier.scale_of(c);
+    prefetch_diamond_samples(vol, c, h);
+    const ipoint& g = hier.grid_max();
+    const std::int32_t x0 = std::max(c[0] - h, 0);
+    const std::int32_t x1 = std::min(c[0] + h, g[0]);
+    for (std::int32_t dz = -h; dz <= h; dz += h) {
+      const std::int32_t z = std::clamp(c[2] + dz, 0, g[2]);
+      for (std::int32_t dy = -h; dy <= h; dy += h) {
+        const std::int32_t y = std::clamp(c[1] + dy, 0, g[1]);
+        __builtin_prefetch(&r.record_of[hier.index({x0, y, z})], 1);
+        __builtin_prefetch(&r.record_of[hier.index({x1, y, z})], 1);
+      }
+    }
   }
 
   // A published split (centre, scale, depth; its surface `groups`) counted as a parent of each of

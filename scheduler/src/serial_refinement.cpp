@@ -23,9 +23,15 @@ constexpr std::size_t serial_publish_step = 64;
 // A deadline is checked every this many splits (a clock read costs ~4% of a split), as the
 // commit step does; a sweep checks for a stop request as often.
 constexpr std::size_t serial_clock_step = 8;
-// Samples of the diamond this many places ahead in the queue are asked for (volumes larger than
-// the cache only), as the sequential refiner does.
-constexpr std::size_t serial_prefetch_distance = 8;
+// Volumes larger than the cache only: when the loop takes a cold item of the queue (one that
+// was in its bucket when the bucket became the top, ready_queue::top_is_cold), the data of the
+// cold item this many cold items later is asked for (request_diamond). The items pushed since,
+// the last splits' children, are taken first and are near data already in the cache; the cold
+// ones lie anywhere in the grid, and their order is known however many are pushed meanwhile.
+// (The sequential refiner's request of the item eight places ahead mostly named an item that
+// the depth-first order takes much later.) Marschner–Lobb 257³, one thread, an error target of
+// 670 k splits, eight alternations: 2.52–2.96 → 2.91–3.26 M splits a second.
+constexpr std::size_t serial_cold_prefetch_distance = 2;
 
 }  // namespace
 
@@ -94,10 +100,9 @@ void engine_impl::refine_serially(engine_root& r) {
       break;
     }
     const ready_item item = r.queue.top();
-    if (prefetch) {
-      if (const ready_item* ahead = r.queue.peek(serial_prefetch_distance)) {
-        const ipoint a = hier.point(ahead->index);
-        prefetch_diamond_samples(vol, a, hier.scale_of(a));
+    if (prefetch && r.queue.top_is_cold()) {
+      if (const ready_item* ahead = r.queue.cold_ahead(serial_cold_prefetch_distance)) {
+        request_diamond(r, ahead->index);
       }
     }
     if (!split_alone(

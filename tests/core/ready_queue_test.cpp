@@ -153,6 +153,66 @@ TEST(ReadyQueue, first_in_first_out_keeps_order_across_interleaved_pushes_pops_a
   EXPECT_EQ(next_out, next_in);
 }
 
+TEST(ReadyQueue, cold_items_are_the_top_bands_own_from_before_it_was_the_top_in_the_order_named) {
+  // A refinement's pattern: pops, children pushed into the band being taken (hot), into lower
+  // bands (cold once their band is the top), now and then above it. Indices count pushes, so an
+  // item of the top band is cold exactly when it was pushed before the band became the top
+  // (a band made the top by a push holds only hot items).
+  ready_queue<item> q;
+  std::mt19937_64 rng(23);
+  std::uniform_real_distribution<double> unit(0.0, 1.0);
+  std::uniform_real_distribution<double> exponent(-12.0, 0.0);
+  std::uint64_t pushed = 0;
+  std::uint64_t became_top = 0;  // pushes before the present top band became the top
+  std::uint64_t top_rank = 0;
+  std::vector<std::uint64_t> named;  // cold items named ahead, in the order they come
+  const auto push = [&](double e) {
+    const bool was_empty = q.empty();
+    q.push({e, 0, pushed++});
+    if (was_empty || q.top_rank() != top_rank) {  // a new top band, made by this push
+      top_rank = q.top_rank();
+      became_top = pushed - 1;
+      named.clear();
+    }
+  };
+  for (int k = 0; k < 400; ++k) push(std::pow(2.0, exponent(rng)));
+  std::size_t cold_taken = 0;
+  std::size_t named_checked = 0;
+  for (int step = 0; step < 20000 && !q.empty(); ++step) {
+    const item top = q.top();
+    ASSERT_EQ(q.top_is_cold(), top.index < became_top) << "step " << step;
+    if (q.top_is_cold()) {
+      ++cold_taken;
+      ASSERT_NE(q.cold_ahead(0), nullptr);
+      ASSERT_EQ(q.cold_ahead(0)->index, top.index);
+      if (!named.empty()) {
+        ASSERT_EQ(named.front(), top.index) << "not the cold item named ahead";
+        ++named_checked;
+      }
+      named.clear();
+      for (std::size_t a = 1; a <= 3; ++a) {
+        if (const item* next = q.cold_ahead(a)) named.push_back(next->index);
+      }
+    }
+    q.pop();
+    if (!q.empty() && q.top_rank() != top_rank) {  // the band ran out: the next is the top
+      top_rank = q.top_rank();
+      became_top = pushed;
+      named.clear();
+    }
+    // Children: mostly into the band just taken, some below it, a few above.
+    const int children = static_cast<int>(unit(rng) * 4.0);
+    for (int c = 0; c < children; ++c) {
+      const double u = unit(rng);
+      push(u < 0.6    ? top.error * (1.0 - 0.01 * unit(rng))
+           : u < 0.95 ? top.error / 8.0
+                      : top.error * 4.0);
+    }
+  }
+  EXPECT_GT(cold_taken, 1000u);
+  EXPECT_GT(named_checked, 500u);
+}
+
 TEST(ReadyQueue, switching_disciplines_keeps_every_item) {
   ready_queue<item> q(queue_discipline::lifo);
   for (std::uint64_t i = 0; i < 300; ++i)

@@ -16,6 +16,11 @@
 //
 // An error target is exact all the same: aim_at(ε) ranks every item of error > ε above every
 // other, so `while (top().error > ε) pop-and-split` reaches exactly the diamonds of error > ε.
+//
+// The items a bucket held when it became the top are its cold ones (top_is_cold, cold_ahead):
+// pushed while larger errors were taken, they lie anywhere in the grid, and they are taken in a
+// fixed order (the bucket's vector from its end) after whatever is pushed meanwhile, so a
+// refinement can ask for a cold item's data a few cold items ahead.
 #pragma once
 
 #include <algorithm>
@@ -132,6 +137,20 @@ class ready_queue {
     const std::vector<Item>& top = buckets_.back().items;
     return k < top.size() ? &top[top.size() - 1 - k] : nullptr;
   }
+  /// Largest error first: whether top() was already in its bucket when the bucket became the
+  /// top one (a cold item: pushed long ago, anywhere in the grid), not pushed since (the last
+  /// splits' children, which a depth-first order takes while their data is in cache).
+  [[nodiscard]] bool top_is_cold() const noexcept {
+    return discipline_ == queue_discipline::largest_error && !buckets_.empty() &&
+           buckets_.back().items.size() == cold_;
+  }
+  /// Largest error first: the cold item that is taken after k more cold items (k = 0: the next
+  /// one), or nullptr. Items pushed meanwhile are taken first, but never change which cold item
+  /// comes next: for requesting a cold item's data a few cold items ahead.
+  [[nodiscard]] const Item* cold_ahead(std::size_t k) const noexcept {
+    if (discipline_ != queue_discipline::largest_error || k >= cold_) return nullptr;
+    return &buckets_.back().items[cold_ - 1 - k];
+  }
   /// Largest error first: the rank of an item of error e (its bucket, above the target first);
   /// items of one rank form a band, taken together. Reads only the target: any thread, while
   /// nothing moves it.
@@ -157,8 +176,15 @@ class ready_queue {
     // Else a few buckets below the top, mostly: searched from the top down.
     auto at = buckets_.end();
     while (at != buckets_.begin() && std::prev(at)->key >= key) --at;
-    if (at == buckets_.end() || at->key != key) at = buckets_.insert(at, bucket{key, spare()});
-    at->items.push_back(item);
+    if (at == buckets_.end()) {
+      // A new top bucket: what the old top held counts as cold when it is the top again.
+      cold_ = 0;
+      buckets_.push_back(bucket{key, spare()});
+      buckets_.back().items.push_back(item);
+      return;
+    }
+    if (at->key != key) at = buckets_.insert(at, bucket{key, spare()});
+    at->items.push_back(item);  // below the top: the top's cold items stay as they are
   }
   void pop() {
     switch (discipline_) {
@@ -173,10 +199,13 @@ class ready_queue {
     }
     --count_;
     std::vector<Item>& top = buckets_.back().items;
+    if (top.size() == cold_) --cold_;
     top.pop_back();
     if (top.empty()) {
       spare_.push_back(std::move(top));
       buckets_.pop_back();
+      // The next bucket's items were all pushed before it became the top: cold.
+      cold_ = buckets_.empty() ? 0 : buckets_.back().items.size();
     }
   }
 
@@ -208,6 +237,7 @@ class ready_queue {
       }
       buckets_.clear();
       count_ = 0;
+      cold_ = 0;
     } else if (discipline_ == queue_discipline::fifo) {
       all.assign(fifo_.begin(), fifo_.end());
       fifo_.clear();
@@ -227,6 +257,7 @@ class ready_queue {
       return;
     }
     for (const Item& it : all) push(it);
+    cold_ = buckets_.empty() ? 0 : buckets_.back().items.size();
   }
 
   queue_discipline discipline_;
@@ -243,6 +274,9 @@ class ready_queue {
   std::vector<bucket> buckets_;
   std::vector<std::vector<Item>> spare_;
   std::size_t count_ = 0;
+  // Largest error first: of the top bucket's items, the first cold_ (in its vector) were there
+  // when it became the top; the rest were pushed since.
+  std::size_t cold_ = 0;
   double target_ = -std::numeric_limits<double>::infinity();
 };
 
