@@ -344,7 +344,7 @@ TEST_F(Hostile, interrupted_runs_leave_no_temporary_behind) {
     for (int x = 0; x < 1025; ++x) big += static_cast<char>((x * 7 + y * 13 + x * y) % 251);
   const fs::path img = write("big.pgm", big);
   std::string isos = "1";
-  for (int w = 2; w < 250; ++w) isos += "," + std::to_string(w);
+  for (int w = 2; w < 250; ++w) isos.append(",").append(std::to_string(w));
   const auto before = snapshot();
   bool sent = false;
   bounds b;
@@ -448,7 +448,7 @@ TEST_F(Hostile, eight_hundred_isovalues_take_about_the_memory_of_eight) {
   }
   const auto list = [](int n) {
     std::string s;
-    for (int i = 0; i < n; ++i) s += (i ? "," : "") + std::to_string(20.0 + 200.0 * i / n);
+    for (int i = 0; i < n; ++i) s.append(i ? "," : "").append(std::to_string(20.0 + 200.0 * i / n));
     return s;
   };
   const bounds b = test::limited(std::chrono::seconds(300), one_gib);

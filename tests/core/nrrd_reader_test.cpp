@@ -475,7 +475,7 @@ TEST(NrrdReader, every_nrrd_spelling_of_the_sample_types_reads_like_teem) {
                              "Unsigned Short"};
   int k = 0;
   for (const char* type : spellings) {
-    const fs::path file = dir / ("t" + std::to_string(k++) + ".nrrd");
+    const fs::path file = dir / std::string("t").append(std::to_string(k++)).append(".nrrd");
     std::string data;
     for (int i = 0; i < 8; ++i) data += std::to_string(i * 11) + " ";
     write_file(file, std::string("NRRD0004\ntype: ") + type +
@@ -984,7 +984,9 @@ TEST(NrrdReader, line_skip_past_the_end_of_the_data_is_rejected) {
 
 TEST(NrrdReader, missing_data_file_error_names_it_and_the_header) {
   const scratch_dir dir;
-  for (int i = 0; i < 2; ++i) write_file(dir / ("s" + std::to_string(i) + ".raw"), "1234");
+  for (int i = 0; i < 2; ++i) {
+    write_file(dir / std::string("s").append(std::to_string(i)).append(".raw"), "1234");
+  }
   const fs::path file = dir / "gap.nhdr";
   write_file(file, header_2x2x2 + "data file: s%d.raw 0 2 2 3\n");
   const std::string msg = error_naming(dir / "s2.raw", [&] { (void)progiso::read_nrrd(file); });

@@ -30,7 +30,7 @@ std::string format(const vec3& p) {
 }
 
 std::string vertex_text(const triangle_mesh& mesh, std::uint32_t v) {
-  return "v" + std::to_string(v) + " " + format(mesh.vertices[v]);
+  return std::string("v").append(std::to_string(v)).append(" ").append(format(mesh.vertices[v]));
 }
 
 std::string triangle_text(const triangle_mesh& mesh, std::size_t t) {
@@ -427,7 +427,13 @@ std::vector<position_triangle> canonical_triangles(const triangle_mesh& mesh) {
   std::set_difference(ca.begin(), ca.end(), cb.begin(), cb.end(), std::back_inserter(only_a));
   std::set_difference(cb.begin(), cb.end(), ca.begin(), ca.end(), std::back_inserter(only_b));
   const auto text = [](const position_triangle& t) {
-    return "[" + format(t[0]) + ", " + format(t[1]) + ", " + format(t[2]) + "]";
+    return std::string("[")
+        .append(format(t[0]))
+        .append(", ")
+        .append(format(t[1]))
+        .append(", ")
+        .append(format(t[2]))
+        .append("]");
   };
   auto failure_result = ::testing::AssertionFailure();
   failure_result << "surfaces differ: " << ca.size() << " vs " << cb.size() << " triangles; "
