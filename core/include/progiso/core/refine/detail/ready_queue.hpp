@@ -176,15 +176,11 @@ class ready_queue {
     // Else a few buckets below the top, mostly: searched from the top down.
     auto at = buckets_.end();
     while (at != buckets_.begin() && std::prev(at)->key >= key) --at;
-    if (at == buckets_.end()) {
-      // A new top bucket: what the old top held counts as cold when it is the top again.
-      cold_ = 0;
-      buckets_.push_back(bucket{key, spare()});
-      buckets_.back().items.push_back(item);
-      return;
-    }
-    if (at->key != key) at = buckets_.insert(at, bucket{key, spare()});
-    at->items.push_back(item);  // below the top: the top's cold items stay as they are
+    // A new top bucket holds no cold item; what the old top held counts as cold when it is the
+    // top again (pop()). Below the top, the top's cold items stay as they are.
+    if (at == buckets_.end()) cold_ = 0;
+    if (at == buckets_.end() || at->key != key) at = buckets_.insert(at, bucket{key, spare()});
+    at->items.push_back(item);
   }
   void pop() {
     switch (discipline_) {
