@@ -38,6 +38,7 @@
 #include <tbb/task_group.h>
 
 #include <algorithm>
+#include <array>
 #include <deque>
 #include <memory>
 
@@ -77,6 +78,12 @@ struct pending_split {
 
 }  // namespace
 
+// Children of one rank (ready_queue::rank) held for a later band.
+struct ranked_items {
+  std::uint64_t rank;
+  std::vector<ready_item> items;
+};
+
 // State shared by the tasks of one run (one band of a priority run).
 struct engine_impl::full_run {
   engine_root* root = nullptr;
@@ -92,11 +99,13 @@ struct engine_impl::full_run {
   // Ready diamonds on the tasks' stacks plus computed, unpublished splits: the root's
   // `remaining` while the run lasts (relaxed; statistics only).
   std::atomic<std::int64_t> outstanding{0};
-  // Ready diamonds the run leaves to the queue: what stopped tasks did not publish, and
-  // children ranked below the band, in the tasks' own vectors (moved, not copied). Queued by
-  // the driver after the run, or, after a deadline, by the next run (engine_root::leftover).
+  // Ready diamonds the run leaves to the queue, in the tasks' own vectors (moved, not copied):
+  // what stopped tasks did not publish, and children ranked below the band, one vector per
+  // rank. Queued by the driver after the run (a rank's vector in one piece), or, after a
+  // deadline, by the next run (engine_root::leftover).
   std::mutex left_mutex;
   std::vector<std::vector<ready_item>> left;
+  std::vector<ranked_items> left_ranked;
   // Records reserved by tasks and not yet published, in log order (under publish_mutex): each
   // range's end and whether its task has filled it. The watermark moves over the filled ranges
   // at the front; at most one range per task.
@@ -113,7 +122,35 @@ struct engine_impl::full_task {
   // (next at the back: depth first) in a band of a priority run.
   plane_lists planes;
   std::vector<ready_item> stack;
-  std::vector<ready_item> below;  // children ranked below the band
+  // A band's first task takes its share of the band from here on its own thread: [lo, hi) of
+  // the driver's vector, which outlives the run.
+  const std::vector<ready_item>* band = nullptr;
+  std::size_t band_lo = 0;
+  std::size_t band_hi = 0;
+  // Children ranked below the band, by rank, and where each rank's vector is: by the rank's
+  // distance below the band's (floor − rank, at most below_near − 1), else searched.
+  std::vector<ranked_items> below;
+  static constexpr std::uint64_t below_near = 64;
+  std::array<std::int32_t, below_near> below_at{};  // 1 + index in `below`, 0: none yet
+
+  void hold_below(std::uint64_t floor, std::uint64_t rank, const ready_item& item) {
+    const std::uint64_t d = floor - rank;
+    if (d < below_near && below_at[d] != 0) {
+      below[static_cast<std::size_t>(below_at[d] - 1)].items.push_back(item);
+      return;
+    }
+    if (d >= below_near) {
+      for (ranked_items& part : below) {
+        if (part.rank == rank) {
+          part.items.push_back(item);
+          return;
+        }
+      }
+    } else {
+      below_at[d] = static_cast<std::int32_t>(below.size() + 1);
+    }
+    below.push_back({rank, {item}});
+  }
   std::vector<pending_split> pending;
   std::vector<packed_group> groups;  // of the pending splits
   // Of the pending splits, under a triangle budget only (publication may keep a prefix).
@@ -136,15 +173,21 @@ void engine_impl::refine_in_tasks(engine_root& r) {
       request_stop();
       break;
     }
+    // A band: the queue's top rank whole, the next diamond at the back (every item of a rank is
+    // eligible or none: an error goal aims the queue at its target). Full refinement: all.
     std::vector<ready_item> items;
-    items.reserve(banded ? 64 : r.queue.size());
     std::uint64_t floor = 0;
-    if (banded) floor = r.queue.top_rank();
-    while (eligible(r) && (!banded || r.queue.top_rank() == floor)) {
-      items.push_back(r.queue.top());
-      r.queue.pop();
+    if (banded) {
+      floor = r.queue.top_rank();
+      items = r.queue.take_top_band();
+    } else {
+      items.reserve(r.queue.size());
+      while (eligible(r)) {
+        items.push_back(r.queue.top());
+        r.queue.pop();
+      }
+      std::reverse(items.begin(), items.end());
     }
-    std::reverse(items.begin(), items.end());  // the queue's next diamond at the back
 
     full_run run;
     run.root = &r;
@@ -159,11 +202,10 @@ void engine_impl::refine_in_tasks(engine_root& r) {
         // A band: its diamonds in queue order, cut into one run of consecutive ones per thread.
         const std::size_t tasks = std::min<std::size_t>(threads, items.size());
         for (std::size_t k = 0; k < tasks; ++k) {
-          const std::size_t lo = items.size() * k / tasks;
-          const std::size_t hi = items.size() * (k + 1) / tasks;
           auto part = std::make_shared<full_task>();
-          part->stack.assign(items.begin() + static_cast<std::ptrdiff_t>(lo),
-                             items.begin() + static_cast<std::ptrdiff_t>(hi));
+          part->band = &items;
+          part->band_lo = items.size() * k / tasks;
+          part->band_hi = items.size() * (k + 1) / tasks;
           spawn_full_task(run, std::move(part));
         }
       } else {
@@ -189,6 +231,7 @@ void engine_impl::refine_in_tasks(engine_root& r) {
     // Stopped: what was not published is still ready, never lost; and the lower bands. After a
     // deadline the next run queues it (the run returns now).
     if (stopping() && goal.what == refine_goal::kind::deadline) {
+      for (ranked_items& part : run.left_ranked) run.left.push_back(std::move(part.items));
       for (std::vector<ready_item>& part : run.left) {
         r.leftover_items += part.size();
         r.leftover.push_back(std::move(part));
@@ -197,6 +240,8 @@ void engine_impl::refine_in_tasks(engine_root& r) {
       for (const std::vector<ready_item>& part : run.left) {
         for (const ready_item& it : part) r.queue.push(it);
       }
+      for (ranked_items& part : run.left_ranked)
+        r.queue.push_band(part.rank, std::move(part.items));
     }
     if (!banded) break;  // full refinement: one run over everything
   }
@@ -213,6 +258,11 @@ void engine_impl::run_full_task(full_task& t) {
   const bool deadline = goal.what == refine_goal::kind::deadline;
   const bool budget = goal.what == refine_goal::kind::triangles;
   const bool swept = !run.banded;  // full refinement: by grid plane (plane_lists)
+  if (t.band != nullptr) {
+    t.stack.assign(t.band->begin() + static_cast<std::ptrdiff_t>(t.band_lo),
+                   t.band->begin() + static_cast<std::ptrdiff_t>(t.band_hi));
+    t.band = nullptr;
+  }
   std::size_t n = 0;
   for (;;) {
     while (!(swept ? t.planes.empty() : t.stack.empty()) && !stopping()) {
@@ -263,7 +313,7 @@ void engine_impl::run_full_task(full_task& t) {
     for (const pending_split& p : t.pending) t.stack.push_back(p.item);
     const std::lock_guard lock(run.left_mutex);
     if (!t.stack.empty()) run.left.push_back(std::move(t.stack));
-    if (!t.below.empty()) run.left.push_back(std::move(t.below));
+    for (ranked_items& part : t.below) run.left_ranked.push_back(std::move(part));
   }
   {
     const std::lock_guard lock(publish_mutex);
@@ -465,8 +515,8 @@ std::int64_t engine_impl::count_full_task_children(full_task& t, std::size_t fir
       } else if (!run.banded) {
         t.planes.push(ci);  // full refinement: by grid plane
         ++pushed;
-      } else if (r.queue.rank(child->error) < run.floor) {
-        t.below.push_back(*child);  // a later band's
+      } else if (const std::uint64_t rank = r.queue.rank(child->error); rank < run.floor) {
+        t.hold_below(run.floor, rank, *child);  // a later band's
       } else {
         t.stack.push_back(*child);
         ++pushed;

@@ -2,10 +2,12 @@
 // taken largest first, last in first out inside a band; an aimed target splits a band exactly.
 #include <progiso/core/refine/detail/ready_queue.hpp>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdint>
 #include <limits>
 #include <random>
+#include <utility>
 #include <vector>
 
 #include <gtest/gtest.h>
@@ -211,6 +213,87 @@ TEST(ReadyQueue, cold_items_are_the_top_bands_own_from_before_it_was_the_top_in_
   }
   EXPECT_GT(cold_taken, 1000u);
   EXPECT_GT(named_checked, 500u);
+}
+
+TEST(ReadyQueue, a_band_taken_and_pushed_whole_leaves_the_queue_that_item_by_item_would) {
+  // The engine's band tasks take the top band in one piece and give back the children ranked
+  // below it one rank at a time. Against a queue driven item by item with the same items:
+  // the band (in the order pop() gives it), the sizes, the cold items and the final order.
+  for (const double target : {-std::numeric_limits<double>::infinity(), 0.01}) {
+    ready_queue<item> one;   // item by item
+    ready_queue<item> bulk;  // take_top_band / push_band
+    one.aim_at(target);
+    bulk.aim_at(target);
+    std::mt19937_64 rng(41);
+    std::uniform_real_distribution<double> unit(0.0, 1.0);
+    std::uniform_real_distribution<double> exponent(-14.0, 0.0);
+    std::uint64_t next = 0;
+    for (int k = 0; k < 300; ++k) {
+      const item it{std::pow(2.0, exponent(rng)), 0, next++};
+      one.push(it);
+      bulk.push(it);
+    }
+    const auto same_cold = [&](const char* when, int round) {
+      ASSERT_EQ(one.top_is_cold(), bulk.top_is_cold()) << when << ", round " << round;
+      for (std::size_t a = 0; a < 4; ++a) {
+        const item* x = one.cold_ahead(a);
+        const item* y = bulk.cold_ahead(a);
+        ASSERT_EQ(x == nullptr, y == nullptr) << when << ", round " << round;
+        if (x != nullptr) {
+          ASSERT_EQ(x->index, y->index) << when << ", round " << round;
+        }
+      }
+    };
+    for (int round = 0; round < 400 && !one.empty(); ++round) {
+      ASSERT_EQ(one.top_rank(), bulk.top_rank());
+      same_cold("before a band", round);
+      const std::uint64_t floor = one.top_rank();
+      std::vector<item> band_one;
+      while (!one.empty() && one.top_rank() == floor) {
+        band_one.push_back(one.top());
+        one.pop();
+      }
+      std::vector<item> band_bulk = bulk.take_top_band();  // the next one at the back
+      ASSERT_EQ(band_bulk.size(), band_one.size()) << "round " << round;
+      for (std::size_t i = 0; i < band_one.size(); ++i) {
+        ASSERT_EQ(band_bulk[band_bulk.size() - 1 - i].index, band_one[i].index)
+            << "round " << round;
+      }
+      ASSERT_EQ(one.size(), bulk.size());
+      if (!one.empty()) same_cold("after a band", round);
+      // Children of the band's items: mostly below it, some in it and above it (new top bands).
+      std::vector<item> children;
+      for (const item& parent : band_one) {
+        const int n = static_cast<int>(unit(rng) * 3.0);
+        for (int c = 0; c < n; ++c) {
+          const double u = unit(rng);
+          const double e = u < 0.7   ? parent.error / (1.0 + 15.0 * unit(rng))
+                           : u < 0.9 ? parent.error
+                                     : parent.error * 3.0;
+          children.push_back({e, 0, next++});
+        }
+      }
+      std::vector<std::pair<std::uint64_t, std::vector<item>>> by_rank;
+      for (const item& c : children) {
+        one.push(c);
+        const std::uint64_t rank = bulk.rank(c.error);
+        auto at = std::find_if(by_rank.begin(), by_rank.end(),
+                               [&](const auto& p) { return p.first == rank; });
+        if (at == by_rank.end()) at = by_rank.insert(by_rank.end(), {rank, {}});
+        at->second.push_back(c);
+      }
+      for (auto& [rank, items] : by_rank) bulk.push_band(rank, std::move(items));
+      ASSERT_EQ(one.size(), bulk.size()) << "round " << round;
+      if (!one.empty()) same_cold("after the children", round);
+      if (one.size() > 20000) break;
+    }
+    const std::vector<item> rest_one = drain(one);
+    const std::vector<item> rest_bulk = drain(bulk);
+    ASSERT_EQ(rest_one.size(), rest_bulk.size());
+    for (std::size_t i = 0; i < rest_one.size(); ++i) {
+      ASSERT_EQ(rest_one[i].index, rest_bulk[i].index) << "at " << i;
+    }
+  }
 }
 
 TEST(ReadyQueue, switching_disciplines_keeps_every_item) {

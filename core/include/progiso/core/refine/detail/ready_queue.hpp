@@ -34,6 +34,8 @@
 #include <utility>
 #include <vector>
 
+#include <progiso/core/base/assert.hpp>
+
 namespace progiso::detail {
 
 enum class queue_discipline { fifo, lifo, largest_error };
@@ -173,14 +175,34 @@ class ready_queue {
       buckets_.back().items.push_back(item);
       return;
     }
-    // Else a few buckets below the top, mostly: searched from the top down.
-    auto at = buckets_.end();
-    while (at != buckets_.begin() && std::prev(at)->key >= key) --at;
-    // A new top bucket holds no cold item; what the old top held counts as cold when it is the
-    // top again (pop()). Below the top, the top's cold items stay as they are.
-    if (at == buckets_.end()) cold_ = 0;
-    if (at == buckets_.end() || at->key != key) at = buckets_.insert(at, bucket{key, spare()});
-    at->items.push_back(item);
+    bucket_for(key).push_back(item);
+  }
+  /// Largest error first: the top band whole (every item of top_rank()), in the order pop()
+  /// would take them (the next one at the back), as one vector. O(1): the bucket's own storage.
+  [[nodiscard]] std::vector<Item> take_top_band() {
+    PROGISO_ASSERT(discipline_ == queue_discipline::largest_error && !buckets_.empty());
+    std::vector<Item> band = std::move(buckets_.back().items);
+    count_ -= band.size();
+    buckets_.pop_back();
+    // The next bucket's items were all pushed before it became the top: cold.
+    cold_ = buckets_.empty() ? 0 : buckets_.back().items.size();
+    return band;
+  }
+  /// Largest error first: pushes items that all have rank `key` (rank(item.error) == key), in
+  /// their order: the same queue as push() of each, with one bucket search, and the vector
+  /// itself as the bucket when the rank has none (else one copy).
+  void push_band(std::uint64_t key, std::vector<Item>&& band) {
+    PROGISO_ASSERT(discipline_ == queue_discipline::largest_error);
+    if (band.empty()) return;
+    for ([[maybe_unused]] const Item& item : band) PROGISO_ASSERT(key_of(item.error) == key);
+    count_ += band.size();
+    std::vector<Item>& to = bucket_for(key);
+    if (to.empty()) {
+      spare_.push_back(std::move(to));
+      to = std::move(band);
+    } else {
+      to.insert(to.end(), band.begin(), band.end());
+    }
   }
   void pop() {
     switch (discipline_) {
@@ -215,6 +237,17 @@ class ready_queue {
   [[nodiscard]] std::uint64_t key_of(double e) const noexcept {
     const bool above = !(e <= target_);
     return (std::uint64_t{above} << 32) | error_bucket(e);
+  }
+  // The bucket of `key`, made if there is none: a few buckets below the top, mostly, so searched
+  // from the top down.
+  std::vector<Item>& bucket_for(std::uint64_t key) {
+    auto at = buckets_.end();
+    while (at != buckets_.begin() && std::prev(at)->key >= key) --at;
+    // A new top bucket holds no cold item; what the old top held counts as cold when it is the
+    // top again (pop()). Below the top, the top's cold items stay as they are.
+    if (at == buckets_.end()) cold_ = 0;
+    if (at == buckets_.end() || at->key != key) at = buckets_.insert(at, bucket{key, spare()});
+    return at->items;
   }
   std::vector<Item> spare() {
     if (spare_.empty()) return {};
