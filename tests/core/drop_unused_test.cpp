@@ -2,7 +2,7 @@
 // suspects include an unused vertex loses exactly the unused ones, renumbered in order of first
 // use, with every triangle naming the same positions as before. The scan in parts (a parallel
 // loop's pieces, run here in reverse order) decides as the scan on one thread does.
-#include <progiso/core/surface/detail/mesh_builder.hpp>
+#include <progiso/core/surface/detail/mesh_clip.hpp>
 
 #include <cstddef>
 #include <cstdint>

@@ -1,5 +1,6 @@
 // The extraction without vertex hashing (core/surface/detail/cut_mesher.hpp): its rank index,
-// and its meshes against the sequential refiner's, which names vertices by a hash of edge keys.
+// and its meshes against an extraction that names vertices by a hash of edge keys
+// (tests/support/hashed_mesh.hpp).
 #include <progiso/core/surface/detail/cut_mesher.hpp>
 
 #include <progiso/core/field/analytic.hpp>
@@ -14,6 +15,7 @@
 
 #include <gtest/gtest.h>
 
+#include "support/hashed_mesh.hpp"
 #include "support/mesh_checks.hpp"
 
 namespace progiso {
@@ -87,10 +89,17 @@ engine_options with_threads(unsigned n) {
   return o;
 }
 
+std::vector<std::uint64_t> split_set_of(const surface_snapshot& s) {
+  std::vector<std::uint64_t> split;
+  s.for_each_split([&split](std::uint64_t d) { split.push_back(d); });
+  return split;
+}
+
 // Each surface vertex once: as many vertices as the hashed extraction of the same cut (which
-// merges vertices by edge key), the same oriented surface, every vertex used. On a grid of
-// 2^k + 1 and on padded grids (clipping at the data box), for the root cut, a partial cut, cuts
-// by error and the full cut, on one and two threads.
+// merges vertices by edge key, tests/support/hashed_mesh.hpp), the same oriented surface, every
+// vertex used. On a grid of 2^k + 1 and on padded grids (clipping at the data box), for the root
+// cut, partial cuts, cuts by error and the full cut, on one and two threads. The sequential
+// refiner extracts through the same cut_mesher: its meshes equal the engine's vertex for vertex.
 TEST(CutMesher, each_surface_vertex_once_and_the_surface_of_the_hashed_extraction) {
   const std::vector<volume> volumes{make_marschner_lobb({33, 33, 33}),
                                     make_sphere_field({29, 21, 35}, {13.3, 9.6, 17.1}),
@@ -103,31 +112,50 @@ TEST(CutMesher, each_surface_vertex_once_and_the_surface_of_the_hashed_extractio
     const hierarchy h(v.dims());
     const range_data ranges(v, h);
     const auto box = test::data_box(v);
-    const auto check = [&](const triangle_mesh& mine, const triangle_mesh& hashed) {
+    const auto check = [&](const triangle_mesh& mine, const std::vector<std::uint64_t>& split) {
+      const triangle_mesh hashed = test::hashed_mesh_of(h, v, w, split);
       EXPECT_EQ(mine.vertices.size(), hashed.vertices.size());
       EXPECT_EQ(mine.triangles.size(), hashed.triangles.size());
       EXPECT_TRUE(test::same_surface(mine, hashed));
       EXPECT_TRUE(test::check_valid_cut(mine, box[0], box[1]));
     };
+    const auto equal = [](const triangle_mesh& engine_mesh, const triangle_mesh& refiner_mesh) {
+      EXPECT_EQ(engine_mesh.vertices, refiner_mesh.vertices);
+      EXPECT_EQ(engine_mesh.triangles, refiner_mesh.triangles);
+    };
     for (const unsigned threads : {1u, 2u}) {
       SCOPED_TRACE(threads);
       engine e(v, w, with_threads(threads));
       refiner root(v, h, ranges, w);
-      check(e.snapshot().mesh(), root.extract());
-      // A partial cut: the engine's split set replayed by the refiner (error order).
+      check(e.snapshot().mesh(), split_set_of(e.snapshot()));
+      equal(e.snapshot().mesh(), root.extract());
+      // Partial cuts: the engine's split set replayed by the refiner (error order).
       for (const double eps : {0.3, 0.05}) {
         refiner r(v, h, ranges, w);
         r.refine_to_error(eps);
         ASSERT_TRUE(e.refine_until(eps));
-        check(e.snapshot().mesh(), r.extract());
+        const surface_snapshot s = e.snapshot();
+        check(s.mesh(), split_set_of(s));
+        equal(s.mesh(), r.extract());
       }
       refiner full(v, h, ranges, w);
       full.refine_full();
       ASSERT_TRUE(e.refine_full());
       const surface_snapshot s = e.snapshot();
-      check(s.mesh(), full.extract());
+      const std::vector<std::uint64_t> all = split_set_of(s);
+      check(s.mesh(), all);
+      equal(s.mesh(), full.extract());
       ASSERT_GT(s.mesh().triangles.size(), 100u);
-      for (const double eps : {0.5, 0.1, 0.02}) check(s.mesh_cut(eps), full.extract_cut(eps));
+      for (const double eps : {0.5, 0.1, 0.02}) {
+        SCOPED_TRACE(eps);
+        std::vector<std::uint64_t> coarse;
+        for (const std::uint64_t d : all) {
+          if (ranges.get(h.make_diamond(h.point(d))).error > eps) coarse.push_back(d);
+        }
+        ASSERT_LT(coarse.size(), all.size());
+        check(s.mesh_cut(eps), coarse);
+        equal(s.mesh_cut(eps), full.extract_cut(eps));
+      }
     }
   }
 }

@@ -10,7 +10,7 @@
 #include <progiso/core/refine/deadline.hpp>
 #include <progiso/core/refine/detail/prefetch.hpp>
 #include <progiso/core/refine/detail/ready_queue.hpp>
-#include <progiso/core/surface/detail/mesh_builder.hpp>
+#include <progiso/core/surface/detail/cut_mesher.hpp>
 #include <progiso/core/surface/marching.hpp>
 
 namespace progiso {
@@ -65,7 +65,7 @@ refiner::refiner(const volume& vol, const hierarchy& hier, const range_data& ran
   // by doubling copied the queue a dozen times per refinement of a small volume).
   queue_->reserve(std::size_t{1} << detail::chunked_store<record>::bits_for(vol.voxel_count()));
   // Root record: the surface in the root tetrahedra, owned by the root diamonds.
-  records_.push_back({no_owner, 0, 0, 0, 0.0});
+  records_.push_back({no_owner, nullptr, 0.0, 0, 0, 0});
   for (std::uint64_t r = 0; r < hier_.root_count(); ++r) {
     const std::optional<ipoint> centre = compute_root(hier_, vol_, isovalue_, r, root_triangles_);
     if (centre) {
@@ -130,13 +130,13 @@ bool refiner::split(std::uint64_t max_triangles) {
       detail::prefetch_diamond_samples(vol_, ahead->centre, ahead->scale);
     }
   }
-  const std::size_t first = groups_.size();
   scratch_.clear();
   const split_summary s = compute_split(hier_, vol_, isovalue_, next.centre, next.scale, scratch_);
   const std::uint64_t after = stats_.triangles + static_cast<std::uint64_t>(s.added_triangles) -
                               static_cast<std::uint64_t>(s.removed_triangles);
   if (after > max_triangles) return false;
-  groups_.append(scratch_.data(), scratch_.size());
+  const packed_group* groups =
+      scratch_.empty() ? nullptr : groups_.append_contiguous(scratch_.data(), scratch_.size());
   queue_->pop();
   std::uint8_t* state = state_.get();
   state[next.index] = static_cast<std::uint8_t>(state[next.index] | split_bit);
@@ -144,8 +144,8 @@ bool refiner::split(std::uint64_t max_triangles) {
     if (g.owner != no_owner)
       state[g.owner] = static_cast<std::uint8_t>(state[g.owner] | surface_bit);
   }
-  records_.push_back({edge_key(next.centre, next.centre), first,
-                      static_cast<std::uint32_t>(scratch_.size()), next.scale, next.error});
+  records_.push_back({next.index, groups, next.error, static_cast<std::uint32_t>(scratch_.size()),
+                      s.crossed, next.scale});
   stats_.triangles = after;
   stats_.record_triangles += static_cast<std::uint64_t>(s.added_triangles);
   ++stats_.splits;
@@ -229,48 +229,40 @@ void refiner::refine_set(const std::function<bool(std::uint64_t)>& in_set) {
   }
 }
 
-template <class InCut, class Take>
-triangle_mesh refiner::build_mesh(InCut&& in_cut, Take&& take) const {
-  detail::mesh_builder b(hier_, vol_, isovalue_,
-                         static_cast<std::size_t>(stats_.triangles / 2 + 16));
-  for (const owned_triangle& t : root_triangles_) {
-    if (take(t.owner)) b.add(t.keys);
-  }
-  for (std::size_t ri = 1; ri < records_.size(); ++ri) {
-    const record& r = records_[ri];
-    if (!in_cut(r)) continue;
-    for_each_unpacked_at(
-        r.centre_key, r.scale, groups_, r.first, r.count, take,
-        [&b](std::uint64_t, const std::array<std::uint64_t, 3>& keys) { b.add(keys); });
-  }
-  return b.finish();
+template <class InCut>
+triangle_mesh refiner::build_mesh(const InCut& in_cut) const {
+  // The cut as cut_mesher reads it: the records, of which in_cut(r) are split in the cut.
+  struct cut {
+    using split_record = refiner::record;
+    const detail::chunked_store<split_record>& recs;
+    const std::vector<owned_triangle>& roots;
+    const InCut& in;
+    [[nodiscard]] std::uint64_t records() const noexcept { return recs.size(); }
+    [[nodiscard]] const split_record& record(std::uint64_t r) const noexcept { return recs[r]; }
+    [[nodiscard]] bool split(std::uint64_t r) const noexcept { return in(recs[r]); }
+    [[nodiscard]] const std::vector<owned_triangle>& root_triangles() const noexcept {
+      return roots;
+    }
+  };
+  const cut c{records_, root_triangles_, in_cut};
+  detail::cut_mesher<cut> mesher(c, hier_, vol_, isovalue_);
+  return mesher.build({}, 1);
 }
 
 triangle_mesh refiner::extract() const {
-  const std::uint8_t* state = state_.get();
-  return build_mesh([](const record&) { return true; },
-                    [state](std::uint64_t owner) {
-                      return owner == no_owner || (state[owner] & split_bit) == 0;
-                    });
+  return build_mesh([](const record&) { return true; });
 }
 
 triangle_mesh refiner::extract_cut(double max_error) const {
-  const std::uint8_t* state = state_.get();
-  return build_mesh(
-      [this, max_error](const record& r) {
-        if (r.centre_key == no_owner) return true;
-        const auto centre = [&r] {
-          const ipoint c2 = edge_key_point(r.centre_key);
-          return ipoint{c2[0] / 2, c2[1] / 2, c2[2] / 2};
-        };
-        const double e = std::isnan(r.error) ? ranges_.get(centre(), r.scale).error : r.error;
-        return e > max_error;
-      },
-      [&](std::uint64_t owner) {
-        if (owner == no_owner || (state[owner] & split_bit) == 0) return true;
-        const diamond d = hier_.make_diamond(hier_.point(owner));
-        return !(ranges_.get(d).error > max_error);
-      });
+  // A split is in the cut when its nested error exceeds max_error (the range data's where the
+  // refinement did not need it); errors shrink from parent to child, so the cut is closed under
+  // parents.
+  return build_mesh([this, max_error](const record& r) {
+    if (r.diamond == no_owner) return true;  // the root record
+    const double e =
+        std::isnan(r.error) ? ranges_.get(hier_.point(r.diamond), r.scale).error : r.error;
+    return e > max_error;
+  });
 }
 
 // ---------------------------------------------------------------------------------------------

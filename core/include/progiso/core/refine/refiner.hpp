@@ -120,14 +120,15 @@ class refiner {
   [[nodiscard]] triangle_mesh extract_cut(double max_error) const;
 
  private:
-  // One split: its groups are groups_[first, first + count). Record 0 is the root surface,
-  // kept in root_triangles_.
+  // One split: what the extraction (detail::cut_mesher, as the engine's) reads of it, and its
+  // error. Record 0 is the root surface, kept in root_triangles_.
   struct record {
-    std::uint64_t centre_key;  // edge_key(centre, centre), or no_owner for the root record
-    std::uint64_t first;
+    std::uint64_t diamond;       // the centre's grid index (no_owner for the root record)
+    const packed_group* groups;  // `count` groups, contiguous in groups_
+    double error;                // NaN: not computed (see errors_needed_)
     std::uint32_t count;
-    std::int32_t scale;  // the diamond's h (packed_group's unit)
-    double error;        // NaN: not computed (see errors_needed_)
+    std::uint32_t crossed;  // split_summary::crossed: the crossed edges at the centre
+    std::int32_t scale;     // the diamond's h (packed_group's unit)
   };
   struct ready {
     double error;
@@ -141,8 +142,9 @@ class refiner {
 
   bool split(std::uint64_t max_triangles);
   static constexpr std::size_t prefetch_distance = 8;
-  template <class InCut, class Take>
-  triangle_mesh build_mesh(InCut&& in_cut, Take&& take) const;
+  // The mesh of the cut made of the records r with in_cut(r) (closed under parents).
+  template <class InCut>
+  triangle_mesh build_mesh(const InCut& in_cut) const;
 
   const volume& vol_;
   const hierarchy& hier_;

@@ -23,7 +23,7 @@
 //
 // Root edges (both ends root-cube corners) belong to no split: they get their ids first, from
 // the root triangles, in a small map (only coarse cuts use many of them). Pieces that reach past
-// the data box (coarse tetrahedra of padded hierarchies) are clipped as mesh_builder does, after
+// the data box (coarse tetrahedra of padded hierarchies) are clipped (mesh_clip.hpp) after
 // the rest, with crossing points numbered after the edge vertices; vertices only such pieces used
 // are then dropped.
 //
@@ -52,7 +52,7 @@
 #include <progiso/core/base/parallel_loop.hpp>
 #include <progiso/core/field/volume.hpp>
 #include <progiso/core/hierarchy/hierarchy.hpp>
-#include <progiso/core/surface/detail/mesh_builder.hpp>
+#include <progiso/core/surface/detail/mesh_clip.hpp>
 #include <progiso/core/surface/marching.hpp>
 #include <progiso/core/surface/mesh.hpp>
 #include <progiso/core/surface/split_record.hpp>
