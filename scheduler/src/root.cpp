@@ -6,6 +6,8 @@
 
 #include <cstring>
 
+#include <progiso/core/refine/detail/readiness.hpp>
+
 namespace progiso::detail {
 
 engine_root* engine_impl::make_root(double w, std::uint64_t gen) {
@@ -50,21 +52,10 @@ std::optional<ready_item> engine_impl::ready_child(const engine_root& r, const i
     if (ranges_for_empty().empty(c, h)) return std::nullopt;
     return ready_item{unranged_error(depth), depth, index};
   }
-  // An owner of a piece of its parent's surface straddles w unless its range is empty: no
-  // sample read to keep it, and, when the goal orders by error, only the samples of its splits
-  // for the error. Others: the straddle test (stops at the first samples on both sides), or,
-  // when the error is needed, the range and error in one pass. The sequential refiner's rule.
-  if (owns_surface) {
-    if (rd->empty(c, h)) return std::nullopt;
-    return ready_item{errors_needed() ? rd->error(c, h) : unranged_error(depth), depth, index};
-  }
-  if (!errors_needed()) {
-    if (!rd->straddles(c, h, r.threshold)) return std::nullopt;
-    return ready_item{unranged_error(depth), depth, index};
-  }
-  const diamond_range cr = rd->get(c, h);
-  if (!cr.straddles(r.isovalue)) return std::nullopt;
-  return ready_item{cr.error, depth, index};
+  const detail::readiness ready =
+      ready_rule(*rd, c, h, owns_surface, errors_needed(), r.isovalue, r.threshold);
+  if (!ready.keep) return std::nullopt;
+  return ready_item{errors_needed() ? ready.error : unranged_error(depth), depth, index};
 }
 
 bool engine_impl::queue_if_straddles(engine_root& r, const ipoint& c, std::int32_t h, int depth,

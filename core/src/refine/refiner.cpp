@@ -9,6 +9,7 @@
 #include <progiso/core/base/error.hpp>
 #include <progiso/core/refine/deadline.hpp>
 #include <progiso/core/refine/detail/prefetch.hpp>
+#include <progiso/core/refine/detail/readiness.hpp>
 #include <progiso/core/refine/detail/ready_queue.hpp>
 #include <progiso/core/surface/detail/cut_mesher.hpp>
 #include <progiso/core/surface/marching.hpp>
@@ -171,29 +172,16 @@ bool refiner::split(std::uint64_t max_triangles) {
         static_cast<std::uint8_t>(add_in_place(state[ci], std::uint8_t{1}) & parent_count_mask);
     if (count != children.parents[ui]) continue;
     ++stats_.visited;
-    // A piece of surface in one of the child's tetrahedra: its range straddles w unless it is
-    // empty (wholly in the padding), so no sample is read to keep it, and in largest-error-first
-    // order only its splits' samples for the error. The others take the straddle test, which
-    // stops at the first samples on both sides, or, when the error is needed, read the range
-    // and error in one pass. (In breadth- and depth-first order the error is computed if asked
-    // for: next_error(), extract_cut().)
-    double error = unknown_error;
-    bool keep = false;
-    if ((state[ci] & surface_bit) != 0) {
-      keep = !ranges_.empty(c, children.scale);
-      if (keep && errors_needed_) error = ranges_.error(c, children.scale);
-    } else if (!errors_needed_) {
-      keep = ranges_.straddles(c, children.scale, threshold_);
-    } else {
-      const diamond_range r = ranges_.get(c, children.scale);
-      keep = r.straddles(isovalue_);
-      error = r.error;
-    }
-    if (!keep) {
+    // The rule the engine applies too (refine/detail/readiness.hpp). In breadth- and depth-first
+    // order the error is left unknown and computed if asked for: next_error(), extract_cut().
+    const detail::readiness rule =
+        detail::ready_rule(ranges_, c, children.scale, (state[ci] & surface_bit) != 0,
+                           errors_needed_, isovalue_, threshold_);
+    if (!rule.keep) {
       ++stats_.culled;
       continue;
     }
-    queue_->push({error, ci, c, children.scale, type, depth});
+    queue_->push({rule.error, ci, c, children.scale, type, depth});
   }
   return true;
 }
