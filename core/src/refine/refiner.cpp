@@ -221,12 +221,11 @@ template <class InCut>
 triangle_mesh refiner::build_mesh(const InCut& in_cut) const {
   // The cut as cut_mesher reads it: the records, of which in_cut(r) are split in the cut.
   struct cut {
-    using split_record = refiner::record;
-    const detail::chunked_store<split_record>& recs;
+    const detail::chunked_store<refiner::record>& recs;
     const std::vector<owned_triangle>& roots;
     const InCut& in;
     [[nodiscard]] std::uint64_t records() const noexcept { return recs.size(); }
-    [[nodiscard]] const split_record& record(std::uint64_t r) const noexcept { return recs[r]; }
+    [[nodiscard]] const refiner::record& record(std::uint64_t r) const noexcept { return recs[r]; }
     [[nodiscard]] bool split(std::uint64_t r) const noexcept { return in(recs[r]); }
     [[nodiscard]] const std::vector<owned_triangle>& root_triangles() const noexcept {
       return roots;
