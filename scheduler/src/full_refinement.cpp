@@ -76,13 +76,13 @@ struct pending_split {
   child_list children;
 };
 
-}  // namespace
-
 // Children of one rank (ready_queue::rank) held for a later band.
 struct ranked_items {
   std::uint64_t rank;
   std::vector<ready_item> items;
 };
+
+}  // namespace
 
 // State shared by the tasks of one run (one band of a priority run).
 struct engine_impl::full_run {

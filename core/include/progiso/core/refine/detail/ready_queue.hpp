@@ -198,7 +198,7 @@ class ready_queue {
     count_ += band.size();
     std::vector<Item>& to = bucket_for(key);
     if (to.empty()) {
-      spare_.push_back(std::move(to));
+      if (to.capacity() != 0) spare_.push_back(std::move(to));
       to = std::move(band);
     } else {
       to.insert(to.end(), band.begin(), band.end());
