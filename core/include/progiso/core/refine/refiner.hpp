@@ -28,7 +28,6 @@
 #include <chrono>
 #include <cstdint>
 #include <functional>
-#include <limits>
 #include <memory>
 #include <vector>
 
@@ -162,7 +161,6 @@ class refiner {
   // error is left unknown when the range lookup is skipped (one of its tetrahedra holds
   // surface: see surface_bit in refiner.cpp).
   bool errors_needed_;
-  static constexpr double unknown_error = std::numeric_limits<double>::quiet_NaN();
   detail::sample_threshold threshold_;  // the isovalue, for range_data::straddles()
   // Case, primitive and configuration counts of interior splits are kept per classification
   // (split_summary::classification) and added into stats_ when statistics() is read: one

@@ -136,20 +136,9 @@ struct packed_group {
 }
 
 /// Calls f(owner, edge keys) for every triangle of groups[first, first + count) whose owner
-/// passes take(owner); the groups were made by the split of the diamond whose doubled centre
-/// has the edge key `centre_key`, with scale `scale`.
-template <class Groups, class Take, class F>
-void for_each_unpacked_at(std::uint64_t centre_key, std::int32_t scale, const Groups& groups,
-                          std::uint64_t first, std::uint64_t count, Take&& take, F&& f) {
-  for (std::uint64_t i = first; i < first + count; ++i) {
-    const packed_group& g = groups[i];
-    if (!take(g.owner)) continue;
-    for (std::size_t t = 0; t < g.count(); ++t) f(g.owner, unpack_at(centre_key, scale, g, t));
-  }
-}
-
-/// The same for the diamond centred at grid vertex `diamond` (an index). The centre is computed
-/// only when some group is taken.
+/// passes take(owner); the groups were made by the split of the diamond centred at grid vertex
+/// `diamond` (an index), with scale `scale`. The centre is computed only when some group is
+/// taken.
 template <class Groups, class Take, class F>
 void for_each_unpacked(const hierarchy& hier, std::uint64_t diamond, std::int32_t scale,
                        const Groups& groups, std::uint64_t first, std::uint64_t count, Take&& take,

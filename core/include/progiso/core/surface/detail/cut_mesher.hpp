@@ -191,7 +191,7 @@ class cut_mesher {
     });
     for (std::size_t k = 0; k < parts_; ++k) first_id[k + 1] += first_id[k];
     const std::uint64_t vertices = first_id[parts_];
-    PROGISO_ASSERT(vertices < mesh_builder_outside);
+    PROGISO_ASSERT(vertices < clip_outside);
     mesh_.vertices.reserve(vertices);
     prefault_in_parts(run, mesh_.vertices.data(), vertices * sizeof(vec3));
     triangles_.assign(parts_, {});
@@ -238,7 +238,8 @@ class cut_mesher {
     join_triangles(run, at);
   }
 
-  static constexpr std::uint32_t mesh_builder_outside = std::uint32_t{1} << 31;
+  // A clip job's id for a corner past the data box; every vertex id stays below it.
+  static constexpr std::uint32_t clip_outside = std::uint32_t{1} << 31;
   static constexpr std::uint32_t outside = ~std::uint32_t{0};  // a vertex past the data box
 
   // A split as the passes after the first read it, at its rank.
@@ -465,7 +466,7 @@ class cut_mesher {
       clip_job j{};
       for (std::size_t v = 0; v < 3; ++v) {
         j.grid[v] = on_edge(ends[v][0], ends[v][1]);
-        j.ids[v] = ids[v] == outside ? mesh_builder_outside : ids[v];
+        j.ids[v] = ids[v] == outside ? clip_outside : ids[v];
       }
       clipped_[k].push_back(j);
     };
@@ -586,7 +587,7 @@ class cut_mesher {
       for (const clip_job& j : jobs) {
         const std::array<bool, 3> used = clip_to_box(j.grid, j.ids, box_, crossing, emit);
         for (std::size_t v = 0; v < 3; ++v) {
-          if (j.ids[v] != mesh_builder_outside && !used[v]) suspects_.push_back(j.ids[v]);
+          if (j.ids[v] != clip_outside && !used[v]) suspects_.push_back(j.ids[v]);
         }
       }
       jobs = {};
