@@ -428,10 +428,11 @@ struct engine_impl : run_control {
   }
   // The same with the children listed, handing each child made ready (and not culled) to
   // `ready` (queue_sink(), or the sweeps' plane lists).
+  // `parent` and `scale`: the split diamond's grid index and scale (the groups' frame).
   template <class Sink>
-  void count_children(engine_root& r, const child_list& children, int depth,
-                      const packed_group* groups, std::size_t count, const range_data* rd,
-                      split_tally& tally, Sink&& ready) const {
+  void count_children(engine_root& r, const child_list& children, std::uint64_t parent,
+                      std::int32_t scale, int depth, const packed_group* groups, std::size_t count,
+                      const range_data* rd, split_tally& tally, Sink&& ready) const {
     for (int i = 0; i < children.count; ++i) {
       const auto ui = static_cast<std::size_t>(i);
       const ipoint& c = children.centre[ui];
@@ -444,8 +445,8 @@ struct engine_impl : run_control {
       const std::uint32_t word = add_in_place(r.record_of[ci], ~std::uint32_t{0});
       if (parents_counted(word) != children.parents[ui]) continue;
       ++tally.visited;
-      const std::optional<ready_item> child =
-          ready_child(r, c, children.scale, depth + 1, ci, rd, owns_piece(groups, count, ci));
+      const std::optional<ready_item> child = ready_child(
+          r, c, children.scale, depth + 1, ci, rd, owns_piece(groups, count, parent, scale, ci));
       if (child) {
         ready(*child);
       } else {
@@ -531,11 +532,13 @@ struct engine_impl : run_control {
   void run_graph(engine_root* r);
   void make_graph();
 
-  // Whether a piece of the split surface `groups` lies in diamond `index` (its owner).
-  [[nodiscard]] static bool owns_piece(const packed_group* groups, std::size_t count,
-                                       std::uint64_t index) noexcept {
-    return std::any_of(groups, groups + count,
-                       [index](const packed_group& g) { return g.owner == index; });
+  // Whether a piece of the surface `groups` of the split of diamond `parent` (grid index, scale
+  // h) lies in its child `index` (the piece's owner).
+  [[nodiscard]] bool owns_piece(const packed_group* groups, std::size_t count, std::uint64_t parent,
+                                std::int32_t h, std::uint64_t index) const noexcept {
+    return std::any_of(groups, groups + count, [&](const packed_group& g) {
+      return group_owner(hier, parent, h, g) == index;
+    });
   }
   // After a publication of `published` records: calls the progress callback once
   // opt.progress_interval records were published since its last call. The callback may

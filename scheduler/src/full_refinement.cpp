@@ -509,7 +509,7 @@ std::int64_t engine_impl::count_full_task_children(full_task& t, std::size_t fir
       ++t.tally.visited;
       const std::optional<ready_item> child =
           ready_child(r, c, children.scale, depth, ci, run.ranges,
-                      owns_piece(t.groups.data() + p.first, p.count, ci));
+                      owns_piece(t.groups.data() + p.first, p.count, p.item.index, p.scale, ci));
       if (!child) {
         ++t.tally.culled;
       } else if (!run.banded) {

@@ -100,7 +100,8 @@ batch* engine_impl::compute_batch(batch* b) {
       if (ci.known) {
         const std::optional<ready_item> child =
             ready_child(*b->root, c, children.scale, it.item.depth + 1, ci.index, rd,
-                        owns_piece(b->groups.data() + first, b->groups.size() - first, ci.index));
+                        owns_piece(b->groups.data() + first, b->groups.size() - first,
+                                   it.item.index, scale, ci.index));
         ci.straddles = child.has_value();
         ci.error = child ? child->error : 0.0;
       }

@@ -70,8 +70,8 @@ bool engine_impl::queue_if_straddles(engine_root& r, const ipoint& c, std::int32
 void engine_impl::count_children_alone(engine_root& r, const ipoint& centre, std::int32_t scale,
                                        int depth, const packed_group* groups, std::size_t count,
                                        const range_data* rd, split_tally& tally) const {
-  count_children(r, hier.children_of(centre, scale, hierarchy::type_of(centre, scale)), depth,
-                 groups, count, rd, tally, queue_sink(r, rd));
+  count_children(r, hier.children_of(centre, scale, hierarchy::type_of(centre, scale)),
+                 hier.index(centre), scale, depth, groups, count, rd, tally, queue_sink(r, rd));
 }
 
 void engine_impl::settle_leftover(engine_root& r) {

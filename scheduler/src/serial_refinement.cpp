@@ -64,7 +64,8 @@ bool engine_impl::split_alone(engine_root& r, const ready_item& item, const ipoi
              // relaxed: published by the release in records.publish() (the caller's publish).
              std::memory_order_relaxed);
   tally.count(s);
-  count_children(r, children, item.depth, groups.data(), groups.size(), rd, tally, ready);
+  count_children(r, children, item.index, scale, item.depth, groups.data(), groups.size(), rd,
+                 tally, ready);
   last_depth = item.depth;
   return true;
 }

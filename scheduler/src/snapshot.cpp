@@ -159,7 +159,12 @@ bool surface_snapshot::check_integrity() const noexcept {
     if (rec.count > 16 || rec.scale <= 0) return false;
     for (std::uint32_t k = 0; k < rec.count; ++k) {
       const packed_group& g = rec.groups[k];
-      if (g.owner != no_owner && g.owner >= vertices) return false;
+      const unsigned code = g.owner_code();
+      if (code != packed_group::no_owner_code &&
+          (code >= 125 ||
+           group_owner(owner_->hierarchy_of(), rec.diamond, rec.scale, g) >= vertices)) {
+        return false;
+      }
       if (g.count() != 1 && g.count() != 2) return false;
     }
   }

@@ -142,8 +142,8 @@ bool refiner::split(std::uint64_t max_triangles) {
   std::uint8_t* state = state_.get();
   state[next.index] = static_cast<std::uint8_t>(state[next.index] | split_bit);
   for (const packed_group& g : scratch_) {
-    if (g.owner != no_owner)
-      state[g.owner] = static_cast<std::uint8_t>(state[g.owner] | surface_bit);
+    const std::uint64_t owner = group_owner(hier_, next.index, next.scale, g);
+    if (owner != no_owner) state[owner] = static_cast<std::uint8_t>(state[owner] | surface_bit);
   }
   records_.push_back({next.index, groups, next.error, static_cast<std::uint32_t>(scratch_.size()),
                       s.crossed, next.scale});

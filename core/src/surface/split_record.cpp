@@ -294,6 +294,7 @@ using offset = std::array<std::int8_t, 3>;
 struct child_table {
   std::array<std::uint64_t, 16> bits{};  // pack_surface() of each colouring; 0: no surface
   offset owner2{};                       // 2 × the owner's offset (p + x, see child_owner())
+  std::uint64_t owner_code = 0;          // owner2 coded as packed_group's owner
 };
 
 struct shape_table {
@@ -392,6 +393,9 @@ std::array<shape_table, 64> build_shapes() {
           for (std::size_t q = 0; q < 3; ++q) {
             ch.owner2[q] = static_cast<std::int8_t>(po[q] + xo[q]);
           }
+          ch.owner_code = static_cast<std::uint64_t>(ch.owner2[0] + 2) +
+                          5 * static_cast<std::uint64_t>(ch.owner2[1] + 2) +
+                          25 * static_cast<std::uint64_t>(ch.owner2[2] + 2);
         }
       }
     }
@@ -536,7 +540,6 @@ split_summary split_packed(const hierarchy& hier, const volume& vol, Samples sam
   }
   const unsigned ce = (k.c ? 1u : 0u) | (k.e ? 2u : 0u);  // colours of (c, e, ., .)
   const unsigned ed = (k.e ? 1u : 0u) | (k.d ? 2u : 0u);  // colours of (e, d, ., .)
-  const std::int32_t g = h / 2;                           // owner = c + g · owner2
   // Children with surface, as bit sets over ring positions: child (half, m) has corners
   // (spine end, centre, ring[m], ring[m + 1]) and holds surface unless all four agree.
   const unsigned full = (1u << n) - 1;
@@ -557,19 +560,19 @@ split_summary split_packed(const hierarchy& hier, const volume& vol, Samples sam
       const child_table& ch = shape.child[2 * um + half];
       const std::uint64_t bits = ch.bits[(half == 0 ? ce : ed) | ab];
       PROGISO_ASSERT(bits != 0);
-      std::uint64_t owner = no_owner;
+      // The owner c + (h/2)·o, o = ch.owner2: at h = 1 an offset with an odd coordinate is half
+      // a grid step (a finest child); otherwise the point is a child's centre, a diamond
+      // whenever it is a grid vertex (children are finer than roots), which it is when the
+      // whole diamond is.
       const offset& o = ch.owner2;
-      // At h = 1 an owner offset with an odd coordinate is half a grid step: a finest child.
+      std::uint64_t code = packed_group::no_owner_code;
       if (h > 1 || ((o[0] | o[1] | o[2]) & 1) == 0) {
-        // c + (h/2)·o: at h = 1 the offsets are even and halve exactly by a shift.
-        const std::int32_t step = h > 1 ? g : 1;
-        const int halve = h > 1 ? 0 : 1;
-        const ipoint op{c[0] + ((step * o[0]) >> halve), c[1] + ((step * o[1]) >> halve),
-                        c[2] + ((step * o[2]) >> halve)};
-        // op is a child's centre: a diamond whenever it is a grid vertex (children are finer
-        // than roots), which it is when the whole diamond is.
-        owner = in_grid || hier.in_grid(op) ? hier.index(op) : no_owner;
+        if (in_grid ||
+            hier.in_grid(ipoint{c[0] + h * o[0] / 2, c[1] + h * o[1] / 2, c[2] + h * o[2] / 2})) {
+          code = ch.owner_code;
+        }
       }
+      const packed_group group{bits | (code << 56)};
 #if defined(PROGISO_ENABLE_ASSERTS)
       {
         const diamond d = hier.make_diamond(c);
@@ -577,10 +580,10 @@ split_summary split_packed(const hierarchy& hier, const volume& vol, Samples sam
         const ipoint& b = d.ring[um1];
         const std::array<ipoint, 4> t = half == 0 ? std::array<ipoint, 4>{d.spine[0], c, a, b}
                                                   : std::array<ipoint, 4>{c, d.spine[1], a, b};
-        PROGISO_ASSERT(owner == owner_of(hier, t));
+        PROGISO_ASSERT(group_owner(hier, hier.index(c), h, group) == owner_of(hier, t));
       }
 #endif
-      out.push_back({owner, bits});
+      out.push_back(group);
       s.added_triangles += static_cast<int>(bits & 0xFFu);
     }
   }

@@ -86,6 +86,13 @@ class hierarchy {
     return static_cast<std::uint64_t>(p[0]) + stride_y_ * static_cast<std::uint64_t>(p[1]) +
            stride_z_ * static_cast<std::uint64_t>(p[2]);
   }
+  /// The grid index of c + (h/2)·o from c's grid index, for o in {-2..2}³ coded (o0 + 2) +
+  /// 5 (o1 + 2) + 25 (o2 + 2) (a packed group's owner, split_record.hpp). Precondition: the
+  /// point is a grid vertex (h·o even on every axis).
+  [[nodiscard]] std::uint64_t half_offset_index(std::uint64_t index, std::int32_t h,
+                                                unsigned code) const noexcept {
+    return index + static_cast<std::uint64_t>(std::int64_t{h} * doubled_offset_[code] / 2);
+  }
   /// The grid vertex of a linear index (the inverse of index()): two divisions by reciprocal
   /// multiplication, corrected to the exact quotient (a hot path of the refiners).
   [[nodiscard]] ipoint point(std::uint64_t index) const noexcept {
@@ -184,6 +191,9 @@ class hierarchy {
   std::uint64_t stride_z_ = 0;
   double inverse_y_ = 0.0;  // 1 / stride_y_
   double inverse_z_ = 0.0;  // 1 / stride_z_
+  // Per code of half_offset_index(): o0 + o1 stride_y + o2 stride_z, twice the index offset of
+  // (h/2)·o at h = 1.
+  std::array<std::int64_t, 125> doubled_offset_{};
   std::uint64_t vertex_count_ = 0;
 
   // floor(i / d) from a product with inv ≈ 1/d: exact for i < 2^53 (the double quotient is

@@ -86,22 +86,34 @@ struct owned_triangle {
 /// records (the sequential refiner and the engine). Every point of a diamond with centre c and
 /// scale h lies in c + h·{-1, 0, 1}³, so the doubled midpoint of any edge between two of them (its
 /// edge key) is 2c + h·o with o in {-2..2}³: one byte, (o0 + 2) + 5 (o1 + 2) + 25 (o2 + 2). The
-/// owner is as in owned_triangle. 16 bytes for one or two triangles, against 32 bytes per
-/// owned_triangle; unpack() gives back the edge keys (h is a power of two, so packing needs no
-/// division).
+/// owner (as in owned_triangle) is the diamond centred at the midpoint of the child's longest
+/// edge, c + (h/2)·o: the same code, in the top byte, or no_owner_code for a finest child (and
+/// for an owner beyond the grid). One word for one or two triangles, against 32 bytes per
+/// owned_triangle; unpack() gives back the edge keys and group_owner() the owner's grid index (h
+/// is a power of two, so packing needs no division).
 ///
-/// Two words, each written whole: a group is copied right after it is made, and a copy that reads
-/// what narrower stores just wrote waits for them to retire (failed store-to-load forwarding).
+/// One word, written whole: a group is copied right after it is made, and a copy that reads what
+/// narrower stores just wrote waits for them to retire (failed store-to-load forwarding).
 struct packed_group {
-  std::uint64_t owner;
   std::uint64_t bits;  ///< byte 0: triangles (1 or 2); byte 1 + 3k + v: edge code of vertex v
-                       ///< of triangle k
+                       ///< of triangle k; byte 7: the owner's code
+  static constexpr unsigned no_owner_code = 0xFFu;
 
   [[nodiscard]] std::size_t count() const noexcept { return bits & 0xFFu; }
   [[nodiscard]] unsigned edge(std::size_t k, std::size_t v) const noexcept {
     return static_cast<unsigned>(bits >> (8 * (1 + 3 * k + v))) & 0xFFu;
   }
+  [[nodiscard]] unsigned owner_code() const noexcept { return static_cast<unsigned>(bits >> 56); }
 };
+
+/// The grid index of g's owner (no_owner for none); g was made by the split of the diamond
+/// whose centre has grid index `diamond`, with scale `scale`.
+[[nodiscard]] inline std::uint64_t group_owner(const hierarchy& hier, std::uint64_t diamond,
+                                               std::int32_t scale, const packed_group& g) noexcept {
+  const unsigned code = g.owner_code();
+  if (code == packed_group::no_owner_code) return no_owner;
+  return hier.half_offset_index(diamond, scale, code);
+}
 
 /// Edge keys of triangle k of g, made by the split of the diamond whose doubled centre has the
 /// edge key `centre_key` (edge_key(c, c)), with this scale.
@@ -147,13 +159,14 @@ void for_each_unpacked(const hierarchy& hier, std::uint64_t diamond, std::int32_
   bool have_centre = false;
   for (std::uint64_t i = first; i < first + count; ++i) {
     const packed_group& g = groups[i];
-    if (!take(g.owner)) continue;
+    const std::uint64_t owner = group_owner(hier, diamond, scale, g);
+    if (!take(owner)) continue;
     if (!have_centre) {
       const ipoint c = hier.point(diamond);
       centre_key = edge_key(c, c);
       have_centre = true;
     }
-    for (std::size_t t = 0; t < g.count(); ++t) f(g.owner, unpack_at(centre_key, scale, g, t));
+    for (std::size_t t = 0; t < g.count(); ++t) f(owner, unpack_at(centre_key, scale, g, t));
   }
 }
 

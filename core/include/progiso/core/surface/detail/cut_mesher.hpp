@@ -527,9 +527,10 @@ class cut_mesher {
         memo[code] = id;
         return id;
       };
+      const std::uint64_t centre_index = hier_.index(c);
       for (std::uint32_t j = 0; j < en.count; ++j) {
         const packed_group& g = en.groups[j];
-        if (!take(g.owner)) continue;
+        if (!take(group_owner(hier_, centre_index, h, g))) continue;
         for (std::size_t t = 0; t < g.count(); ++t) {
           const std::array<std::uint32_t, 3> ids{id_of(g.edge(t, 0)), id_of(g.edge(t, 1)),
                                                  id_of(g.edge(t, 2))};
