@@ -152,7 +152,7 @@ class refiner {
   zeroed_array<std::uint8_t> state_;  // per grid vertex: split flag, split parents
 
   std::vector<owned_triangle> root_triangles_;
-  detail::chunked_store<packed_group> groups_;  // packed_group: 16 bytes for one or two triangles
+  detail::chunked_store<packed_group> groups_;  // packed_group: one word for one or two triangles
   std::vector<packed_group> scratch_;
   detail::chunked_store<record> records_;
   std::unique_ptr<queue> queue_;
