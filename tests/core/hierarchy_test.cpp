@@ -310,5 +310,39 @@ TEST(Hierarchy, point_inverts_index_on_every_row_and_slab_boundary_up_to_the_lar
   }
 }
 
+// half_offset_index() names a packed group's owner: the grid index of c + (h/2)·o from c's, for
+// every code of o in {-2..2}³ whose point is a grid vertex, at every scale, on padded grids up to
+// the largest one (indices near 2^45, offsets of both signs).
+TEST(Hierarchy, half_offset_index_is_the_index_of_the_offset_point_for_every_code_and_scale) {
+  std::uint64_t checked = 0;
+  for (const index3 d : {index3{19, 13, 22}, index3{257, 257, 257}, index3{32769, 3, 32769}}) {
+    const hierarchy h(d);
+    const ipoint g = h.grid_max();
+    for (std::int32_t hs = 1; hs < h.root_size(); hs *= 2) {
+      // A centre of scale hs in the middle of the grid, and one near its far corner.
+      for (const ipoint c :
+           {ipoint{g[0] / (2 * hs) * hs, g[1] / (2 * hs) * hs, g[2] / (2 * hs) * hs},
+            ipoint{g[0] - hs, g[1] - hs, g[2] - hs}}) {
+        for (unsigned code = 0; code < 125; ++code) {
+          const std::array<int, 3> o{static_cast<int>(code % 5) - 2,
+                                     static_cast<int>(code / 5 % 5) - 2,
+                                     static_cast<int>(code / 25) - 2};
+          bool whole = true;
+          ipoint p{};
+          for (std::size_t q = 0; q < 3; ++q) {
+            whole = whole && (hs * o[q]) % 2 == 0;
+            p[q] = c[q] + hs * o[q] / 2;
+          }
+          if (!whole || !h.in_grid(p) || !h.in_grid(c)) continue;
+          ASSERT_EQ(h.half_offset_index(h.index(c), hs, code), h.index(p))
+              << d[0] << "x" << d[1] << "x" << d[2] << " h " << hs << " code " << code;
+          ++checked;
+        }
+      }
+    }
+  }
+  EXPECT_GT(checked, 1000u);
+}
+
 }  // namespace
 }  // namespace progiso
