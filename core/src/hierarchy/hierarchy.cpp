@@ -63,10 +63,9 @@ hierarchy::hierarchy(const index3& data_dims) {
   vertex_count_ = stride_z_ * (static_cast<std::uint64_t>(grid_max_[2]) + 1);
   inverse_y_ = 1.0 / static_cast<double>(stride_y_);
   for (unsigned code = 0; code < doubled_offset_.size(); ++code) {
-    doubled_offset_[code] =
-        std::int64_t{code % 5} - 2 +
-        (std::int64_t{code / 5 % 5} - 2) * static_cast<std::int64_t>(stride_y_) +
-        (std::int64_t{code / 25} - 2) * static_cast<std::int64_t>(stride_z_);
+    const std::array<int, 3> o = half_offset_of(code);
+    doubled_offset_[code] = std::int64_t{o[0]} + o[1] * static_cast<std::int64_t>(stride_y_) +
+                            o[2] * static_cast<std::int64_t>(stride_z_);
   }
   inverse_z_ = 1.0 / static_cast<double>(stride_z_);
 }

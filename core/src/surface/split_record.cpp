@@ -267,13 +267,13 @@ std::uint64_t pack_surface(const tet_surface& ts, const ipoint& centre, int shif
   for (std::size_t k = 0; k < static_cast<std::size_t>(ts.count); ++k) {
     for (std::size_t v = 0; v < 3; ++v) {
       const ipoint m = edge_key_point(ts.triangles[k][v]);
-      std::uint64_t code = 0;
-      for (std::size_t q = 3; q-- > 0;) {
+      std::array<std::int32_t, 3> o{};
+      for (std::size_t q = 0; q < 3; ++q) {
         const std::int32_t rel = m[q] - 2 * centre[q];
-        const std::int32_t o = rel >> shift;  // arithmetic: exact, rel is a multiple of h
-        PROGISO_ASSERT((o << shift) == rel && o >= -2 && o <= 2);
-        code = code * 5 + static_cast<std::uint64_t>(o + 2);
+        o[q] = rel >> shift;  // arithmetic: exact, rel is a multiple of h
+        PROGISO_ASSERT((o[q] << shift) == rel && o[q] >= -2 && o[q] <= 2);
       }
+      const std::uint64_t code = half_offset_code(o[0], o[1], o[2]);
       bits |= code << (8 * (1 + 3 * k + v));
     }
   }
@@ -369,9 +369,7 @@ std::array<shape_table, 64> build_shapes() {
             for (std::size_t j = i + 1; j < 4; ++j) {
               const offset u = off(tet[i]);
               const offset v = off(tet[j]);
-              std::size_t code = 0;
-              for (std::size_t q = 3; q-- > 0;)
-                code = code * 5 + static_cast<std::size_t>(u[q] + v[q] + 2);
+              const std::size_t code = half_offset_code(u[0] + v[0], u[1] + v[1], u[2] + v[2]);
               std::array<std::uint8_t, 2> ends{static_cast<std::uint8_t>(code27(u)),
                                                static_cast<std::uint8_t>(code27(v))};
               if (ends[1] == centre_offset_code) std::swap(ends[0], ends[1]);
@@ -393,9 +391,7 @@ std::array<shape_table, 64> build_shapes() {
           for (std::size_t q = 0; q < 3; ++q) {
             ch.owner2[q] = static_cast<std::int8_t>(po[q] + xo[q]);
           }
-          ch.owner_code = static_cast<std::uint64_t>(ch.owner2[0] + 2) +
-                          5 * static_cast<std::uint64_t>(ch.owner2[1] + 2) +
-                          25 * static_cast<std::uint64_t>(ch.owner2[2] + 2);
+          ch.owner_code = half_offset_code(ch.owner2[0], ch.owner2[1], ch.owner2[2]);
         }
       }
     }

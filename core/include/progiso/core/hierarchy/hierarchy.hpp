@@ -41,6 +41,18 @@
 
 namespace progiso {
 
+/// The code of an offset o in {-2..2}³, (o0 + 2) + 5 (o1 + 2) + 25 (o2 + 2), in [0, 125): a
+/// doubled point 2c + h·o of a diamond (an edge key's, split_record.hpp's packed groups) or the
+/// point c + (h/2)·o (hierarchy::half_offset_index).
+[[nodiscard]] constexpr unsigned half_offset_code(int o0, int o1, int o2) noexcept {
+  return static_cast<unsigned>((o0 + 2) + 5 * (o1 + 2) + 25 * (o2 + 2));
+}
+/// The offset of a half_offset_code().
+[[nodiscard]] constexpr std::array<int, 3> half_offset_of(unsigned code) noexcept {
+  return {static_cast<int>(code % 5) - 2, static_cast<int>(code / 5 % 5) - 2,
+          static_cast<int>(code / 25) - 2};
+}
+
 /// What the centre of a diamond determines.
 struct diamond {
   ipoint centre{};
@@ -86,9 +98,9 @@ class hierarchy {
     return static_cast<std::uint64_t>(p[0]) + stride_y_ * static_cast<std::uint64_t>(p[1]) +
            stride_z_ * static_cast<std::uint64_t>(p[2]);
   }
-  /// The grid index of c + (h/2)·o from c's grid index, for o in {-2..2}³ coded (o0 + 2) +
-  /// 5 (o1 + 2) + 25 (o2 + 2) (a packed group's owner, split_record.hpp). Precondition: the
-  /// point is a grid vertex (h·o even on every axis).
+  /// The grid index of c + (h/2)·o from c's grid index, for o of half_offset_code `code` (a
+  /// packed group's owner, split_record.hpp). Precondition: the point is a grid vertex (h·o
+  /// even on every axis).
   [[nodiscard]] std::uint64_t half_offset_index(std::uint64_t index, std::int32_t h,
                                                 unsigned code) const noexcept {
     return index + static_cast<std::uint64_t>(std::int64_t{h} * doubled_offset_[code] / 2);

@@ -125,11 +125,11 @@ struct packed_group {
   // the key is the number key(2c) + h · Σ o_q 2^(21 q): one table entry per code, o in {-2..2}³.
   static constexpr auto deltas = [] {
     std::array<std::int64_t, 125> t{};
-    for (int e = 0; e < 125; ++e) {
-      const std::array<std::int64_t, 3> o{e % 5 - 2, e / 5 % 5 - 2, e / 25 - 2};
+    for (unsigned e = 0; e < 125; ++e) {
+      const std::array<int, 3> o = half_offset_of(e);
       std::int64_t d = 0;
       for (std::size_t q = 0; q < 3; ++q) d += o[q] * (std::int64_t{1} << (q * edge_key_bits));
-      t[static_cast<std::size_t>(e)] = d;
+      t[e] = d;
     }
     return t;
   }();
