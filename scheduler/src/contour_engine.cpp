@@ -191,8 +191,7 @@ struct contour_engine_impl : run_control {
     r.seeded = true;
     for (const ipoint2& c : r.root_centres) {
       ++t.visited;
-      if (const auto item =
-              ready_contour_diamond(rd, r.isovalue, c, hier.scale_of(c), hier.index(c))) {
+      if (const auto item = ready_contour_diamond(rd, r.isovalue, c, hier.scale_of(c))) {
         r.queue.push(*item);
       } else {
         ++t.culled;
@@ -227,7 +226,8 @@ struct contour_engine_impl : run_control {
       const contour_ready next = r->queue.top();
       if (goal.what == refine_goal::kind::error && !(next.error > goal.max_error)) break;
       if (goal.what == refine_goal::kind::deadline && clock::now() >= goal.deadline) break;
-      const diamond2 d = hier.make_diamond(hier.point(next.index));
+      const diamond2 d = hier.make_diamond(next.centre);
+      const std::uint64_t index = hier.index(next.centre);
       scratch.clear();
       const contour_split_summary s =
           compute_placed_contour_split(hier, image, r->isovalue, d, scratch);
@@ -243,10 +243,9 @@ struct contour_engine_impl : run_control {
       const placed_segment* at =
           count == 0 ? nullptr : r->segments.append_contiguous(scratch.data(), count);
       const auto rec = static_cast<std::uint32_t>(r->records.size());
-      r->records.push_back({next.index, at, count, next.error, after});
+      r->records.push_back({index, at, count, next.error, after});
       // relaxed: readers order it by the watermark (see contour_root::record_of).
-      std::atomic_ref<std::uint32_t>(r->record_of[next.index])
-          .store(rec, std::memory_order_relaxed);
+      std::atomic_ref<std::uint32_t>(r->record_of[index]).store(rec, std::memory_order_relaxed);
       r->cut_segments = after;
       ++t.splits;
       t.added += count;
@@ -254,9 +253,9 @@ struct contour_engine_impl : run_control {
       for (int i = 0; i < s.op_count; ++i) {
         ++t.primitives[static_cast<std::size_t>(s.ops[static_cast<std::size_t>(i)].kind)];
       }
-      r->frontier.split(d, next.index, [&](const ipoint2& c, std::uint64_t ci, std::int32_t h) {
+      r->frontier.split(d, index, [&](const ipoint2& c, std::uint64_t, std::int32_t h) {
         ++t.visited;
-        if (const auto item = ready_contour_diamond(rd, r->isovalue, c, h, ci)) {
+        if (const auto item = ready_contour_diamond(rd, r->isovalue, c, h)) {
           r->queue.push(*item);
         } else {
           ++t.culled;

@@ -26,7 +26,6 @@ contour_refiner::contour_refiner(const volume& image, const hierarchy2d& hier,
       frontier_(hier),
       segments_(detail::chunked_store<detail::placed_segment>::bits_for(hier.vertex_count())),
       records_(detail::chunked_store<record>::bits_for(hier.vertex_count())),
-      record_of_(hier.vertex_count()),
       queue_(std::make_unique<queue>(order == contour_order::breadth_first
                                          ? detail::queue_discipline::fifo
                                          : detail::queue_discipline::largest_error)) {
@@ -40,8 +39,7 @@ contour_refiner::contour_refiner(const volume& image, const hierarchy2d& hier,
   records_.push_back({no_owner2, root_segments_.data(), 0, 0.0});
   for (const ipoint2& c : roots) {
     ++stats_.visited;
-    if (const auto r = detail::ready_contour_diamond(ranges_, isovalue_, c, hier_.scale_of(c),
-                                                     hier_.index(c))) {
+    if (const auto r = detail::ready_contour_diamond(ranges_, isovalue_, c, hier_.scale_of(c))) {
       queue_->push(*r);
     } else {
       ++stats_.culled;
@@ -57,7 +55,7 @@ contour_refiner::~contour_refiner() = default;
 bool contour_refiner::done() const noexcept { return queue_->empty(); }
 double contour_refiner::next_error() const noexcept { return done() ? 0.0 : queue_->top().error; }
 int contour_refiner::next_depth() const noexcept {
-  return done() ? -1 : hier_.make_diamond(hier_.point(queue_->top().index)).depth;
+  return done() ? -1 : hier_.make_diamond(queue_->top().centre).depth;
 }
 
 bool contour_refiner::is_split(const ipoint2& c) const noexcept {
@@ -67,7 +65,8 @@ bool contour_refiner::is_split(const ipoint2& c) const noexcept {
 bool contour_refiner::split_next(std::uint64_t max_segments) {
   if (queue_->empty()) return false;
   const detail::contour_ready next = queue_->top();
-  const diamond2 d = hier_.make_diamond(hier_.point(next.index));
+  const diamond2 d = hier_.make_diamond(next.centre);
+  const std::uint64_t index = hier_.index(next.centre);
   // Written in place: room for the most a split adds, the rest given back.
   detail::placed_segment* at = segments_.reserve_contiguous(detail::max_split_segments);
   const contour_split_summary s =
@@ -82,17 +81,16 @@ bool contour_refiner::split_next(std::uint64_t max_segments) {
   }
   queue_->pop();
   if (count == 0) at = nullptr;
-  record_of_.get()[next.index] = static_cast<std::uint32_t>(records_.size());
-  records_.push_back({next.index, at, count, next.error});
+  records_.push_back({index, at, count, next.error});
   stats_.segments = after;
   stats_.record_segments += count;
   ++stats_.splits;
   ++class_counts_[s.split_class];
   counts_pending_ = true;
-  last_index_ = next.index;
-  frontier_.split(d, next.index, [&](const ipoint2& c, std::uint64_t ci, std::int32_t h) {
+  last_index_ = index;
+  frontier_.split(d, index, [&](const ipoint2& c, std::uint64_t, std::int32_t h) {
     ++stats_.visited;
-    if (const auto r = detail::ready_contour_diamond(ranges_, isovalue_, c, h, ci)) {
+    if (const auto r = detail::ready_contour_diamond(ranges_, isovalue_, c, h)) {
       queue_->push(*r);
     } else {
       ++stats_.culled;
@@ -148,41 +146,42 @@ void contour_refiner::refine_until(std::chrono::steady_clock::time_point deadlin
 
 template <class InCut>
 contour_set contour_refiner::build(InCut&& in_cut) const {
+  // in_cut(diamond, error) selects the split records of the cut (a parent-closed set; the root
+  // record is always in). The selected diamonds are marked in a bitmap (a bit per grid vertex),
+  // which answers "is this segment's owner split in the cut" from cache.
+  std::vector<std::uint64_t> in((hier_.vertex_count() + 63) / 64, 0);
+  for (std::size_t i = 1; i < records_.size(); ++i) {
+    const record& r = records_[i];
+    if (in_cut(r.diamond, r.error)) in[r.diamond / 64] |= std::uint64_t{1} << (r.diamond % 64);
+  }
+  const auto split_in_cut = [&in](std::uint64_t d) { return ((in[d / 64] >> (d % 64)) & 1u) != 0; };
   detail::contour_assembler out(hier_, isovalue_, static_cast<std::size_t>(stats_.segments));
   for (std::size_t i = 0; i < records_.size(); ++i) {
     const record& r = records_[i];
-    if (!in_cut(r.diamond, r.error, true)) continue;
+    if (i != 0 && !split_in_cut(r.diamond)) continue;
     out.begin_record(r.diamond);
     for (const detail::placed_segment* p = r.segments; p != r.segments + r.count; ++p) {
-      const owned_segment& s = p->seg;
-      if (s.owner != no_owner2 && frontier_.is_split(s.owner) && in_cut(s.owner, 0.0, false)) {
-        continue;
-      }
-      out.add(*p);
+      const std::uint64_t owner = p->seg.owner;
+      if (owner == no_owner2 || !split_in_cut(owner)) out.add(*p);
     }
   }
   return out.finish(origin_, spacing_);
 }
 
 contour_set contour_refiner::extract() const {
-  return build([](std::uint64_t, double, bool) { return true; });
+  return build([](std::uint64_t, double) { return true; });
 }
 
 contour_set contour_refiner::extract_cut(double max_error) const {
-  // A split owner is in the cut when its own record's error exceeds max_error: records only,
-  // no image and no range data.
-  return build([&](std::uint64_t diamond, double err, bool is_record) {
-    if (diamond == no_owner2) return true;
-    if (is_record) return err > max_error;
-    return records_[record_of_.get()[diamond]].error > max_error;
-  });
+  // A split is in the cut when its own record's error exceeds max_error (nested errors: the
+  // selection is parent-closed): records only, no image and no range data.
+  return build([max_error](std::uint64_t, double err) { return err > max_error; });
 }
 
 contour_set contour_refiner::extract_region(double x0, double y0, double x1, double y1) const {
   // The subtree of a diamond of scale h reaches 3h (square centre) or 2h (edge midpoint) per
   // axis; these boxes nest from parent to child, so the selection is parent-closed.
-  return build([&](std::uint64_t diamond, double, bool) {
-    if (diamond == no_owner2) return true;
+  return build([&](std::uint64_t diamond, double) {
     const ipoint2 c = hier_.point(diamond);
     const diamond2 d = hier_.make_diamond(c);
     const double reach = (d.type == 0 ? 3.0 : 2.0) * d.scale;

@@ -28,7 +28,6 @@
 #include <progiso/core/base/detail/borrow.hpp>
 #include <progiso/core/base/detail/chunked_store.hpp>
 #include <progiso/core/base/error.hpp>
-#include <progiso/core/base/zeroed_array.hpp>
 #include <progiso/core/contour/contour.hpp>
 #include <progiso/core/contour/contour_split.hpp>
 #include <progiso/core/contour/detail/contour_frontier.hpp>
@@ -117,8 +116,6 @@ class contour_refiner {
   std::vector<detail::placed_segment> root_segments_;
   detail::chunked_store<detail::placed_segment> segments_;
   detail::chunked_store<record> records_;
-  // Record of each split diamond, by grid index (untouched pages cost nothing).
-  zeroed_array<std::uint32_t> record_of_;
   std::unique_ptr<queue> queue_;
   // Cases and primitives are counted by split class and added up when the statistics are read.
   mutable contour_statistics stats_;

@@ -37,11 +37,12 @@ struct placed_segment {
 };
 
 /// A diamond whose parents are all split and whose range straddles the isovalue: its nested
-/// error and grid index, 16 bytes (the centre is hierarchy2d::point(index), the depth the
-/// diamond's). A full refinement's breadth-first queue holds a whole level of them.
+/// error and centre, 16 bytes (the grid index is hierarchy2d::index(centre), a multiply-add,
+/// where the centre from the index would be a 64-bit division on every split's critical path).
+/// A full refinement's breadth-first queue holds a whole level of them.
 struct contour_ready {
   double error;
-  std::uint64_t index;
+  ipoint2 centre;
 };
 
 /// The contour vertex on the grid edge with this key (edge_key2), pixel units.
@@ -71,11 +72,10 @@ void root_contour(const hierarchy2d& hier, const volume& image, double isovalue,
 /// The readiness rule: the diamond centred at c (parents all split) is queued by its nested
 /// error when its range straddles the isovalue, and culled (nothing) otherwise.
 [[nodiscard]] inline std::optional<contour_ready> ready_contour_diamond(
-    const range_data2d& ranges, double isovalue, const ipoint2& c, std::int32_t scale,
-    std::uint64_t index) noexcept {
+    const range_data2d& ranges, double isovalue, const ipoint2& c, std::int32_t scale) noexcept {
   const diamond_range r = ranges.get(c, scale);
   if (!r.straddles(isovalue)) return std::nullopt;
-  return contour_ready{r.error, index};
+  return contour_ready{r.error, c};
 }
 
 /// Per grid vertex: whether the diamond is split and how many of its parents are.

@@ -3,7 +3,7 @@
 //
 // Three disciplines: first in first out (breadth first: coarse to fine), last in first out (depth
 // first: the working set stays local), and largest error first for quality-, budget- and
-// time-driven refinement. Item needs members `error` and `index`. Not thread-safe.
+// time-driven refinement. Item needs a member `error`. Not thread-safe.
 //
 // Largest error first is kept in buckets, not a heap: a bucket holds a quarter of an octave of
 // errors (error_bucket below: [1, 1.25), [1.25, 1.5), … times a power of two), buckets are taken
