@@ -178,6 +178,34 @@ TEST(ContourRefiner, random_cuts_are_valid_contours) {
   }
 }
 
+TEST(ContourRefiner, cuts_by_error_are_the_contours_of_their_splits_both_sparse_and_dense) {
+  // A cut asks whether a segment's owner is split in it of a bitmap of its splits when it has
+  // one per 4096 grid vertices, of their sorted grid indices otherwise: cuts of a refinement,
+  // each against a refiner that split exactly that set, on an image with contours everywhere
+  // and one with a small circle in a corner.
+  bool sparse = false;
+  bool dense = false;
+  for (const auto& [img, w] : {std::pair{make_image(1200, 900, waves), 0.1},
+                               std::pair{make_image(1200, 900, circle), 8.0}}) {
+    fixture f(img);
+    contour_refiner full(f.img, f.h, f.ranges, w);
+    full.refine_full();
+    const std::uint64_t threshold = f.h.vertex_count() / 4096;
+    for (const double eps : {0.5, 0.1, 0.0}) {
+      contour_refiner e(f.img, f.h, f.ranges, w);
+      e.refine_to_error(eps);
+      const std::uint64_t splits = e.statistics().splits;
+      sparse = sparse || (splits > 0 && splits <= threshold);
+      dense = dense || splits > threshold;
+      const contour_set cut = full.extract_cut(eps);
+      EXPECT_TRUE(test::same_segments(cut, e.extract())) << "eps " << eps << ", " << splits;
+      EXPECT_TRUE(test::check_valid_contour(cut, test::image_box(f.img))) << "eps " << eps;
+    }
+  }
+  EXPECT_TRUE(sparse);
+  EXPECT_TRUE(dense);
+}
+
 // Leaf triangles of the cut, from the bisection rule alone; marching triangles over them.
 TEST(ContourRefiner, a_cut_is_the_marching_triangles_contour_of_its_conforming_mesh) {
   fixture f(make_image(33, 33, waves));

@@ -13,6 +13,13 @@ namespace progiso {
 
 using detail::no_owner2;
 
+namespace {
+// Below one split per this many grid vertices a cut's splits are kept sorted rather than in a
+// bitmap: a binary search per segment owner then costs less than clearing a bit per vertex
+// (a bitmap costs 512 bytes per split here, a sorted array 8 and a search of ~20 steps).
+constexpr std::uint64_t sparse_cut_vertices = 4096;
+}  // namespace
+
 struct contour_refiner::queue : detail::ready_queue<detail::contour_ready> {
   using detail::ready_queue<detail::contour_ready>::ready_queue;
 };
@@ -147,18 +154,36 @@ void contour_refiner::refine_until(std::chrono::steady_clock::time_point deadlin
 template <class InCut>
 contour_set contour_refiner::build(InCut&& in_cut) const {
   // in_cut(diamond, error) selects the split records of the cut (a parent-closed set; the root
-  // record is always in). The selected diamonds are marked in a bitmap (a bit per grid vertex),
-  // which answers "is this segment's owner split in the cut" from cache.
-  std::vector<std::uint64_t> in((hier_.vertex_count() + 63) / 64, 0);
+  // record is always in). "Is this segment's owner split in the cut" is asked of the selected
+  // diamonds: a bitmap (a bit per grid vertex) unless the cut has fewer splits than one per
+  // sparse_cut_vertices grid vertices, then their sorted grid indices, so that a coarse cut of
+  // a large image touches no per-vertex array. The refiner keeps no per-vertex record index: it
+  // has no reader to serve.
+  std::vector<std::uint64_t> selected;
+  std::vector<std::uint8_t> taken(records_.size(), 0);  // record 0, the root's, always in
   for (std::size_t i = 1; i < records_.size(); ++i) {
     const record& r = records_[i];
-    if (in_cut(r.diamond, r.error)) in[r.diamond / 64] |= std::uint64_t{1} << (r.diamond % 64);
+    if (!in_cut(r.diamond, r.error)) continue;
+    taken[i] = 1;
+    selected.push_back(r.diamond);
   }
-  const auto split_in_cut = [&in](std::uint64_t d) { return ((in[d / 64] >> (d % 64)) & 1u) != 0; };
+  const std::uint64_t vertices = hier_.vertex_count();
+  const bool dense = selected.size() > vertices / sparse_cut_vertices;
+  std::vector<std::uint64_t> bits;
+  if (dense) {
+    bits.assign((vertices + 63) / 64, 0);
+    for (const std::uint64_t d : selected) bits[d / 64] |= std::uint64_t{1} << (d % 64);
+  } else {
+    std::sort(selected.begin(), selected.end());
+  }
+  const auto split_in_cut = [&](std::uint64_t d) {
+    return dense ? ((bits[d / 64] >> (d % 64)) & 1u) != 0
+                 : std::binary_search(selected.begin(), selected.end(), d);
+  };
   detail::contour_assembler out(hier_, isovalue_, static_cast<std::size_t>(stats_.segments));
   for (std::size_t i = 0; i < records_.size(); ++i) {
     const record& r = records_[i];
-    if (i != 0 && !split_in_cut(r.diamond)) continue;
+    if (i != 0 && !taken[i]) continue;
     out.begin_record(r.diamond);
     for (const detail::placed_segment* p = r.segments; p != r.segments + r.count; ++p) {
       const std::uint64_t owner = p->seg.owner;
