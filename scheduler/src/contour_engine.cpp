@@ -10,6 +10,7 @@
 #include <bit>
 #include <cmath>
 #include <cstring>
+#include <memory>
 #include <mutex>
 #include <optional>
 #include <string>
@@ -20,7 +21,6 @@
 #include <progiso/core/base/assert.hpp>
 #include <progiso/core/base/detail/chunked_store.hpp>
 #include <progiso/core/base/error.hpp>
-#include <progiso/core/base/zeroed_array.hpp>
 #include <progiso/core/contour/contour_split.hpp>
 #include <progiso/core/contour/detail/contour_frontier.hpp>
 #include <progiso/core/refine/detail/ready_queue.hpp>
@@ -52,14 +52,14 @@ struct contour_record {
 };
 
 // One isovalue's progressive contour. Readers reach it through contour_engine_impl::root (under
-// an epoch guard) and read the published prefix of `records` and `record_of`; the rest belongs
-// to the run's driver (or the control thread while no run is active).
+// an epoch guard) and read the published prefix of `records`; the rest belongs to the run's
+// driver (or the control thread while no run is active). No per-vertex array serves readers: a
+// snapshot marks its cut's splits when it needs them (contour_snapshot::build, split_bits).
 struct contour_root : epoch_object {
   contour_root(contour_engine_impl& owner, double w, std::uint64_t gen, const hierarchy2d& hier)
       : impl(&owner),
         isovalue(w),
         generation(gen),
-        record_of(hier.vertex_count()),
         frontier(hier),
         segments(chunked_store<placed_segment>::bits_for(hier.vertex_count())) {}
 
@@ -70,11 +70,6 @@ struct contour_root : epoch_object {
   // When the root surface was published (make_root(), just before the store that publishes it).
   clock::time_point published_at{};
   append_log<contour_record> records;
-  // Per grid vertex: the diamond's record, 0 while unsplit. Written once (0 → r) by the driver
-  // before the release of records.publish(); read by readers through atomic_ref (relaxed: a
-  // value below the reader's watermark was written before that watermark's release, and any
-  // other value means "not in this cut").
-  zeroed_array<std::uint32_t> record_of;
   // Set before the root is published, immutable afterwards.
   std::vector<placed_segment> root_segments;
   std::vector<ipoint2> root_centres;
@@ -90,12 +85,6 @@ struct contour_root : epoch_object {
   counter splits, visited, culled, segment_count, record_segments, remaining;
   std::array<counter, contour_case_count> cases;
   std::array<counter, contour_primitive_count> primitives;
-
-  [[nodiscard]] std::uint32_t record_index(std::uint64_t vertex) const noexcept {
-    // relaxed: see record_of.
-    return std::atomic_ref<std::uint32_t>(const_cast<std::uint32_t&>(record_of[vertex]))
-        .load(std::memory_order_relaxed);
-  }
 };
 
 // What the driver's splits add to the root's counters, added at each publication.
@@ -242,10 +231,7 @@ struct contour_engine_impl : run_control {
       const auto count = static_cast<std::uint32_t>(scratch.size());
       const placed_segment* at =
           count == 0 ? nullptr : r->segments.append_contiguous(scratch.data(), count);
-      const auto rec = static_cast<std::uint32_t>(r->records.size());
       r->records.push_back({index, at, count, next.error, after});
-      // relaxed: readers order it by the watermark (see contour_root::record_of).
-      std::atomic_ref<std::uint32_t>(r->record_of[index]).store(rec, std::memory_order_relaxed);
       r->cut_segments = after;
       ++t.splits;
       t.added += count;
@@ -337,11 +323,55 @@ std::uint64_t contour_snapshot::segment_count() const noexcept {
   return root_->records[published_ - 1].cut_segments;
 }
 
-bool contour_snapshot::is_split(const ipoint2& c) const noexcept {
+contour_snapshot::contour_snapshot(contour_snapshot&& other) noexcept
+    : guard_(std::move(other.guard_)),
+      owner_(std::exchange(other.owner_, nullptr)),
+      root_(std::exchange(other.root_, nullptr)),
+      published_(std::exchange(other.published_, 0)),
+      // relaxed: a snapshot is moved by the one thread that holds it (no call is in flight).
+      split_bits_(other.split_bits_.exchange(nullptr, std::memory_order_relaxed)) {}
+
+contour_snapshot& contour_snapshot::operator=(contour_snapshot&& other) noexcept {
+  if (this != &other) {
+    // relaxed: as in the move constructor.
+    delete split_bits_.exchange(other.split_bits_.exchange(nullptr, std::memory_order_relaxed),
+                                std::memory_order_relaxed);
+    guard_ = std::move(other.guard_);
+    owner_ = std::exchange(other.owner_, nullptr);
+    root_ = std::exchange(other.root_, nullptr);
+    published_ = std::exchange(other.published_, 0);
+  }
+  return *this;
+}
+
+contour_snapshot::~contour_snapshot() {
+  // relaxed: destroyed by the thread that holds it, after every call on it returned.
+  delete split_bits_.load(std::memory_order_relaxed);
+}
+
+const std::vector<std::uint64_t>& contour_snapshot::split_bits() const {
+  // acquire: pairs with the release of the compare-and-swap below (the vector's contents).
+  if (const auto* b = split_bits_.load(std::memory_order_acquire)) return *b;
+  const std::uint64_t vertices = owner_->hierarchy_of().vertex_count();
+  auto made = std::make_unique<std::vector<std::uint64_t>>((vertices + 63) / 64, 0);
+  for (std::uint64_t r = 1; r < published_; ++r) {
+    const std::uint64_t d = root_->records[r].diamond;
+    (*made)[d / 64] |= std::uint64_t{1} << (d % 64);
+  }
+  const std::vector<std::uint64_t>* expected = nullptr;
+  // acq_rel: releases this thread's vector to later loads (the acquire above) and, when another
+  // call won, acquires that one's. Partner: this same exchange in a concurrent first call.
+  if (split_bits_.compare_exchange_strong(expected, made.get(), std::memory_order_acq_rel)) {
+    return *made.release();
+  }
+  return *expected;
+}
+
+bool contour_snapshot::is_split(const ipoint2& c) const {
   const hierarchy2d& h = owner_->hierarchy_of();
   if (!h.in_grid(c)) return false;
-  const std::uint32_t r = root_->record_index(h.index(c));
-  return r != 0 && r < published_;
+  const std::uint64_t d = h.index(c);
+  return ((split_bits()[d / 64] >> (d % 64)) & 1u) != 0;
 }
 
 template <class InCut>
@@ -350,9 +380,11 @@ contour_set contour_snapshot::build(InCut&& in_cut) const {
   detail::contour_assembler out(e.hier, root_->isovalue, static_cast<std::size_t>(segment_count()));
   // Records in canonical order (the root's, then by diamond), so that the polylines depend
   // only on the split set, not on the order of the splits (goal, interruptions, resumptions).
-  // A dense cut marks its diamonds in a bitmap read in grid order (a bit per grid vertex; it
-  // also answers "is this segment's owner split in the cut" from cache); a sparse one (below
-  // about one split per 64 vertices) sorts its diamonds and asks record_of.
+  // A dense cut (a split per 4096 grid vertices: the bitmap then costs at most 512 bytes a
+  // split, less than sorting them) marks its diamonds in a bitmap, counts the bits
+  // before each word and places each record at its diamond's rank (a counting sort; the bitmap
+  // also answers "is this segment's owner split in the cut" from cache); a sparse one sorts
+  // its (diamond, record) pairs and searches them.
   const auto add_live = [&](const detail::contour_record& rec, auto&& split_in_cut) {
     out.begin_record(rec.diamond);
     for (std::uint32_t i = 0; i < rec.count; ++i) {
@@ -360,33 +392,43 @@ contour_set contour_snapshot::build(InCut&& in_cut) const {
       if (s.seg.owner == detail::no_owner2 || !split_in_cut(s.seg.owner)) out.add(s);
     }
   };
+  std::vector<std::uint64_t> selected;  // records of the cut, in publication order
+  for (std::uint64_t r = 1; r < published_; ++r) {
+    if (in_cut(root_->records[r])) selected.push_back(r);
+  }
   const std::uint64_t vertices = e.hier.vertex_count();
-  if (published_ > vertices / 64) {
+  if (selected.size() > vertices / 4096) {
     std::vector<std::uint64_t> bits((vertices + 63) / 64, 0);
-    for (std::uint64_t r = 1; r < published_; ++r) {
-      const detail::contour_record& rec = root_->records[r];
-      if (in_cut(rec)) bits[rec.diamond / 64] |= std::uint64_t{1} << (rec.diamond % 64);
+    for (const std::uint64_t r : selected) {
+      const std::uint64_t d = root_->records[r].diamond;
+      bits[d / 64] |= std::uint64_t{1} << (d % 64);
+    }
+    std::vector<std::uint32_t> before(bits.size());
+    std::uint32_t count = 0;
+    for (std::size_t w = 0; w < bits.size(); ++w) {
+      before[w] = count;
+      count += static_cast<std::uint32_t>(std::popcount(bits[w]));
+    }
+    std::vector<std::uint64_t> order(selected.size());
+    for (const std::uint64_t r : selected) {
+      const std::uint64_t d = root_->records[r].diamond;
+      const std::uint64_t below = bits[d / 64] & ((std::uint64_t{1} << (d % 64)) - 1);
+      order[before[d / 64] + static_cast<std::uint64_t>(std::popcount(below))] = r;
     }
     const auto marked = [&bits](std::uint64_t d) { return ((bits[d / 64] >> (d % 64)) & 1) != 0; };
     add_live(root_->records[0], marked);
-    for (std::size_t w = 0; w < bits.size(); ++w) {
-      for (std::uint64_t b = bits[w]; b != 0; b &= b - 1) {
-        const std::uint64_t d = 64 * w + static_cast<std::uint64_t>(std::countr_zero(b));
-        add_live(root_->records[root_->record_index(d)], marked);
-      }
-    }
+    for (const std::uint64_t r : order) add_live(root_->records[r], marked);
   } else {
-    const auto split = [&](std::uint64_t d) {
-      const std::uint32_t o = root_->record_index(d);
-      return o != 0 && o < published_ && in_cut(root_->records[o]);
+    std::vector<std::pair<std::uint64_t, std::uint64_t>> order;  // (diamond, record)
+    order.reserve(selected.size());
+    for (const std::uint64_t r : selected) order.emplace_back(root_->records[r].diamond, r);
+    std::sort(order.begin(), order.end());
+    const auto split = [&order](std::uint64_t d) {
+      const auto it = std::lower_bound(order.begin(), order.end(),
+                                       std::pair<std::uint64_t, std::uint64_t>{d, 0});
+      return it != order.end() && it->first == d;
     };
     add_live(root_->records[0], split);
-    std::vector<std::pair<std::uint64_t, std::uint64_t>> order;  // (diamond, record)
-    for (std::uint64_t r = 1; r < published_; ++r) {
-      const detail::contour_record& rec = root_->records[r];
-      if (in_cut(rec)) order.emplace_back(rec.diamond, r);
-    }
-    std::sort(order.begin(), order.end());
     for (const auto& [diamond, r] : order) add_live(root_->records[r], split);
   }
   return out.finish(e.origin, e.spacing);
@@ -401,15 +443,20 @@ contour_set contour_snapshot::extract_cut(double max_error) const {
   return build([max_error](const detail::contour_record& rec) { return rec.error > max_error; });
 }
 
-bool contour_snapshot::check_integrity() const noexcept {
+bool contour_snapshot::check_integrity() const {
   if (root_ == nullptr || root_->magic != detail::contour_root_alive) return false;
   const std::uint64_t vertices = owner_->hierarchy_of().vertex_count();
+  std::vector<std::uint64_t> seen((vertices + 63) / 64, 0);
   for (std::uint64_t r = 0; r < published_; ++r) {
     const detail::contour_record& rec = root_->records[r];
     if (r == 0 ? rec.diamond != detail::no_owner2 : rec.diamond >= vertices) return false;
-    if (r != 0 &&
-        (rec.count > detail::max_record_segments || root_->record_index(rec.diamond) != r)) {
-      return false;
+    if (r != 0) {
+      // Each diamond split once.
+      const std::uint64_t bit = std::uint64_t{1} << (rec.diamond % 64);
+      if (rec.count > detail::max_record_segments || (seen[rec.diamond / 64] & bit) != 0) {
+        return false;
+      }
+      seen[rec.diamond / 64] |= bit;
     }
     for (std::uint32_t i = 0; i < rec.count; ++i) {
       const std::uint64_t o = rec.segments[i].seg.owner;

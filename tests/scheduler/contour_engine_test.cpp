@@ -32,6 +32,7 @@ volume make_image(std::int64_t w, std::int64_t h, double (*f)(double, double)) {
   return test::make_test_image(w, h, f);
 }
 
+double corner_circle(double x, double y) { return std::hypot(x - 20.3, y - 17.6); }
 double waves(double x, double y) {
   return std::sin(x * 0.21) * std::cos(y * 0.17) + 0.4 * std::sin((x + 2 * y) * 0.05);
 }
@@ -174,14 +175,27 @@ TEST(ContourEngine, the_same_split_set_gives_identical_contours_whatever_the_ord
   ASSERT_EQ(a.split_count(), b.split_count());
   EXPECT_TRUE(identical(a.extract(), b.extract()));
   EXPECT_TRUE(identical(a.extract_cut(0.03), b.extract_cut(0.03)));
-  // A small cut (its records sorted) against the same cut taken from the full run's records
-  // (read through a bitmap in grid order).
-  contour_engine coarse(img, 0.05);
-  EXPECT_TRUE(coarse.refine_until(0.3));
+  // A sparse cut (below a split per 4096 grid vertices: its records sorted) against the same
+  // cut taken from a finer run's records, on a large image with a small contour.
+  const volume large = make_image(1200, 900, corner_circle);
+  contour_engine fine(large, 8.0);
+  EXPECT_TRUE(fine.refine_full());
+  contour_engine coarse(large, 8.0);
+  EXPECT_TRUE(coarse.refine_until(0.1));
   const contour_snapshot c = coarse.snapshot();
   ASSERT_GT(c.split_count(), 10U);
-  ASSERT_LT(c.split_count(), coarse.hierarchy_of().vertex_count() / 64);
-  EXPECT_TRUE(identical(c.extract(), a.extract_cut(0.3)));
+  ASSERT_LT(c.split_count(), coarse.hierarchy_of().vertex_count() / 4096);
+  EXPECT_TRUE(identical(c.extract(), fine.snapshot().extract_cut(0.1)));
+  EXPECT_TRUE(test::check_valid_contour(c.extract(), test::image_box(large)));
+  sequential seq(large, 8.0);
+  seq.r.refine_to_error(0.1);
+  EXPECT_TRUE(test::same_segments(c.extract(), seq.r.extract()));
+  // A dense cut (read through a bitmap) against the same cut of the full run.
+  contour_engine dense(img, 0.05);
+  EXPECT_TRUE(dense.refine_until(0.3));
+  const contour_snapshot d = dense.snapshot();
+  ASSERT_GT(d.split_count(), dense.hierarchy_of().vertex_count() / 4096);
+  EXPECT_TRUE(identical(d.extract(), a.extract_cut(0.3)));
 }
 
 TEST(ContourEngine, a_deadline_stops_the_run_and_leaves_a_valid_cut) {
@@ -248,6 +262,39 @@ TEST(ContourEngine, cancel_stops_a_run_and_keeps_what_was_published) {
   EXPECT_EQ(f.split_count(), seq.r.statistics().splits);
   EXPECT_EQ(f.segment_count(), seq.r.segment_count());
   EXPECT_TRUE(test::same_segments(f.extract(), seq.r.extract()));
+}
+
+TEST(ContourEngine, is_split_answers_the_snapshot_cut_from_several_threads_at_once) {
+  // The first is_split() call marks the cut's splits; concurrent first calls agree on one
+  // marking (the others' are dropped), and a moved snapshot keeps it. The cut is a snapshot
+  // taken mid-run: later splits are not in it.
+  const volume img = make_image(97, 80, waves);
+  contour_engine eng(img, 0.05);
+  EXPECT_TRUE(eng.refine_until(0.1));
+  contour_snapshot s = eng.snapshot();
+  EXPECT_TRUE(eng.refine_full());
+  sequential seq(img, 0.05);
+  seq.r.refine_to_error(0.1);
+  const hierarchy2d& h = seq.h;
+  std::atomic<std::uint64_t> differ{0};
+  std::vector<std::thread> threads;
+  for (int t = 0; t < 4; ++t) {
+    threads.emplace_back([&] {
+      std::uint64_t d = 0;
+      for (std::int32_t y = 0; y <= h.grid_max()[1]; ++y) {
+        for (std::int32_t x = 0; x <= h.grid_max()[0]; ++x) {
+          if (s.is_split({x, y}) != seq.r.is_split({x, y})) ++d;
+        }
+      }
+      differ.fetch_add(d, std::memory_order_relaxed);  // relaxed: read after the joins
+    });
+  }
+  for (std::thread& t : threads) t.join();
+  EXPECT_EQ(differ.load(std::memory_order_relaxed), 0U);
+  const contour_snapshot moved = std::move(s);
+  EXPECT_EQ(moved.split_count(), seq.r.statistics().splits);
+  expect_same_split_set(moved, seq.r, seq.h);
+  EXPECT_FALSE(moved.is_split({-1, 0}));
 }
 
 TEST(ContourEngine, a_snapshot_is_immutable_while_the_run_goes_on) {

@@ -4,6 +4,7 @@
 #include <cmath>
 #include <cstdlib>
 #include <string>
+#include <type_traits>
 
 #include <progiso/core/base/error.hpp>
 #include <progiso/core/refine/deadline.hpp>
@@ -15,9 +16,27 @@ using detail::no_owner2;
 
 namespace {
 // Below one split per this many grid vertices a cut's splits are kept sorted rather than in a
-// bitmap: a binary search per segment owner then costs less than clearing a bit per vertex
-// (a bitmap costs 512 bytes per split here, a sorted array 8 and a search of ~20 steps).
+// bitmap: a binary search per segment owner then costs less than clearing a bit per vertex (a
+// bitmap costs up to 512 bytes per split here, a sorted array 8 and a search of ~20 steps).
 constexpr std::uint64_t sparse_cut_vertices = 4096;
+// The cut of every record (extract()).
+struct whole_cut {
+  bool operator()(std::uint64_t, double) const noexcept { return true; }
+};
+}  // namespace
+
+namespace {
+detail::queue_discipline discipline_of(contour_order order) noexcept {
+  switch (order) {
+    case contour_order::breadth_first:
+      return detail::queue_discipline::fifo;
+    case contour_order::depth_first:
+      return detail::queue_discipline::lifo;
+    case contour_order::largest_error_first:
+      break;
+  }
+  return detail::queue_discipline::largest_error;
+}
 }  // namespace
 
 struct contour_refiner::queue : detail::ready_queue<detail::contour_ready> {
@@ -33,9 +52,7 @@ contour_refiner::contour_refiner(const volume& image, const hierarchy2d& hier,
       frontier_(hier),
       segments_(detail::chunked_store<detail::placed_segment>::bits_for(hier.vertex_count())),
       records_(detail::chunked_store<record>::bits_for(hier.vertex_count())),
-      queue_(std::make_unique<queue>(order == contour_order::breadth_first
-                                         ? detail::queue_discipline::fifo
-                                         : detail::queue_discipline::largest_error)) {
+      queue_(std::make_unique<queue>(discipline_of(order))) {
   if (!std::isfinite(isovalue)) {
     throw error("isovalue: expected a finite number, found " + std::to_string(isovalue));
   }
@@ -155,27 +172,39 @@ template <class InCut>
 contour_set contour_refiner::build(InCut&& in_cut) const {
   // in_cut(diamond, error) selects the split records of the cut (a parent-closed set; the root
   // record is always in). "Is this segment's owner split in the cut" is asked of the selected
-  // diamonds: a bitmap (a bit per grid vertex) unless the cut has fewer splits than one per
-  // sparse_cut_vertices grid vertices, then their sorted grid indices, so that a coarse cut of
-  // a large image touches no per-vertex array. The refiner keeps no per-vertex record index: it
-  // has no reader to serve.
-  std::vector<std::uint64_t> selected;
+  // diamonds: a bitmap (a bit per grid vertex) unless the refiner has fewer splits than one per
+  // sparse_cut_vertices grid vertices, then their sorted grid indices, so that a coarse
+  // refinement of a large image touches no per-vertex array. The refiner keeps no per-vertex
+  // record index: it has no reader to serve.
+  if constexpr (std::is_same_v<std::decay_t<InCut>, whole_cut>) {
+    // Every record: the owner is split in the cut when the frontier says so.
+    detail::contour_assembler out(hier_, isovalue_, static_cast<std::size_t>(stats_.segments));
+    for (std::size_t i = 0; i < records_.size(); ++i) {
+      const record& r = records_[i];
+      out.begin_record(r.diamond);
+      for (const detail::placed_segment* p = r.segments; p != r.segments + r.count; ++p) {
+        const std::uint64_t owner = p->seg.owner;
+        if (owner == no_owner2 || !frontier_.is_split(owner)) out.add(*p);
+      }
+    }
+    return out.finish(origin_, spacing_);
+  }
+  const std::uint64_t vertices = hier_.vertex_count();
+  const bool dense = records_.size() - 1 > vertices / sparse_cut_vertices;
   std::vector<std::uint8_t> taken(records_.size(), 0);  // record 0, the root's, always in
+  std::vector<std::uint64_t> bits(dense ? (vertices + 63) / 64 : 0, 0);
+  std::vector<std::uint64_t> selected;  // sparse: sorted grid indices
   for (std::size_t i = 1; i < records_.size(); ++i) {
     const record& r = records_[i];
     if (!in_cut(r.diamond, r.error)) continue;
     taken[i] = 1;
-    selected.push_back(r.diamond);
+    if (dense) {
+      bits[r.diamond / 64] |= std::uint64_t{1} << (r.diamond % 64);
+    } else {
+      selected.push_back(r.diamond);
+    }
   }
-  const std::uint64_t vertices = hier_.vertex_count();
-  const bool dense = selected.size() > vertices / sparse_cut_vertices;
-  std::vector<std::uint64_t> bits;
-  if (dense) {
-    bits.assign((vertices + 63) / 64, 0);
-    for (const std::uint64_t d : selected) bits[d / 64] |= std::uint64_t{1} << (d % 64);
-  } else {
-    std::sort(selected.begin(), selected.end());
-  }
+  std::sort(selected.begin(), selected.end());
   const auto split_in_cut = [&](std::uint64_t d) {
     return dense ? ((bits[d / 64] >> (d % 64)) & 1u) != 0
                  : std::binary_search(selected.begin(), selected.end(), d);
@@ -193,9 +222,7 @@ contour_set contour_refiner::build(InCut&& in_cut) const {
   return out.finish(origin_, spacing_);
 }
 
-contour_set contour_refiner::extract() const {
-  return build([](std::uint64_t, double) { return true; });
-}
+contour_set contour_refiner::extract() const { return build(whole_cut{}); }
 
 contour_set contour_refiner::extract_cut(double max_error) const {
   // A split is in the cut when its own record's error exceeds max_error (nested errors: the

@@ -35,10 +35,12 @@
 // that took it and must be destroyed on that thread before the engine.
 #pragma once
 
+#include <atomic>
 #include <chrono>
 #include <cstdint>
 #include <functional>
 #include <memory>
+#include <vector>
 
 #include <progiso/concurrent/epoch.hpp>
 #include <progiso/core/base/config.hpp>
@@ -91,11 +93,11 @@ struct contour_engine_statistics {
 class contour_snapshot {
  public:
   contour_snapshot() = default;
-  contour_snapshot(contour_snapshot&&) noexcept = default;
-  contour_snapshot& operator=(contour_snapshot&&) noexcept = default;
+  contour_snapshot(contour_snapshot&& other) noexcept;
+  contour_snapshot& operator=(contour_snapshot&& other) noexcept;
   contour_snapshot(const contour_snapshot&) = delete;
   contour_snapshot& operator=(const contour_snapshot&) = delete;
-  ~contour_snapshot() = default;
+  ~contour_snapshot();
 
   [[nodiscard]] bool valid() const noexcept { return root_ != nullptr; }
   [[nodiscard]] double isovalue() const noexcept;
@@ -105,24 +107,32 @@ class contour_snapshot {
   [[nodiscard]] std::uint64_t split_count() const noexcept { return published_ - 1; }
   /// Segments in the cut before clipping to the image: O(1).
   [[nodiscard]] std::uint64_t segment_count() const noexcept;
-  /// Whether the diamond centred at c is split in the cut (false outside the grid).
-  [[nodiscard]] bool is_split(const ipoint2& centre) const noexcept;
+  /// Whether the diamond centred at c is split in the cut (false outside the grid). The first
+  /// call marks the cut's splits (O(cut records), a bit per grid vertex, kept with the
+  /// snapshot); every call after it is O(1). Safe from several threads at once.
+  [[nodiscard]] bool is_split(const ipoint2& centre) const;
   /// The cut as polylines (pixel units, clipped to the image), as contour_refiner::extract().
   [[nodiscard]] contour_set extract() const;
   /// The sub-cut of split diamonds whose nested error exceeds max_error.
   [[nodiscard]] contour_set extract_cut(double max_error) const;
-  /// Whether the root is alive and every record of the cut is well-formed (stress tests).
-  [[nodiscard]] bool check_integrity() const noexcept;
+  /// Whether the root is alive and every record of the cut is well-formed, each diamond split
+  /// once (stress tests; a bit per grid vertex of scratch).
+  [[nodiscard]] bool check_integrity() const;
 
  private:
   friend class contour_engine;
   template <class InCut>
   contour_set build(InCut&& in_cut) const;
 
+  // The cut's splits, a bit per grid vertex, made by the first is_split() call.
+  [[nodiscard]] const std::vector<std::uint64_t>& split_bits() const;
+
   epoch_guard guard_;
   const contour_engine* owner_ = nullptr;
   const detail::contour_root* root_ = nullptr;
   std::uint64_t published_ = 0;
+  // Owned; published by compare-and-swap so that concurrent first calls agree on one.
+  mutable std::atomic<const std::vector<std::uint64_t>*> split_bits_{nullptr};
 };
 
 /// The contour engine. See the file comment.

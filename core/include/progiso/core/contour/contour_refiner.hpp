@@ -49,7 +49,10 @@ struct contour_statistics {
 };
 
 /// Order of splits: breadth first (coarse to fine) or largest nested error first.
-enum class contour_order { breadth_first, largest_error_first };
+/// The order of ready diamonds: coarse to fine, largest error first, or depth first (the last
+/// ready diamond first: a split's children next, while its samples are in cache; what a full
+/// refinement of a large image uses).
+enum class contour_order { breadth_first, largest_error_first, depth_first };
 
 /// Sequential progressive contouring at one isovalue.
 class contour_refiner {
