@@ -25,20 +25,6 @@ struct whole_cut {
 };
 }  // namespace
 
-namespace {
-detail::queue_discipline discipline_of(contour_order order) noexcept {
-  switch (order) {
-    case contour_order::breadth_first:
-      return detail::queue_discipline::fifo;
-    case contour_order::depth_first:
-      return detail::queue_discipline::lifo;
-    case contour_order::largest_error_first:
-      break;
-  }
-  return detail::queue_discipline::largest_error;
-}
-}  // namespace
-
 struct contour_refiner::queue : detail::ready_queue<detail::contour_ready> {
   using detail::ready_queue<detail::contour_ready>::ready_queue;
 };
@@ -52,7 +38,9 @@ contour_refiner::contour_refiner(const volume& image, const hierarchy2d& hier,
       frontier_(hier),
       segments_(detail::chunked_store<detail::placed_segment>::bits_for(hier.vertex_count())),
       records_(detail::chunked_store<record>::bits_for(hier.vertex_count())),
-      queue_(std::make_unique<queue>(discipline_of(order))) {
+      queue_(std::make_unique<queue>(order == contour_order::breadth_first
+                                         ? detail::queue_discipline::fifo
+                                         : detail::queue_discipline::largest_error)) {
   if (!std::isfinite(isovalue)) {
     throw error("isovalue: expected a finite number, found " + std::to_string(isovalue));
   }

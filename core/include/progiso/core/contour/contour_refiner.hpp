@@ -49,10 +49,7 @@ struct contour_statistics {
 };
 
 /// Order of splits: breadth first (coarse to fine) or largest nested error first.
-/// The order of ready diamonds: coarse to fine, largest error first, or depth first (the last
-/// ready diamond first: a split's children next, while its samples are in cache; what a full
-/// refinement of a large image uses).
-enum class contour_order { breadth_first, largest_error_first, depth_first };
+enum class contour_order { breadth_first, largest_error_first };
 
 /// Sequential progressive contouring at one isovalue.
 class contour_refiner {
