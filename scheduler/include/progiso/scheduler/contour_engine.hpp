@@ -20,9 +20,10 @@
 // bands (refine/detail/ready_queue.hpp), last in first out for full refinement; a run's splits
 // are those the sequential refiner makes for the same goal (error goals: the same set).
 //
-// Snapshots. As in engine.hpp: a root holds one isovalue, an append_log of records and a record
-// index per grid vertex; snapshot() pins an epoch guard, protects the root pointer and
-// acquire-loads the record count: O(1), no lock, never waiting for the writer nor delaying it.
+// Snapshots. As in engine.hpp: a root holds one isovalue and an append_log of records (no array
+// per grid vertex: a snapshot marks its cut's splits when an extraction or is_split() needs
+// them); snapshot() pins an epoch guard, protects the root pointer and acquire-loads the record
+// count: O(1), no lock, never waiting for the writer nor delaying it.
 // The cut is exactly the first W records; a snapshot holds one isovalue and one parent-closed
 // cut. An isovalue change swaps the root and retires the old one through the epoch domain.
 //
