@@ -7,7 +7,6 @@
 
 #include <algorithm>
 #include <atomic>
-#include <bit>
 #include <cmath>
 #include <cstring>
 #include <memory>
@@ -20,6 +19,7 @@
 #include <progiso/concurrent/append_log.hpp>
 #include <progiso/core/base/assert.hpp>
 #include <progiso/core/base/detail/chunked_store.hpp>
+#include <progiso/core/base/detail/cut_index.hpp>
 #include <progiso/core/base/error.hpp>
 #include <progiso/core/contour/contour_split.hpp>
 #include <progiso/core/contour/detail/contour_frontier.hpp>
@@ -239,7 +239,7 @@ struct contour_engine_impl : run_control {
       for (int i = 0; i < s.op_count; ++i) {
         ++t.primitives[static_cast<std::size_t>(s.ops[static_cast<std::size_t>(i)].kind)];
       }
-      r->frontier.split(d, index, [&](const ipoint2& c, std::uint64_t, std::int32_t h) {
+      r->frontier.split(d, index, [&](const ipoint2& c, std::int32_t h) {
         ++t.visited;
         if (const auto item = ready_contour_diamond(rd, r->isovalue, c, h)) {
           r->queue.push(*item);
@@ -349,17 +349,14 @@ contour_snapshot::~contour_snapshot() {
   delete split_bits_.load(std::memory_order_relaxed);
 }
 
-const std::vector<std::uint64_t>& contour_snapshot::split_bits() const {
-  // acquire: pairs with the release of the compare-and-swap below (the vector's contents).
+const detail::cut_index& contour_snapshot::split_bits() const {
+  // acquire: pairs with the release of the compare-and-swap below (the index's contents).
   if (const auto* b = split_bits_.load(std::memory_order_acquire)) return *b;
-  const std::uint64_t vertices = owner_->hierarchy_of().vertex_count();
-  auto made = std::make_unique<std::vector<std::uint64_t>>((vertices + 63) / 64, 0);
-  for (std::uint64_t r = 1; r < published_; ++r) {
-    const std::uint64_t d = root_->records[r].diamond;
-    (*made)[d / 64] |= std::uint64_t{1} << (d % 64);
-  }
-  const std::vector<std::uint64_t>* expected = nullptr;
-  // acq_rel: releases this thread's vector to later loads (the acquire above) and, when another
+  auto made = std::make_unique<detail::cut_index>(
+      detail::cut_index::dense(owner_->hierarchy_of().vertex_count()));
+  for (std::uint64_t r = 1; r < published_; ++r) made->add_alone(root_->records[r].diamond);
+  const detail::cut_index* expected = nullptr;
+  // acq_rel: releases this thread's index to later loads (the acquire above) and, when another
   // call won, acquires that one's. Partner: this same exchange in a concurrent first call.
   if (split_bits_.compare_exchange_strong(expected, made.get(), std::memory_order_acq_rel)) {
     return *made.release();
@@ -369,9 +366,7 @@ const std::vector<std::uint64_t>& contour_snapshot::split_bits() const {
 
 bool contour_snapshot::is_split(const ipoint2& c) const {
   const hierarchy2d& h = owner_->hierarchy_of();
-  if (!h.in_grid(c)) return false;
-  const std::uint64_t d = h.index(c);
-  return ((split_bits()[d / 64] >> (d % 64)) & 1u) != 0;
+  return h.in_grid(c) && split_bits().contains(h.index(c));
 }
 
 template <class InCut>
@@ -379,58 +374,38 @@ contour_set contour_snapshot::build(InCut&& in_cut) const {
   const detail::contour_engine_impl& e = *owner_->impl_;
   detail::contour_assembler out(e.hier, root_->isovalue, static_cast<std::size_t>(segment_count()));
   // Records in canonical order (the root's, then by diamond), so that the polylines depend
-  // only on the split set, not on the order of the splits (goal, interruptions, resumptions).
-  // A dense cut (a split per 4096 grid vertices: the bitmap then costs at most 512 bytes a
-  // split, less than sorting them) marks its diamonds in a bitmap, counts the bits
-  // before each word and places each record at its diamond's rank (a counting sort; the bitmap
-  // also answers "is this segment's owner split in the cut" from cache); a sparse one sorts
-  // its (diamond, record) pairs and searches them.
-  const auto add_live = [&](const detail::contour_record& rec, auto&& split_in_cut) {
-    out.begin_record(rec.diamond);
-    for (std::uint32_t i = 0; i < rec.count; ++i) {
-      const detail::placed_segment& s = rec.segments[i];
-      if (s.seg.owner == detail::no_owner2 || !split_in_cut(s.seg.owner)) out.add(s);
-    }
-  };
+  // only on the split set, not on the order of the splits (goal, interruptions, resumptions):
+  // each record goes to its diamond's rank in the cut's index, which also answers "is this
+  // segment's owner split in the cut". The index is a bitmap with counts per word when the cut
+  // has a split per 4096 grid vertices (at most 512 bytes a split, less than sorting them), the
+  // sorted grid indices otherwise.
   std::vector<std::uint64_t> selected;  // records of the cut, in publication order
   for (std::uint64_t r = 1; r < published_; ++r) {
     if (in_cut(root_->records[r])) selected.push_back(r);
   }
   const std::uint64_t vertices = e.hier.vertex_count();
+  detail::cut_index cut;
   if (selected.size() > vertices / 4096) {
-    std::vector<std::uint64_t> bits((vertices + 63) / 64, 0);
-    for (const std::uint64_t r : selected) {
-      const std::uint64_t d = root_->records[r].diamond;
-      bits[d / 64] |= std::uint64_t{1} << (d % 64);
-    }
-    std::vector<std::uint32_t> before(bits.size());
-    std::uint32_t count = 0;
-    for (std::size_t w = 0; w < bits.size(); ++w) {
-      before[w] = count;
-      count += static_cast<std::uint32_t>(std::popcount(bits[w]));
-    }
-    std::vector<std::uint64_t> order(selected.size());
-    for (const std::uint64_t r : selected) {
-      const std::uint64_t d = root_->records[r].diamond;
-      const std::uint64_t below = bits[d / 64] & ((std::uint64_t{1} << (d % 64)) - 1);
-      order[before[d / 64] + static_cast<std::uint64_t>(std::popcount(below))] = r;
-    }
-    const auto marked = [&bits](std::uint64_t d) { return ((bits[d / 64] >> (d % 64)) & 1) != 0; };
-    add_live(root_->records[0], marked);
-    for (const std::uint64_t r : order) add_live(root_->records[r], marked);
+    cut = detail::cut_index::dense(vertices);
+    for (const std::uint64_t r : selected) cut.add_alone(root_->records[r].diamond);
+    cut.finish({}, 1);
   } else {
-    std::vector<std::pair<std::uint64_t, std::uint64_t>> order;  // (diamond, record)
-    order.reserve(selected.size());
-    for (const std::uint64_t r : selected) order.emplace_back(root_->records[r].diamond, r);
-    std::sort(order.begin(), order.end());
-    const auto split = [&order](std::uint64_t d) {
-      const auto it = std::lower_bound(order.begin(), order.end(),
-                                       std::pair<std::uint64_t, std::uint64_t>{d, 0});
-      return it != order.end() && it->first == d;
-    };
-    add_live(root_->records[0], split);
-    for (const auto& [diamond, r] : order) add_live(root_->records[r], split);
+    std::vector<std::uint64_t> diamonds;
+    diamonds.reserve(selected.size());
+    for (const std::uint64_t r : selected) diamonds.push_back(root_->records[r].diamond);
+    cut = detail::cut_index::sparse(std::move(diamonds));
   }
+  std::vector<std::uint64_t> order(selected.size());
+  for (const std::uint64_t r : selected) order[cut.rank(root_->records[r].diamond)] = r;
+  const auto add_live = [&](const detail::contour_record& rec) {
+    out.begin_record(rec.diamond);
+    for (std::uint32_t i = 0; i < rec.count; ++i) {
+      const detail::placed_segment& s = rec.segments[i];
+      if (s.seg.owner == detail::no_owner2 || !cut.contains(s.seg.owner)) out.add(s);
+    }
+  };
+  add_live(root_->records[0]);
+  for (const std::uint64_t r : order) add_live(root_->records[r]);
   return out.finish(e.origin, e.spacing);
 }
 

@@ -6,6 +6,7 @@
 #include <string>
 #include <type_traits>
 
+#include <progiso/core/base/detail/cut_index.hpp>
 #include <progiso/core/base/error.hpp>
 #include <progiso/core/refine/deadline.hpp>
 #include <progiso/core/refine/detail/ready_queue.hpp>
@@ -100,7 +101,7 @@ bool contour_refiner::split_next(std::uint64_t max_segments) {
   ++class_counts_[s.split_class];
   counts_pending_ = true;
   last_index_ = index;
-  frontier_.split(d, index, [&](const ipoint2& c, std::uint64_t, std::int32_t h) {
+  frontier_.split(d, index, [&](const ipoint2& c, std::int32_t h) {
     ++stats_.visited;
     if (const auto r = detail::ready_contour_diamond(ranges_, isovalue_, c, h)) {
       queue_->push(*r);
@@ -180,23 +181,19 @@ contour_set contour_refiner::build(InCut&& in_cut) const {
   const std::uint64_t vertices = hier_.vertex_count();
   const bool dense = records_.size() - 1 > vertices / sparse_cut_vertices;
   std::vector<std::uint8_t> taken(records_.size(), 0);  // record 0, the root's, always in
-  std::vector<std::uint64_t> bits(dense ? (vertices + 63) / 64 : 0, 0);
-  std::vector<std::uint64_t> selected;  // sparse: sorted grid indices
+  detail::cut_index cut = dense ? detail::cut_index::dense(vertices) : detail::cut_index{};
+  std::vector<std::uint64_t> selected;  // sparse: the selected grid indices
   for (std::size_t i = 1; i < records_.size(); ++i) {
     const record& r = records_[i];
     if (!in_cut(r.diamond, r.error)) continue;
     taken[i] = 1;
     if (dense) {
-      bits[r.diamond / 64] |= std::uint64_t{1} << (r.diamond % 64);
+      cut.add_alone(r.diamond);
     } else {
       selected.push_back(r.diamond);
     }
   }
-  std::sort(selected.begin(), selected.end());
-  const auto split_in_cut = [&](std::uint64_t d) {
-    return dense ? ((bits[d / 64] >> (d % 64)) & 1u) != 0
-                 : std::binary_search(selected.begin(), selected.end(), d);
-  };
+  if (!dense) cut = detail::cut_index::sparse(std::move(selected));
   detail::contour_assembler out(hier_, isovalue_, static_cast<std::size_t>(stats_.segments));
   for (std::size_t i = 0; i < records_.size(); ++i) {
     const record& r = records_[i];
@@ -204,7 +201,7 @@ contour_set contour_refiner::build(InCut&& in_cut) const {
     out.begin_record(r.diamond);
     for (const detail::placed_segment* p = r.segments; p != r.segments + r.count; ++p) {
       const std::uint64_t owner = p->seg.owner;
-      if (owner == no_owner2 || !split_in_cut(owner)) out.add(*p);
+      if (owner == no_owner2 || !cut.contains(owner)) out.add(*p);
     }
   }
   return out.finish(origin_, spacing_);

@@ -59,6 +59,7 @@ class contour_engine;
 namespace detail {
 struct contour_root;
 struct contour_engine_impl;
+class cut_index;
 }  // namespace detail
 
 struct contour_engine_options {
@@ -126,14 +127,14 @@ class contour_snapshot {
   contour_set build(InCut&& in_cut) const;
 
   // The cut's splits, a bit per grid vertex, made by the first is_split() call.
-  [[nodiscard]] const std::vector<std::uint64_t>& split_bits() const;
+  [[nodiscard]] const detail::cut_index& split_bits() const;
 
   epoch_guard guard_;
   const contour_engine* owner_ = nullptr;
   const detail::contour_root* root_ = nullptr;
   std::uint64_t published_ = 0;
   // Owned; published by compare-and-swap so that concurrent first calls agree on one.
-  mutable std::atomic<const std::vector<std::uint64_t>*> split_bits_{nullptr};
+  mutable std::atomic<const detail::cut_index*> split_bits_{nullptr};
 };
 
 /// The contour engine. See the file comment.

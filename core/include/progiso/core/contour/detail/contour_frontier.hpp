@@ -86,8 +86,8 @@ class contour_frontier {
   [[nodiscard]] bool is_split(std::uint64_t index) const noexcept {
     return (state_.get()[index] & split_bit) != 0;
   }
-  /// Marks diamond d (grid index `index`) split and calls ready(child centre, child index, child
-  /// scale) for each child whose parents are now all split, in hierarchy2d::children()'s order.
+  /// Marks diamond d (grid index `index`) split and calls ready(child centre, child scale) for
+  /// each child whose parents are now all split, in hierarchy2d::children()'s order.
   /// Returns d's child count. The children's scales and parent counts follow from d's type (as
   /// hierarchy2d::parent_count() gives them): a square centre's children are the edge midpoints
   /// of its sides, of its scale, whose parents are the square centres on either side that lie in
@@ -108,7 +108,7 @@ class contour_frontier {
           static_cast<std::uint8_t>(add_in_place(state[ci], std::uint8_t{1}) & parent_count_mask);
       ++n;
       PROGISO_ASSERT(scale == hier_->scale_of(child) && parents == hier_->parent_count(child));
-      if (count == parents) ready(child, ci, scale);
+      if (count == parents) ready(child, scale);
     };
     if (d.type == 0) {
       // Along axis q the child's parents lie at ± h along q.

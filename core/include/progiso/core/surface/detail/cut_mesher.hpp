@@ -47,6 +47,7 @@
 #include <vector>
 
 #include <progiso/core/base/assert.hpp>
+#include <progiso/core/base/detail/cut_index.hpp>
 #include <progiso/core/base/detail/flat_map.hpp>
 #include <progiso/core/base/detail/prefault.hpp>
 #include <progiso/core/base/parallel_loop.hpp>
@@ -59,91 +60,12 @@
 
 namespace progiso::detail {
 
-/// Bits set in x. Without a popcnt instruction in the baseline, std::popcount is a call.
-[[nodiscard]] constexpr unsigned bit_count(std::uint64_t x) noexcept {
-  x = x - ((x >> 1) & 0x5555555555555555ULL);
-  x = (x & 0x3333333333333333ULL) + ((x >> 2) & 0x3333333333333333ULL);
-  x = (x + (x >> 4)) & 0x0F0F0F0F0F0F0F0FULL;
-  return static_cast<unsigned>((x * 0x0101010101010101ULL) >> 56);
-}
-
 /// The offset of an edge_offset_code().
 [[nodiscard]] constexpr ipoint offset_of_code(unsigned code) noexcept {
   return ipoint{static_cast<std::int32_t>(code % 3) - 1,
                 static_cast<std::int32_t>(code / 3 % 3) - 1,
                 static_cast<std::int32_t>(code / 9) - 1};
 }
-
-/// The split diamonds of a cut by grid index, with their ranks in grid index order. Dense: one
-/// bit per grid vertex and the count of set bits before each 64-bit word (an eighth and a
-/// sixteenth of a byte per vertex). Sparse: the sorted indices (binary search).
-class cut_index {
- public:
-  /// A dense index over `vertices` grid vertices, empty.
-  static cut_index dense(std::uint64_t vertices) {
-    cut_index c;
-    c.dense_ = true;
-    c.bits_.assign((vertices + 63) / 64, 0);
-    return c;
-  }
-  /// A sparse index of these grid indices (any order; sorted here).
-  static cut_index sparse(std::vector<std::uint64_t> indices) {
-    cut_index c;
-    std::sort(indices.begin(), indices.end());
-    c.sorted_ = std::move(indices);
-    c.size_ = c.sorted_.size();
-    return c;
-  }
-  /// Dense only: adds grid index v. Safe from several threads at once (before finish()).
-  void add(std::uint64_t v) noexcept {
-    std::atomic_ref<std::uint64_t>(bits_[v >> 6])
-        // relaxed: the parallel loop's join orders these writes before finish() and the reads.
-        .fetch_or(std::uint64_t{1} << (v & 63), std::memory_order_relaxed);
-  }
-  /// Dense only: the counts per word, in `parts` pieces through `run`.
-  void finish(const parallel_loop& run, std::size_t parts) {
-    const std::size_t words = bits_.size();
-    before_.resize(words);
-    parts = std::clamp<std::size_t>(parts, 1, std::max<std::size_t>(words, 1));
-    std::vector<std::uint64_t> sums(parts + 1, 0);
-    const auto first = [&](std::size_t k) { return piece_begin(words, parts, k); };
-    run_loop(run, parts, [&](std::size_t k) {
-      std::uint64_t n = 0;
-      for (std::size_t w = first(k); w < first(k + 1); ++w) n += bit_count(bits_[w]);
-      sums[k + 1] = n;
-    });
-    for (std::size_t k = 0; k < parts; ++k) sums[k + 1] += sums[k];
-    run_loop(run, parts, [&](std::size_t k) {
-      std::uint64_t n = sums[k];
-      for (std::size_t w = first(k); w < first(k + 1); ++w) {
-        before_[w] = static_cast<std::uint32_t>(n);
-        n += bit_count(bits_[w]);
-      }
-    });
-    size_ = sums[parts];
-  }
-  [[nodiscard]] std::uint64_t size() const noexcept { return size_; }
-  [[nodiscard]] bool contains(std::uint64_t v) const noexcept {
-    if (dense_) return ((bits_[v >> 6] >> (v & 63)) & 1u) != 0;
-    return std::binary_search(sorted_.begin(), sorted_.end(), v);
-  }
-  /// The rank of v, which the index contains.
-  [[nodiscard]] std::uint32_t rank(std::uint64_t v) const noexcept {
-    if (dense_) {
-      const std::uint64_t below = (std::uint64_t{1} << (v & 63)) - 1;
-      return before_[v >> 6] + bit_count(bits_[v >> 6] & below);
-    }
-    return static_cast<std::uint32_t>(std::lower_bound(sorted_.begin(), sorted_.end(), v) -
-                                      sorted_.begin());
-  }
-
- private:
-  bool dense_ = false;
-  std::vector<std::uint64_t> bits_;
-  std::vector<std::uint32_t> before_;
-  std::vector<std::uint64_t> sorted_;
-  std::uint64_t size_ = 0;
-};
 
 /// What cut_mesher reads. `records` is the number of records; record 0 is the root surface
 /// (root_triangles), records 1 … records − 1 are splits, each with the fields diamond (grid index
