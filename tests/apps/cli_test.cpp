@@ -15,6 +15,7 @@
 
 #include <gtest/gtest.h>
 
+#include "support/io_test_helpers.hpp"
 #include "support/mesh_checks.hpp"
 #include "support/test_data.hpp"
 
@@ -341,6 +342,32 @@ TEST_F(Cli, nrrd_input_is_read_with_its_spacing) {
     }
   }
   EXPECT_GT(max_c, 8.0);  // spacing 2: coordinates reach beyond the index range 0..8
+}
+
+TEST_F(Cli, nifti_input_gives_the_surface_of_the_same_samples_as_raw) {
+  // A CT-like volume in NIfTI-1, plain and gzip, against the same bytes as a raw file with the
+  // same spacing: the same mesh file, byte for byte.
+  std::string payload = cube_bytes(9);
+  const fs::path raw = write_file("v.raw", payload);
+  const std::string nii = test::nifti1_file({9, 9, 9}, 2, 8, {2.0f, 1.5f, 0.5f}, payload);
+  const fs::path plain = write_file("v.nii", nii);
+  const fs::path gz = write_file("v.nii.gz", test::gzip(nii));
+  const fs::path want = dir_ / "raw.obj";
+  ASSERT_EQ(run("extract " + raw.string() +
+                " --dims 9,9,9 --type u8 --spacing 2,1.5,0.5 --iso 100 "
+                "--full -o " +
+                want.string())
+                .status,
+            0);
+  for (const fs::path& in : {plain, gz}) {
+    const fs::path out = dir_ / (in.filename().string() + ".obj");
+    const run_result r = run("extract " + in.string() + " --iso 100 --full -o " + out.string());
+    ASSERT_EQ(r.status, 0) << r.err;
+    EXPECT_EQ(slurp(out), slurp(want)) << in;
+  }
+  // A NIfTI file that ends inside its data: one line naming it, exit 2, no output.
+  const fs::path cut = write_file("cut.nii", nii.substr(0, nii.size() - 10));
+  expect_bad_input("extract " + cut.string() + " --iso 100", "cut.nii: NIfTI data ends");
 }
 
 }  // namespace

@@ -28,6 +28,7 @@
 #include <progiso/core/io/mesh_io.hpp>
 
 #include "support/bounded_run.hpp"
+#include "support/io_test_helpers.hpp"
 #include "support/scratch_dir.hpp"
 #include "support/test_data.hpp"
 
@@ -37,6 +38,7 @@ namespace {
 namespace fs = std::filesystem;
 using test::bounded_result;
 using test::bounds;
+using test::gzip;
 
 constexpr std::uint64_t one_gib = std::uint64_t{1} << 30;
 
@@ -92,20 +94,6 @@ std::string cube_bytes(int n) {
   return s;
 }
 
-std::string gzip(const std::string& bytes) {
-  z_stream z{};
-  deflateInit2(&z, 9, Z_DEFLATED, 15 + 16, 9, Z_DEFAULT_STRATEGY);
-  std::string out(deflateBound(&z, bytes.size()) + 64, '\0');
-  z.next_in = reinterpret_cast<Bytef*>(const_cast<char*>(bytes.data()));
-  z.avail_in = static_cast<uInt>(bytes.size());
-  z.next_out = reinterpret_cast<Bytef*>(out.data());
-  z.avail_out = static_cast<uInt>(out.size());
-  deflate(&z, Z_FINISH);
-  out.resize(z.total_out);
-  deflateEnd(&z);
-  return out;
-}
-
 std::string pgm(int w, int h) {
   std::string s = "P5\n" + std::to_string(w) + " " + std::to_string(h) + "\n255\n";
   for (int y = 0; y < h; ++y)
@@ -155,7 +143,13 @@ TEST_F(Hostile, declared_sizes_beyond_the_data_fail_before_allocating) {
                             "NRRD0004\ntype: double\ndimension: 3\nsizes: 2000 2000 1000\n"
                             "endian: little\nencoding: gzip\n\n" +
                                 gzip(std::string(4 << 20, '\0')));
-  for (const fs::path& in : {raw, gz}) {
+  // The same in NIfTI: a plain file of bytes and a gzip file of doubles.
+  const fs::path nii = write("big.nii", test::nifti1_file({2000, 2000, 1000}, 2, 8, {1, 1, 1},
+                                                          std::string(33000, '\x11')));
+  const fs::path nii_gz = write(
+      "big.nii.gz",
+      gzip(test::nifti1_file({2000, 2000, 1000}, 64, 64, {1, 1, 1}, std::string(4 << 20, '\0'))));
+  for (const fs::path& in : {raw, gz, nii, nii_gz}) {
     const auto before = snapshot();
     const bounded_result r =
         run({"extract", in.string(), "--iso", "1", "-o", path("o.ply").string()},

@@ -49,6 +49,7 @@ namespace fs = std::filesystem;
 using progiso::index3;
 using progiso::sample_type;
 using progiso::test::contains;
+using progiso::test::gzip;
 
 class scratch_dir : public progiso::test::scratch_dir {
  public:
@@ -63,21 +64,6 @@ void write_file(const fs::path& file, const std::string& bytes) {
 template <class F>
 std::string error_naming(const fs::path& file, F&& f) {
   return progiso::test::error_message_naming(file, std::forward<F>(f));
-}
-
-/// `data` as one gzip member (zlib's deflate, independent of the reader's inflate).
-std::string gzip(const std::string& data, int level = 6) {
-  z_stream zs{};
-  EXPECT_EQ(deflateInit2(&zs, level, Z_DEFLATED, 15 + 16, 8, Z_DEFAULT_STRATEGY), Z_OK);
-  std::string out(deflateBound(&zs, static_cast<uLong>(data.size())) + 64, '\0');
-  zs.next_in = reinterpret_cast<Bytef*>(const_cast<char*>(data.data()));
-  zs.avail_in = static_cast<uInt>(data.size());
-  zs.next_out = reinterpret_cast<Bytef*>(out.data());
-  zs.avail_out = static_cast<uInt>(out.size());
-  EXPECT_EQ(deflate(&zs, Z_FINISH), Z_STREAM_END);
-  out.resize(zs.total_out);
-  deflateEnd(&zs);
-  return out;
 }
 
 // =============================================================================================

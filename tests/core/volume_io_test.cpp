@@ -569,8 +569,8 @@ TEST(VolumeIo, read_volume_rejects_an_unknown_format) {
   const std::string msg =
       error_message([&] { (void)progiso::read_volume(dir / "v.vtk", std::nullopt, std::nullopt); });
   EXPECT_EQ(msg, (dir / "v.vtk").string() +
-                     ": unknown volume format (expected .nrrd, .nhdr, or a raw file with --dims "
-                     "and --type)");
+                     ": unknown volume format (expected .nrrd, .nhdr, .nii, .nii.gz, .hdr, or a "
+                     "raw file with --dims and --type)");
 }
 
 TEST(VolumeIo, read_volume_rejects_an_invalid_spacing_with_the_file_name) {

@@ -3,7 +3,7 @@
 
     make_seeds.py OUT_DIR [SHARED_DATA_DIR]
 
-writes OUT_DIR/<harness>/<name> for the harnesses raw, extract, nrrd, pgm, png, ply, obj and cli: small
+writes OUT_DIR/<harness>/<name> for the harnesses raw, extract, nrrd, nifti, pgm, png, ply, obj and cli: small
 valid files of every kind the readers accept, and the hostile cases of issue 11 (printf field
 widths in data file names, declared sizes far beyond the data, NaN samples, numbers beyond
 their types …). With SHARED_DATA_DIR (../shared/data), it adds crops of the real volumes and
@@ -99,6 +99,67 @@ def nrrd_seeds(out, crops):
         head = "NRRD0004\ntype: uchar\ndimension: 3\nsizes: %d %d %d\n" % dims
         put(out, "nrrd", "shared_%s_raw" % name, (head + "encoding: raw\n\n").encode() + data)
         put(out, "nrrd", "shared_%s_gzip" % name, (head + "encoding: gzip\n\n").encode() + gzip.compress(data))
+
+
+# ---- nifti: single files (plain or gzip), and pairs "header \0DATA\0 image".
+
+def nifti_header(version, dims, datatype, bitpix, big=False, pair=False, vox_offset=None,
+                 slope=0.0, inter=0.0, pixdim=(1.0, 1.0, 1.0), extension=b""):
+    e = ">" if big else "<"
+    size = 348 if version == 1 else 540
+    dim = [len(dims)] + list(dims) + [1] * (7 - len(dims))
+    if vox_offset is None:
+        vox_offset = 0 if pair else size + 4 + len(extension)
+    h = bytearray(size)
+    struct.pack_into(e + "i", h, 0, size)
+    pix = [1.0] + list(pixdim) + [1.0] * 4
+    if version == 1:
+        struct.pack_into(e + "8h", h, 40, *dim)
+        struct.pack_into(e + "hh", h, 70, datatype, bitpix)
+        struct.pack_into(e + "8f", h, 76, *pix)
+        struct.pack_into(e + "fff", h, 108, vox_offset, slope, inter)
+        struct.pack_into(e + "hh", h, 252, 0, 1)
+        struct.pack_into(e + "4f", h, 280, pixdim[0], 0, 0, -12.5)
+        struct.pack_into(e + "4f", h, 296, 0, pixdim[1], 0, 7.0)
+        struct.pack_into(e + "4f", h, 312, 0, 0, pixdim[2], 3.25)
+        h[344:348] = b"ni1\0" if pair else b"n+1\0"
+    else:
+        h[4:12] = (b"ni2\0" if pair else b"n+2\0") + b"\r\n\x1a\n"
+        struct.pack_into(e + "hh", h, 12, datatype, bitpix)
+        struct.pack_into(e + "8q", h, 16, *dim)
+        struct.pack_into(e + "8d", h, 104, *pix)
+        struct.pack_into(e + "q", h, 168, vox_offset)
+        struct.pack_into(e + "dd", h, 176, slope, inter)
+        struct.pack_into(e + "ii", h, 344, 1, 0)
+        struct.pack_into(e + "ddd", h, 376, 4.0, -5.0, 6.0)
+    if not pair:
+        h += (b"\1" if extension else b"\0") + b"\0\0\0" + extension
+    return bytes(h)
+
+
+def nifti_seeds(out, crops):
+    cube = bytes((x * 7 + y * 13 + z * 29) % 251 for z in range(4) for y in range(4) for x in range(4))
+    put(out, "nifti", "n1_u8", nifti_header(1, (4, 4, 4), 2, 8, pixdim=(1.0, 2.0, 0.5)) + cube)
+    put(out, "nifti", "n1_u8_gzip", gzip.compress(nifti_header(1, (4, 4, 4), 2, 8) + cube))
+    i16 = b"".join(struct.pack(">h", (i * 997) % 4000 - 2000) for i in range(64))
+    put(out, "nifti", "n2_i16_big_scaled",
+        nifti_header(2, (4, 4, 4), 4, 16, big=True, slope=0.5, inter=-1024.0) + i16)
+    f32 = b"".join(struct.pack("<f", math.sin(i * 0.3)) for i in range(64))
+    put(out, "nifti", "n1_f32_4d_one_point", nifti_header(1, (4, 4, 4, 1), 16, 32) + f32)
+    ext = struct.pack("<ii", 32, 4) + b"x" * 24
+    put(out, "nifti", "n1_extension", nifti_header(1, (4, 4, 4), 2, 8, extension=ext) + cube)
+    put(out, "nifti", "pair_ni1", nifti_header(1, (4, 4, 4), 2, 8, pair=True) + SEP + cube)
+    put(out, "nifti", "pair_ni2_gzip", nifti_header(2, (4, 4, 4), 2, 8, pair=True) + SEP + gzip.compress(cube))
+    put(out, "nifti", "time_series", nifti_header(1, (4, 4, 4, 3), 2, 8) + cube * 3)
+    put(out, "nifti", "declared_2000x2000x1000",
+        nifti_header(1, (2000, 2000, 1000), 2, 8) + cube)
+    put(out, "nifti", "declared_gzip_doubles",
+        gzip.compress(nifti_header(2, (2000, 2000, 1000), 64, 64) + bytes(1 << 16)))
+    f32_nan = b"".join(struct.pack("<f", float("nan") if i % 2 else i) for i in range(64))
+    put(out, "nifti", "f32_every_other_nan", nifti_header(1, (4, 4, 4), 16, 32) + f32_nan)
+    for name, (dims, data) in crops.items():
+        put(out, "nifti", "shared_%s" % name, nifti_header(1, dims, 2, 8) + data)
+        put(out, "nifti", "shared_%s_gzip" % name, gzip.compress(nifti_header(2, dims, 2, 8) + data))
 
 
 # ---- images.
@@ -236,6 +297,7 @@ def main():
     crops, images = shared_crops(sys.argv[2] if len(sys.argv) == 3 else None)
     raw_seeds(out, crops)
     nrrd_seeds(out, crops)
+    nifti_seeds(out, crops)
     image_seeds(out, images)
     mesh_seeds(out)
     cli_seeds(out)

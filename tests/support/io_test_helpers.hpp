@@ -1,12 +1,16 @@
 // tests/support/io_test_helpers.hpp — small helpers shared by the reader and writer tests.
 #pragma once
 
+#include <array>
+#include <cstdint>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <sstream>
 #include <string>
 
 #include <gtest/gtest.h>
+#include <zlib.h>
 
 #include <progiso/core/base/error.hpp>
 
@@ -42,6 +46,46 @@ inline std::string read_whole_file(const std::filesystem::path& file) {
   std::ostringstream text;
   text << in.rdbuf();
   return text.str();
+}
+
+/// `data` as one gzip member (zlib's deflate, independent of the readers' inflate).
+inline std::string gzip(const std::string& data, int level = 6) {
+  z_stream zs{};
+  EXPECT_EQ(deflateInit2(&zs, level, Z_DEFLATED, 15 + 16, 8, Z_DEFAULT_STRATEGY), Z_OK);
+  std::string out(deflateBound(&zs, static_cast<uLong>(data.size())) + 64, '\0');
+  zs.next_in = reinterpret_cast<Bytef*>(const_cast<char*>(data.data()));
+  zs.avail_in = static_cast<uInt>(data.size());
+  zs.next_out = reinterpret_cast<Bytef*>(out.data());
+  zs.avail_out = static_cast<uInt>(out.size());
+  EXPECT_EQ(deflate(&zs, Z_FINISH), Z_STREAM_END);
+  out.resize(zs.total_out);
+  deflateEnd(&zs);
+  return out;
+}
+
+/// A single-file NIfTI-1 volume (magic "n+1", host byte order, data at byte 352) of `dims`
+/// samples of NIfTI `datatype` with `bitpix` bits, spacing in pixdim, no qform or sform, and
+/// `payload` as its data (any length: hostile files declare more than they hold).
+inline std::string nifti1_file(const std::array<std::int16_t, 3>& dims, std::int16_t datatype,
+                               std::int16_t bitpix, const std::array<float, 3>& spacing,
+                               const std::string& payload) {
+  std::string h(352, '\0');
+  const auto put = [&h](std::size_t at, const auto value) {
+    std::memcpy(h.data() + at, &value, sizeof value);
+  };
+  put(0, std::int32_t{348});
+  put(40, std::int16_t{3});
+  for (std::size_t i = 0; i < 3; ++i) {
+    put(42 + 2 * i, dims[i]);
+    put(80 + 4 * i, spacing[i]);
+  }
+  for (std::size_t i = 3; i < 7; ++i) put(42 + 2 * i, std::int16_t{1});
+  put(70, datatype);
+  put(72, bitpix);
+  put(76, 1.0f);
+  put(108, 352.0f);
+  std::memcpy(h.data() + 344, "n+1", 4);
+  return h + payload;
 }
 
 inline bool contains(const std::string& haystack, const std::string& needle) {

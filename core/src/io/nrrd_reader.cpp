@@ -1,7 +1,5 @@
 #include <progiso/core/io/detail/nrrd_reader.hpp>
 
-#include <zlib.h>
-
 #include <algorithm>
 #include <bit>
 #include <charconv>
@@ -18,6 +16,7 @@
 
 #include <progiso/core/base/assert.hpp>
 #include <progiso/core/base/error.hpp>
+#include <progiso/core/io/detail/gzip_input.hpp>
 
 namespace progiso::detail {
 namespace {
@@ -1086,7 +1085,7 @@ std::string encoding_bound(nrrd_encoding e) {
     case nrrd_encoding::raw:
       return "";
     case nrrd_encoding::gzip:
-      return "; gzip expands at most " + std::to_string(nrrd_gzip_max_ratio) + ":1";
+      return "; gzip expands at most " + std::to_string(gzip_max_ratio) + ":1";
     case nrrd_encoding::ascii:
       return "; ascii takes at least 2 bytes per value";
     case nrrd_encoding::hex:
@@ -1121,9 +1120,7 @@ void check_capacity(const data_plan& plan, input_file& in, std::uint64_t start,
     case nrrd_encoding::gzip: {
       const std::uint64_t need =
           plan.piece + static_cast<std::uint64_t>(std::max<std::int64_t>(h.byte_skip, 0));
-      fits = avail > (std::numeric_limits<std::uint64_t>::max() - nrrd_gzip_slack_bytes) /
-                         nrrd_gzip_max_ratio ||
-             need <= avail * nrrd_gzip_max_ratio + nrrd_gzip_slack_bytes;
+      fits = gzip_can_hold(avail, need);
       break;
     }
     case nrrd_encoding::ascii:
@@ -1183,62 +1180,9 @@ void read_raw_piece(input_file& in, std::span<std::byte> out) {
 /// Inflates gzip (or zlib) data, one or more concatenated members, into `out` after dropping
 /// `skip` decompressed bytes; stops as soon as `out` is full.
 void inflate_piece(input_file& in, std::uint64_t skip, std::span<std::byte> out) {
-  z_stream zs{};
-  // 15 + 32: a 32 KiB window, and the gzip or zlib header detected automatically.
-  if (inflateInit2(&zs, 15 + 32) != Z_OK) {
-    throw error(in.path().string() + ": cannot start zlib's inflate");
-  }
-  struct inflate_end {
-    z_stream* stream;
-    ~inflate_end() { inflateEnd(stream); }
-  } const ender{&zs};
-
-  std::vector<unsigned char> input(chunk_bytes);
-  std::vector<unsigned char> scratch(
-      static_cast<std::size_t>(std::min<std::uint64_t>(skip, chunk_bytes)));
-  auto* const dst = reinterpret_cast<unsigned char*>(out.data());
-  std::uint64_t skipped = 0;
-  std::size_t produced = 0;
-  bool input_done = false;
-  const auto refill = [&] {
-    const std::size_t got = in.read(input.data(), input.size());
-    input_done = got == 0;
-    zs.next_in = input.data();
-    zs.avail_in = static_cast<uInt>(got);
-  };
-
-  while (produced < out.size()) {
-    if (zs.avail_in == 0 && !input_done) refill();
-    const bool skipping = skipped < skip;
-    unsigned char* target = skipping ? scratch.data() : dst + produced;
-    std::uint64_t room =
-        skipping ? std::min<std::uint64_t>(scratch.size(), skip - skipped) : out.size() - produced;
-    room = std::min<std::uint64_t>(room, UINT_MAX);
-    zs.next_out = target;
-    zs.avail_out = static_cast<uInt>(room);
-    const int rc = inflate(&zs, Z_NO_FLUSH);
-    const std::uint64_t made = room - zs.avail_out;
-    if (skipping) {
-      skipped += made;
-    } else {
-      produced += static_cast<std::size_t>(made);
-    }
-    if (rc == Z_STREAM_END) {
-      if (produced == out.size()) break;
-      // Another gzip member may follow.
-      if (zs.avail_in == 0) refill();
-      if (zs.avail_in == 0) break;
-      if (inflateReset(&zs) != Z_OK) break;
-      continue;
-    }
-    if (rc == Z_DATA_ERROR || rc == Z_NEED_DICT || rc == Z_STREAM_ERROR) {
-      throw error(in.path().string() + ": corrupt NRRD gzip data (zlib: " +
-                  (zs.msg != nullptr ? std::string(zs.msg) : std::string("needs a dictionary")) +
-                  ")");
-    }
-    if (rc == Z_MEM_ERROR) throw std::bad_alloc();
-    if (rc == Z_BUF_ERROR && input_done) break;  // no progress possible: the data has ended
-  }
+  gzip_input gz(in, "NRRD gzip data");
+  const std::uint64_t skipped = gz.skip(skip);
+  const std::size_t produced = skipped == skip ? gz.read(out) : 0;
   if (produced < out.size()) data_ends(in, produced, out.size(), " (the gzip stream ends early)");
 }
 
@@ -1457,10 +1401,7 @@ std::vector<std::byte> read_nrrd_samples(const nrrd_header& header, input_file& 
       });
     }
     // Each file passed with its own slack; all together get one.
-    if (header.encoding == nrrd_encoding::gzip &&
-        found <= (std::numeric_limits<std::uint64_t>::max() - nrrd_gzip_slack_bytes) /
-                     nrrd_gzip_max_ratio &&
-        plan.total > found * nrrd_gzip_max_ratio + nrrd_gzip_slack_bytes) {
+    if (header.encoding == nrrd_encoding::gzip && !gzip_can_hold(found, plan.total)) {
       throw error(header_file.path().string() + ": the " + std::to_string(found) +
                   " bytes of gzip data in " + std::to_string(plan.files) +
                   " data files cannot hold the declared " + std::to_string(plan.total) +

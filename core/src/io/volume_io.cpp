@@ -13,6 +13,7 @@
 #include <progiso/core/base/error.hpp>
 #include <progiso/core/io/detail/file_input.hpp>
 #include <progiso/core/io/detail/file_output.hpp>
+#include <progiso/core/io/detail/nifti_reader.hpp>
 #include <progiso/core/io/detail/nrrd_reader.hpp>
 
 namespace progiso {
@@ -44,13 +45,16 @@ volume make_volume(const fs::path& file, const index3& dims, sample_type type,
   }
 }
 
-/// Throws "FILE: unknown volume format (…)" unless the extension names a NRRD file.
-void require_nrrd_extension(const fs::path& file) {
+enum class volume_format { nrrd, nifti };
+
+/// The format a file name asks for; throws "FILE: unknown volume format (…)" for any other.
+volume_format format_of(const fs::path& file) {
+  if (detail::has_nifti_name(file)) return volume_format::nifti;
   const std::string ext = lower_extension(file);
-  if (ext == ".nrrd" || ext == ".nhdr") return;
+  if (ext == ".nrrd" || ext == ".nhdr") return volume_format::nrrd;
   throw error(file.string() +
-              ": unknown volume format (expected .nrrd, .nhdr, or a raw file with --dims and "
-              "--type)");
+              ": unknown volume format (expected .nrrd, .nhdr, .nii, .nii.gz, .hdr, or a raw "
+              "file with --dims and --type)");
 }
 
 volume read_nrrd_with(const fs::path& file, const std::optional<std::array<double, 3>>& spacing) {
@@ -59,6 +63,13 @@ volume read_nrrd_with(const fs::path& file, const std::optional<std::array<doubl
   std::vector<std::byte> samples = detail::read_nrrd_samples(header, in);
   return make_volume(file, header.dims, header.type, std::move(samples),
                      spacing.value_or(header.spacing), header.origin);
+}
+
+volume read_nifti_with(const fs::path& file, const std::optional<std::array<double, 3>>& spacing) {
+  const detail::nifti_header header = detail::read_nifti_header(file);
+  std::vector<std::byte> samples = detail::read_nifti_samples(header, file);
+  return make_volume(header.data_file ? *header.data_file : file, header.dims, header.volume_type(),
+                     std::move(samples), spacing.value_or(header.spacing), header.origin);
 }
 
 }  // namespace
@@ -99,21 +110,27 @@ volume read_raw(const std::filesystem::path& file, const raw_layout& layout,
 }
 
 // ---------------------------------------------------------------------------------------------
-// NRRD files and dispatch.
+// NRRD and NIfTI files, and dispatch.
 
 volume read_nrrd(const std::filesystem::path& file) { return read_nrrd_with(file, std::nullopt); }
+
+volume read_nifti(const std::filesystem::path& file) { return read_nifti_with(file, std::nullopt); }
 
 volume read_volume(const std::filesystem::path& file, const std::optional<raw_layout>& raw,
                    std::optional<std::array<double, 3>> spacing) {
   if (raw) return read_raw(file, *raw, spacing.value_or(std::array<double, 3>{1.0, 1.0, 1.0}));
-  require_nrrd_extension(file);
+  if (format_of(file) == volume_format::nifti) return read_nifti_with(file, spacing);
   return read_nrrd_with(file, spacing);
 }
 
 std::vector<std::filesystem::path> volume_input_files(const std::filesystem::path& file,
                                                       const std::optional<raw_layout>& raw) {
   if (raw) return {file};
-  require_nrrd_extension(file);
+  if (format_of(file) == volume_format::nifti) {
+    const detail::nifti_header header = detail::read_nifti_header(file);
+    if (header.data_file) return {file, *header.data_file};
+    return {file};
+  }
   detail::input_file in(file, "NRRD");
   detail::nrrd_header header = detail::parse_nrrd_header(in);
   std::vector<std::filesystem::path> files;

@@ -1,11 +1,14 @@
-// progiso/core/io/volume_io.hpp — reading volumes from headerless raw files and NRRD files.
+// progiso/core/io/volume_io.hpp — reading volumes from headerless raw files, NRRD and NIfTI.
 //
-// Two sources are supported. A headerless raw file holds nothing but the samples, x varying
+// Three sources are supported. A headerless raw file holds nothing but the samples, x varying
 // fastest, then y, then z; its layout (dims, sample type, byte order) comes from the caller,
 // usually the command line's --dims and --type, and the file size must match it exactly.
 // NRRD files (.nrrd with attached data, .nhdr with detached data files) describe themselves;
 // progiso reads them with its own bounded parser (detail/nrrd_reader.hpp): raw, gzip, ascii
-// and hex encodings, either byte order, one data file, a LIST of them or a %d pattern.
+// and hex encodings, either byte order, one data file, a LIST of them or a %d pattern. NIfTI-1
+// and NIfTI-2 files (.nii, .nii.gz, or a .hdr with its .img), the formats of MRI and much
+// research CT, are read by detail/nifti_reader.hpp: either byte order, plain or gzip, scaled to
+// physical values by scl_slope and scl_inter.
 // read_volume() picks the reader the way the command-line tool does: an explicit raw layout
 // wins, otherwise the file extension decides. volume_input_files() names the files a read
 // would open, from the header alone.
@@ -63,19 +66,30 @@ struct raw_layout {
 /// the bounds.
 [[nodiscard]] volume read_nrrd(const std::filesystem::path& file);
 
+/// Reads a NIfTI-1 or NIfTI-2 volume: a .nii (plain or gzip) or a .hdr header whose data lies
+/// in the .img (or .img.gz) beside it. The array must be 3-D (trailing dimensions of size 1
+/// allowed) with 2 to 32769 samples per axis, of type u8 i8 u16 i16 u32 i32 f32 or f64. Spacing
+/// is |pixdim| per axis (zero or non-finite: 1); the origin is the sform's translation when
+/// sform_code > 0, else the qform's when qform_code > 0, else 0 (rotations and flips are not
+/// applied). Samples with a scl_slope other than 0 and (1, 0) are scaled to physical values, as
+/// f32 (f64 for 32-bit integer and f64 data). Throws progiso::error naming the file on any
+/// failure; see detail/nifti_reader.hpp and docs/ARCHITECTURE.md "Reading NIfTI".
+[[nodiscard]] volume read_nifti(const std::filesystem::path& file);
+
 /// Reads a volume the way the command-line tool does: with a raw layout, read_raw(); else, for
-/// the extensions .nrrd and .nhdr (case-insensitive), read_nrrd(). A given `spacing` replaces
-/// the one from the header (or the default 1,1,1 for raw files). Throws progiso::error
-/// "FILE: unknown volume format (…)" for any other file, and whatever the chosen reader
-/// throws.
+/// the extensions .nrrd and .nhdr, read_nrrd(); for .nii, .nii.gz, .hdr and .hdr.gz,
+/// read_nifti() (case-insensitive). A given `spacing` replaces the one from the header (or the
+/// default 1,1,1 for raw files). Throws progiso::error "FILE: unknown volume format (…)" for any
+/// other file, and whatever the chosen reader throws.
 [[nodiscard]] volume read_volume(const std::filesystem::path& file,
                                  const std::optional<raw_layout>& raw,
                                  std::optional<std::array<double, 3>> spacing);
 
 /// The files read_volume(file, raw, …) would read: `file` itself, then, for a NRRD header,
 /// every detached data file in order (patterns expanded, paths resolved against the header's
-/// directory). Parses only the header; the data files need not exist. Throws progiso::error
-/// like read_volume() for an unknown format and for header errors.
+/// directory), and for a NIfTI header and data pair its .img (or .img.gz). Parses only the header;
+/// the data files need not exist. Throws progiso::error like read_volume() for an unknown format
+/// and for header errors.
 [[nodiscard]] std::vector<std::filesystem::path> volume_input_files(
     const std::filesystem::path& file, const std::optional<raw_layout>& raw);
 

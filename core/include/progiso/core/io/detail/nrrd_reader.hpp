@@ -12,8 +12,8 @@
 // Bounds: a header line is at most nrrd_max_line_bytes; a header names at most
 // nrrd_max_data_files data files, whose resolved names take at most nrrd_max_name_bytes; an
 // axis has at most nrrd_max_axis_size samples (the volume's limit); gzip data is taken to
-// expand at most nrrd_gzip_max_ratio:1 (deflate's limit is about 1032:1) plus
-// nrrd_gzip_slack_bytes. Header parsing is linear in the header size.
+// expand at most gzip_max_ratio:1 (deflate's limit is about 1032:1) plus gzip_slack_bytes
+// (gzip_input.hpp). Header parsing is linear in the header size.
 //
 // Thread safety: no global state; different files may be read concurrently. Every failure
 // throws progiso::error with one line naming the file that failed (the data file for detached
@@ -37,8 +37,6 @@ inline constexpr std::size_t nrrd_max_line_bytes = std::size_t{1} << 20;
 inline constexpr std::size_t nrrd_max_data_files = std::size_t{1} << 20;
 inline constexpr std::size_t nrrd_max_name_bytes = std::size_t{64} << 20;
 inline constexpr std::int64_t nrrd_max_axis_size = (std::int64_t{1} << 15) + 1;
-inline constexpr std::uint64_t nrrd_gzip_max_ratio = 1032;
-inline constexpr std::uint64_t nrrd_gzip_slack_bytes = 64 * 1024;
 
 /// The data encodings progiso decodes (bzip2 and zrl are recognised and refused).
 enum class nrrd_encoding : std::uint8_t { raw, gzip, ascii, hex };
@@ -72,7 +70,7 @@ struct nrrd_header {
 /// Reads the samples `header` describes (from `header_file` when attached, else from each
 /// data file, opened through input_file) in host byte order. Before allocating, checks that
 /// each source can hold its share: raw data needs its bytes, gzip data at most
-/// nrrd_gzip_max_ratio times its size plus slack, ascii 2 bytes per value, hex 2 digits per
+/// gzip_max_ratio times its size plus slack, ascii 2 bytes per value, hex 2 digits per
 /// byte; throws "FILE: … cannot hold …" otherwise. Throws "FILE: NRRD data ends after X of Y
 /// bytes" for data that ends early, and names zlib's message for corrupt gzip data.
 [[nodiscard]] std::vector<std::byte> read_nrrd_samples(const nrrd_header& header,

@@ -1,0 +1,616 @@
+// Tests for progiso's own NIfTI reader (core/io/detail/nifti_reader.hpp, through read_nifti(),
+// read_volume() and volume_input_files()).
+//
+// Differential: nifti_clib (Debian's libnifti2-dev, a test-only dependency) reads the same files,
+// and the two must agree on dims, every sample, spacing and origin: generated volumes of every
+// supported type as NIfTI-1 and NIfTI-2, both byte orders, single files and header and data
+// pairs, plain and gzip, with header extensions and scaling; files that nifti_clib writes
+// itself; the shared real volumes written as NIfTI.
+//
+// Hostile: files that end inside the header, wrong size fields and magics, dimensions and
+// offsets out of range, declared arrays far beyond the data, corrupt and truncated gzip,
+// missing data files, unsupported types, time series. Each fails with one line naming the file.
+#include <progiso/core/io/volume_io.hpp>
+
+#include <gtest/gtest.h>
+
+#include <sys/stat.h>
+#include "support/io_test_helpers.hpp"
+#include "support/scratch_dir.hpp"
+#include "support/test_data.hpp"
+
+extern "C" {
+#include <nifti2_io.h>
+}
+
+#include <algorithm>
+#include <array>
+#include <bit>
+#include <cmath>
+#include <cstdint>
+#include <cstring>
+#include <filesystem>
+#include <memory>
+#include <random>
+#include <string>
+#include <vector>
+
+#include <progiso/core/base/error.hpp>
+#include <progiso/core/field/volume.hpp>
+
+namespace {
+
+namespace fs = std::filesystem;
+using progiso::index3;
+using progiso::sample_type;
+using progiso::test::contains;
+using progiso::test::gzip;
+
+class scratch_dir : public progiso::test::scratch_dir {
+ public:
+  scratch_dir() : progiso::test::scratch_dir("progiso-nifti-reader-test-") {}
+};
+
+template <class F>
+std::string error_naming(const fs::path& file, F&& f) {
+  return progiso::test::error_message_naming(file, std::forward<F>(f));
+}
+
+struct type_info {
+  sample_type type;
+  std::int16_t code;
+};
+constexpr std::array<type_info, 8> types{{{sample_type::u8, 2},
+                                          {sample_type::i8, 256},
+                                          {sample_type::u16, 512},
+                                          {sample_type::i16, 4},
+                                          {sample_type::u32, 768},
+                                          {sample_type::i32, 8},
+                                          {sample_type::f32, 16},
+                                          {sample_type::f64, 64}}};
+
+/// A NIfTI file as this test writes it, field by field (nifti1.h / nifti2.h offsets), so that
+/// every field can be set to anything, hostile values included.
+struct nifti_file {
+  int version = 1;
+  bool big_endian = false;
+  bool pair = false;  // ni1 / ni2 header with the data in the .img
+  std::array<std::int64_t, 8> dim{3, 5, 4, 3, 1, 1, 1, 1};
+  std::int16_t datatype = 2;
+  std::int16_t bitpix = 8;
+  std::array<double, 8> pixdim{1, 1.5, 2.0, 0.75, 1, 1, 1, 1};
+  double vox_offset = -1;  // −1: right after the header and extensions
+  double scl_slope = 0;
+  double scl_inter = 0;
+  std::int32_t qform_code = 0;
+  std::int32_t sform_code = 1;
+  std::array<double, 3> qoffset{0, 0, 0};
+  std::array<double, 3> sform_t{-10.5, 20.25, 3.0};
+  std::string extension;  // bytes of header extensions (a multiple of 16, or empty)
+  std::string magic;      // empty: the right one
+
+  [[nodiscard]] std::size_t header_size() const { return version == 1 ? 348 : 540; }
+  [[nodiscard]] std::uint64_t data_offset() const {
+    if (vox_offset >= 0) return static_cast<std::uint64_t>(vox_offset);
+    return pair ? 0 : header_size() + 4 + extension.size();
+  }
+
+  template <class T>
+  void put(std::string& h, std::size_t at, T value) const {
+    auto b = std::bit_cast<std::array<char, sizeof(T)>>(value);
+    if (big_endian != (std::endian::native == std::endian::big)) std::reverse(b.begin(), b.end());
+    std::memcpy(h.data() + at, b.data(), sizeof(T));
+  }
+
+  /// The header, the extension flag and extensions (single files), then nothing else.
+  [[nodiscard]] std::string header() const {
+    std::string h(header_size(), '\0');
+    const bool v1 = version == 1;
+    put<std::int32_t>(h, 0, static_cast<std::int32_t>(header_size()));
+    for (std::size_t i = 0; i < 8; ++i) {
+      if (v1) {
+        put<std::int16_t>(h, 40 + 2 * i, static_cast<std::int16_t>(dim[i]));
+        put<float>(h, 76 + 4 * i, static_cast<float>(pixdim[i]));
+      } else {
+        put<std::int64_t>(h, 16 + 8 * i, dim[i]);
+        put<double>(h, 104 + 8 * i, pixdim[i]);
+      }
+    }
+    put<std::int16_t>(h, v1 ? 70 : 12, datatype);
+    put<std::int16_t>(h, v1 ? 72 : 14, bitpix);
+    const double off = static_cast<double>(data_offset());
+    if (v1) {
+      put<float>(h, 108, static_cast<float>(vox_offset >= 0 ? vox_offset : off));
+      put<float>(h, 112, static_cast<float>(scl_slope));
+      put<float>(h, 116, static_cast<float>(scl_inter));
+      put<std::int16_t>(h, 252, static_cast<std::int16_t>(qform_code));
+      put<std::int16_t>(h, 254, static_cast<std::int16_t>(sform_code));
+      for (std::size_t i = 0; i < 3; ++i)
+        put<float>(h, 268 + 4 * i, static_cast<float>(qoffset[i]));
+      // sform: the diagonal is the spacing, the last column the translation.
+      for (std::size_t r = 0; r < 3; ++r) {
+        put<float>(h, 280 + 16 * r + 4 * r, static_cast<float>(pixdim[r + 1]));
+        put<float>(h, 280 + 16 * r + 12, static_cast<float>(sform_t[r]));
+      }
+      const std::string m =
+          magic.empty() ? (pair ? std::string("ni1\0", 4) : std::string("n+1\0", 4)) : magic;
+      std::memcpy(h.data() + 344, m.data(), std::min<std::size_t>(4, m.size()));
+    } else {
+      put<std::int64_t>(h, 168, static_cast<std::int64_t>(vox_offset >= 0 ? vox_offset : off));
+      put<double>(h, 176, scl_slope);
+      put<double>(h, 184, scl_inter);
+      put<std::int32_t>(h, 344, qform_code);
+      put<std::int32_t>(h, 348, sform_code);
+      for (std::size_t i = 0; i < 3; ++i) put<double>(h, 376 + 8 * i, qoffset[i]);
+      for (std::size_t r = 0; r < 3; ++r) {
+        put<double>(h, 400 + 32 * r + 8 * r, pixdim[r + 1]);
+        put<double>(h, 400 + 32 * r + 24, sform_t[r]);
+      }
+      const std::string m = magic.empty() ? (pair ? std::string("ni2\0\r\n\032\n", 8)
+                                                  : std::string("n+2\0\r\n\032\n", 8))
+                                          : magic;
+      std::memcpy(h.data() + 4, m.data(), std::min<std::size_t>(8, m.size()));
+    }
+    if (!pair) {
+      std::string flag(4, '\0');
+      flag[0] = extension.empty() ? '\0' : '\1';
+      h += flag + extension;
+    }
+    return h;
+  }
+
+  /// Samples (host order) in the file's byte order.
+  [[nodiscard]] std::string data_bytes(const std::vector<std::byte>& samples,
+                                       std::size_t item) const {
+    std::string d(reinterpret_cast<const char*>(samples.data()), samples.size());
+    if (item > 1 && big_endian != (std::endian::native == std::endian::big)) {
+      for (std::size_t i = 0; i < d.size(); i += item)
+        std::reverse(d.data() + i, d.data() + i + item);
+    }
+    return d;
+  }
+
+  /// Writes the file (and its .img for a pair); returns the path to read.
+  fs::path write(const fs::path& dir, const std::string& stem,
+                 const std::vector<std::byte>& samples, std::size_t item, bool gz) const {
+    const std::string data = data_bytes(samples, item);
+    if (pair) {
+      const fs::path hdr = dir / (stem + (gz ? ".hdr.gz" : ".hdr"));
+      progiso::test::write_file(hdr, gz ? gzip(header()) : header());
+      std::string img(data_offset(), '\0');
+      img += data;
+      progiso::test::write_file(dir / (stem + (gz ? ".img.gz" : ".img")), gz ? gzip(img) : img);
+      return hdr;
+    }
+    std::string all = header();
+    all.resize(std::max<std::size_t>(all.size(), data_offset()), '\0');
+    all += data;
+    const fs::path nii = dir / (stem + (gz ? ".nii.gz" : ".nii"));
+    progiso::test::write_file(nii, gz ? gzip(all) : all);
+    return nii;
+  }
+};
+
+/// Random samples of `type` (finite floats), `count` of them.
+std::vector<std::byte> random_samples(sample_type type, std::size_t count, unsigned seed) {
+  std::mt19937 rng(seed);
+  const std::size_t item = progiso::sample_size(type);
+  std::vector<std::byte> out(count * item);
+  for (std::size_t i = 0; i < count; ++i) {
+    std::byte* p = out.data() + i * item;
+    if (type == sample_type::f32) {
+      const float v = std::uniform_real_distribution<float>(-1e3f, 1e3f)(rng);
+      std::memcpy(p, &v, sizeof v);
+    } else if (type == sample_type::f64) {
+      const double v = std::uniform_real_distribution<double>(-1e6, 1e6)(rng);
+      std::memcpy(p, &v, sizeof v);
+    } else {
+      for (std::size_t b = 0; b < item; ++b) p[b] = static_cast<std::byte>(rng());
+    }
+  }
+  return out;
+}
+
+struct reference_image {
+  struct free_image {
+    void operator()(nifti_image* p) const { nifti_image_free(p); }
+  };
+  std::unique_ptr<nifti_image, free_image> image;
+};
+
+reference_image reference_read(const fs::path& file) {
+  nifti_set_debug_level(0);
+  return {
+      std::unique_ptr<nifti_image, reference_image::free_image>(nifti_image_read(file.c_str(), 1))};
+}
+
+/// progiso's volume against nifti_clib's reading of the same file: dims, samples (scaled as the
+/// header says), spacing and origin.
+void expect_same_as_reference(const progiso::volume& v, const fs::path& file) {
+  const reference_image ref = reference_read(file);
+  ASSERT_NE(ref.image, nullptr) << file;
+  const nifti_image& n = *ref.image;
+  ASSERT_EQ(v.dims(), (index3{n.nx, n.ny, n.nz})) << file;
+  ASSERT_EQ(static_cast<std::size_t>(n.nvox), v.voxel_count()) << file;
+  const bool scaled = n.scl_slope != 0.0 && !(n.scl_slope == 1.0 && n.scl_inter == 0.0);
+  const auto stored = [&](std::size_t i) -> double {
+    const auto* p =
+        static_cast<const unsigned char*>(n.data) + i * static_cast<std::size_t>(n.nbyper);
+    const auto get = [p]<class T>(T) {
+      T x;
+      std::memcpy(&x, p, sizeof x);
+      return static_cast<double>(x);
+    };
+    switch (n.datatype) {
+      case 2:
+        return get(std::uint8_t{});
+      case 256:
+        return get(std::int8_t{});
+      case 512:
+        return get(std::uint16_t{});
+      case 4:
+        return get(std::int16_t{});
+      case 768:
+        return get(std::uint32_t{});
+      case 8:
+        return get(std::int32_t{});
+      case 16:
+        return get(float{});
+      default:
+        return get(double{});
+    }
+  };
+  for (std::size_t i = 0; i < v.voxel_count(); ++i) {
+    double want = stored(i);
+    if (scaled) {
+      want = n.scl_slope * want + n.scl_inter;
+      if (v.type() == sample_type::f32) want = static_cast<double>(static_cast<float>(want));
+    }
+    ASSERT_EQ(v.at(i), want) << file << " sample " << i;
+  }
+  const std::array<double, 3> spacing{std::abs(n.dx), std::abs(n.dy), std::abs(n.dz)};
+  for (std::size_t a = 0; a < 3; ++a) {
+    EXPECT_DOUBLE_EQ(v.spacing()[a], spacing[a] > 0 ? spacing[a] : 1.0) << file;
+  }
+  const auto& m = n.sform_code > 0 ? n.sto_xyz : n.qto_xyz;
+  for (std::size_t a = 0; a < 3; ++a) {
+    const double want = n.sform_code > 0 || n.qform_code > 0 ? m.m[a][3] : 0.0;
+    EXPECT_NEAR(v.origin()[a], want, 1e-6 * (1 + std::abs(want))) << file;
+  }
+}
+
+TEST(NiftiReader, agrees_with_nifti_clib_on_every_type_version_byte_order_layout_and_compression) {
+  scratch_dir dir;
+  int files = 0;
+  for (const type_info& t : types) {
+    for (const int version : {1, 2}) {
+      for (const bool big : {false, true}) {
+        for (const bool pair : {false, true}) {
+          for (const bool gz : {false, true}) {
+            nifti_file f;
+            f.version = version;
+            f.big_endian = big;
+            f.pair = pair;
+            f.datatype = t.code;
+            f.bitpix = static_cast<std::int16_t>(8 * progiso::sample_size(t.type));
+            const std::size_t count = 5 * 4 * 3;
+            const auto samples = random_samples(t.type, count, static_cast<unsigned>(files));
+            const std::string stem = "v" + std::to_string(files++);
+            const fs::path file =
+                f.write(dir.path(), stem, samples, progiso::sample_size(t.type), gz);
+            const progiso::volume v = progiso::read_nifti(file);
+            EXPECT_EQ(v.type(), t.type) << file;
+            EXPECT_EQ(std::memcmp(v.bytes(), samples.data(), samples.size()), 0) << file;
+            EXPECT_EQ(v.origin(), (std::array<double, 3>{-10.5, 20.25, 3.0})) << file;
+            EXPECT_EQ(v.spacing(), (std::array<double, 3>{1.5, 2.0, 0.75})) << file;
+            expect_same_as_reference(v, file);
+          }
+        }
+      }
+    }
+  }
+  EXPECT_EQ(files, 128);
+}
+
+TEST(NiftiReader, scales_samples_to_physical_values_as_nifti_clib_does) {
+  scratch_dir dir;
+  // CT-like: int16 with slope 1 and intercept −1024 (Hounsfield units), and a general slope on
+  // every type; 32-bit integers and doubles scale into f64, the others into f32.
+  int k = 0;
+  for (const type_info& t : types) {
+    for (const auto& [slope, inter] : {std::pair{1.0, -1024.0}, std::pair{0.25, 3.5}}) {
+      nifti_file f;
+      f.datatype = t.code;
+      f.bitpix = static_cast<std::int16_t>(8 * progiso::sample_size(t.type));
+      f.scl_slope = slope;
+      f.scl_inter = inter;
+      f.version = k % 2 == 0 ? 1 : 2;
+      const auto samples = random_samples(t.type, 60, static_cast<unsigned>(100 + k));
+      const fs::path file = f.write(dir.path(), "s" + std::to_string(k++), samples,
+                                    progiso::sample_size(t.type), false);
+      const progiso::volume v = progiso::read_nifti(file);
+      const bool wide =
+          t.type == sample_type::u32 || t.type == sample_type::i32 || t.type == sample_type::f64;
+      EXPECT_EQ(v.type(), wide ? sample_type::f64 : sample_type::f32) << file;
+      expect_same_as_reference(v, file);
+    }
+  }
+  // Slope 0 means unscaled, and so does (1, 0): the stored type stays.
+  for (const double slope : {0.0, 1.0}) {
+    nifti_file f;
+    f.scl_slope = slope;
+    f.scl_inter = 0.0;
+    const auto samples = random_samples(sample_type::u8, 60, 7);
+    const fs::path file = f.write(dir.path(), "u" + std::to_string(slope), samples, 1, false);
+    EXPECT_EQ(progiso::read_nifti(file).type(), sample_type::u8) << file;
+  }
+}
+
+TEST(NiftiReader, reads_what_nifti_clib_writes_single_files_pairs_and_gzip) {
+  scratch_dir dir;
+  int k = 0;
+  for (const char* ext : {".nii", ".nii.gz", ".hdr", ".hdr.gz"}) {
+    for (const int version : {1, 2}) {
+      const int64_t dims[8] = {3, 6, 5, 4, 1, 1, 1, 1};
+      nifti_image* nim = nifti_make_new_nim(dims, DT_INT16, 1);
+      ASSERT_NE(nim, nullptr);
+      nim->nifti_type =
+          version == 1
+              ? (std::string(ext).find(".nii") != std::string::npos ? NIFTI_FTYPE_NIFTI1_1
+                                                                    : NIFTI_FTYPE_NIFTI1_2)
+              : (std::string(ext).find(".nii") != std::string::npos ? NIFTI_FTYPE_NIFTI2_1
+                                                                    : NIFTI_FTYPE_NIFTI2_2);
+      nim->dx = nim->pixdim[1] = 0.5;
+      nim->dy = nim->pixdim[2] = 0.8;
+      nim->dz = nim->pixdim[3] = 2.5;
+      nim->qform_code = 1;
+      nim->qoffset_x = 12.0;
+      nim->qoffset_y = -7.5;
+      nim->qoffset_z = 100.25;
+      nim->quatern_b = nim->quatern_c = nim->quatern_d = 0.0;
+      nim->qfac = 1.0;
+      nim->scl_slope = 2.0;
+      nim->scl_inter = -1024.0;
+      auto* data = static_cast<std::int16_t*>(nim->data);
+      for (std::int64_t i = 0; i < nim->nvox; ++i)
+        data[i] = static_cast<std::int16_t>(i * 37 - 300);
+      const fs::path file = dir.path() / ("w" + std::to_string(k++) + ext);
+      ASSERT_EQ(nifti_set_filenames(nim, file.c_str(), 0, 1), 0);
+      nifti_image_write(nim);
+      nifti_image_free(nim);
+      const progiso::volume v = progiso::read_nifti(file);
+      EXPECT_EQ(v.dims(), (index3{6, 5, 4})) << file;
+      EXPECT_EQ(v.type(), sample_type::f32) << file;
+      EXPECT_EQ(v.at(1), 2.0 * (37 - 300) - 1024.0) << file;
+      EXPECT_EQ(v.origin(), (std::array<double, 3>{12.0, -7.5, 100.25})) << file;
+      expect_same_as_reference(v, file);
+      const std::vector<fs::path> inputs = progiso::volume_input_files(file, std::nullopt);
+      EXPECT_EQ(inputs.size(), std::string(ext).find(".hdr") != std::string::npos ? 2u : 1u)
+          << file;
+    }
+  }
+}
+
+TEST(NiftiReader, skips_header_extensions_and_reads_one_time_point_of_a_4d_file) {
+  scratch_dir dir;
+  const auto samples = random_samples(sample_type::u16, 60, 3);
+  nifti_file f;
+  f.datatype = 512;
+  f.bitpix = 16;
+  // One extension of 32 bytes: esize 32, ecode 4 (AFNI), then text.
+  std::string ext(32, 'x');
+  ext[0] = 32;
+  ext[1] = ext[2] = ext[3] = 0;
+  ext[4] = 4;
+  ext[5] = ext[6] = ext[7] = 0;
+  f.extension = ext;
+  f.dim = {4, 5, 4, 3, 1, 1, 1, 1};
+  for (const bool gz : {false, true}) {
+    const fs::path file = f.write(dir.path(), gz ? "e1" : "e0", samples, 2, gz);
+    const progiso::volume v = progiso::read_nifti(file);
+    EXPECT_EQ(std::memcmp(v.bytes(), samples.data(), samples.size()), 0) << file;
+    expect_same_as_reference(v, file);
+  }
+  // Origin from the qform when there is no sform; 0 when neither is set.
+  nifti_file q;
+  q.sform_code = 0;
+  q.qform_code = 1;
+  q.qoffset = {1.5, -2.5, 4.0};
+  const auto bytes = random_samples(sample_type::u8, 60, 4);
+  EXPECT_EQ(progiso::read_nifti(q.write(dir.path(), "q", bytes, 1, false)).origin(),
+            (std::array<double, 3>{1.5, -2.5, 4.0}));
+  q.qform_code = 0;
+  EXPECT_EQ(progiso::read_nifti(q.write(dir.path(), "n", bytes, 1, false)).origin(),
+            (std::array<double, 3>{0.0, 0.0, 0.0}));
+}
+
+TEST(NiftiReader, read_volume_picks_nifti_by_name_in_any_case_and_a_given_spacing_wins) {
+  scratch_dir dir;
+  const auto samples = random_samples(sample_type::u8, 60, 5);
+  nifti_file f;
+  const fs::path file = f.write(dir.path(), "upper", samples, 1, true);
+  const fs::path upper = dir.path() / "UPPER.NII.GZ";
+  fs::rename(file, upper);
+  const progiso::volume v = progiso::read_volume(upper, std::nullopt, std::nullopt);
+  EXPECT_EQ(std::memcmp(v.bytes(), samples.data(), samples.size()), 0);
+  const progiso::volume w =
+      progiso::read_volume(upper, std::nullopt, std::array<double, 3>{3.0, 3.0, 3.0});
+  EXPECT_EQ(w.spacing(), (std::array<double, 3>{3.0, 3.0, 3.0}));
+  // A gzip file named .nii and a plain one named .nii.gz are read by their contents.
+  const fs::path misnamed = dir.path() / "gz_inside.nii";
+  fs::copy_file(upper, misnamed);
+  EXPECT_EQ(progiso::read_volume(misnamed, std::nullopt, std::nullopt).voxel_count(), 60u);
+  const std::string message = error_naming(dir.path() / "x.img", [&] {
+    (void)progiso::read_volume(dir.path() / "x.img", std::nullopt, std::nullopt);
+  });
+  EXPECT_TRUE(contains(message, ".nii.gz")) << message;
+}
+
+TEST(NiftiReader, the_shared_volumes_read_as_nifti_equal_their_raw_files) {
+  const auto data = progiso::test::shared_data_dir();
+  if (!data) GTEST_SKIP() << "shared data not found";
+  scratch_dir dir;
+  for (const auto& info : progiso::test::shared_volumes()) {
+    const progiso::volume raw = progiso::test::load_shared_volume(info, *data);
+    nifti_file f;
+    f.version = 2;  // pixdim in doubles: 3.2 is not a float
+    f.dim = {3, info.dims[0], info.dims[1], info.dims[2], 1, 1, 1, 1};
+    const auto t = std::find_if(types.begin(), types.end(),
+                                [&](const type_info& x) { return x.type == info.type; });
+    f.datatype = t->code;
+    f.bitpix = static_cast<std::int16_t>(8 * progiso::sample_size(info.type));
+    f.pixdim = {1, info.spacing[0], info.spacing[1], info.spacing[2], 1, 1, 1, 1};
+    f.sform_t = {0, 0, 0};
+    std::vector<std::byte> bytes(raw.bytes(), raw.bytes() + raw.byte_size());
+    const fs::path file =
+        f.write(dir.path(), std::string(info.name), bytes, progiso::sample_size(info.type), true);
+    const progiso::volume v = progiso::read_nifti(file);
+    EXPECT_EQ(v.dims(), raw.dims()) << info.name;
+    EXPECT_EQ(v.spacing(), raw.spacing()) << info.name;
+    EXPECT_EQ(std::memcmp(v.bytes(), raw.bytes(), raw.byte_size()), 0) << info.name;
+  }
+}
+
+// ---- Hostile input: one line naming the file, no allocation for a declared size.
+
+TEST(NiftiReader, refuses_hostile_headers_with_one_line_naming_the_file) {
+  scratch_dir dir;
+  const auto samples = random_samples(sample_type::u8, 60, 9);
+  const auto expect_error = [&](const nifti_file& f, const std::string& stem,
+                                const std::string& what, bool gz = false) {
+    const fs::path file = f.write(dir.path(), stem, samples, 1, gz);
+    const std::string message = error_naming(file, [&] { (void)progiso::read_nifti(file); });
+    EXPECT_TRUE(contains(message, what)) << stem << ": " << message;
+  };
+  {
+    nifti_file f;
+    f.magic = std::string(4, '\0');
+    expect_error(f, "analyze", "Analyze");
+  }
+  {
+    nifti_file f;
+    f.version = 2;
+    f.magic = "n+1";
+    expect_error(f, "badmagic2", "NIfTI-2 magic");
+  }
+  for (const std::int64_t d : {std::int64_t{0}, std::int64_t{-3}, std::int64_t{8}}) {
+    nifti_file f;
+    f.dim[0] = d;
+    expect_error(f, "dim0_" + std::to_string(d), "dim[0]");
+  }
+  {
+    nifti_file f;
+    f.dim = {2, 5, 12, 1, 1, 1, 1, 1};
+    expect_error(f, "two_d", "expected a 3-D volume");
+  }
+  {
+    nifti_file f;
+    f.dim = {4, 5, 4, 3, 20, 1, 1, 1};
+    expect_error(f, "series", "time series of 20 volumes");
+  }
+  for (const std::int64_t d : {std::int64_t{1}, std::int64_t{-5}, std::int64_t{40000}}) {
+    nifti_file f;
+    f.version = 2;
+    f.dim[2] = d;
+    expect_error(f, "dim2_" + std::to_string(d), "dim[2]");
+  }
+  {
+    nifti_file f;
+    f.datatype = 128;
+    f.bitpix = 24;
+    expect_error(f, "rgb", "RGB24");
+  }
+  {
+    nifti_file f;
+    f.bitpix = 16;
+    expect_error(f, "bitpix", "bitpix is 16");
+  }
+  {
+    nifti_file f;
+    f.vox_offset = 100;
+    expect_error(f, "inside", "inside the header");
+  }
+  {
+    nifti_file f;
+    f.vox_offset = 352.5;
+    expect_error(f, "fraction", "whole number");
+  }
+  {
+    nifti_file f;
+    f.version = 2;
+    f.vox_offset = 1e12;  // far past the end of a small file
+    const fs::path file = dir.path() / "far.nii";
+    progiso::test::write_file(file, f.header() + std::string(60, '\0'));
+    const std::string message = error_naming(file, [&] { (void)progiso::read_nifti(file); });
+    EXPECT_TRUE(contains(message, "NIfTI data ends")) << message;
+  }
+  {
+    nifti_file f;
+    f.scl_slope = 2;
+    f.scl_inter = std::numeric_limits<double>::infinity();
+    expect_error(f, "inter", "scl_inter");
+  }
+}
+
+TEST(NiftiReader, refuses_short_truncated_and_corrupt_files_without_allocating_the_declared_size) {
+  scratch_dir dir;
+  const auto samples = random_samples(sample_type::u8, 60, 11);
+  nifti_file f;
+  const std::string whole =
+      f.header() + std::string(reinterpret_cast<const char*>(samples.data()), 60);
+  const auto expect_error = [&](const std::string& stem, const std::string& bytes,
+                                const std::string& what) {
+    const fs::path file = dir.path() / stem;
+    progiso::test::write_file(file, bytes);
+    const std::string message = error_naming(file, [&] { (void)progiso::read_nifti(file); });
+    EXPECT_TRUE(contains(message, what)) << stem << ": " << message;
+  };
+  expect_error("empty.nii", "", "inside the NIfTI header");
+  expect_error("short.nii", whole.substr(0, 200), "of the 348 bytes");
+  expect_error("notnifti.nii", std::string(400, 'a'), "not a NIfTI file");
+  expect_error("shortdata.nii", whole.substr(0, whole.size() - 1), "NIfTI data ends");
+  expect_error("shortgz.nii.gz", gzip(whole.substr(0, whole.size() - 7)),
+               "NIfTI data ends after 53");
+  std::string corrupt = gzip(whole);
+  for (std::size_t i = 20; i < corrupt.size() - 8; i += 3)
+    corrupt[i] = static_cast<char>(corrupt[i] ^ 0x5a);
+  expect_error("corrupt.nii.gz", corrupt, "corrupt NIfTI gzip data");
+  // A declared 32769 × 32769 × 32769 array of doubles (281 TB) in a file of a few hundred
+  // bytes, plain and gzip: refused from the sizes, at once.
+  nifti_file huge;
+  huge.version = 2;
+  huge.dim = {3, 32769, 32769, 32769, 1, 1, 1, 1};
+  huge.datatype = 64;
+  huge.bitpix = 64;
+  expect_error("huge.nii", huge.header() + std::string(64, '\0'), "NIfTI data ends");
+  expect_error("huge.nii.gz", gzip(huge.header() + std::string(64, '\0')), "cannot hold");
+  // A pair without its data file names the file it looked for.
+  nifti_file pair;
+  pair.pair = true;
+  const fs::path hdr = dir.path() / "lonely.hdr";
+  progiso::test::write_file(hdr, pair.header());
+  const std::string message = error_naming(hdr, [&] { (void)progiso::read_nifti(hdr); });
+  EXPECT_TRUE(contains(message, "lonely.img")) << message;
+  // A NaN sample names the data file and the sample.
+  nifti_file nan;
+  nan.datatype = 16;
+  nan.bitpix = 32;
+  nan.pair = true;
+  std::vector<std::byte> floats = random_samples(sample_type::f32, 60, 12);
+  const float bad = std::numeric_limits<float>::quiet_NaN();
+  std::memcpy(floats.data() + 4 * 17, &bad, sizeof bad);
+  const fs::path nan_hdr = nan.write(dir.path(), "nan", floats, 4, false);
+  const std::string nan_message =
+      error_naming(dir.path() / "nan.img", [&] { (void)progiso::read_nifti(nan_hdr); });
+  EXPECT_TRUE(contains(nan_message, "NaN") || contains(nan_message, "finite")) << nan_message;
+}
+
+TEST(NiftiReader, refuses_a_fifo_without_blocking) {
+  scratch_dir dir;
+  const fs::path fifo = dir.path() / "pipe.nii";
+  ASSERT_EQ(mkfifo(fifo.c_str(), 0600), 0);
+  const std::string message = error_naming(fifo, [&] { (void)progiso::read_nifti(fifo); });
+  EXPECT_TRUE(contains(message, "FIFO")) << message;
+}
+
+}  // namespace
