@@ -19,6 +19,9 @@
 #include <string_view>
 #include <system_error>
 
+#include <progiso/core/base/error.hpp>
+#include <progiso/core/io/volume_io.hpp>
+
 namespace progiso::fuzz {
 
 /// The process's scratch directory, created on first use and removed at exit.
@@ -48,6 +51,20 @@ inline std::filesystem::path write_file(const std::string& name, std::string_vie
   if (!bytes.empty() && std::fwrite(bytes.data(), 1, bytes.size(), f) != bytes.size()) std::abort();
   std::fclose(f);
   return p;
+}
+
+/// What the command does with a volume file it is given: lists its input files (a header's
+/// data files) and reads it. Only progiso::error may come out.
+inline void read_volume_file(const std::filesystem::path& file) {
+  try {
+    (void)volume_input_files(file, std::nullopt);
+  } catch (const progiso::error&) {
+  }
+  try {
+    const volume v = read_volume(file, std::nullopt, std::nullopt);
+    (void)v.value_range();
+  } catch (const progiso::error&) {
+  }
 }
 
 inline std::string_view as_text(const std::uint8_t* data, std::size_t size) {

@@ -7,31 +7,19 @@
 #include <cstdint>
 #include <string_view>
 
-#include <progiso/core/base/error.hpp>
-#include <progiso/core/io/volume_io.hpp>
-
 #include "fuzz_support.hpp"
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
-  using namespace progiso;
-  const std::string_view text = fuzz::as_text(data, size);
+  const std::string_view text = progiso::fuzz::as_text(data, size);
   constexpr std::string_view separator("\0DATA\0", 6);
   const std::size_t cut = text.find(separator);
   std::filesystem::path file;
   if (cut == std::string_view::npos) {
-    file = fuzz::write_file("v.nii", text);
+    file = progiso::fuzz::write_file("v.nii", text);
   } else {
-    fuzz::write_file("v.img", text.substr(cut + separator.size()));
-    file = fuzz::write_file("v.hdr", text.substr(0, cut));
+    progiso::fuzz::write_file("v.img", text.substr(cut + separator.size()));
+    file = progiso::fuzz::write_file("v.hdr", text.substr(0, cut));
   }
-  try {
-    (void)volume_input_files(file, std::nullopt);
-  } catch (const progiso::error&) {
-  }
-  try {
-    const volume v = read_volume(file, std::nullopt, std::nullopt);
-    (void)v.value_range();
-  } catch (const progiso::error&) {
-  }
+  progiso::fuzz::read_volume_file(file);
   return 0;
 }

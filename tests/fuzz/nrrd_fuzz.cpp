@@ -7,34 +7,22 @@
 #include <cstdint>
 #include <string_view>
 
-#include <progiso/core/base/error.hpp>
-#include <progiso/core/io/volume_io.hpp>
-
 #include "fuzz_support.hpp"
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
-  using namespace progiso;
-  const std::string_view text = fuzz::as_text(data, size);
+  const std::string_view text = progiso::fuzz::as_text(data, size);
   constexpr std::string_view separator("\0DATA\0", 6);
   const std::size_t cut = text.find(separator);
   std::filesystem::path file;
   if (cut == std::string_view::npos) {
-    file = fuzz::write_file("v.nrrd", text);
+    file = progiso::fuzz::write_file("v.nrrd", text);
   } else {
     const std::string_view payload = text.substr(cut + separator.size());
     for (const char* name : {"d.raw", "d0.raw", "d1.raw", "d2.raw", "d.raw.gz"}) {
-      fuzz::write_file(name, payload);
+      progiso::fuzz::write_file(name, payload);
     }
-    file = fuzz::write_file("v.nhdr", text.substr(0, cut));
+    file = progiso::fuzz::write_file("v.nhdr", text.substr(0, cut));
   }
-  try {
-    (void)volume_input_files(file, std::nullopt);
-  } catch (const progiso::error&) {
-  }
-  try {
-    const volume v = read_volume(file, std::nullopt, std::nullopt);
-    (void)v.value_range();
-  } catch (const progiso::error&) {
-  }
+  progiso::fuzz::read_volume_file(file);
   return 0;
 }
