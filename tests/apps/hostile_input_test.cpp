@@ -197,6 +197,11 @@ TEST_F(Hostile, devices_and_fifos_are_refused_at_once) {
                    quick);
     fs::remove(h);
   }
+  // The .img of a NIfTI header and data pair.
+  const fs::path hdr = write("pair.hdr", test::nifti1_file({4, 4, 4}, 2, 8, {1, 1, 1}, {}, true));
+  ASSERT_EQ(::mkfifo(path("pair.img").c_str(), 0600), 0);
+  expect_refused({"extract", hdr.string(), "--iso", "5", "-o", path("o.ply").string()},
+                 "pair.img: expected a regular NIfTI data file, found a FIFO", quick);
 }
 
 // ---- 4. Outputs never destroy data and are never left half-made.
@@ -233,6 +238,13 @@ TEST_F(Hostile, outputs_naming_an_input_or_each_other_are_refused) {
                            "NRRD0004\ntype: uchar\ndimension: 3\nsizes: 6 6 6\nencoding: raw\n"
                            "data file: data.obj\n");
   expect_refused({"extract", h.string(), "--iso", "50", "-o", path("data.obj").string()}, "input");
+  // So is the .img of a NIfTI header and data pair, here through a link named like a mesh.
+  const fs::path hdr = write("pair.hdr", test::nifti1_file({6, 6, 6}, 2, 8, {1, 1, 1}, {}, true));
+  write("pair.img", cube);
+  fs::create_symlink(path("pair.img"), path("pair_img.ply"));
+  expect_refused({"extract", hdr.string(), "--iso", "50", "-o", path("pair_img.ply").string()},
+                 "input");
+  EXPECT_EQ(test::read_whole_file(path("pair.img")), cube);
   // contour: -o through a link to the image, --frames on -o, --stats-json on the image.
   const fs::path img = write("img.pgm", pgm(40, 30));
   fs::create_symlink(img, path("img.svg"));

@@ -65,10 +65,12 @@ inline std::string gzip(const std::string& data, int level = 6) {
 
 /// A single-file NIfTI-1 volume (magic "n+1", host byte order, data at byte 352) of `dims`
 /// samples of NIfTI `datatype` with `bitpix` bits, spacing in pixdim, no qform or sform, and
-/// `payload` as its data (any length: hostile files declare more than they hold).
+/// `payload` as its data (any length: hostile files declare more than they hold). With `pair`,
+/// the 348-byte header of a header and data pair instead (magic "ni1", data at byte 0 of the
+/// .img beside it), and `payload` is not used.
 inline std::string nifti1_file(const std::array<std::int16_t, 3>& dims, std::int16_t datatype,
                                std::int16_t bitpix, const std::array<float, 3>& spacing,
-                               const std::string& payload) {
+                               const std::string& payload, bool pair = false) {
   std::string h(352, '\0');
   const auto put = [&h](std::size_t at, const auto value) {
     std::memcpy(h.data() + at, &value, sizeof value);
@@ -83,8 +85,9 @@ inline std::string nifti1_file(const std::array<std::int16_t, 3>& dims, std::int
   put(70, datatype);
   put(72, bitpix);
   put(76, 1.0f);
-  put(108, 352.0f);
-  std::memcpy(h.data() + 344, "n+1", 4);
+  put(108, pair ? 0.0f : 352.0f);
+  std::memcpy(h.data() + 344, pair ? "ni1" : "n+1", 4);
+  if (pair) return h.substr(0, 348);
   return h + payload;
 }
 
