@@ -363,7 +363,14 @@ std::vector<std::byte> read_nifti_samples(const nifti_header& h, const fs::path&
   if (!in.skip_to(start)) {
     throw error(name + ": NIfTI data ends before vox_offset " + std::to_string(start));
   }
-  std::vector<std::byte> stored(static_cast<std::size_t>(bytes));
+  // Scaled samples are read into the tail of the output array and converted front to back in
+  // place: the output is never narrower than the stored type, so element i is written only
+  // over stored elements before i + 1 (out × (i + 1) ≤ count × (out − in) + in × (i + 1)).
+  const sample_type out_type = h.volume_type();
+  const std::size_t out_item = sample_size(out_type);
+  std::vector<std::byte> out(static_cast<std::size_t>(count) * out_item);
+  const std::size_t tail = out.size() - static_cast<std::size_t>(bytes);
+  const std::span<std::byte> stored(out.data() + tail, static_cast<std::size_t>(bytes));
   const std::size_t got = in.read(stored);
   if (got < stored.size()) {
     throw error(name + ": NIfTI data ends after " + std::to_string(got) + " of the declared " +
@@ -372,46 +379,45 @@ std::vector<std::byte> read_nifti_samples(const nifti_header& h, const fs::path&
   if (item > 1 && h.big_endian != (std::endian::native == std::endian::big)) {
     swap_sample_bytes(stored, item);
   }
-  if (!h.scaled) return stored;
+  if (!h.scaled) return out;
   // slope × stored + inter, in f32 or f64 (nifti_header::volume_type()).
-  const sample_type out_type = h.volume_type();
-  std::vector<std::byte> out(static_cast<std::size_t>(count) * sample_size(out_type));
-  const auto convert = [&](const auto* src) {
-    for (std::uint64_t i = 0; i < count; ++i) {
-      const double v = h.slope * static_cast<double>(src[i]) + h.inter;
+  const auto convert = [&]<class T>(T) {
+    for (std::size_t i = 0; i < static_cast<std::size_t>(count); ++i) {
+      T x;
+      std::memcpy(&x, stored.data() + i * sizeof x, sizeof x);
+      const double v = h.slope * static_cast<double>(x) + h.inter;
       if (out_type == sample_type::f32) {
-        const auto x = static_cast<float>(v);
-        std::memcpy(out.data() + i * sizeof x, &x, sizeof x);
+        const auto f = static_cast<float>(v);
+        std::memcpy(out.data() + i * sizeof f, &f, sizeof f);
       } else {
         std::memcpy(out.data() + i * sizeof v, &v, sizeof v);
       }
     }
   };
-  const std::byte* p = stored.data();
   switch (h.stored) {
     case sample_type::u8:
-      convert(reinterpret_cast<const std::uint8_t*>(p));
+      convert(std::uint8_t{});
       break;
     case sample_type::i8:
-      convert(reinterpret_cast<const std::int8_t*>(p));
+      convert(std::int8_t{});
       break;
     case sample_type::u16:
-      convert(reinterpret_cast<const std::uint16_t*>(p));
+      convert(std::uint16_t{});
       break;
     case sample_type::i16:
-      convert(reinterpret_cast<const std::int16_t*>(p));
+      convert(std::int16_t{});
       break;
     case sample_type::u32:
-      convert(reinterpret_cast<const std::uint32_t*>(p));
+      convert(std::uint32_t{});
       break;
     case sample_type::i32:
-      convert(reinterpret_cast<const std::int32_t*>(p));
+      convert(std::int32_t{});
       break;
     case sample_type::f32:
-      convert(reinterpret_cast<const float*>(p));
+      convert(float{});
       break;
     case sample_type::f64:
-      convert(reinterpret_cast<const double*>(p));
+      convert(double{});
       break;
   }
   return out;
