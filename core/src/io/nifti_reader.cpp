@@ -85,7 +85,7 @@ class header_bytes {
 /// Where the fields lie in the two versions (nifti1.h and nifti2.h, packed).
 struct layout {
   std::size_t dim;  // int16[8] or int64[8]
-  std::size_t datatype, bitpix;
+  std::size_t datatype;
   std::size_t pixdim;  // float[8] or double[8]
   std::size_t vox_offset;
   std::size_t scl_slope, scl_inter;
@@ -93,8 +93,8 @@ struct layout {
   std::size_t qoffset;                 // 3 floats or doubles
   std::array<std::size_t, 3> srow_t;   // srow_x[3], srow_y[3], srow_z[3]
 };
-constexpr layout v1{40, 70, 72, 76, 108, 112, 116, 252, 254, 268, {292, 308, 324}};
-constexpr layout v2{16, 12, 14, 104, 168, 176, 184, 344, 348, 376, {424, 456, 488}};
+constexpr layout v1{40, 70, 76, 108, 112, 116, 252, 254, 268, {292, 308, 324}};
+constexpr layout v2{16, 12, 104, 168, 176, 184, 344, 348, 376, {424, 456, 488}};
 
 struct type_code {
   std::int16_t code;
@@ -251,19 +251,19 @@ nifti_header read_nifti_header(const fs::path& file) {
     }
     h.dims[i - 1] = dim[i];
   }
+  // Above the third, only sizes above 1 matter (0 and negatives read as 1, as nifti_clib
+  // reads them): a time series or a vector field is not a scalar volume.
   for (std::size_t i = 4; i <= static_cast<std::size_t>(dim[0]); ++i) {
-    if (dim[i] != 1) {
-      throw error(name + ": dim[" + std::to_string(i) + "] is " + std::to_string(dim[i]) +
-                  (i == 4 && dim[i] > 1
-                       ? " (a time series of " + std::to_string(dim[i]) + " volumes)"
-                       : std::string()) +
-                  ": expected a 3-D volume (dimensions above 3 of size 1)");
+    if (dim[i] > 1) {
+      throw error(
+          name + ": dim[" + std::to_string(i) + "] is " + std::to_string(dim[i]) +
+          (i == 4 ? " (a time series of " + std::to_string(dim[i]) + " volumes)" : std::string()) +
+          ": expected a 3-D volume (dimensions above 3 of size 1)");
     }
   }
 
   // Sample type.
   const auto datatype = f.get<std::int16_t>(at.datatype);
-  const auto bitpix = f.get<std::int16_t>(at.bitpix);
   const auto type = std::find_if(supported_types.begin(), supported_types.end(),
                                  [&](const type_code& t) { return t.code == datatype; });
   if (type == supported_types.end()) {
@@ -272,12 +272,8 @@ nifti_header read_nifti_header(const fs::path& file) {
                 ") is not supported (expected UINT8, INT8, UINT16, INT16, UINT32, INT32, "
                 "FLOAT32 or FLOAT64)");
   }
+  // bitpix is redundant with the datatype and ignored, as nifti_clib ignores it.
   h.stored = type->type;
-  if (bitpix != static_cast<std::int16_t>(8 * sample_size(h.stored))) {
-    throw error(name + ": bitpix is " + std::to_string(bitpix) + ", expected " +
-                std::to_string(8 * sample_size(h.stored)) + " for datatype " +
-                std::string(type->name));
-  }
 
   // Where the data starts.
   if (h.version == 1) {

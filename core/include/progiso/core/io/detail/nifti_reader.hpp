@@ -8,9 +8,9 @@
 // the header and vox_offset are skipped unread. The array must be 3-D with 2 to 32769 samples
 // per axis (trailing dimensions of size 1 allowed, so a 4-D file with one time point reads) and
 // one of the types u8 i8 u16 i16 u32 i32 f32 f64 (datatype codes 2, 256, 512, 4, 768, 8, 16,
-// 64, with the matching bitpix). Refused with a message: Analyze 7.5 headers (no NIfTI magic),
-// time series and other arrays of more than 3 non-trivial dimensions, complex, RGB and 64-bit
-// integer types.
+// 64; bitpix, redundant, is ignored as nifti_clib ignores it). Refused with a message: Analyze 7.5
+// headers (no NIfTI magic), time series and other arrays of more than 3 non-trivial dimensions,
+// complex, RGB and 64-bit integer types.
 //
 // Geometry: spacing per axis is |pixdim[i]| (zero or non-finite: 1); the origin is the
 // translation of the sform when sform_code > 0, else of the qform when qform_code > 0, else 0.
