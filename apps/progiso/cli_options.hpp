@@ -39,6 +39,7 @@ struct extract_arguments {
   std::optional<sample_type> type;
   bool big_endian = false;
   std::optional<std::array<double, 3>> spacing;
+  bool world = false;  // --world: vertices in the file's scanner coordinates
   extract_options options;
   std::optional<std::string> stats_json;
   unsigned threads = 0;  // 0: all cores

@@ -131,17 +131,46 @@ class progress_bar {
   std::chrono::steady_clock::time_point start_;
 };
 
-/// Refuses a PLY output whose float coordinates could not hold the volume's extent.
-void check_ply_range(const fs::path& output, const progiso::volume& vol) {
+/// Refuses a PLY output whose float coordinates could not hold the volume's extent (in the
+/// scanner coordinates of `world` when given: the box's corners mapped).
+void check_ply_range(const fs::path& output, const progiso::volume& vol,
+                     const std::optional<progiso::index_to_world>& world) {
   if (progiso::detail::lower_extension(output) != ".ply") return;
   constexpr double float_max = static_cast<double>(std::numeric_limits<float>::max());
+  std::array<double, 3> far{};
+  for (int corner = 0; corner < 8; ++corner) {
+    std::array<double, 3> index{};
+    for (std::size_t a = 0; a < 3; ++a) {
+      index[a] = ((corner >> a) & 1) != 0 ? static_cast<double>(vol.dims()[a] - 1) : 0.0;
+    }
+    std::array<double, 3> p{};
+    if (world) {
+      p = world->apply(index);
+    } else {
+      for (std::size_t a = 0; a < 3; ++a) p[a] = vol.origin()[a] + index[a] * vol.spacing()[a];
+    }
+    for (std::size_t a = 0; a < 3; ++a) far[a] = std::max(far[a], std::fabs(p[a]));
+  }
   for (std::size_t a = 0; a < 3; ++a) {
-    const double far =
-        std::fabs(vol.origin()[a]) + static_cast<double>(vol.dims()[a] - 1) * vol.spacing()[a];
-    if (!(far <= float_max)) {
-      throw error(output.string() + ": coordinates up to " + std::to_string(far) +
+    if (!(far[a] <= float_max)) {
+      throw error(output.string() + ": coordinates up to " + std::to_string(far[a]) +
                   " are beyond the float range of PLY (write .obj for double coordinates)");
     }
+  }
+}
+
+/// The mesh in scanner coordinates: each vertex's grid index (its position in the data's
+/// origin + index × spacing) mapped by `world`, and every triangle's winding reversed when the
+/// map mirrors, so that triangles keep facing the side they faced.
+void to_world(progiso::triangle_mesh& mesh, const progiso::volume& data,
+              const progiso::index_to_world& world) {
+  for (progiso::vec3& p : mesh.vertices) {
+    std::array<double, 3> index{};
+    for (std::size_t a = 0; a < 3; ++a) index[a] = (p[a] - data.origin()[a]) / data.spacing()[a];
+    p = world.apply(index);
+  }
+  if (world.determinant() < 0.0) {
+    for (auto& t : mesh.triangles) std::swap(t[1], t[2]);
   }
 }
 
@@ -162,6 +191,15 @@ int run(const std::vector<std::string>& args) {
     std::vector<named_output> outputs{{"-o", *a.output}};
     if (a.stats_json) outputs.push_back({"--stats-json", *a.stats_json});
     refuse_clashing_outputs(inputs, outputs);
+  }
+  std::optional<progiso::index_to_world> world;
+  if (a.world) {
+    world = progiso::read_volume_world(*a.input, raw);
+    if (!world) {
+      throw error(*a.input +
+                  ": --world: the file declares no orientation (expected a NIfTI file with "
+                  "sform_code or qform_code above 0)");
+    }
   }
   progiso::detail::atomic_output mesh_out(*a.output);
   std::optional<progiso::detail::atomic_output> stats_out;
@@ -187,7 +225,7 @@ int run(const std::vector<std::string>& args) {
     }
     vol = std::make_shared<const progiso::volume>(progiso::smooth(data, a.smooth));
   }
-  check_ply_range(*a.output, *vol);
+  check_ply_range(*a.output, *data, world);
   std::cerr << "progiso: " << input << ", " << data->dims()[0] << "x" << data->dims()[1] << "x"
             << data->dims()[2] << " " << progiso::to_string(data->type()) << ", isovalue " << iso;
   if (a.smooth.active()) {
@@ -198,14 +236,14 @@ int run(const std::vector<std::string>& args) {
   std::cerr << "\n";
   progress_bar bar;
   a.options.progress = [&bar](const progiso::extract_progress& p) { bar.update(p); };
-  const progiso::extract_result r =
-      progiso::extract_isosurface_parallel(*vol, iso, a.options, a.threads);
+  progiso::extract_result r = progiso::extract_isosurface_parallel(*vol, iso, a.options, a.threads);
   bar.finish();
   if (r.isovalue_outside_data) {
     const auto [lo, hi] = vol->value_range();
     std::cerr << "progiso: isovalue " << iso << " is outside the data range [" << lo << ", " << hi
               << "): the surface is empty\n";
   }
+  if (world) to_world(r.mesh, *data, *world);
   progiso::detail::write_mesh_to(mesh_out, r.mesh);
   if (stats_out) stats_out->write(stats_json(a, input, iso, *data, *vol, r));
   // Everything is written: publish the outputs together.

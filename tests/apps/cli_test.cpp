@@ -5,13 +5,16 @@
 
 #include <sys/wait.h>
 
+#include <array>
 #include <cmath>
 #include <cstdio>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <random>
 #include <sstream>
 #include <string>
+#include <vector>
 
 #include <gtest/gtest.h>
 
@@ -368,6 +371,79 @@ TEST_F(Cli, nifti_input_gives_the_surface_of_the_same_samples_as_raw) {
   // A NIfTI file that ends inside its data: one line naming it, exit 2, no output.
   const fs::path cut = write_file("cut.nii", nii.substr(0, nii.size() - 10));
   expect_bad_input("extract " + cut.string() + " --iso 100", "cut.nii: NIfTI data ends");
+}
+
+/// The vertices and faces (0-based) of an OBJ file progiso wrote.
+struct obj_mesh {
+  std::vector<std::array<double, 3>> vertices;
+  std::vector<std::array<long, 3>> faces;
+};
+obj_mesh read_obj_file(const fs::path& file) {
+  obj_mesh m;
+  std::ifstream in(file);
+  std::string tag;
+  while (in >> tag) {
+    if (tag == "v") {
+      std::array<double, 3> v{};
+      in >> v[0] >> v[1] >> v[2];
+      m.vertices.push_back(v);
+    } else if (tag == "f") {
+      std::array<long, 3> f{};
+      in >> f[0] >> f[1] >> f[2];
+      m.faces.push_back({f[0] - 1, f[1] - 1, f[2] - 1});
+    } else {
+      std::getline(in, tag);
+    }
+  }
+  return m;
+}
+
+TEST_F(Cli, world_writes_the_scanner_coordinates_a_nifti_file_declares) {
+  // A NIfTI-1 file whose sform mirrors x and rotates a little, as MRI files do; spacing 2,
+  // 1.5, 0.5 in pixdim. Without --world the vertices are at origin + index × spacing (the
+  // origin being the sform's translation); with it, at sform · (index, 1), and every triangle's
+  // winding is reversed (the map mirrors).
+  std::string nii = test::nifti1_file({9, 9, 9}, 2, 8, {2.0f, 1.5f, 0.5f}, cube_bytes(9));
+  const std::array<std::array<float, 4>, 3> srow{
+      {{-1.8f, 0.2f, 0.0f, 90.5f}, {0.1f, 1.4f, -0.05f, -126.0f}, {0.0f, 0.1f, 0.5f, -72.25f}}};
+  const std::int16_t sform_code = 1;
+  std::memcpy(nii.data() + 254, &sform_code, sizeof sform_code);
+  for (std::size_t r = 0; r < 3; ++r) std::memcpy(nii.data() + 280 + 16 * r, srow[r].data(), 16);
+  const fs::path in = write_file("oriented.nii", nii);
+  const fs::path plain = dir_ / "plain.obj";
+  const fs::path world = dir_ / "world.obj";
+  ASSERT_EQ(run("extract " + in.string() + " --iso 100 -o " + plain.string()).status, 0);
+  const run_result r = run("extract " + in.string() + " --iso 100 --world -o " + world.string());
+  ASSERT_EQ(r.status, 0) << r.err;
+  const obj_mesh a = read_obj_file(plain);
+  const obj_mesh b = read_obj_file(world);
+  ASSERT_GT(a.faces.size(), 100u);
+  ASSERT_EQ(a.vertices.size(), b.vertices.size());
+  ASSERT_EQ(a.faces.size(), b.faces.size());
+  const std::array<double, 3> spacing{2.0, 1.5, 0.5};
+  for (std::size_t i = 0; i < a.vertices.size(); ++i) {
+    for (std::size_t q = 0; q < 3; ++q) {
+      double want = static_cast<double>(srow[q][3]);
+      for (std::size_t c = 0; c < 3; ++c) {
+        // Without --world the origin is the sform's translation: index = (p − origin) / spacing.
+        const double index = (a.vertices[i][c] - static_cast<double>(srow[c][3])) / spacing[c];
+        want += static_cast<double>(srow[q][c]) * index;
+      }
+      ASSERT_NEAR(b.vertices[i][q], want, 1e-9 * (1 + std::abs(want))) << "vertex " << i;
+    }
+  }
+  for (std::size_t t = 0; t < a.faces.size(); ++t) {
+    ASSERT_EQ(b.faces[t], (std::array<long, 3>{a.faces[t][0], a.faces[t][2], a.faces[t][1]}));
+  }
+  // Inputs without an orientation, and --spacing beside --world, are refused.
+  expect_bad_input("extract " + write_file("c.raw", cube_bytes(8)).string() +
+                       " --dims 8,8,8 --type u8 --iso 100 --world",
+                   "--world");
+  const fs::path bare =
+      write_file("bare.nii", test::nifti1_file({9, 9, 9}, 2, 8, {1, 1, 1}, cube_bytes(9)));
+  expect_bad_input("extract " + bare.string() + " --iso 100 --world",
+                   "bare.nii: --world: the file declares no orientation");
+  expect_bad_input("extract " + in.string() + " --iso 100 --world --spacing 1,1,1", "--spacing");
 }
 
 }  // namespace

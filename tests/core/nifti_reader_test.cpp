@@ -31,6 +31,7 @@ extern "C" {
 #include <cstring>
 #include <filesystem>
 #include <memory>
+#include <optional>
 #include <random>
 #include <string>
 #include <vector>
@@ -85,7 +86,10 @@ struct nifti_file {
   std::int32_t qform_code = 0;
   std::int32_t sform_code = 1;
   std::array<double, 3> qoffset{0, 0, 0};
+  std::array<double, 3> quatern{0, 0, 0};  // b, c, d
   std::array<double, 3> sform_t{-10.5, 20.25, 3.0};
+  // The sform's whole rows (else diag(pixdim) with sform_t as the last column).
+  std::optional<std::array<std::array<double, 4>, 3>> srow;
   std::string extension;  // bytes of header extensions (a multiple of 16, or empty)
   std::string magic;      // empty: the right one
 
@@ -125,12 +129,17 @@ struct nifti_file {
       put<float>(h, 116, static_cast<float>(scl_inter));
       put<std::int16_t>(h, 252, static_cast<std::int16_t>(qform_code));
       put<std::int16_t>(h, 254, static_cast<std::int16_t>(sform_code));
-      for (std::size_t i = 0; i < 3; ++i)
+      for (std::size_t i = 0; i < 3; ++i) {
         put<float>(h, 268 + 4 * i, static_cast<float>(qoffset[i]));
+        put<float>(h, 256 + 4 * i, static_cast<float>(quatern[i]));
+      }
       // sform: the diagonal is the spacing, the last column the translation.
       for (std::size_t r = 0; r < 3; ++r) {
         put<float>(h, 280 + 16 * r + 4 * r, static_cast<float>(pixdim[r + 1]));
         put<float>(h, 280 + 16 * r + 12, static_cast<float>(sform_t[r]));
+        for (std::size_t c = 0; srow && c < 4; ++c) {
+          put<float>(h, 280 + 16 * r + 4 * c, static_cast<float>((*srow)[r][c]));
+        }
       }
       const std::string m =
           magic.empty() ? (pair ? std::string("ni1\0", 4) : std::string("n+1\0", 4)) : magic;
@@ -141,10 +150,16 @@ struct nifti_file {
       put<double>(h, 184, scl_inter);
       put<std::int32_t>(h, 344, qform_code);
       put<std::int32_t>(h, 348, sform_code);
-      for (std::size_t i = 0; i < 3; ++i) put<double>(h, 376 + 8 * i, qoffset[i]);
+      for (std::size_t i = 0; i < 3; ++i) {
+        put<double>(h, 376 + 8 * i, qoffset[i]);
+        put<double>(h, 352 + 8 * i, quatern[i]);
+      }
       for (std::size_t r = 0; r < 3; ++r) {
         put<double>(h, 400 + 32 * r + 8 * r, pixdim[r + 1]);
         put<double>(h, 400 + 32 * r + 24, sform_t[r]);
+        for (std::size_t c = 0; srow && c < 4; ++c) {
+          put<double>(h, 400 + 32 * r + 8 * c, (*srow)[r][c]);
+        }
       }
       const std::string m = magic.empty() ? (pair ? std::string("ni2\0\r\n\032\n", 8)
                                                   : std::string("n+2\0\r\n\032\n", 8))
@@ -485,6 +500,70 @@ TEST(NiftiReader, reads_what_nifti_clib_reads_despite_a_wrong_bitpix_or_zero_upp
   EXPECT_EQ(v.type(), sample_type::u16);
   EXPECT_EQ(std::memcmp(v.bytes(), samples.data(), samples.size()), 0);
   expect_same_as_reference(v, file);
+}
+
+TEST(NiftiReader, declares_the_scanner_orientation_nifti_clib_reads_sform_then_qform) {
+  scratch_dir dir;
+  const auto samples = random_samples(sample_type::u8, 60, 31);
+  int k = 0;
+  const auto check = [&](const nifti_file& f, bool expect_world) {
+    const bool gz = k % 2 == 0;
+    const fs::path file = f.write(dir.path(), "o" + std::to_string(k++), samples, 1, gz);
+    const std::optional<progiso::index_to_world> w = progiso::read_volume_world(file, std::nullopt);
+    ASSERT_EQ(w.has_value(), expect_world) << file;
+    const reference_image ref = reference_read(file);
+    ASSERT_NE(ref.image, nullptr);
+    if (!expect_world) return;
+    const nifti_image& n = *ref.image;
+    const auto& m = n.sform_code > 0 ? n.sto_xyz : n.qto_xyz;
+    for (std::size_t r = 0; r < 3; ++r) {
+      for (std::size_t c = 0; c < 4; ++c) {
+        EXPECT_NEAR(w->m[r][c], m.m[r][c], 1e-9 * (1 + std::abs(m.m[r][c])))
+            << file << " row " << r << " column " << c;
+      }
+    }
+    // apply() is the matrix times (i, j, k, 1).
+    const std::array<double, 3> p = w->apply({2.0, 1.0, 3.0});
+    for (std::size_t r = 0; r < 3; ++r) {
+      EXPECT_NEAR(p[r], m.m[r][0] * 2 + m.m[r][1] + m.m[r][2] * 3 + m.m[r][3], 1e-9) << file;
+    }
+  };
+  for (const int version : {1, 2}) {
+    nifti_file f;
+    f.version = version;
+    // A rotated, mirrored and sheared sform (a right-to-left flip, as many MRI files have).
+    f.srow = std::array<std::array<double, 4>, 3>{
+        {{-0.9, 0.1, 0.0, 90.5}, {0.05, 1.1, -0.2, -126.0}, {0.0, 0.3, 1.4, -72.25}}};
+    check(f, true);
+    // The qform alone: a quaternion with qfac −1, then a 180° turn (a = 0).
+    nifti_file q;
+    q.version = version;
+    q.sform_code = 0;
+    q.qform_code = 1;
+    q.quatern = {0.1, -0.2, 0.3};
+    q.pixdim[0] = -1;
+    q.qoffset = {12.0, -7.5, 100.25};
+    check(q, true);
+    q.quatern = {0.0, 0.0, 1.0};
+    q.pixdim[0] = 1;
+    check(q, true);
+    nifti_file none;
+    none.version = version;
+    none.sform_code = 0;
+    check(none, false);
+  }
+  // The determinant: negative for the mirrored sform above, positive without a flip.
+  progiso::index_to_world mirrored{
+      {{{-0.9, 0.1, 0.0, 0}, {0.05, 1.1, -0.2, 0}, {0.0, 0.3, 1.4, 0}}}};
+  EXPECT_NEAR(mirrored.determinant(), -0.9 * (1.1 * 1.4 + 0.2 * 0.3) - 0.1 * (0.05 * 1.4), 1e-12);
+  // A singular sform declares nothing usable.
+  nifti_file flat;
+  flat.srow = std::array<std::array<double, 4>, 3>{{{1, 0, 0, 0}, {0, 1, 0, 0}, {0, 0, 0, 0}}};
+  const fs::path file = flat.write(dir.path(), "flat", samples, 1, false);
+  EXPECT_FALSE(progiso::read_volume_world(file, std::nullopt).has_value());
+  // Raw files declare none.
+  EXPECT_FALSE(progiso::read_volume_world(file, progiso::raw_layout{{5, 4, 3}, sample_type::u8})
+                   .has_value());
 }
 
 // ---- Hostile input: one line naming the file, no allocation for a declared size.

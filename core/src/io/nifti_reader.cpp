@@ -90,11 +90,12 @@ struct layout {
   std::size_t vox_offset;
   std::size_t scl_slope, scl_inter;
   std::size_t qform_code, sform_code;  // int16 or int32
+  std::size_t quatern;                 // quatern_b, c, d
   std::size_t qoffset;                 // 3 floats or doubles
   std::array<std::size_t, 3> srow_t;   // srow_x[3], srow_y[3], srow_z[3]
 };
-constexpr layout v1{40, 70, 76, 108, 112, 116, 252, 254, 268, {292, 308, 324}};
-constexpr layout v2{16, 12, 104, 168, 176, 184, 344, 348, 376, {424, 456, 488}};
+constexpr layout v1{40, 70, 76, 108, 112, 116, 252, 254, 256, 268, {292, 308, 324}};
+constexpr layout v2{16, 12, 104, 168, 176, 184, 344, 348, 352, 376, {424, 456, 488}};
 
 struct type_code {
   std::int16_t code;
@@ -326,6 +327,54 @@ nifti_header read_nifti_header(const fs::path& file) {
     for (std::size_t i = 0; i < 3; ++i) origin[i] = real(at.qoffset + (h.version == 1 ? 4 : 8) * i);
   }
   for (std::size_t i = 0; i < 3; ++i) h.origin[i] = std::isfinite(origin[i]) ? origin[i] : 0.0;
+
+  // The index-to-world map: the sform's rows, else the qform (NIfTI-1 "method 2").
+  const std::size_t step = h.version == 1 ? 4 : 8;
+  index_to_world w;
+  bool has_world = false;
+  if (code(at.sform_code) > 0) {
+    for (std::size_t r = 0; r < 3; ++r) {
+      for (std::size_t c = 0; c < 4; ++c) w.m[r][c] = real(at.srow_t[r] - 3 * step + c * step);
+    }
+    has_world = true;
+  } else if (code(at.qform_code) > 0) {
+    double b = real(at.quatern);
+    double c = real(at.quatern + step);
+    double d = real(at.quatern + 2 * step);
+    double a = 1.0 - (b * b + c * c + d * d);
+    if (a < 1e-7) {  // a 180° rotation: (b, c, d) normalised, a = 0
+      const double n = std::sqrt(b * b + c * c + d * d);
+      b /= n;
+      c /= n;
+      d /= n;
+      a = 0.0;
+    } else {
+      a = std::sqrt(a);
+    }
+    const std::array<std::array<double, 3>, 3> rot{{
+        {a * a + b * b - c * c - d * d, 2 * (b * c - a * d), 2 * (b * d + a * c)},
+        {2 * (b * c + a * d), a * a + c * c - b * b - d * d, 2 * (c * d - a * b)},
+        {2 * (b * d - a * c), 2 * (c * d + a * b), a * a + d * d - c * c - b * b},
+    }};
+    std::array<double, 3> scale{};
+    for (std::size_t i = 0; i < 3; ++i) {
+      const double p = real(at.pixdim + step * (i + 1));
+      scale[i] = p > 0.0 ? p : 1.0;
+    }
+    if (real(at.pixdim) < 0.0) scale[2] = -scale[2];  // qfac = pixdim[0]
+    for (std::size_t r = 0; r < 3; ++r) {
+      for (std::size_t col = 0; col < 3; ++col) w.m[r][col] = rot[r][col] * scale[col];
+      w.m[r][3] = real(at.qoffset + step * r);
+    }
+    has_world = true;
+  }
+  if (has_world) {
+    bool finite = true;
+    for (const auto& row : w.m) {
+      for (const double v : row) finite = finite && std::isfinite(v);
+    }
+    if (finite && w.determinant() != 0.0) h.world = w;
+  }
 
   if (!single) h.data_file = pair_data_file(file);
   return h;

@@ -123,6 +123,28 @@ volume read_volume(const std::filesystem::path& file, const std::optional<raw_la
   return read_nrrd_with(file, spacing);
 }
 
+double index_to_world::determinant() const noexcept {
+  return m[0][0] * (m[1][1] * m[2][2] - m[1][2] * m[2][1]) -
+         m[0][1] * (m[1][0] * m[2][2] - m[1][2] * m[2][0]) +
+         m[0][2] * (m[1][0] * m[2][1] - m[1][1] * m[2][0]);
+}
+
+std::array<double, 3> index_to_world::apply(const std::array<double, 3>& index) const noexcept {
+  std::array<double, 3> out{};
+  for (std::size_t r = 0; r < 3; ++r) {
+    out[r] = m[r][0] * index[0] + m[r][1] * index[1] + m[r][2] * index[2] + m[r][3];
+  }
+  return out;
+}
+
+std::optional<index_to_world> read_volume_world(const std::filesystem::path& file,
+                                                const std::optional<raw_layout>& raw) {
+  if (raw) return std::nullopt;
+  if (format_of(file) == volume_format::nifti) return detail::read_nifti_header(file).world;
+  (void)volume_input_files(file, raw);  // the header's errors, as read_volume() gives them
+  return std::nullopt;
+}
+
 std::vector<std::filesystem::path> volume_input_files(const std::filesystem::path& file,
                                                       const std::optional<raw_layout>& raw) {
   if (raw) return {file};

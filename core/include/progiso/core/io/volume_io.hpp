@@ -66,14 +66,31 @@ struct raw_layout {
 /// the bounds.
 [[nodiscard]] volume read_nrrd(const std::filesystem::path& file);
 
+/// An affine map from grid indices to scanner (world) coordinates: world = m · (i, j, k, 1).
+struct index_to_world {
+  std::array<std::array<double, 4>, 3> m{};
+  /// The determinant of the 3 × 3 part: negative when the map mirrors (triangles then need
+  /// their winding reversed to keep facing the same way).
+  [[nodiscard]] double determinant() const noexcept;
+  [[nodiscard]] std::array<double, 3> apply(const std::array<double, 3>& index) const noexcept;
+};
+
+/// The orientation a volume file declares, from its header alone: for NIfTI the sform when
+/// sform_code > 0, else the qform when qform_code > 0; nullopt for those without one (NIfTI with
+/// both codes 0, NRRD and raw files: their positions are origin + index × spacing only).
+/// Throws progiso::error like read_volume() for an unknown format and header errors.
+[[nodiscard]] std::optional<index_to_world> read_volume_world(const std::filesystem::path& file,
+                                                              const std::optional<raw_layout>& raw);
+
 /// Reads a NIfTI-1 or NIfTI-2 volume: a .nii (plain or gzip) or a .hdr header whose data lies
 /// in the .img (or .img.gz) beside it. The array must be 3-D (trailing dimensions of size 1
 /// allowed) with 2 to 32769 samples per axis, of type u8 i8 u16 i16 u32 i32 f32 or f64. Spacing
 /// is |pixdim| per axis (zero or non-finite: 1); the origin is the sform's translation when
 /// sform_code > 0, else the qform's when qform_code > 0, else 0 (rotations and flips are not
-/// applied). Samples with a scl_slope other than 0 and (1, 0) are scaled to physical values, as
-/// f32 (f64 for 32-bit integer and f64 data). Throws progiso::error naming the file on any
-/// failure; see detail/nifti_reader.hpp and docs/ARCHITECTURE.md "Reading NIfTI".
+/// applied here: read_volume_world() gives the whole map). Samples with a scl_slope other than
+/// 0 and (1, 0) are scaled to physical values, as f32 (f64 for 32-bit integer and f64 data).
+/// Throws progiso::error naming the file on any failure; see detail/nifti_reader.hpp and
+/// docs/ARCHITECTURE.md "Reading NIfTI".
 [[nodiscard]] volume read_nifti(const std::filesystem::path& file);
 
 /// Reads a volume the way the command-line tool does: with a raw layout, read_raw(); else, for

@@ -14,8 +14,10 @@
 //
 // Geometry: spacing per axis is |pixdim[i]| (zero or non-finite: 1); the origin is the
 // translation of the sform when sform_code > 0, else of the qform when qform_code > 0, else 0.
-// Rotations and axis flips are not applied: as for NRRD, positions are origin + index ×
-// spacing (docs/ARCHITECTURE.md, "Reading NIfTI"). Values: when scl_slope is finite and
+// Rotations and axis flips are not applied to the volume: as for NRRD, positions are origin +
+// index × spacing; the whole index-to-scanner map (sform, else qform) is kept in
+// nifti_header::world for a caller to map vertices with (progiso extract --world;
+// docs/ARCHITECTURE.md, "Reading NIfTI"). Values: when scl_slope is finite and
 // non-zero and (scl_slope, scl_inter) is not (1, 0), the samples are scaled to
 // scl_slope × stored + scl_inter, stored as f32 (f64 for 32-bit integer and f64 data), so that
 // isovalues are given in the file's physical units (Hounsfield units for CT, say).
@@ -35,6 +37,7 @@
 
 #include <progiso/core/field/volume.hpp>
 #include <progiso/core/io/detail/file_input.hpp>
+#include <progiso/core/io/volume_io.hpp>
 
 namespace progiso::detail {
 
@@ -57,6 +60,10 @@ struct nifti_header {
   std::optional<std::filesystem::path> data_file;
   std::array<double, 3> spacing{1.0, 1.0, 1.0};
   std::array<double, 3> origin{0.0, 0.0, 0.0};
+  /// Grid index (i, j, k) to scanner coordinates: the sform when sform_code > 0, else the qform
+  /// when qform_code > 0 (NIfTI-1's method 2: quaternion, qfac, pixdim, offset), else none;
+  /// none too when an entry is not finite or the 3 × 3 part is singular.
+  std::optional<index_to_world> world;
 
   /// The sample type of the volume read: `stored`, or f32 / f64 when scaled.
   [[nodiscard]] sample_type volume_type() const noexcept;
