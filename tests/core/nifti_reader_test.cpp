@@ -46,16 +46,15 @@ using progiso::index3;
 using progiso::sample_type;
 using progiso::test::contains;
 using progiso::test::gzip;
+// The one-line message of the progiso::error a call throws, which must start with the file.
+constexpr auto error_naming = [](const fs::path& file, auto&& f) {
+  return progiso::test::error_message_naming(file, f);
+};
 
 class scratch_dir : public progiso::test::scratch_dir {
  public:
   scratch_dir() : progiso::test::scratch_dir("progiso-nifti-reader-test-") {}
 };
-
-template <class F>
-std::string error_naming(const fs::path& file, F&& f) {
-  return progiso::test::error_message_naming(file, std::forward<F>(f));
-}
 
 struct type_info {
   sample_type type;
