@@ -15,8 +15,8 @@ const char* const usage_text =
     "usage:\n"
     "  progiso extract INPUT -o OUT.ply|OUT.obj --iso W\n"
     "          [--dims NX,NY,NZ --type u8|i8|u16|i16|u32|i32|f32|f64 [--big-endian]]\n"
-    "          [--spacing SX,SY,SZ | --world] [--full | --error E | --max-triangles K | --time-ms "
-    "T]\n"
+    "          [--spacing SX,SY,SZ | --world]\n"
+    "          [--full | --error E | --max-triangles K | --time-ms T]\n"
     "          [--stats-json FILE] [--threads N]\n"
     "          [--smooth S] [--smooth-from K] [--smooth-region X0,Y0,Z0,X1,Y1,Z1] [--alpha A]\n"
     "  progiso extract --demo -o OUT.ply [--iso W] [--threads N]\n"
@@ -28,9 +28,10 @@ const char* const usage_text =
     "INPUT is a .nrrd/.nhdr file, a NIfTI-1/2 file (.nii, .nii.gz, or .hdr with its .img;\n"
     "scl_slope/scl_inter applied, so isovalues are in physical units), or a headerless raw\n"
     "file described by --dims and --type (x fastest, little-endian unless --big-endian).\n"
-    "--world writes the vertices in the scanner coordinates a NIfTI file declares (its sform,\n"
-    "else its qform: rotations and flips applied). --demo uses a built-in 129^3\n"
-    "Marschner-Lobb volume (isovalue 0.5 unless --iso is given).\n"
+    "--world writes the vertices in the coordinates the file declares (a NIfTI sform, else\n"
+    "qform; NRRD space directions and origin): rotations and flips applied.\n"
+    "--demo uses a built-in 129^3 Marschner-Lobb volume (isovalue 0.5 unless --iso is\n"
+    "given).\n"
     "Modes: --full (default) refines everywhere the surface can be; --error E stops when\n"
     "every remaining split error is <= E; --max-triangles K keeps at most K triangles;\n"
     "--time-ms T refines for T milliseconds and returns the surface published by then.\n"
@@ -311,7 +312,8 @@ extract_arguments parse_extract(const std::vector<std::string>& args) {
   if (a.big_endian && !a.dims) throw error("--big-endian applies to raw input with --dims/--type");
   if (a.world && (a.dims || a.demo)) {
     throw error(
-        "--world needs an input file that declares its orientation (a NIfTI sform or qform)");
+        "--world needs an input file that declares its orientation (a NIfTI sform or qform, or "
+        "NRRD space directions)");
   }
   if (a.world && a.spacing) {
     throw error("--world and --spacing: the orientation the file declares sets the spacing");

@@ -197,8 +197,8 @@ int run(const std::vector<std::string>& args) {
     world = progiso::read_volume_world(*a.input, raw);
     if (!world) {
       throw error(*a.input +
-                  ": --world: the file declares no orientation (expected a NIfTI file with "
-                  "sform_code or qform_code above 0)");
+                  ": --world: the file declares no orientation (expected a NIfTI sform or qform, "
+                  "or NRRD space directions)");
     }
   }
   progiso::detail::atomic_output mesh_out(*a.output);

@@ -398,7 +398,7 @@ obj_mesh read_obj_file(const fs::path& file) {
   return m;
 }
 
-TEST_F(Cli, world_writes_the_scanner_coordinates_a_nifti_file_declares) {
+TEST_F(Cli, world_writes_the_coordinates_a_nifti_or_nrrd_file_declares) {
   // A NIfTI-1 file whose sform mirrors x and rotates a little, as MRI files do; spacing 2,
   // 1.5, 0.5 in pixdim. Without --world the vertices are at origin + index × spacing (the
   // origin being the sform's translation); with it, at sform · (index, 1), and every triangle's
@@ -434,6 +434,32 @@ TEST_F(Cli, world_writes_the_scanner_coordinates_a_nifti_file_declares) {
   }
   for (std::size_t t = 0; t < a.faces.size(); ++t) {
     ASSERT_EQ(b.faces[t], (std::array<long, 3>{a.faces[t][0], a.faces[t][2], a.faces[t][1]}));
+  }
+  // A NRRD's space directions and origin: x mirrored, spacing 2, 1.5, 0.5.
+  const fs::path nrrd = write_file("oriented.nrrd",
+                                   "NRRD0004\ntype: uchar\ndimension: 3\nsizes: 9 9 9\n"
+                                   "space: left-posterior-superior\n"
+                                   "space directions: (-2,0,0) (0,1.5,0) (0,0,0.5)\n"
+                                   "space origin: (10,20,30)\nencoding: raw\n\n" +
+                                       cube_bytes(9));
+  const fs::path nrrd_plain = dir_ / "nrrd_plain.obj";
+  const fs::path nrrd_world = dir_ / "nrrd_world.obj";
+  ASSERT_EQ(run("extract " + nrrd.string() + " --iso 100 -o " + nrrd_plain.string()).status, 0);
+  ASSERT_EQ(run("extract " + nrrd.string() + " --iso 100 --world -o " + nrrd_world.string()).status,
+            0);
+  const obj_mesh c = read_obj_file(nrrd_plain);
+  const obj_mesh d = read_obj_file(nrrd_world);
+  ASSERT_EQ(c.vertices.size(), d.vertices.size());
+  ASSERT_EQ(c.faces.size(), d.faces.size());
+  for (std::size_t i = 0; i < c.vertices.size(); ++i) {
+    // Plain: origin + index × |direction|; world: origin + index × direction.
+    const double x = 10.0 - (c.vertices[i][0] - 10.0);
+    ASSERT_NEAR(d.vertices[i][0], x, 1e-9 * (1 + std::abs(x))) << "vertex " << i;
+    ASSERT_NEAR(d.vertices[i][1], c.vertices[i][1], 1e-9 * (1 + std::abs(c.vertices[i][1])));
+    ASSERT_NEAR(d.vertices[i][2], c.vertices[i][2], 1e-9 * (1 + std::abs(c.vertices[i][2])));
+  }
+  for (std::size_t t = 0; t < c.faces.size(); ++t) {
+    ASSERT_EQ(d.faces[t], (std::array<long, 3>{c.faces[t][0], c.faces[t][2], c.faces[t][1]}));
   }
   // Inputs without an orientation, and --spacing beside --world, are refused.
   expect_bad_input("extract " + write_file("c.raw", cube_bytes(8)).string() +

@@ -536,6 +536,48 @@ TEST(NrrdReader, concatenated_gzip_members_are_read_like_teem) {
   expect_same_as_teem(file);
 }
 
+TEST(NrrdReader, space_directions_give_the_world_map_teem_reads) {
+  // The index-to-space map: the space directions as columns and the space origin, in the
+  // header's own space; none without space directions, with a "none" axis or dependent ones.
+  scratch_dir dir;
+  const std::string cube(4 * 3 * 2, '\x07');
+  const auto header = [&](const std::string& space_fields) {
+    return "NRRD0004\ntype: uchar\ndimension: 3\nsizes: 4 3 2\n" + space_fields +
+           "encoding: raw\n\n" + cube;
+  };
+  const fs::path oriented = dir.path() / "oriented.nrrd";
+  write_file(oriented, header("space: left-posterior-superior\n"
+                              "space directions: (-0.9,0.1,0) (0.05,1.1,-0.2) (0,0.3,1.4)\n"
+                              "space origin: (90.5,-126,-72.25)\n"));
+  const std::optional<progiso::index_to_world> w =
+      progiso::read_volume_world(oriented, std::nullopt);
+  ASSERT_TRUE(w.has_value());
+  Nrrd* n = nrrdNew();
+  ASSERT_EQ(nrrdLoad(n, oriented.string().c_str(), nullptr), 0);
+  for (unsigned c = 0; c < 3; ++c) {
+    for (unsigned r = 0; r < 3; ++r) EXPECT_EQ(w->m[r][c], n->axis[c].spaceDirection[r]) << r << c;
+  }
+  for (unsigned r = 0; r < 3; ++r) EXPECT_EQ(w->m[r][3], n->spaceOrigin[r]) << r;
+  nrrdNuke(n);
+  EXPECT_LT(w->determinant(), 0.0);  // the first direction mirrors x
+  // No origin: translation 0.
+  const fs::path no_origin = dir.path() / "no_origin.nrrd";
+  write_file(no_origin, header("space dimension: 3\nspace directions: (2,0,0) (0,2,0) (0,0,3)\n"));
+  const auto w2 = progiso::read_volume_world(no_origin, std::nullopt);
+  ASSERT_TRUE(w2.has_value());
+  EXPECT_EQ(w2->apply({1, 1, 1}), (std::array<double, 3>{2, 2, 3}));
+  // None: spacings only, a "none" axis, a 2-D space, dependent directions.
+  for (const std::string& fields :
+       {std::string("spacings: 1 2 3\n"),
+        std::string("space dimension: 3\nspace directions: (1,0,0) none (0,0,1)\n"),
+        std::string("space dimension: 2\nspace directions: (1,0) (0,1) (1,1)\n"),
+        std::string("space dimension: 3\nspace directions: (1,0,0) (2,0,0) (0,0,1)\n")}) {
+    const fs::path file = dir.path() / "none.nrrd";
+    write_file(file, header(fields));
+    EXPECT_FALSE(progiso::read_volume_world(file, std::nullopt).has_value()) << fields;
+  }
+}
+
 TEST(NrrdReader, shared_volumes_written_as_nrrd_read_like_teem) {
   const std::optional<fs::path> data = progiso::test::shared_data_dir();
   if (!data) GTEST_SKIP() << "shared data not found (../shared/data or $PROGISO_DATA_DIR)";

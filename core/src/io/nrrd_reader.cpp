@@ -582,6 +582,7 @@ class header_parser {
     parse_space();
     h.spacing = parse_spacing();
     h.origin = parse_origin();
+    h.world = parse_world(h.origin);
     check_descriptive_fields();
     h.data_files = parse_data_files(h.dims);
 
@@ -849,6 +850,23 @@ class header_parser {
       if (std::isfinite(s) && s > 0.0) spacing[a] = s;
     }
     return spacing;
+  }
+
+  /// The index-to-space map of nrrd_header::world, when the header declares one.
+  std::optional<index_to_world> parse_world(const std::array<double, 3>& origin) const {
+    if (get(field::space_directions) == nullptr || space_dimension_ != 3) return std::nullopt;
+    const std::vector<std::vector<double>> directions = parse_vectors(field::space_directions, 3);
+    index_to_world w;
+    for (std::size_t c = 0; c < 3; ++c) {
+      if (directions.size() <= c || directions[c].size() != 3) return std::nullopt;
+      for (std::size_t r = 0; r < 3; ++r) {
+        if (!std::isfinite(directions[c][r])) return std::nullopt;
+        w.m[r][c] = directions[c][r];
+      }
+    }
+    for (std::size_t r = 0; r < 3; ++r) w.m[r][3] = origin[r];
+    if (w.determinant() == 0.0) return std::nullopt;
+    return w;
   }
 
   /// The first three components of "space origin" that are finite, else 0.

@@ -141,8 +141,8 @@ std::optional<index_to_world> read_volume_world(const std::filesystem::path& fil
                                                 const std::optional<raw_layout>& raw) {
   if (raw) return std::nullopt;
   if (format_of(file) == volume_format::nifti) return detail::read_nifti_header(file).world;
-  (void)volume_input_files(file, raw);  // the header's errors, as read_volume() gives them
-  return std::nullopt;
+  detail::input_file in(file, "NRRD");
+  return detail::parse_nrrd_header(in).world;
 }
 
 std::vector<std::filesystem::path> volume_input_files(const std::filesystem::path& file,

@@ -76,9 +76,11 @@ struct index_to_world {
 };
 
 /// The orientation a volume file declares, from its header alone: for NIfTI the sform when
-/// sform_code > 0, else the qform when qform_code > 0; nullopt for those without one (NIfTI with
-/// both codes 0, NRRD and raw files: their positions are origin + index × spacing only).
-/// Throws progiso::error like read_volume() for an unknown format and header errors.
+/// sform_code > 0, else the qform when qform_code > 0; for NRRD the "space directions" (as
+/// columns) and "space origin" of a 3-D space; nullopt for files without one (NIfTI with both
+/// codes 0, NRRD without space directions, raw files), whose positions are origin + index ×
+/// spacing only. Throws progiso::error like read_volume() for an unknown format and header
+/// errors.
 [[nodiscard]] std::optional<index_to_world> read_volume_world(const std::filesystem::path& file,
                                                               const std::optional<raw_layout>& raw);
 

@@ -24,12 +24,14 @@
 #include <cstddef>
 #include <cstdint>
 #include <filesystem>
+#include <optional>
 #include <span>
 #include <string_view>
 #include <vector>
 
 #include <progiso/core/field/volume.hpp>
 #include <progiso/core/io/detail/file_input.hpp>
+#include <progiso/core/io/volume_io.hpp>
 
 namespace progiso::detail {
 
@@ -58,6 +60,10 @@ struct nrrd_header {
   std::uint64_t data_offset = 0;  ///< attached data: offset of the byte after the empty line
   std::array<double, 3> spacing{1.0, 1.0, 1.0};
   std::array<double, 3> origin{0.0, 0.0, 0.0};
+  /// Grid index to the header's space: the three "space directions" as columns and the "space
+  /// origin" (0 where absent) as translation, when the space has 3 dimensions, no axis is
+  /// "none", every entry is finite and the directions are independent; else none.
+  std::optional<index_to_world> world;
 };
 
 /// Parses the header of `header_file` (opened at its start). Throws progiso::error naming the
