@@ -14,6 +14,7 @@
 #include <vector>
 
 #include <progiso/core/base/error.hpp>
+#include <progiso/core/io/detail/file_output.hpp>
 #include <progiso/core/io/detail/gzip_input.hpp>
 #include <progiso/core/io/detail/nrrd_reader.hpp>
 
@@ -21,17 +22,6 @@ namespace progiso::detail {
 namespace {
 
 namespace fs = std::filesystem;
-
-std::string lower(std::string s) {
-  for (char& c : s) {
-    if (c >= 'A' && c <= 'Z') c = static_cast<char>(c - 'A' + 'a');
-  }
-  return s;
-}
-
-bool ends_with(std::string_view s, std::string_view tail) {
-  return s.size() >= tail.size() && s.substr(s.size() - tail.size()) == tail;
-}
 
 /// A file read front to back, plain or gzip (told by its first bytes).
 class sequential_input {
@@ -148,7 +138,7 @@ std::string number(double v) {
 /// .img if it exists, else .img.gz (named in the error when neither does).
 fs::path pair_data_file(const fs::path& header) {
   fs::path stem = header;
-  if (lower(stem.extension().string()) == ".gz") stem.replace_extension();
+  if (lower_extension(stem) == ".gz") stem.replace_extension();
   stem.replace_extension();
   fs::path img = stem;
   img += ".img";
@@ -171,9 +161,9 @@ sample_type nifti_header::volume_type() const noexcept {
 }
 
 bool has_nifti_name(const fs::path& file) {
-  const std::string name = lower(file.filename().string());
-  return ends_with(name, ".nii") || ends_with(name, ".nii.gz") || ends_with(name, ".hdr") ||
-         ends_with(name, ".hdr.gz");
+  std::string ext = lower_extension(file);
+  if (ext == ".gz") ext = lower_extension(file.stem());
+  return ext == ".nii" || ext == ".hdr";
 }
 
 nifti_header read_nifti_header(const fs::path& file) {
