@@ -26,10 +26,12 @@ const char* const usage_text =
     "          [--smooth S] [--smooth-from K] [--smooth-region X0,Y0,X1,Y1] [--alpha A]\n"
     "\n"
     "INPUT is a .nrrd/.nhdr file, a NIfTI-1/2 file (.nii, .nii.gz, or .hdr with its .img;\n"
-    "scl_slope/scl_inter applied, so isovalues are in physical units), or a headerless raw\n"
-    "file described by --dims and --type (x fastest, little-endian unless --big-endian).\n"
+    "scl_slope/scl_inter applied, so isovalues are in physical units), a MetaImage file\n"
+    "(.mha, or .mhd with its data files), or a headerless raw file described by --dims and\n"
+    "--type (x fastest, little-endian unless --big-endian).\n"
     "--world writes the vertices in the coordinates the file declares (a NIfTI sform, else\n"
-    "qform; NRRD space directions and origin): rotations and flips applied.\n"
+    "qform; NRRD space directions and origin; MetaImage TransformMatrix and Offset):\n"
+    "rotations and flips applied.\n"
     "--demo uses a built-in 129^3 Marschner-Lobb volume (isovalue 0.5 unless --iso is\n"
     "given).\n"
     "Modes: --full (default) refines everywhere the surface can be; --error E stops when\n"
@@ -312,8 +314,8 @@ extract_arguments parse_extract(const std::vector<std::string>& args) {
   if (a.big_endian && !a.dims) throw error("--big-endian applies to raw input with --dims/--type");
   if (a.world && (a.dims || a.demo)) {
     throw error(
-        "--world needs an input file that declares its orientation (a NIfTI sform or qform, or "
-        "NRRD space directions)");
+        "--world needs an input file that declares its orientation (a NIfTI sform or qform, "
+        "NRRD space directions, or a MetaImage header)");
   }
   if (a.world && a.spacing) {
     throw error("--world and --spacing: the orientation the file declares sets the spacing");

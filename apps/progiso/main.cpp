@@ -198,7 +198,7 @@ int run(const std::vector<std::string>& args) {
     if (!world) {
       throw error(*a.input +
                   ": --world: the file declares no orientation (expected a NIfTI sform or qform, "
-                  "or NRRD space directions)");
+                  "NRRD space directions, or a MetaImage header)");
     }
   }
   progiso::detail::atomic_output mesh_out(*a.output);

@@ -373,6 +373,45 @@ TEST_F(Cli, nifti_input_gives_the_surface_of_the_same_samples_as_raw) {
   expect_bad_input("extract " + cut.string() + " --iso 100", "cut.nii: NIfTI data ends");
 }
 
+TEST_F(Cli, metaimage_input_gives_the_surface_of_the_same_samples_as_raw) {
+  // The same bytes as a raw file, an .mha with the data after the header (big-endian 16-bit),
+  // and an .mhd whose zlib-compressed data lies in another file: the same mesh, byte for byte.
+  const std::string bytes = cube_bytes(9);
+  const fs::path raw = write_file("v.raw", bytes);
+  const fs::path want = dir_ / "raw.obj";
+  ASSERT_EQ(run("extract " + raw.string() +
+                " --dims 9,9,9 --type u8 --spacing 2,1.5,0.5 --iso 100 --full -o " + want.string())
+                .status,
+            0);
+  std::string wide;  // the samples as big-endian u16
+  for (const char c : bytes) {
+    wide += '\0';
+    wide += c;
+  }
+  const fs::path mha = write_file("v.mha",
+                                  "ObjectType = Image\nNDims = 3\nDimSize = 9 9 9\n"
+                                  "ElementSpacing = 2 1.5 0.5\nElementByteOrderMSB = True\n"
+                                  "ElementType = MET_USHORT\nElementDataFile = LOCAL\n" +
+                                      wide);
+  write_file("v.zraw", test::gzip(bytes, 6, true));
+  const fs::path mhd = write_file("v.mhd",
+                                  "NDims = 3\nDimSize = 9 9 9\nElementSpacing = 2 1.5 0.5\n"
+                                  "CompressedData = True\nElementType = MET_UCHAR\n"
+                                  "ElementDataFile = v.zraw\n");
+  for (const fs::path& in : {mha, mhd}) {
+    const fs::path out = dir_ / (in.filename().string() + ".obj");
+    const run_result r = run("extract " + in.string() + " --iso 100 --full -o " + out.string());
+    ASSERT_EQ(r.status, 0) << r.err;
+    EXPECT_EQ(slurp(out), slurp(want)) << in;
+  }
+  // An .mhd whose data file is one byte short: one line naming the data file, exit 2.
+  write_file("short.raw", bytes.substr(0, bytes.size() - 1));
+  const fs::path cut = write_file("cut.mhd",
+                                  "NDims = 3\nDimSize = 9 9 9\nElementType = MET_UCHAR\n"
+                                  "ElementDataFile = short.raw\n");
+  expect_bad_input("extract " + cut.string() + " --iso 100", "short.raw: the 728 bytes");
+}
+
 /// The vertices and faces (0-based) of an OBJ file progiso wrote.
 struct obj_mesh {
   std::vector<std::array<double, 3>> vertices;
@@ -398,7 +437,7 @@ obj_mesh read_obj_file(const fs::path& file) {
   return m;
 }
 
-TEST_F(Cli, world_writes_the_coordinates_a_nifti_or_nrrd_file_declares) {
+TEST_F(Cli, world_writes_the_coordinates_a_nifti_nrrd_or_metaimage_file_declares) {
   // A NIfTI-1 file whose sform mirrors x and rotates a little, as MRI files do; spacing 2,
   // 1.5, 0.5 in pixdim. Without --world the vertices are at origin + index × spacing (the
   // origin being the sform's translation); with it, at sform · (index, 1), and every triangle's
@@ -460,6 +499,33 @@ TEST_F(Cli, world_writes_the_coordinates_a_nifti_or_nrrd_file_declares) {
   }
   for (std::size_t t = 0; t < c.faces.size(); ++t) {
     ASSERT_EQ(d.faces[t], (std::array<long, 3>{c.faces[t][0], c.faces[t][2], c.faces[t][1]}));
+  }
+  // A MetaImage TransformMatrix: row i is index axis i's direction (x and y swapped here, a
+  // mirror), scaled by ElementSpacing, plus Offset.
+  const fs::path mha = write_file("oriented.mha",
+                                  "NDims = 3\nDimSize = 9 9 9\nElementSpacing = 2 1.5 0.5\n"
+                                  "Offset = 10 20 30\nTransformMatrix = 0 1 0 1 0 0 0 0 1\n"
+                                  "ElementType = MET_UCHAR\nElementDataFile = LOCAL\n" +
+                                      cube_bytes(9));
+  const fs::path mha_plain = dir_ / "mha_plain.obj";
+  const fs::path mha_world = dir_ / "mha_world.obj";
+  ASSERT_EQ(run("extract " + mha.string() + " --iso 100 -o " + mha_plain.string()).status, 0);
+  ASSERT_EQ(run("extract " + mha.string() + " --iso 100 --world -o " + mha_world.string()).status,
+            0);
+  const obj_mesh e = read_obj_file(mha_plain);
+  const obj_mesh g = read_obj_file(mha_world);
+  ASSERT_GT(e.faces.size(), 100u);
+  ASSERT_EQ(e.vertices.size(), g.vertices.size());
+  for (std::size_t i = 0; i < e.vertices.size(); ++i) {
+    // Plain (10 + 2i, 20 + 1.5j, 30 + 0.5k); world (10 + 1.5j, 20 + 2i, 30 + 0.5k).
+    const double x = 10.0 + (e.vertices[i][1] - 20.0);
+    const double y = 20.0 + (e.vertices[i][0] - 10.0);
+    ASSERT_NEAR(g.vertices[i][0], x, 1e-9 * (1 + std::abs(x))) << "vertex " << i;
+    ASSERT_NEAR(g.vertices[i][1], y, 1e-9 * (1 + std::abs(y))) << "vertex " << i;
+    ASSERT_NEAR(g.vertices[i][2], e.vertices[i][2], 1e-9 * (1 + std::abs(e.vertices[i][2])));
+  }
+  for (std::size_t t = 0; t < e.faces.size(); ++t) {
+    ASSERT_EQ(g.faces[t], (std::array<long, 3>{e.faces[t][0], e.faces[t][2], e.faces[t][1]}));
   }
   // Inputs without an orientation, and --spacing beside --world, are refused.
   expect_bad_input("extract " + write_file("c.raw", cube_bytes(8)).string() +

@@ -149,7 +149,16 @@ TEST_F(Hostile, declared_sizes_beyond_the_data_fail_before_allocating) {
   const fs::path nii_gz = write(
       "big.nii.gz",
       gzip(test::nifti1_file({2000, 2000, 1000}, 64, 64, {1, 1, 1}, std::string(4 << 20, '\0'))));
-  for (const fs::path& in : {raw, gz, nii, nii_gz}) {
+  // And in MetaImage: raw bytes after the header, and zlib-compressed doubles in a data file.
+  const fs::path mha = write("big.mha",
+                             "NDims = 3\nDimSize = 2000 2000 1000\nElementType = MET_UCHAR\n"
+                             "ElementDataFile = LOCAL\n" +
+                                 std::string(33000, '\x11'));
+  write("big.zraw", test::gzip(std::string(4 << 20, '\0'), 6, true));
+  const fs::path mhd = write("big.mhd",
+                             "NDims = 3\nDimSize = 2000 2000 1000\nElementType = MET_DOUBLE\n"
+                             "CompressedData = True\nElementDataFile = big.zraw\n");
+  for (const fs::path& in : {raw, gz, nii, nii_gz, mha, mhd}) {
     const auto before = snapshot();
     const bounded_result r =
         run({"extract", in.string(), "--iso", "1", "-o", path("o.ply").string()},
@@ -202,6 +211,12 @@ TEST_F(Hostile, devices_and_fifos_are_refused_at_once) {
   ASSERT_EQ(::mkfifo(path("pair.img").c_str(), 0600), 0);
   expect_refused({"extract", hdr.string(), "--iso", "5", "-o", path("o.ply").string()},
                  "pair.img: expected a regular NIfTI data file, found a FIFO", quick);
+  // A MetaImage header whose slices are a FIFO and /dev/zero.
+  const fs::path mhd = write("v.mhd",
+                             "NDims = 3\nDimSize = 4 4 2\nElementType = MET_UCHAR\n"
+                             "ElementDataFile = LIST\nd.raw\nz.raw\n");
+  expect_refused({"extract", mhd.string(), "--iso", "5", "-o", path("o.ply").string()},
+                 "d.raw: expected a regular MetaImage data file, found a FIFO", quick);
 }
 
 // ---- 4. Outputs never destroy data and are never left half-made.
@@ -245,6 +260,18 @@ TEST_F(Hostile, outputs_naming_an_input_or_each_other_are_refused) {
   expect_refused({"extract", hdr.string(), "--iso", "50", "-o", path("pair_img.ply").string()},
                  "input");
   EXPECT_EQ(test::read_whole_file(path("pair.img")), cube);
+  // And a MetaImage slice file named by a pattern, through a link named like a mesh.
+  write("slice_2.raw", cube.substr(0, 36));
+  for (int z = 1; z <= 6; ++z) {
+    if (z != 2) write("slice_" + std::to_string(z) + ".raw", cube.substr(0, 36));
+  }
+  const fs::path mhd = write("slices.mhd",
+                             "NDims = 3\nDimSize = 6 6 6\nElementType = MET_UCHAR\n"
+                             "ElementDataFile = slice_%d.raw 1 6 1\n");
+  fs::create_symlink(path("slice_2.raw"), path("slice_2.ply"));
+  expect_refused({"extract", mhd.string(), "--iso", "50", "-o", path("slice_2.ply").string()},
+                 "input");
+  EXPECT_EQ(test::read_whole_file(path("slice_2.raw")), cube.substr(0, 36));
   // contour: -o through a link to the image, --frames on -o, --stats-json on the image.
   const fs::path img = write("img.pgm", pgm(40, 30));
   fs::create_symlink(img, path("img.svg"));

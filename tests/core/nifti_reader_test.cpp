@@ -46,6 +46,7 @@ using progiso::index3;
 using progiso::sample_type;
 using progiso::test::contains;
 using progiso::test::gzip;
+using progiso::test::random_samples;
 // The one-line message of the progiso::error a call throws, which must start with the file.
 constexpr auto error_naming = [](const fs::path& file, auto&& f) {
   return progiso::test::error_message_naming(file, f);
@@ -206,25 +207,6 @@ struct nifti_file {
 };
 
 /// Random samples of `type` (finite floats), `count` of them.
-std::vector<std::byte> random_samples(sample_type type, std::size_t count, unsigned seed) {
-  std::mt19937 rng(seed);
-  const std::size_t item = progiso::sample_size(type);
-  std::vector<std::byte> out(count * item);
-  for (std::size_t i = 0; i < count; ++i) {
-    std::byte* p = out.data() + i * item;
-    if (type == sample_type::f32) {
-      const float v = std::uniform_real_distribution<float>(-1e3f, 1e3f)(rng);
-      std::memcpy(p, &v, sizeof v);
-    } else if (type == sample_type::f64) {
-      const double v = std::uniform_real_distribution<double>(-1e6, 1e6)(rng);
-      std::memcpy(p, &v, sizeof v);
-    } else {
-      for (std::size_t b = 0; b < item; ++b) p[b] = static_cast<std::byte>(rng());
-    }
-  }
-  return out;
-}
-
 struct reference_image {
   struct free_image {
     void operator()(nifti_image* p) const { nifti_image_free(p); }

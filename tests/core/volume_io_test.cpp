@@ -565,12 +565,12 @@ TEST(VolumeIo, read_volume_explicit_spacing_overrides_the_nrrd_header) {
 
 TEST(VolumeIo, read_volume_rejects_an_unknown_format) {
   const scratch_dir dir;
-  write_text(dir / "v.vtk", "whatever");
+  write_text(dir / "v.xyz", "whatever");
   const std::string msg =
-      error_message([&] { (void)progiso::read_volume(dir / "v.vtk", std::nullopt, std::nullopt); });
-  EXPECT_EQ(msg, (dir / "v.vtk").string() +
-                     ": unknown volume format (expected .nrrd, .nhdr, .nii, .nii.gz, .hdr, or a "
-                     "raw file with --dims and --type)");
+      error_message([&] { (void)progiso::read_volume(dir / "v.xyz", std::nullopt, std::nullopt); });
+  EXPECT_EQ(msg, (dir / "v.xyz").string() +
+                     ": unknown volume format (expected .nrrd, .nhdr, .nii, .nii.gz, .hdr, .mha, "
+                     ".mhd, or a raw file with --dims and --type)");
 }
 
 TEST(VolumeIo, read_volume_rejects_an_invalid_spacing_with_the_file_name) {

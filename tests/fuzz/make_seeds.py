@@ -3,7 +3,7 @@
 
     make_seeds.py OUT_DIR [SHARED_DATA_DIR]
 
-writes OUT_DIR/<harness>/<name> for the harnesses raw, extract, nrrd, nifti, pgm, png, ply, obj and cli: small
+writes OUT_DIR/<harness>/<name> for the harnesses raw, extract, nrrd, nifti, metaimage, pgm, png, ply, obj and cli: small
 valid files of every kind the readers accept, and the hostile cases of issue 11 (printf field
 widths in data file names, declared sizes far beyond the data, NaN samples, numbers beyond
 their types …). With SHARED_DATA_DIR (../shared/data), it adds crops of the real volumes and
@@ -164,6 +164,51 @@ def nifti_seeds(out, crops):
 
 # ---- images.
 
+# ---- metaimage: .mha with the data after the header, and .mhd headers "\0DATA\0" data.
+
+def metaimage_seeds(out, crops):
+    cube = bytes((x * 7 + y * 13 + z * 29) % 251 for z in range(4) for y in range(4) for x in range(4))
+    base = "ObjectType = Image\nNDims = 3\nDimSize = 4 4 4\n"
+    put(out, "metaimage", "local_u8", (base + "ElementType = MET_UCHAR\nElementDataFile = LOCAL\n").encode() + cube)
+    i16 = b"".join(struct.pack(">h", v * 37 - 900) for v in range(64))
+    put(out, "metaimage", "local_i16_msb_geometry",
+        (base + "ElementSpacing = 0.5 2 1.25\nOffset = -3 4.5 100\nTransformMatrix = 0 1 0 1 0 0 0 0 1\n"
+         "ElementByteOrderMSB = True\nElementType = MET_SHORT\nElementDataFile = LOCAL\n").encode() + i16)
+    z = zlib.compress(cube)
+    put(out, "metaimage", "local_zlib", (base + "CompressedData = True\nCompressedDataSize = %d\n"
+                                         "ElementType = MET_UCHAR\nElementDataFile = LOCAL\n" % len(z)).encode() + z)
+    put(out, "metaimage", "local_ascii_float", "NDims = 3\nDimSize = 2 2 2\nBinaryData = False\n"
+        "ElementType = MET_FLOAT\nElementDataFile = LOCAL\n1 2.5 -3 4e2\n1e-30 6 7 8\n")
+    put(out, "metaimage", "local_header_size_minus_one",
+        (base + "HeaderSize = -1\nElementType = MET_UCHAR\nElementDataFile = LOCAL\n").encode() + b"junk" + cube)
+    put(out, "metaimage", "declared_2000x2000x1000",
+        "NDims = 3\nDimSize = 2000 2000 1000\nElementType = MET_UCHAR\nElementDataFile = LOCAL\n".encode()
+        + bytes(2000))
+    put(out, "metaimage", "declared_zlib_doubles",
+        "NDims = 3\nDimSize = 2000 2000 1000\nElementType = MET_DOUBLE\nCompressedData = True\n"
+        "ElementDataFile = LOCAL\n".encode() + zlib.compress(bytes(100000)))
+    det = base + "ElementType = MET_UCHAR\n"
+    put(out, "metaimage", "detached_single", (det + "ElementDataFile = d.raw\n").encode() + SEP + cube)
+    put(out, "metaimage", "detached_skip", (det + "HeaderSize = 3\nElementDataFile = d.raw\n").encode()
+        + SEP + b"abc" + cube)
+    put(out, "metaimage", "detached_zlib", (det + "CompressedData = True\nElementDataFile = d.raw\n").encode()
+        + SEP + z)
+    put(out, "metaimage", "detached_list", (det + "ElementDataFile = LIST\nd.raw\nd1.raw\nd2.raw\nd3.raw\n").encode()
+        + SEP + cube[:16])
+    put(out, "metaimage", "detached_list_3d", (det + "ElementDataFile = LIST 3D\nd.raw\n").encode() + SEP + cube)
+    put(out, "metaimage", "detached_pattern", (det + "ElementDataFile = d%d.raw 1 2 1 3D\n").encode()
+        + SEP + cube)
+    for width in ("%64d", "%s", "%n", "%d%d", "%0999999999d"):
+        put(out, "metaimage", "pattern_" + width.replace("%", "pct"),
+            (det + "ElementDataFile = " + width + " 1 4 1\n").encode() + SEP + cube[:16])
+    put(out, "metaimage", "data_file_dev_zero", (det + "ElementDataFile = /dev/zero\n").encode() + SEP)
+    for name, (dims, data) in crops.items():
+        head = "NDims = 3\nDimSize = %d %d %d\nElementType = MET_UCHAR\n" % dims
+        put(out, "metaimage", "shared_%s_local" % name, (head + "ElementDataFile = LOCAL\n").encode() + data)
+        put(out, "metaimage", "shared_%s_zlib" % name,
+            (head + "CompressedData = True\nElementDataFile = LOCAL\n").encode() + zlib.compress(data))
+
+
 def pgm(w, h, pixels, maxval=255):
     if maxval < 256:
         body = bytes(pixels)
@@ -298,6 +343,7 @@ def main():
     raw_seeds(out, crops)
     nrrd_seeds(out, crops)
     nifti_seeds(out, crops)
+    metaimage_seeds(out, crops)
     image_seeds(out, images)
     mesh_seeds(out)
     cli_seeds(out)

@@ -6,13 +6,16 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <random>
 #include <sstream>
 #include <string>
+#include <vector>
 
 #include <gtest/gtest.h>
 #include <zlib.h>
 
 #include <progiso/core/base/error.hpp>
+#include <progiso/core/field/volume.hpp>
 
 namespace progiso::test {
 
@@ -48,10 +51,13 @@ inline std::string read_whole_file(const std::filesystem::path& file) {
   return text.str();
 }
 
-/// `data` as one gzip member (zlib's deflate, independent of the readers' inflate).
-inline std::string gzip(const std::string& data, int level = 6) {
+/// `data` as one gzip member (zlib's deflate, independent of the readers' inflate); with
+/// `zlib_wrapper`, as one zlib stream instead (what MetaIO writes for compressed data).
+inline std::string gzip(const std::string& data, int level = 6, bool zlib_wrapper = false) {
   z_stream zs{};
-  EXPECT_EQ(deflateInit2(&zs, level, Z_DEFLATED, 15 + 16, 8, Z_DEFAULT_STRATEGY), Z_OK);
+  EXPECT_EQ(
+      deflateInit2(&zs, level, Z_DEFLATED, zlib_wrapper ? 15 : 15 + 16, 8, Z_DEFAULT_STRATEGY),
+      Z_OK);
   std::string out(deflateBound(&zs, static_cast<uLong>(data.size())) + 64, '\0');
   zs.next_in = reinterpret_cast<Bytef*>(const_cast<char*>(data.data()));
   zs.avail_in = static_cast<uInt>(data.size());
@@ -93,6 +99,27 @@ inline std::string nifti1_file(const std::array<std::int16_t, 3>& dims, std::int
 
 inline bool contains(const std::string& haystack, const std::string& needle) {
   return haystack.find(needle) != std::string::npos;
+}
+
+/// `count` samples of `type` in host byte order: random bytes for integers, random finite
+/// values for floats (within ±1e3 for f32, ±1e6 for f64).
+inline std::vector<std::byte> random_samples(sample_type type, std::size_t count, unsigned seed) {
+  std::mt19937 rng(seed);
+  const std::size_t item = sample_size(type);
+  std::vector<std::byte> out(count * item);
+  for (std::size_t i = 0; i < count; ++i) {
+    std::byte* p = out.data() + i * item;
+    if (type == sample_type::f32) {
+      const float v = std::uniform_real_distribution<float>(-1e3f, 1e3f)(rng);
+      std::memcpy(p, &v, sizeof v);
+    } else if (type == sample_type::f64) {
+      const double v = std::uniform_real_distribution<double>(-1e6, 1e6)(rng);
+      std::memcpy(p, &v, sizeof v);
+    } else {
+      for (std::size_t b = 0; b < item; ++b) p[b] = static_cast<std::byte>(rng());
+    }
+  }
+  return out;
 }
 
 }  // namespace progiso::test

@@ -17,6 +17,7 @@
 #include <progiso/core/base/assert.hpp>
 #include <progiso/core/base/error.hpp>
 #include <progiso/core/io/detail/gzip_input.hpp>
+#include <progiso/core/io/detail/header_text.hpp>
 
 namespace progiso::detail {
 namespace {
@@ -24,7 +25,6 @@ namespace {
 namespace fs = std::filesystem;
 
 constexpr std::size_t chunk_bytes = 64 * 1024;
-constexpr std::size_t quote_bytes = 40;                 // of a bad value, in a message
 constexpr std::size_t max_ascii_token = 1024;           // bytes of one ascii value
 constexpr unsigned max_dimension = 16;                  // NRRD_DIM_MAX
 constexpr unsigned max_space_dimension = 8;             // NRRD_SPACE_DIM_MAX
@@ -33,191 +33,9 @@ constexpr std::int64_t max_pattern_number = INT32_MAX;  // the %d argument is a 
 // =============================================================================================
 // Text helpers.
 
-/// `text` in double quotes for a message: at most quote_bytes bytes, non-printable bytes as
-/// \xNN, "..." when cut.
-std::string show(std::string_view text) {
-  static constexpr char hex[] = "0123456789abcdef";
-  std::string out = "\"";
-  const std::size_t n = std::min(text.size(), quote_bytes);
-  for (std::size_t i = 0; i < n; ++i) {
-    const auto u = static_cast<unsigned char>(text[i]);
-    if (u >= 0x20 && u < 0x7f) {
-      out += text[i];
-    } else {
-      out += "\\x";
-      out += hex[u >> 4];
-      out += hex[u & 15];
-    }
-  }
-  if (text.size() > n) out += "...";
-  out += '"';
-  return out;
-}
-
-bool is_blank(char c) noexcept { return c == ' ' || c == '\t'; }
-
-std::string_view trim(std::string_view s) noexcept {
-  while (!s.empty() && is_blank(s.front())) s.remove_prefix(1);
-  while (!s.empty() && is_blank(s.back())) s.remove_suffix(1);
-  return s;
-}
-
-std::string lower(std::string_view s) {
-  std::string out(s);
-  for (char& c : out) {
-    if (c >= 'A' && c <= 'Z') c = static_cast<char>(c - 'A' + 'a');
-  }
-  return out;
-}
-
-/// The blank-separated words of `s`.
-std::vector<std::string_view> words(std::string_view s) {
-  std::vector<std::string_view> out;
-  std::size_t i = 0;
-  while (i < s.size()) {
-    while (i < s.size() && is_blank(s[i])) ++i;
-    const std::size_t start = i;
-    while (i < s.size() && !is_blank(s[i])) ++i;
-    if (i > start) out.push_back(s.substr(start, i - start));
-  }
-  return out;
-}
-
 std::string dims_text(const index3& dims) {
   return std::to_string(dims[0]) + "," + std::to_string(dims[1]) + "," + std::to_string(dims[2]);
 }
-
-// =============================================================================================
-// Numbers. Locale-independent (std::from_chars); a leading '+' is accepted, as C's scanf does.
-
-enum class parse_status : std::uint8_t { ok, syntax, range };
-
-std::string_view without_plus(std::string_view t) noexcept {
-  if (t.size() > 1 && t[0] == '+' && t[1] != '+' && t[1] != '-') t.remove_prefix(1);
-  return t;
-}
-
-template <class Int>
-parse_status to_integer(std::string_view t, Int& value) noexcept {
-  t = without_plus(t);
-  if (t.empty() || t[0] == '+') return parse_status::syntax;
-  if constexpr (std::is_unsigned_v<Int>) {
-    if (t[0] == '-') return parse_status::syntax;
-  }
-  const auto [end, ec] = std::from_chars(t.data(), t.data() + t.size(), value);
-  if (end != t.data() + t.size()) return parse_status::syntax;
-  if (ec == std::errc::result_out_of_range) return parse_status::range;
-  return ec == std::errc{} ? parse_status::ok : parse_status::syntax;
-}
-
-template <class Int>
-std::optional<Int> to_integer(std::string_view t) noexcept {
-  Int value{};
-  if (to_integer(t, value) != parse_status::ok) return std::nullopt;
-  return value;
-}
-
-/// A decimal floating-point number, "inf", "infinity" or "nan" (any case). A value beyond the
-/// type's range gives what C's strtod gives: ±infinity, or a subnormal or signed zero.
-template <class Real>
-std::optional<Real> to_real(std::string_view t) noexcept {
-  t = without_plus(t);
-  if (t.empty() || t[0] == '+') return std::nullopt;
-  const char* const last = t.data() + t.size();
-  Real value{};
-  const auto [end, ec] = std::from_chars(t.data(), last, value);
-  if (end != last) return std::nullopt;
-  if (ec == std::errc{}) return value;
-  if (ec != std::errc::result_out_of_range) return std::nullopt;
-  // from_chars stores nothing when the value leaves the type's range: take it in long double,
-  // which holds every exponent a sane file writes, and round from there.
-  const bool negative = t[0] == '-';
-  long double wide = 0.0L;
-  const std::from_chars_result r = std::from_chars(t.data(), last, wide);
-  if (r.ec == std::errc{} && r.ptr == last) {
-    if (std::fabs(wide) > static_cast<long double>(std::numeric_limits<Real>::max())) {
-      return negative ? -std::numeric_limits<Real>::infinity()
-                      : std::numeric_limits<Real>::infinity();
-    }
-    return static_cast<Real>(wide);
-  }
-  const std::size_t e = t.find_first_of("eE");
-  const bool tiny = e != std::string_view::npos && e + 1 < t.size() && t[e + 1] == '-';
-  if (tiny) return negative ? -Real{0} : Real{0};
-  return negative ? -std::numeric_limits<Real>::infinity() : std::numeric_limits<Real>::infinity();
-}
-
-// =============================================================================================
-// Header lines.
-
-/// Reads the header of a NRRD file line by line through one buffer, keeping the offset of the
-/// next unread byte (where attached data starts). Lines end in "\n" or "\r\n"; a last line may
-/// end at the end of the file. Every byte is looked at a constant number of times.
-class line_reader {
- public:
-  explicit line_reader(input_file& in) : in_(in), buf_(chunk_bytes) { fill(); }
-
-  /// The first bytes of the file (at most n), valid before any line was read.
-  [[nodiscard]] std::string_view head(std::size_t n) const noexcept {
-    return {buf_.data(), std::min(n, end_)};
-  }
-  /// The offset of the first byte not yet read as part of a line.
-  [[nodiscard]] std::uint64_t offset() const noexcept { return offset_; }
-  /// The number of the last line read (1-based).
-  [[nodiscard]] std::size_t number() const noexcept { return number_; }
-
-  /// Reads the next line without its terminator; false at the end of the file. Throws when the
-  /// line is longer than nrrd_max_line_bytes or holds a NUL byte.
-  bool next(std::string& line) {
-    line.clear();
-    bool any = false;
-    for (;;) {
-      if (pos_ == end_ && !fill()) break;
-      any = true;
-      const char* begin = buf_.data() + pos_;
-      const std::size_t avail = end_ - pos_;
-      const auto* nl = static_cast<const char*>(std::memchr(begin, '\n', avail));
-      const std::size_t n = nl != nullptr ? static_cast<std::size_t>(nl - begin) : avail;
-      if (std::memchr(begin, '\0', n) != nullptr) {
-        throw error(in_.path().string() + ": NRRD header line " + std::to_string(number_ + 1) +
-                    " holds a NUL byte (expected text)");
-      }
-      // One byte more than the bound for a "\r" before the "\n".
-      if (line.size() + n > nrrd_max_line_bytes + 1) too_long();
-      line.append(begin, n);
-      pos_ += n;
-      offset_ += n;
-      if (nl != nullptr) {
-        ++pos_;
-        ++offset_;
-        break;
-      }
-    }
-    if (!any) return false;
-    ++number_;
-    if (!line.empty() && line.back() == '\r') line.pop_back();
-    if (line.size() > nrrd_max_line_bytes) too_long();
-    return true;
-  }
-
- private:
-  bool fill() {
-    pos_ = 0;
-    end_ = in_.read(buf_.data(), buf_.size());
-    return end_ > 0;
-  }
-  [[noreturn]] void too_long() const {
-    throw error(in_.path().string() + ": NRRD header line " + std::to_string(number_ + 1) +
-                " is longer than " + std::to_string(nrrd_max_line_bytes) + " bytes");
-  }
-
-  input_file& in_;
-  std::vector<char> buf_;
-  std::size_t pos_ = 0;
-  std::size_t end_ = 0;
-  std::uint64_t offset_ = 0;
-  std::size_t number_ = 0;
-};
 
 // =============================================================================================
 // Fields: every field of the NRRD format (NRRD0001 … NRRD0005) and its spellings.
@@ -475,22 +293,22 @@ void check_magic(const line_reader& lines, const fs::path& file) {
   const bool nrrd = head.size() == 8 && head.substr(0, 7) == "NRRD000";
   if (nrrd && head[7] >= '1' && head[7] <= '5') return;
   if (nrrd) {
-    throw error(file.string() + ": unsupported NRRD format version " + show(head) +
+    throw error(file.string() + ": unsupported NRRD format version " + detail::quoted(head) +
                 " (expected NRRD0001 to NRRD0005)");
   }
   throw error(file.string() + ": not a NRRD file (expected the magic \"NRRD0001\" to " +
-              "\"NRRD0005\", found " + show(head) + ")");
+              "\"NRRD0005\", found " + detail::quoted(head) + ")");
 }
 
 header_lines read_header_lines(input_file& in) {
   const fs::path& file = in.path();
-  line_reader lines(in);
+  line_reader lines(in, "NRRD");
   check_magic(lines, file);
   std::string line;
   lines.next(line);
   if (line.size() != 8) {
     throw error(file.string() + ": expected the NRRD magic alone on the first line, found " +
-                show(line));
+                detail::quoted(line));
   }
 
   header_lines out;
@@ -508,11 +326,13 @@ header_lines read_header_lines(input_file& in) {
       // A key/value pair: accepted and dropped, so that any number of them costs linear time.
       if (text.find(":=") != std::string_view::npos) continue;
       if (colon != std::string_view::npos) {
-        throw error(file.string() + ": unknown NRRD field " + show(text.substr(0, colon)) +
-                    " on header line " + std::to_string(lines.number()));
+        throw error(file.string() + ": unknown NRRD field " +
+                    detail::quoted(text.substr(0, colon)) + " on header line " +
+                    std::to_string(lines.number()));
       }
       throw error(file.string() + ": expected \"field: value\" or \"key:=value\" on NRRD " +
-                  "header line " + std::to_string(lines.number()) + ", found " + show(text));
+                  "header line " + std::to_string(lines.number()) + ", found " +
+                  detail::quoted(text));
     }
     auto& slot = out.fields[static_cast<std::size_t>(*id)];
     if (slot) {
@@ -548,24 +368,6 @@ header_lines read_header_lines(input_file& in) {
 
 // =============================================================================================
 // Header parsing, pass 2: each field checked and reduced to a nrrd_header.
-
-/// "%d" with an optional 0 flag and a one-digit width, between literal text; expanded by
-/// format_number(), never by printf.
-struct name_pattern {
-  std::string prefix;
-  std::string suffix;
-  bool zero_pad = false;
-  unsigned width = 0;
-};
-
-std::string format_number(std::int64_t v, bool zero_pad, unsigned width) {
-  const std::string digits = std::to_string(v < 0 ? -v : v);
-  const std::string sign = v < 0 ? "-" : "";
-  const std::size_t len = sign.size() + digits.size();
-  if (len >= width) return sign + digits;
-  const std::string pad(width - len, zero_pad ? '0' : ' ');
-  return zero_pad ? sign + pad + digits : pad + sign + digits;
-}
 
 class header_parser {
  public:
@@ -626,7 +428,7 @@ class header_parser {
     if (const field_value* v = get(field::endian)) {
       const std::string e = lower(v->text);
       if (e != "little" && e != "big") {
-        fail(field::endian, "expected little or big, found " + show(v->text));
+        fail(field::endian, "expected little or big, found " + detail::quoted(v->text));
       }
       h.big_endian = e == "big";
     } else if (sample_size(h.type) > 1 && h.encoding != nrrd_encoding::ascii) {
@@ -639,14 +441,14 @@ class header_parser {
   void parse_skips(nrrd_header& h) const {
     if (const field_value* v = get(field::line_skip)) {
       const auto n = to_integer<std::uint64_t>(v->text);
-      if (!n) fail(field::line_skip, "expected an integer ≥ 0, found " + show(v->text));
+      if (!n) fail(field::line_skip, "expected an integer ≥ 0, found " + detail::quoted(v->text));
       h.line_skip = *n;
     }
     if (const field_value* v = get(field::byte_skip)) {
       const auto n = to_integer<std::int64_t>(v->text);
       if (!n || *n < -1) {
-        fail(field::byte_skip,
-             "expected an integer ≥ -1 (-1: the data ends the file), found " + show(v->text));
+        fail(field::byte_skip, "expected an integer ≥ -1 (-1: the data ends the file), found " +
+                                   detail::quoted(v->text));
       }
       h.byte_skip = *n;
       if (*n == -1 && h.encoding != nrrd_encoding::raw) {
@@ -664,12 +466,12 @@ class header_parser {
     for (const type_spelling& s : type_spellings) {
       if (s.text != key) continue;
       if (!s.type) {
-        throw error(file_.string() + ": unsupported NRRD sample type " + show(v.text) +
+        throw error(file_.string() + ": unsupported NRRD sample type " + detail::quoted(v.text) +
                     " (expected one of u8 i8 u16 i16 u32 i32 f32 f64)");
       }
       return *s.type;
     }
-    fail(field::type, "unknown sample type " + show(v.text));
+    fail(field::type, "unknown sample type " + detail::quoted(v.text));
   }
 
   void parse_dimension() {
@@ -677,7 +479,7 @@ class header_parser {
     const auto d = to_integer<unsigned>(v.text);
     if (!d || *d < 1 || *d > max_dimension) {
       fail(field::dimension, "expected an integer from 1 to " + std::to_string(max_dimension) +
-                                 ", found " + show(v.text));
+                                 ", found " + detail::quoted(v.text));
     }
     dimension_ = *d;
   }
@@ -687,12 +489,13 @@ class header_parser {
     const std::vector<std::string_view> w = words(v.text);
     if (w.size() != dimension_) {
       fail(field::sizes, "expected " + std::to_string(dimension_) +
-                             " sizes (the dimension), found " + show(v.text));
+                             " sizes (the dimension), found " + detail::quoted(v.text));
     }
     std::vector<std::uint64_t> sizes;
     for (std::string_view s : w) {
       const auto n = to_integer<std::uint64_t>(s);
-      if (!n) fail(field::sizes, "cannot parse " + show(s) + " as an unsigned 64-bit integer");
+      if (!n)
+        fail(field::sizes, "cannot parse " + detail::quoted(s) + " as an unsigned 64-bit integer");
       sizes.push_back(*n);
     }
     if (dimension_ != 3) {
@@ -726,11 +529,11 @@ class header_parser {
     if (e == "ascii" || e == "text" || e == "txt") return nrrd_encoding::ascii;
     if (e == "hex") return nrrd_encoding::hex;
     if (e == "bzip2" || e == "bz2" || e == "zrl") {
-      throw error(file_.string() + ": unsupported NRRD encoding " + show(v.text) +
+      throw error(file_.string() + ": unsupported NRRD encoding " + detail::quoted(v.text) +
                   " (expected raw, gzip, ascii or hex)");
     }
     fail(field::encoding,
-         "unknown encoding " + show(v.text) + " (expected raw, gzip, ascii or hex)");
+         "unknown encoding " + detail::quoted(v.text) + " (expected raw, gzip, ascii or hex)");
   }
 
   void parse_space() {
@@ -744,14 +547,14 @@ class header_parser {
       for (const space_spelling& s : space_spellings) {
         if (s.text == key) space_dimension_ = s.dimension;
       }
-      if (space_dimension_ == 0) fail(field::space, "unknown space " + show(space->text));
+      if (space_dimension_ == 0) fail(field::space, "unknown space " + detail::quoted(space->text));
     }
     if (dim != nullptr) {
       const auto d = to_integer<unsigned>(dim->text);
       if (!d || *d < 1 || *d > max_space_dimension) {
         fail(field::space_dimension, "expected an integer from 1 to " +
                                          std::to_string(max_space_dimension) + ", found " +
-                                         show(dim->text));
+                                         detail::quoted(dim->text));
       }
       space_dimension_ = *d;
     }
@@ -771,7 +574,8 @@ class header_parser {
       while (i < text.size() && is_blank(text[i])) ++i;
       if (i == text.size()) break;
       if (out.size() == count) {
-        fail(f, "expected " + std::to_string(count) + " vectors, found more in " + show(text));
+        fail(f, "expected " + std::to_string(count) + " vectors, found more in " +
+                    detail::quoted(text));
       }
       if (text.substr(i, 4) == "none" && (i + 4 == text.size() || is_blank(text[i + 4]))) {
         out.emplace_back();
@@ -780,7 +584,7 @@ class header_parser {
       }
       const std::size_t close = text.find(')', i);
       if (text[i] != '(' || close == std::string_view::npos) {
-        fail(f, "expected \"(x,y,...)\" or \"none\", found " + show(text.substr(i)));
+        fail(f, "expected \"(x,y,...)\" or \"none\", found " + detail::quoted(text.substr(i)));
       }
       const std::string_view inner = text.substr(i + 1, close - i - 1);
       std::vector<double> vec;
@@ -789,7 +593,7 @@ class header_parser {
         const std::size_t comma = inner.find(',', start);
         const std::string_view part = trim(inner.substr(start, comma - start));
         const auto x = to_real<double>(part);
-        if (!x) fail(f, "cannot parse " + show(part) + " as a number");
+        if (!x) fail(f, "cannot parse " + detail::quoted(part) + " as a number");
         vec.push_back(*x);
         if (comma == std::string_view::npos) break;
         start = comma + 1;
@@ -797,14 +601,14 @@ class header_parser {
       if (vec.size() != space_dimension_) {
         fail(f, "expected " + std::to_string(space_dimension_) +
                     " components (the space dimension), found " +
-                    show(text.substr(i, close + 1 - i)));
+                    detail::quoted(text.substr(i, close + 1 - i)));
       }
       out.push_back(std::move(vec));
       i = close + 1;
     }
     if (out.size() != count) {
       fail(f, "expected " + std::to_string(count) + " vectors, found " +
-                  std::to_string(out.size()) + " in " + show(text));
+                  std::to_string(out.size()) + " in " + detail::quoted(text));
     }
     return out;
   }
@@ -814,7 +618,7 @@ class header_parser {
     const field_value& v = given(f);
     const std::vector<std::string_view> w = words(v.text);
     if (w.size() != count) {
-      fail(f, "expected " + std::to_string(count) + " numbers, found " + show(v.text));
+      fail(f, "expected " + std::to_string(count) + " numbers, found " + detail::quoted(v.text));
     }
     std::vector<double> out;
     for (std::string_view s : w) {
@@ -824,7 +628,7 @@ class header_parser {
         continue;
       }
       const auto x = to_real<double>(s);
-      if (!x) fail(f, "cannot parse " + show(s) + " as a number");
+      if (!x) fail(f, "cannot parse " + detail::quoted(s) + " as a number");
       out.push_back(*x);
     }
     return out;
@@ -888,12 +692,13 @@ class header_parser {
     for (;;) {
       while (i < text.size() && is_blank(text[i])) ++i;
       if (i == text.size()) break;
-      if (text[i] != '"') fail(f, "expected double-quoted strings, found " + show(text.substr(i)));
+      if (text[i] != '"')
+        fail(f, "expected double-quoted strings, found " + detail::quoted(text.substr(i)));
       ++i;
       while (i < text.size() && text[i] != '"') {
         i += text[i] == '\\' && i + 1 < text.size() ? 2u : 1u;
       }
-      if (i >= text.size()) fail(f, "a string has no closing '\"' in " + show(text));
+      if (i >= text.size()) fail(f, "a string has no closing '\"' in " + detail::quoted(text));
       ++i;
       ++found;
     }
@@ -913,7 +718,8 @@ class header_parser {
     }
     for (field f : {field::kinds, field::centers}) {
       if (const field_value* v = get(f); v != nullptr && words(v->text).size() != dimension_) {
-        fail(f, "expected " + std::to_string(dimension_) + " words, found " + show(v->text));
+        fail(f,
+             "expected " + std::to_string(dimension_) + " words, found " + detail::quoted(v->text));
       }
     }
     for (field f : {field::labels, field::units}) {
@@ -930,7 +736,8 @@ class header_parser {
     }
     if (const field_value* v = get(field::block_size);
         v != nullptr && !to_integer<std::uint64_t>(v->text)) {
-      fail(field::block_size, "cannot parse " + show(v->text) + " as an unsigned integer");
+      fail(field::block_size,
+           "cannot parse " + detail::quoted(v->text) + " as an unsigned integer");
     }
   }
 
@@ -939,45 +746,9 @@ class header_parser {
 
   /// Parses a "%d" pattern; nullopt when `text` has no conversion (a plain name, "%%" kept).
   std::optional<name_pattern> parse_pattern(std::string_view text) const {
-    name_pattern p;
-    bool have = false;
-    std::string* part = &p.prefix;
-    for (std::size_t i = 0; i < text.size(); ++i) {
-      if (text[i] != '%') {
-        *part += text[i];
-        continue;
-      }
-      if (i + 1 < text.size() && text[i + 1] == '%') {
-        *part += '%';
-        ++i;
-        continue;
-      }
-      std::size_t j = i + 1;
-      const bool zero_pad = j < text.size() && text[j] == '0';
-      if (zero_pad) ++j;
-      const std::size_t width_begin = j;
-      while (j < text.size() && text[j] >= '0' && text[j] <= '9') ++j;
-      const std::string_view width = text.substr(width_begin, j - width_begin);
-      if (j == text.size() || text[j] != 'd') {
-        fail(field::data_file,
-             "unsupported conversion " + show(text.substr(i, std::min(j + 1, text.size()) - i)) +
-                 " in the file name pattern (expected one %d, optionally %0Nd with N ≤ 9)");
-      }
-      if (width.size() > 1) {
-        fail(field::data_file,
-             "field width " + show(width) + " in the file name pattern is above the limit of 9");
-      }
-      if (have) {
-        fail(field::data_file, "the file name pattern " + show(text) +
-                                   " has more than one conversion (expected one %d)");
-      }
-      have = true;
-      p.zero_pad = zero_pad;
-      p.width = width.empty() ? 0u : static_cast<unsigned>(width[0] - '0');
-      part = &p.suffix;
-      i = j;
-    }
-    if (!have) return std::nullopt;
+    std::string problem;
+    std::optional<name_pattern> p = parse_name_pattern(text, problem);
+    if (!problem.empty()) fail(field::data_file, problem);
     return p;
   }
 
@@ -986,7 +757,7 @@ class header_parser {
     const auto d = to_integer<unsigned>(text);
     if (!d || *d < 1 || *d > dimension_) {
       fail(field::data_file, "expected a data file dimension from 1 to " +
-                                 std::to_string(dimension_) + ", found " + show(text));
+                                 std::to_string(dimension_) + ", found " + detail::quoted(text));
     }
     return *d;
   }
@@ -1029,7 +800,7 @@ class header_parser {
 
     if (w[0] == "LIST") {
       if (w.size() > 2) {
-        fail(field::data_file, "expected \"LIST [subdim]\", found " + show(v->text));
+        fail(field::data_file, "expected \"LIST [subdim]\", found " + detail::quoted(v->text));
       }
       const unsigned subdim = w.size() == 2 ? parse_subdimension(w[1]) : dimension_ - 1;
       if (lines_.list_names.empty()) fail(field::data_file, "LIST is followed by no file names");
@@ -1051,13 +822,14 @@ class header_parser {
       return files;
     }
     if (w.size() != 4 && w.size() != 5) {
-      fail(field::data_file, "expected \"PATTERN MIN MAX STEP [SUBDIM]\", found " + show(v->text));
+      fail(field::data_file,
+           "expected \"PATTERN MIN MAX STEP [SUBDIM]\", found " + detail::quoted(v->text));
     }
     std::array<std::int64_t, 3> mms{};
     for (std::size_t k = 0; k < 3; ++k) {
       const auto n = to_integer<std::int64_t>(w[k + 1]);
       if (!n || *n < -max_pattern_number - 1 || *n > max_pattern_number) {
-        fail(field::data_file, "cannot parse " + show(w[k + 1]) + " as a 32-bit integer");
+        fail(field::data_file, "cannot parse " + detail::quoted(w[k + 1]) + " as a 32-bit integer");
       }
       mms[k] = *n;
     }
@@ -1103,7 +875,9 @@ std::string encoding_bound(nrrd_encoding e) {
     case nrrd_encoding::raw:
       return "";
     case nrrd_encoding::gzip:
-      return "; gzip expands at most " + std::to_string(gzip_max_ratio) + ":1";
+    case nrrd_encoding::zlib:
+      return "; " + std::string(to_string(e)) + " expands at most " +
+             std::to_string(gzip_max_ratio) + ":1";
     case nrrd_encoding::ascii:
       return "; ascii takes at least 2 bytes per value";
     case nrrd_encoding::hex:
@@ -1126,7 +900,7 @@ void check_capacity(const data_plan& plan, input_file& in, std::uint64_t start,
   const nrrd_header& h = plan.header;
   std::uint64_t avail = in.size() > start ? in.size() - start : 0;
   avail -= std::min(avail, h.line_skip);  // every skipped line holds at least its "\n"
-  if (h.byte_skip > 0 && h.encoding != nrrd_encoding::gzip) {
+  if (h.byte_skip > 0 && !deflated(h.encoding)) {
     avail -= std::min(avail, static_cast<std::uint64_t>(h.byte_skip));
   }
   found += avail;
@@ -1135,7 +909,8 @@ void check_capacity(const data_plan& plan, input_file& in, std::uint64_t start,
     case nrrd_encoding::raw:
       fits = avail >= plan.piece;
       break;
-    case nrrd_encoding::gzip: {
+    case nrrd_encoding::gzip:
+    case nrrd_encoding::zlib: {
       const std::uint64_t need =
           plan.piece + static_cast<std::uint64_t>(std::max<std::int64_t>(h.byte_skip, 0));
       fits = gzip_can_hold(avail, need);
@@ -1160,14 +935,15 @@ void check_capacity(const data_plan& plan, input_file& in, std::uint64_t start,
   throw error(what + encoding_bound(h.encoding) + ")");
 }
 
-[[noreturn]] void data_ends(const input_file& in, std::uint64_t got, std::uint64_t want,
-                            std::string_view why = {}) {
-  throw error(in.path().string() + ": NRRD data ends after " + std::to_string(got) + " of " +
-              std::to_string(want) + " bytes" + std::string(why));
+[[noreturn]] void data_ends(std::string_view format, const input_file& in, std::uint64_t got,
+                            std::uint64_t want, std::string_view why = {}) {
+  throw error(in.path().string() + ": " + std::string(format) + " data ends after " +
+              std::to_string(got) + " of " + std::to_string(want) + " bytes" + std::string(why));
 }
 
 /// The offset just after the `count` lines that follow `pos`.
-std::uint64_t skip_lines(input_file& in, std::uint64_t pos, std::uint64_t count) {
+std::uint64_t skip_lines(std::string_view format, input_file& in, std::uint64_t pos,
+                         std::uint64_t count) {
   if (count == 0) return pos;
   in.seek(pos);
   std::vector<char> buf(chunk_bytes);
@@ -1186,22 +962,27 @@ std::uint64_t skip_lines(input_file& in, std::uint64_t pos, std::uint64_t count)
     }
     pos += got;
   }
-  throw error(in.path().string() + ": NRRD data ends after " + std::to_string(skipped) +
-              " of the " + std::to_string(count) + " lines to skip (line skip)");
+  throw error(in.path().string() + ": " + std::string(format) + " data ends after " +
+              std::to_string(skipped) + " of the " + std::to_string(count) +
+              " lines to skip (line skip)");
 }
 
-void read_raw_piece(input_file& in, std::span<std::byte> out) {
+void read_raw_piece(std::string_view format, input_file& in, std::span<std::byte> out) {
   const std::size_t got = in.read(out.data(), out.size());
-  if (got < out.size()) data_ends(in, got, out.size());
+  if (got < out.size()) data_ends(format, in, got, out.size());
 }
 
 /// Inflates gzip (or zlib) data, one or more concatenated members, into `out` after dropping
 /// `skip` decompressed bytes; stops as soon as `out` is full.
-void inflate_piece(input_file& in, std::uint64_t skip, std::span<std::byte> out) {
-  gzip_input gz(in, "NRRD gzip data");
+void inflate_piece(const nrrd_header& h, input_file& in, std::uint64_t skip,
+                   std::span<std::byte> out) {
+  gzip_input gz(in, std::string(h.format) + " " + std::string(to_string(h.encoding)) + " data");
   const std::uint64_t skipped = gz.skip(skip);
   const std::size_t produced = skipped == skip ? gz.read(out) : 0;
-  if (produced < out.size()) data_ends(in, produced, out.size(), " (the gzip stream ends early)");
+  if (produced < out.size()) {
+    data_ends(h.format, in, produced, out.size(),
+              " (the " + std::string(to_string(h.encoding)) + " stream ends early)");
+  }
 }
 
 template <class Int>
@@ -1254,7 +1035,8 @@ bool is_ascii_separator(char c) noexcept {
 
 /// Reads whitespace- or comma-separated values, one per sample; values after the last
 /// sample are ignored.
-void read_ascii_piece(input_file& in, sample_type type, std::span<std::byte> out) {
+void read_ascii_piece(std::string_view format, input_file& in, sample_type type,
+                      std::span<std::byte> out) {
   const std::size_t item = sample_size(type);
   const std::size_t values = out.size() / item;
   std::vector<char> buf(chunk_bytes);
@@ -1265,8 +1047,9 @@ void read_ascii_piece(input_file& in, sample_type type, std::span<std::byte> out
     const parse_status status = store_ascii_value(type, token, out.data() + done * item);
     if (status != parse_status::ok) {
       throw error(
-          in.path().string() + ": NRRD ascii value " + std::to_string(done + 1) + " of " +
-          std::to_string(values) + ", " + show(token) +
+          in.path().string() + ": " + std::string(format) + " ascii value " +
+          std::to_string(done + 1) + " of " + std::to_string(values) + ", " +
+          detail::quoted(token) +
           (status == parse_status::range ? ", is out of range for " : ", cannot be parsed as ") +
           std::string(to_string(type)));
     }
@@ -1283,16 +1066,17 @@ void read_ascii_piece(input_file& in, sample_type type, std::span<std::byte> out
       if (is_ascii_separator(buf[i])) {
         take();
       } else if (token.size() == max_ascii_token) {
-        throw error(in.path().string() + ": NRRD ascii value " + std::to_string(done + 1) +
-                    " is longer than " + std::to_string(max_ascii_token) + " bytes");
+        throw error(in.path().string() + ": " + std::string(format) + " ascii value " +
+                    std::to_string(done + 1) + " is longer than " +
+                    std::to_string(max_ascii_token) + " bytes");
       } else {
         token += buf[i];
       }
     }
   }
   if (done < values) {
-    throw error(in.path().string() + ": NRRD ascii data ends after " + std::to_string(done) +
-                " of " + std::to_string(values) + " values");
+    throw error(in.path().string() + ": " + std::string(format) + " ascii data ends after " +
+                std::to_string(done) + " of " + std::to_string(values) + " values");
   }
 }
 
@@ -1304,7 +1088,7 @@ int hex_digit(char c) noexcept {
 }
 
 /// Reads two hex digits per byte, whitespace ignored.
-void read_hex_piece(input_file& in, std::span<std::byte> out) {
+void read_hex_piece(std::string_view format, input_file& in, std::span<std::byte> out) {
   std::vector<char> buf(chunk_bytes);
   std::size_t done = 0;
   int high = -1;
@@ -1315,9 +1099,9 @@ void read_hex_piece(input_file& in, std::span<std::byte> out) {
       const int d = hex_digit(buf[i]);
       if (d < 0) {
         if (is_ascii_separator(buf[i]) && buf[i] != ',') continue;
-        throw error(in.path().string() + ": NRRD hex data holds " +
-                    show(std::string_view(&buf[i], 1)) + " after " + std::to_string(done) +
-                    " bytes (expected hex digits)");
+        throw error(in.path().string() + ": " + std::string(format) + " hex data holds " +
+                    detail::quoted(std::string_view(&buf[i], 1)) + " after " +
+                    std::to_string(done) + " bytes (expected hex digits)");
       }
       if (high < 0) {
         high = d;
@@ -1328,7 +1112,7 @@ void read_hex_piece(input_file& in, std::span<std::byte> out) {
     }
   }
   if (done < out.size()) {
-    data_ends(in, done, out.size(), high >= 0 ? " (an odd number of hex digits)" : "");
+    data_ends(format, in, done, out.size(), high >= 0 ? " (an odd number of hex digits)" : "");
   }
 }
 
@@ -1339,26 +1123,27 @@ void decode_piece(const nrrd_header& h, input_file& in, std::uint64_t start,
   if (h.byte_skip == -1) {
     // The data ends the file; the capacity check made sure it lies after `start`.
     if (in.size() < start + out.size())
-      data_ends(in, in.size() - std::min(in.size(), start), out.size());
+      data_ends(h.format, in, in.size() - std::min(in.size(), start), out.size());
     pos = in.size() - out.size();
   } else {
-    pos = skip_lines(in, pos, h.line_skip);
+    pos = skip_lines(h.format, in, pos, h.line_skip);
     // Compressed data skips its bytes inside the decompressed stream.
-    if (h.encoding != nrrd_encoding::gzip) pos += static_cast<std::uint64_t>(h.byte_skip);
+    if (!deflated(h.encoding)) pos += static_cast<std::uint64_t>(h.byte_skip);
   }
   in.seek(pos);
   switch (h.encoding) {
     case nrrd_encoding::raw:
-      read_raw_piece(in, out);
+      read_raw_piece(h.format, in, out);
       break;
     case nrrd_encoding::gzip:
-      inflate_piece(in, static_cast<std::uint64_t>(h.byte_skip), out);
+    case nrrd_encoding::zlib:
+      inflate_piece(h, in, static_cast<std::uint64_t>(h.byte_skip), out);
       break;
     case nrrd_encoding::ascii:
-      read_ascii_piece(in, h.type, out);
+      read_ascii_piece(h.format, in, h.type, out);
       break;
     case nrrd_encoding::hex:
-      read_hex_piece(in, out);
+      read_hex_piece(h.format, in, out);
       break;
   }
 }
@@ -1382,6 +1167,8 @@ std::string_view to_string(nrrd_encoding encoding) noexcept {
       return "raw";
     case nrrd_encoding::gzip:
       return "gzip";
+    case nrrd_encoding::zlib:
+      return "zlib";
     case nrrd_encoding::ascii:
       return "ascii";
     case nrrd_encoding::hex:
@@ -1414,16 +1201,16 @@ std::vector<std::byte> read_nrrd_samples(const nrrd_header& header, input_file& 
   } else {
     for (std::size_t i = 0; i < plan.files; ++i) {
       for_data_file(header_file.path(), i, plan.files, [&] {
-        input_file in(header.data_files[i], "NRRD data");
+        input_file in(header.data_files[i], std::string(header.format) + " data");
         check_capacity(plan, in, 0, found);
       });
     }
     // Each file passed with its own slack; all together get one.
-    if (header.encoding == nrrd_encoding::gzip && !gzip_can_hold(found, plan.total)) {
-      throw error(header_file.path().string() + ": the " + std::to_string(found) +
-                  " bytes of gzip data in " + std::to_string(plan.files) +
-                  " data files cannot hold the declared " + std::to_string(plan.total) +
-                  " bytes (sizes " + dims_text(header.dims) + " of " +
+    if (deflated(header.encoding) && !gzip_can_hold(found, plan.total)) {
+      throw error(header_file.path().string() + ": the " + std::to_string(found) + " bytes of " +
+                  std::string(to_string(header.encoding)) + " data in " +
+                  std::to_string(plan.files) + " data files cannot hold the declared " +
+                  std::to_string(plan.total) + " bytes (sizes " + dims_text(header.dims) + " of " +
                   std::string(to_string(header.type)) + encoding_bound(header.encoding) + ")");
     }
   }
@@ -1437,7 +1224,7 @@ std::vector<std::byte> read_nrrd_samples(const nrrd_header& header, input_file& 
   } else {
     for (std::size_t i = 0; i < plan.files; ++i) {
       for_data_file(header_file.path(), i, plan.files, [&] {
-        input_file in(header.data_files[i], "NRRD data");
+        input_file in(header.data_files[i], std::string(header.format) + " data");
         decode_piece(header, in, 0, all.subspan(i * piece, piece));
       });
     }

@@ -13,6 +13,7 @@
 #include <progiso/core/base/error.hpp>
 #include <progiso/core/io/detail/file_input.hpp>
 #include <progiso/core/io/detail/file_output.hpp>
+#include <progiso/core/io/detail/metaimage_reader.hpp>
 #include <progiso/core/io/detail/nifti_reader.hpp>
 #include <progiso/core/io/detail/nrrd_reader.hpp>
 
@@ -45,21 +46,33 @@ volume make_volume(const fs::path& file, const index3& dims, sample_type type,
   }
 }
 
-enum class volume_format { nrrd, nifti };
+enum class volume_format { nrrd, nifti, metaimage };
 
 /// The format a file name asks for; throws "FILE: unknown volume format (…)" for any other.
 volume_format format_of(const fs::path& file) {
   if (detail::has_nifti_name(file)) return volume_format::nifti;
+  if (detail::has_metaimage_name(file)) return volume_format::metaimage;
   const std::string ext = lower_extension(file);
   if (ext == ".nrrd" || ext == ".nhdr") return volume_format::nrrd;
   throw error(file.string() +
-              ": unknown volume format (expected .nrrd, .nhdr, .nii, .nii.gz, .hdr, or a raw "
-              "file with --dims and --type)");
+              ": unknown volume format (expected .nrrd, .nhdr, .nii, .nii.gz, .hdr, .mha, .mhd, "
+              "or a raw file with --dims and --type)");
 }
 
-volume read_nrrd_with(const fs::path& file, const std::optional<std::array<double, 3>>& spacing) {
-  detail::input_file in(file, "NRRD");
-  const detail::nrrd_header header = detail::parse_nrrd_header(in);
+/// The header of a NRRD or MetaImage file (both read their data through read_nrrd_samples).
+detail::nrrd_header parse_text_header(detail::input_file& in, volume_format format) {
+  return format == volume_format::metaimage ? detail::parse_metaimage_header(in)
+                                            : detail::parse_nrrd_header(in);
+}
+
+std::string_view format_kind(volume_format format) {
+  return format == volume_format::metaimage ? "MetaImage" : "NRRD";
+}
+
+volume read_text_header_volume(const fs::path& file, volume_format format,
+                               const std::optional<std::array<double, 3>>& spacing) {
+  detail::input_file in(file, format_kind(format));
+  const detail::nrrd_header header = parse_text_header(in, format);
   std::vector<std::byte> samples = detail::read_nrrd_samples(header, in);
   return make_volume(file, header.dims, header.type, std::move(samples),
                      spacing.value_or(header.spacing), header.origin);
@@ -112,15 +125,22 @@ volume read_raw(const std::filesystem::path& file, const raw_layout& layout,
 // ---------------------------------------------------------------------------------------------
 // NRRD and NIfTI files, and dispatch.
 
-volume read_nrrd(const std::filesystem::path& file) { return read_nrrd_with(file, std::nullopt); }
+volume read_nrrd(const std::filesystem::path& file) {
+  return read_text_header_volume(file, volume_format::nrrd, std::nullopt);
+}
+
+volume read_metaimage(const std::filesystem::path& file) {
+  return read_text_header_volume(file, volume_format::metaimage, std::nullopt);
+}
 
 volume read_nifti(const std::filesystem::path& file) { return read_nifti_with(file, std::nullopt); }
 
 volume read_volume(const std::filesystem::path& file, const std::optional<raw_layout>& raw,
                    std::optional<std::array<double, 3>> spacing) {
   if (raw) return read_raw(file, *raw, spacing.value_or(std::array<double, 3>{1.0, 1.0, 1.0}));
-  if (format_of(file) == volume_format::nifti) return read_nifti_with(file, spacing);
-  return read_nrrd_with(file, spacing);
+  const volume_format format = format_of(file);
+  if (format == volume_format::nifti) return read_nifti_with(file, spacing);
+  return read_text_header_volume(file, format, spacing);
 }
 
 double index_to_world::determinant() const noexcept {
@@ -140,21 +160,23 @@ std::array<double, 3> index_to_world::apply(const std::array<double, 3>& index) 
 std::optional<index_to_world> read_volume_world(const std::filesystem::path& file,
                                                 const std::optional<raw_layout>& raw) {
   if (raw) return std::nullopt;
-  if (format_of(file) == volume_format::nifti) return detail::read_nifti_header(file).world;
-  detail::input_file in(file, "NRRD");
-  return detail::parse_nrrd_header(in).world;
+  const volume_format format = format_of(file);
+  if (format == volume_format::nifti) return detail::read_nifti_header(file).world;
+  detail::input_file in(file, format_kind(format));
+  return parse_text_header(in, format).world;
 }
 
 std::vector<std::filesystem::path> volume_input_files(const std::filesystem::path& file,
                                                       const std::optional<raw_layout>& raw) {
   if (raw) return {file};
-  if (format_of(file) == volume_format::nifti) {
+  const volume_format format = format_of(file);
+  if (format == volume_format::nifti) {
     const detail::nifti_header header = detail::read_nifti_header(file);
     if (header.data_file) return {file, *header.data_file};
     return {file};
   }
-  detail::input_file in(file, "NRRD");
-  detail::nrrd_header header = detail::parse_nrrd_header(in);
+  detail::input_file in(file, format_kind(format));
+  detail::nrrd_header header = parse_text_header(in, format);
   std::vector<std::filesystem::path> files;
   files.reserve(1 + header.data_files.size());
   files.push_back(file);

@@ -1,6 +1,7 @@
-// progiso/core/io/volume_io.hpp — reading volumes from headerless raw files, NRRD and NIfTI.
+// progiso/core/io/volume_io.hpp — reading volumes from headerless raw files, NRRD, NIfTI and
+// MetaImage.
 //
-// Three sources are supported. A headerless raw file holds nothing but the samples, x varying
+// Four sources are supported. A headerless raw file holds nothing but the samples, x varying
 // fastest, then y, then z; its layout (dims, sample type, byte order) comes from the caller,
 // usually the command line's --dims and --type, and the file size must match it exactly.
 // NRRD files (.nrrd with attached data, .nhdr with detached data files) describe themselves;
@@ -8,7 +9,10 @@
 // and hex encodings, either byte order, one data file, a LIST of them or a %d pattern. NIfTI-1
 // and NIfTI-2 files (.nii, .nii.gz, or a .hdr with its .img), the formats of MRI and much
 // research CT, are read by detail/nifti_reader.hpp: either byte order, plain or gzip, scaled to
-// physical values by scl_slope and scl_inter.
+// physical values by scl_slope and scl_inter. MetaImage files (.mha with the data after the
+// header, .mhd with it in other files), ITK's format and that of many CT collections, are read by
+// detail/metaimage_reader.hpp: raw, zlib-compressed or ASCII data, either byte order, one data
+// file, a LIST of them or a %d pattern.
 // read_volume() picks the reader the way the command-line tool does: an explicit raw layout
 // wins, otherwise the file extension decides. volume_input_files() names the files a read
 // would open, from the header alone.
@@ -77,7 +81,9 @@ struct index_to_world {
 
 /// The orientation a volume file declares, from its header alone: for NIfTI the sform when
 /// sform_code > 0, else the qform when qform_code > 0; for NRRD the "space directions" (as
-/// columns) and "space origin" of a 3-D space; nullopt for files without one (NIfTI with both
+/// columns) and "space origin" of a 3-D space; for MetaImage the TransformMatrix (row i the
+/// direction of index axis i, as ITK reads it; identity when absent) scaled by ElementSpacing,
+/// and Offset; nullopt for files without one (NIfTI with both
 /// codes 0, NRRD without space directions, raw files), whose positions are origin + index ×
 /// spacing only. Throws progiso::error like read_volume() for an unknown format and header
 /// errors.
@@ -95,18 +101,30 @@ struct index_to_world {
 /// docs/ARCHITECTURE.md "Reading NIfTI".
 [[nodiscard]] volume read_nifti(const std::filesystem::path& file);
 
+/// Reads a MetaImage volume: a .mha or .mhd header (one "Key = Value" field per line, up to
+/// ElementDataFile) and its data (LOCAL: in the same file; else the files it names). NDims 3
+/// (sizes above the third of 1 allowed), 2 to 32769 samples per axis, ElementType MET_UCHAR,
+/// MET_CHAR, MET_USHORT, MET_SHORT, MET_UINT, MET_INT, MET_ULONG, MET_LONG (4 bytes), MET_FLOAT
+/// or MET_DOUBLE, one channel; binary (either byte order, zlib-compressed or not) or ASCII data.
+/// Spacing is |ElementSpacing| per axis, the origin Offset (or Position, Origin);
+/// TransformMatrix is not applied (read_volume_world() gives the whole map). Throws
+/// progiso::error naming the file on any failure; see detail/metaimage_reader.hpp and
+/// docs/ARCHITECTURE.md "Reading MetaImage".
+[[nodiscard]] volume read_metaimage(const std::filesystem::path& file);
+
 /// Reads a volume the way the command-line tool does: with a raw layout, read_raw(); else, for
 /// the extensions .nrrd and .nhdr, read_nrrd(); for .nii, .nii.gz, .hdr and .hdr.gz,
-/// read_nifti() (case-insensitive). A given `spacing` replaces the one from the header (or the
-/// default 1,1,1 for raw files). Throws progiso::error "FILE: unknown volume format (…)" for any
-/// other file, and whatever the chosen reader throws.
+/// read_nifti(); for .mha and .mhd, read_metaimage() (case-insensitive). A given `spacing` replaces
+/// the one from the header (or the default 1,1,1 for raw files). Throws progiso::error "FILE:
+/// unknown volume format (…)" for any other file, and whatever the chosen reader throws.
 [[nodiscard]] volume read_volume(const std::filesystem::path& file,
                                  const std::optional<raw_layout>& raw,
                                  std::optional<std::array<double, 3>> spacing);
 
 /// The files read_volume(file, raw, …) would read: `file` itself, then, for a NRRD header,
 /// every detached data file in order (patterns expanded, paths resolved against the header's
-/// directory), and for a NIfTI header and data pair its .img (or .img.gz). Parses only the header;
+/// directory), for a MetaImage header the data files it names (none for LOCAL data), and for
+/// a NIfTI header and data pair its .img (or .img.gz). Parses only the header;
 /// the data files need not exist. Throws progiso::error like read_volume() for an unknown format
 /// and for header errors.
 [[nodiscard]] std::vector<std::filesystem::path> volume_input_files(

@@ -31,20 +31,29 @@
 
 #include <progiso/core/field/volume.hpp>
 #include <progiso/core/io/detail/file_input.hpp>
+#include <progiso/core/io/detail/header_text.hpp>
 #include <progiso/core/io/volume_io.hpp>
 
 namespace progiso::detail {
 
-inline constexpr std::size_t nrrd_max_line_bytes = std::size_t{1} << 20;
+inline constexpr std::size_t nrrd_max_line_bytes = header_max_line_bytes;
 inline constexpr std::size_t nrrd_max_data_files = std::size_t{1} << 20;
 inline constexpr std::size_t nrrd_max_name_bytes = std::size_t{64} << 20;
 inline constexpr std::int64_t nrrd_max_axis_size = (std::int64_t{1} << 15) + 1;
 
-/// The data encodings progiso decodes (bzip2 and zrl are recognised and refused).
-enum class nrrd_encoding : std::uint8_t { raw, gzip, ascii, hex };
+/// The data encodings progiso decodes (bzip2 and zrl are recognised and refused). zlib is
+/// MetaImage's compressed data (deflate in a zlib wrapper), decoded as gzip is (gzip_input
+/// takes either wrapper); NRRD headers never give it.
+enum class nrrd_encoding : std::uint8_t { raw, gzip, ascii, hex, zlib };
 
-/// "raw", "gzip", "ascii", "hex".
+/// "raw", "gzip", "ascii", "hex", "zlib".
 [[nodiscard]] std::string_view to_string(nrrd_encoding encoding) noexcept;
+
+/// Whether the data is deflate-compressed (gzip or zlib): byte skips then count decompressed
+/// bytes, and capacity follows gzip_can_hold().
+[[nodiscard]] constexpr bool deflated(nrrd_encoding e) noexcept {
+  return e == nrrd_encoding::gzip || e == nrrd_encoding::zlib;
+}
 
 /// A checked NRRD header, reduced to what reading a 3-D progiso volume needs.
 struct nrrd_header {
@@ -64,6 +73,9 @@ struct nrrd_header {
   /// origin" (0 where absent) as translation, when the space has 3 dimensions, no axis is
   /// "none", every entry is finite and the directions are independent; else none.
   std::optional<index_to_world> world;
+  /// The format named in messages about the data ("NRRD"; "MetaImage" when the MetaImage
+  /// reader describes its data with this header, detail/metaimage_reader.hpp).
+  std::string_view format = "NRRD";
 };
 
 /// Parses the header of `header_file` (opened at its start). Throws progiso::error naming the
