@@ -412,6 +412,37 @@ TEST_F(Cli, metaimage_input_gives_the_surface_of_the_same_samples_as_raw) {
   expect_bad_input("extract " + cut.string() + " --iso 100", "short.raw: the 728 bytes");
 }
 
+TEST_F(Cli, legacy_vtk_input_gives_the_surface_of_the_same_samples_as_raw) {
+  // The same bytes as a raw file and as binary and ASCII STRUCTURED_POINTS: the same mesh.
+  const std::string bytes = cube_bytes(9);
+  const fs::path raw = write_file("v.raw", bytes);
+  const fs::path want = dir_ / "raw.obj";
+  ASSERT_EQ(run("extract " + raw.string() +
+                " --dims 9,9,9 --type u8 --spacing 2,1.5,0.5 --iso 100 --full -o " + want.string())
+                .status,
+            0);
+  const std::string head =
+      "DATASET STRUCTURED_POINTS\nDIMENSIONS 9 9 9\nSPACING 2 1.5 0.5\nORIGIN 0 0 0\n"
+      "POINT_DATA 729\nSCALARS density unsigned_char 1\nLOOKUP_TABLE default\n";
+  std::string text;
+  for (const char c : bytes) text += std::to_string(static_cast<unsigned char>(c)) + "\n";
+  const fs::path binary =
+      write_file("b.vtk", "# vtk DataFile Version 3.0\ncube\nBINARY\n" + head + bytes + "\n");
+  const fs::path ascii =
+      write_file("a.vtk", "# vtk DataFile Version 2.0\ncube\nASCII\n" + head + text);
+  for (const fs::path& in : {binary, ascii}) {
+    const fs::path out = dir_ / (in.filename().string() + ".obj");
+    const run_result r = run("extract " + in.string() + " --iso 100 --full -o " + out.string());
+    ASSERT_EQ(r.status, 0) << r.err;
+    EXPECT_EQ(slurp(out), slurp(want)) << in;
+  }
+  const fs::path vectors =
+      write_file("vec.vtk",
+                 "# vtk DataFile Version 3.0\nv\nBINARY\nDATASET STRUCTURED_POINTS\n"
+                 "DIMENSIONS 9 9 9\nPOINT_DATA 729\nVECTORS v float\n");
+  expect_bad_input("extract " + vectors.string() + " --iso 100", "vec.vtk: the first point");
+}
+
 /// The vertices and faces (0-based) of an OBJ file progiso wrote.
 struct obj_mesh {
   std::vector<std::array<double, 3>> vertices;

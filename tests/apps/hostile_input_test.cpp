@@ -158,7 +158,13 @@ TEST_F(Hostile, declared_sizes_beyond_the_data_fail_before_allocating) {
   const fs::path mhd = write("big.mhd",
                              "NDims = 3\nDimSize = 2000 2000 1000\nElementType = MET_DOUBLE\n"
                              "CompressedData = True\nElementDataFile = big.zraw\n");
-  for (const fs::path& in : {raw, gz, nii, nii_gz, mha, mhd}) {
+  // And in legacy VTK: binary bytes after the header.
+  const fs::path vtk = write("big.vtk",
+                             "# vtk DataFile Version 3.0\nbig\nBINARY\nDATASET STRUCTURED_POINTS\n"
+                             "DIMENSIONS 2000 2000 1000\nPOINT_DATA 4000000000\n"
+                             "SCALARS s unsigned_char\nLOOKUP_TABLE default\n" +
+                                 std::string(33000, '\x11'));
+  for (const fs::path& in : {raw, gz, nii, nii_gz, mha, mhd, vtk}) {
     const auto before = snapshot();
     const bounded_result r =
         run({"extract", in.string(), "--iso", "1", "-o", path("o.ply").string()},

@@ -3,7 +3,7 @@
 
     make_seeds.py OUT_DIR [SHARED_DATA_DIR]
 
-writes OUT_DIR/<harness>/<name> for the harnesses raw, extract, nrrd, nifti, metaimage, pgm, png, ply, obj and cli: small
+writes OUT_DIR/<harness>/<name> for the harnesses raw, extract, nrrd, nifti, metaimage, vtk, pgm, png, ply, obj and cli: small
 valid files of every kind the readers accept, and the hostile cases of issue 11 (printf field
 widths in data file names, declared sizes far beyond the data, NaN samples, numbers beyond
 their types …). With SHARED_DATA_DIR (../shared/data), it adds crops of the real volumes and
@@ -209,6 +209,32 @@ def metaimage_seeds(out, crops):
             (head + "CompressedData = True\nElementDataFile = LOCAL\n").encode() + zlib.compress(data))
 
 
+# ---- vtk: legacy STRUCTURED_POINTS files.
+
+def vtk_seeds(out, crops):
+    cube = bytes((x * 7 + y * 13 + z * 29) % 251 for z in range(4) for y in range(4) for x in range(4))
+    head = "# vtk DataFile Version 3.0\nseed\n%s\nDATASET STRUCTURED_POINTS\nDIMENSIONS 4 4 4\n" \
+           "SPACING 0.5 2 1.25\nORIGIN -3 4.5 100\nPOINT_DATA 64\n"
+    put(out, "vtk", "binary_u8", (head % "BINARY" + "SCALARS s unsigned_char 1\nLOOKUP_TABLE default\n").encode()
+        + cube + b"\n")
+    i16 = b"".join(struct.pack(">h", v * 37 - 900) for v in range(64))
+    put(out, "vtk", "binary_short_field", (head % "BINARY" + "FIELD FieldData 1\ns 1 64 short\n").encode() + i16)
+    put(out, "vtk", "ascii_float", head % "ASCII" + "SCALARS s float\nLOOKUP_TABLE default\n"
+        + " ".join("%g" % (v * 0.25 - 3) for v in range(64)) + "\n")
+    put(out, "vtk", "lower_case_aspect", ("# vtk DataFile Version 1.0\nold\nbinary\ndataset structured_points\n"
+        "dimensions 4 4 4\naspect_ratio 1 1 1\norigin 0 0 0\npoint_data 64\nscalars s char\n"
+        "lookup_table default\n").encode() + cube)
+    put(out, "vtk", "declared_2000x2000x1000", ("# vtk DataFile Version 3.0\nbig\nBINARY\n"
+        "DATASET STRUCTURED_POINTS\nDIMENSIONS 2000 2000 1000\nPOINT_DATA 4000000000\n"
+        "SCALARS s double\nLOOKUP_TABLE default\n").encode() + bytes(2000))
+    put(out, "vtk", "vectors_first", head % "BINARY" + "VECTORS v float\n")
+    for name, (dims, data) in crops.items():
+        h = ("# vtk DataFile Version 3.0\n%s\nBINARY\nDATASET STRUCTURED_POINTS\nDIMENSIONS %d %d %d\n"
+             "POINT_DATA %d\nSCALARS s unsigned_char\nLOOKUP_TABLE default\n"
+             % (name, dims[0], dims[1], dims[2], dims[0] * dims[1] * dims[2]))
+        put(out, "vtk", "shared_%s" % name, h.encode() + data)
+
+
 def pgm(w, h, pixels, maxval=255):
     if maxval < 256:
         body = bytes(pixels)
@@ -344,6 +370,7 @@ def main():
     nrrd_seeds(out, crops)
     nifti_seeds(out, crops)
     metaimage_seeds(out, crops)
+    vtk_seeds(out, crops)
     image_seeds(out, images)
     mesh_seeds(out)
     cli_seeds(out)

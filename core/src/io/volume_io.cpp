@@ -16,6 +16,7 @@
 #include <progiso/core/io/detail/metaimage_reader.hpp>
 #include <progiso/core/io/detail/nifti_reader.hpp>
 #include <progiso/core/io/detail/nrrd_reader.hpp>
+#include <progiso/core/io/detail/vtk_legacy_reader.hpp>
 
 namespace progiso {
 namespace {
@@ -46,27 +47,46 @@ volume make_volume(const fs::path& file, const index3& dims, sample_type type,
   }
 }
 
-enum class volume_format { nrrd, nifti, metaimage };
+enum class volume_format { nrrd, nifti, metaimage, vtk_legacy };
 
 /// The format a file name asks for; throws "FILE: unknown volume format (…)" for any other.
 volume_format format_of(const fs::path& file) {
   if (detail::has_nifti_name(file)) return volume_format::nifti;
   if (detail::has_metaimage_name(file)) return volume_format::metaimage;
+  if (detail::has_vtk_legacy_name(file)) return volume_format::vtk_legacy;
   const std::string ext = lower_extension(file);
   if (ext == ".nrrd" || ext == ".nhdr") return volume_format::nrrd;
   throw error(file.string() +
               ": unknown volume format (expected .nrrd, .nhdr, .nii, .nii.gz, .hdr, .mha, .mhd, "
-              "or a raw file with --dims and --type)");
+              ".vtk, or a raw file with --dims and --type)");
 }
 
-/// The header of a NRRD or MetaImage file (both read their data through read_nrrd_samples).
+/// The header of a NRRD, MetaImage or legacy VTK file (each reads its data through
+/// read_nrrd_samples).
 detail::nrrd_header parse_text_header(detail::input_file& in, volume_format format) {
-  return format == volume_format::metaimage ? detail::parse_metaimage_header(in)
-                                            : detail::parse_nrrd_header(in);
+  switch (format) {
+    case volume_format::metaimage:
+      return detail::parse_metaimage_header(in);
+    case volume_format::vtk_legacy:
+      return detail::parse_vtk_legacy_header(in);
+    case volume_format::nrrd:
+    case volume_format::nifti:
+      break;
+  }
+  return detail::parse_nrrd_header(in);
 }
 
 std::string_view format_kind(volume_format format) {
-  return format == volume_format::metaimage ? "MetaImage" : "NRRD";
+  switch (format) {
+    case volume_format::metaimage:
+      return "MetaImage";
+    case volume_format::vtk_legacy:
+      return "VTK";
+    case volume_format::nrrd:
+    case volume_format::nifti:
+      break;
+  }
+  return "NRRD";
 }
 
 volume read_text_header_volume(const fs::path& file, volume_format format,
@@ -131,6 +151,10 @@ volume read_nrrd(const std::filesystem::path& file) {
 
 volume read_metaimage(const std::filesystem::path& file) {
   return read_text_header_volume(file, volume_format::metaimage, std::nullopt);
+}
+
+volume read_vtk_legacy(const std::filesystem::path& file) {
+  return read_text_header_volume(file, volume_format::vtk_legacy, std::nullopt);
 }
 
 volume read_nifti(const std::filesystem::path& file) { return read_nifti_with(file, std::nullopt); }

@@ -1,7 +1,7 @@
-// progiso/core/io/volume_io.hpp — reading volumes from headerless raw files, NRRD, NIfTI and
-// MetaImage.
+// progiso/core/io/volume_io.hpp — reading volumes from headerless raw files, NRRD, NIfTI,
+// MetaImage and legacy VTK.
 //
-// Four sources are supported. A headerless raw file holds nothing but the samples, x varying
+// Five sources are supported. A headerless raw file holds nothing but the samples, x varying
 // fastest, then y, then z; its layout (dims, sample type, byte order) comes from the caller,
 // usually the command line's --dims and --type, and the file size must match it exactly.
 // NRRD files (.nrrd with attached data, .nhdr with detached data files) describe themselves;
@@ -12,7 +12,9 @@
 // physical values by scl_slope and scl_inter. MetaImage files (.mha with the data after the
 // header, .mhd with it in other files), ITK's format and that of many CT collections, are read by
 // detail/metaimage_reader.hpp: raw, zlib-compressed or ASCII data, either byte order, one data
-// file, a LIST of them or a %d pattern.
+// file, a LIST of them or a %d pattern. Legacy VTK files (.vtk) holding STRUCTURED_POINTS, the
+// classic output of simulation codes, VTK and ParaView, are read by
+// detail/vtk_legacy_reader.hpp: ASCII or big-endian binary point scalars.
 // read_volume() picks the reader the way the command-line tool does: an explicit raw layout
 // wins, otherwise the file extension decides. volume_input_files() names the files a read
 // would open, from the header alone.
@@ -83,7 +85,8 @@ struct index_to_world {
 /// sform_code > 0, else the qform when qform_code > 0; for NRRD the "space directions" (as
 /// columns) and "space origin" of a 3-D space; for MetaImage the TransformMatrix (row i the
 /// direction of index axis i, as ITK reads it; identity when absent) scaled by ElementSpacing,
-/// and Offset; nullopt for files without one (NIfTI with both
+/// and Offset; for legacy VTK origin + index × SPACING (structured points are axis-aligned);
+/// nullopt for files without one (NIfTI with both
 /// codes 0, NRRD without space directions, raw files), whose positions are origin + index ×
 /// spacing only. Throws progiso::error like read_volume() for an unknown format and header
 /// errors.
@@ -112,9 +115,19 @@ struct index_to_world {
 /// docs/ARCHITECTURE.md "Reading MetaImage".
 [[nodiscard]] volume read_metaimage(const std::filesystem::path& file);
 
+/// Reads a legacy VTK file (.vtk) of DATASET STRUCTURED_POINTS: DIMENSIONS 2 to 32769 per axis,
+/// SPACING (or ASPECT_RATIO), ORIGIN, and POINT_DATA whose first attribute is SCALARS with one
+/// component (or a FIELD whose first array has one), of type unsigned_char, char,
+/// signed_char, unsigned_short, short, unsigned_int, int, float or double, ASCII or binary
+/// (big-endian). Spacing is |SPACING|, the origin ORIGIN. Throws progiso::error naming the file
+/// on any failure; see detail/vtk_legacy_reader.hpp and docs/ARCHITECTURE.md "Reading legacy
+/// VTK".
+[[nodiscard]] volume read_vtk_legacy(const std::filesystem::path& file);
+
 /// Reads a volume the way the command-line tool does: with a raw layout, read_raw(); else, for
 /// the extensions .nrrd and .nhdr, read_nrrd(); for .nii, .nii.gz, .hdr and .hdr.gz,
-/// read_nifti(); for .mha and .mhd, read_metaimage() (case-insensitive). A given `spacing` replaces
+/// read_nifti(); for .mha and .mhd, read_metaimage(); for .vtk, read_vtk_legacy()
+/// (case-insensitive). A given `spacing` replaces
 /// the one from the header (or the default 1,1,1 for raw files). Throws progiso::error "FILE:
 /// unknown volume format (…)" for any other file, and whatever the chosen reader throws.
 [[nodiscard]] volume read_volume(const std::filesystem::path& file,
