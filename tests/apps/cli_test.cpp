@@ -18,6 +18,7 @@
 
 #include <gtest/gtest.h>
 
+#include "support/dicom_files.hpp"
 #include "support/io_test_helpers.hpp"
 #include "support/mesh_checks.hpp"
 #include "support/test_data.hpp"
@@ -441,6 +442,53 @@ TEST_F(Cli, legacy_vtk_input_gives_the_surface_of_the_same_samples_as_raw) {
                  "# vtk DataFile Version 3.0\nv\nBINARY\nDATASET STRUCTURED_POINTS\n"
                  "DIMENSIONS 9 9 9\nPOINT_DATA 729\nVECTORS v float\n");
   expect_bad_input("extract " + vectors.string() + " --iso 100", "vec.vtk: the first point");
+}
+
+TEST_F(Cli, dicom_directory_gives_the_surface_of_the_same_samples_as_raw) {
+  // A CT-like series: 9 slice files of 9 × 9 unsigned bytes, spacing 1.5 (columns), 2 (rows)
+  // and 0.5 (slices), named in reverse order of their positions, against the same bytes as raw.
+  const std::string bytes = cube_bytes(9);
+  const fs::path raw = write_file("v.raw", bytes);
+  const fs::path want = dir_ / "raw.obj";
+  ASSERT_EQ(run("extract " + raw.string() +
+                " --dims 9,9,9 --type u8 --spacing 1.5,2,0.5 --iso 100 --full -o " + want.string())
+                .status,
+            0);
+  const fs::path series = dir_ / "series";
+  fs::create_directory(series);
+  for (int k = 0; k < 9; ++k) {
+    test::dicom_slice_file f;
+    f.rows = 9;
+    f.columns = 9;
+    f.bits_allocated = 8;
+    f.bits_stored = 8;
+    f.pixel_representation = 0;
+    f.slope = "1";
+    f.intercept = "0";
+    f.pixel_spacing = {2.0, 1.5};
+    f.position = {0.0, 0.0, 0.5 * k};
+    f.instance = k + 1;
+    const auto* p = reinterpret_cast<const std::byte*>(bytes.data()) + 81 * k;
+    f.pixels.assign(p, p + 81);
+    f.write(series, "IM" + std::to_string(100 - k));
+  }
+  const fs::path out = dir_ / "dicom.obj";
+  const run_result r = run("extract " + series.string() + " --iso 100 --full -o " + out.string());
+  ASSERT_EQ(r.status, 0) << r.err;
+  EXPECT_EQ(slurp(out), slurp(want));
+  // An output named like one of the slices is refused, and the slice is kept.
+  const fs::path slice = series / "IM100";
+  const std::string before = test::read_whole_file(slice);
+  fs::create_symlink(slice, dir_ / "slice.ply");
+  const run_result clash =
+      run("extract " + series.string() + " --iso 100 -o " + (dir_ / "slice.ply").string());
+  EXPECT_EQ(clash.status, 2);
+  EXPECT_NE(clash.err.find("names the input file"), std::string::npos) << clash.err;
+  EXPECT_EQ(test::read_whole_file(slice), before);
+  // A single slice file is refused, naming it.
+  expect_bad_input(
+      "extract " + write_file("one.dcm", test::read_whole_file(slice)).string() + " --iso 100",
+      "one.dcm: one DICOM file is one slice");
 }
 
 /// The vertices and faces (0-based) of an OBJ file progiso wrote.

@@ -28,6 +28,7 @@
 #include <progiso/core/io/mesh_io.hpp>
 
 #include "support/bounded_run.hpp"
+#include "support/dicom_files.hpp"
 #include "support/io_test_helpers.hpp"
 #include "support/scratch_dir.hpp"
 #include "support/test_data.hpp"
@@ -164,7 +165,21 @@ TEST_F(Hostile, declared_sizes_beyond_the_data_fail_before_allocating) {
                              "DIMENSIONS 2000 2000 1000\nPOINT_DATA 4000000000\n"
                              "SCALARS s unsigned_char\nLOOKUP_TABLE default\n" +
                                  std::string(33000, '\x11'));
-  for (const fs::path& in : {raw, gz, nii, nii_gz, mha, mhd, vtk}) {
+  // And a DICOM series whose two slices declare 65535 × 65535 pixels of 32 bits (17 GB) each,
+  // with 4 KB of pixel data.
+  const fs::path series = path("series");
+  fs::create_directory(series);
+  for (int k = 0; k < 2; ++k) {
+    test::dicom_slice_file f;
+    f.rows = 65535;
+    f.columns = 65535;
+    f.bits_allocated = 32;
+    f.bits_stored = 32;
+    f.position = {0.0, 0.0, 1.0 * k};
+    f.pixels.resize(4096);
+    f.write(series, "IM" + std::to_string(k));
+  }
+  for (const fs::path& in : {raw, gz, nii, nii_gz, mha, mhd, vtk, series}) {
     const auto before = snapshot();
     const bounded_result r =
         run({"extract", in.string(), "--iso", "1", "-o", path("o.ply").string()},

@@ -3,7 +3,7 @@
 
     make_seeds.py OUT_DIR [SHARED_DATA_DIR]
 
-writes OUT_DIR/<harness>/<name> for the harnesses raw, extract, nrrd, nifti, metaimage, vtk, pgm, png, ply, obj and cli: small
+writes OUT_DIR/<harness>/<name> for the harnesses raw, extract, nrrd, nifti, metaimage, vtk, dicom, pgm, png, ply, obj and cli: small
 valid files of every kind the readers accept, and the hostile cases of issue 11 (printf field
 widths in data file names, declared sizes far beyond the data, NaN samples, numbers beyond
 their types …). With SHARED_DATA_DIR (../shared/data), it adds crops of the real volumes and
@@ -235,6 +235,74 @@ def vtk_seeds(out, crops):
         put(out, "vtk", "shared_%s" % name, h.encode() + data)
 
 
+# ---- dicom: series of slice files "s0 \0NEXT\0 s1 \0NEXT\0 ...".
+
+NEXT = b"\0NEXT\0"
+
+
+def dicom_slice(ts, k, rows=4, cols=5, bits=16, signed=1, seq=True, pixels=None):
+    explicit = ts != "1.2.840.10008.1.2"
+    big = ts == "1.2.840.10008.1.2.2"
+    e16 = ">H" if big else "<H"
+    e32 = ">I" if big else "<I"
+
+    def pad(v, vr):
+        v = v.encode() if isinstance(v, str) else v
+        return v + (b"\0" if vr in ("UI", "OB") else b" ") if len(v) % 2 else v
+
+    def el(g, e, vr, v, order=(e16, e32), force_explicit=None):
+        v = pad(v, vr)
+        ex = explicit if force_explicit is None else force_explicit
+        out = struct.pack(order[0], g) + struct.pack(order[0], e)
+        if ex:
+            out += vr.encode()
+            if vr in ("OB", "OW", "SQ", "UN", "UT"):
+                out += b"\0\0" + struct.pack(order[1], len(v))
+            else:
+                out += struct.pack(order[0], len(v))
+        else:
+            out += struct.pack(order[1], len(v))
+        return out + v
+
+    le = ("<H", "<I")
+    meta = el(2, 1, "OB", b"\0\1", le, True) + el(2, 2, "UI", "1.2.840.10008.5.1.4.1.1.2", le, True)
+    meta += el(2, 3, "UI", "1.2.3.%d" % k, le, True) + el(2, 0x10, "UI", ts, le, True)
+    head = b"\0" * 128 + b"DICM" + struct.pack("<HH", 2, 0) + b"UL" + struct.pack("<HI", 4, len(meta)) + meta
+    us = lambda v: struct.pack(e16, v)
+    d = el(8, 0x60, "CS", "CT")
+    if seq:
+        item = el(8, 0x1150, "UI", "1.2.3")
+        items = struct.pack(e16, 0xfffe) + struct.pack(e16, 0xe000) + struct.pack(e32, 0xffffffff) + item
+        items += struct.pack(e16, 0xfffe) + struct.pack(e16, 0xe00d) + struct.pack(e32, 0)
+        d += struct.pack(e16, 8) + struct.pack(e16, 0x1140) + ((b"SQ\0\0") if explicit else b"") + struct.pack(e32, 0xffffffff)
+        d += items + struct.pack(e16, 0xfffe) + struct.pack(e16, 0xe0dd) + struct.pack(e32, 0)
+    d += el(0x20, 0xe, "UI", "1.2.826.0.1.3680043.2.1125.1") + el(0x20, 0x13, "IS", str(k + 1))
+    d += el(0x20, 0x32, "DS", "-120.5\\33\\%g" % (7 + 1.25 * k)) + el(0x20, 0x37, "DS", "1\\0\\0\\0\\1\\0")
+    d += el(0x28, 2, "US", us(1)) + el(0x28, 4, "CS", "MONOCHROME2") + el(0x28, 0x10, "US", us(rows))
+    d += el(0x28, 0x11, "US", us(cols)) + el(0x28, 0x30, "DS", "0.5\\0.75") + el(0x28, 0x100, "US", us(bits))
+    d += el(0x28, 0x101, "US", us(bits if bits == 8 else 12)) + el(0x28, 0x103, "US", us(signed))
+    d += el(0x28, 0x1052, "DS", "-1024") + el(0x28, 0x1053, "DS", "1")
+    n = rows * cols
+    if pixels is None:
+        fmt = (">" if big else "<") + ("B" if bits == 8 else "h" if bits == 16 else "i") * n
+        pixels = struct.pack(fmt, *[(i * 37 + k * 11) % 100 for i in range(n)])
+    d += el(0x7fe0, 0x10, "OB" if bits == 8 else "OW", pixels)
+    return head + d
+
+
+def dicom_seeds(out):
+    for name, ts in (("implicit", "1.2.840.10008.1.2"), ("explicit", "1.2.840.10008.1.2.1"),
+                     ("big", "1.2.840.10008.1.2.2")):
+        put(out, "dicom", "series_" + name, NEXT.join(dicom_slice(ts, k) for k in range(3)))
+    put(out, "dicom", "series_u8", NEXT.join(dicom_slice("1.2.840.10008.1.2.1", k, bits=8, signed=0) for k in range(3)))
+    put(out, "dicom", "series_i32", NEXT.join(dicom_slice("1.2.840.10008.1.2.1", k, bits=32) for k in range(3)))
+    put(out, "dicom", "jpeg", NEXT.join(dicom_slice("1.2.840.10008.1.2.4.50", k) for k in range(2)))
+    put(out, "dicom", "truncated", NEXT.join(dicom_slice("1.2.840.10008.1.2.1", k)[:200] for k in range(2)))
+    put(out, "dicom", "short_pixels", NEXT.join(dicom_slice("1.2.840.10008.1.2.1", k, pixels=b"\1\2") for k in range(2)))
+    put(out, "dicom", "declared_huge", NEXT.join(dicom_slice("1.2.840.10008.1.2.1", k, rows=65535, cols=65535,
+                                                                pixels=b"\0" * 64) for k in range(2)))
+
+
 def pgm(w, h, pixels, maxval=255):
     if maxval < 256:
         body = bytes(pixels)
@@ -371,6 +439,7 @@ def main():
     nifti_seeds(out, crops)
     metaimage_seeds(out, crops)
     vtk_seeds(out, crops)
+    dicom_seeds(out)
     image_seeds(out, images)
     mesh_seeds(out)
     cli_seeds(out)

@@ -11,6 +11,7 @@
 #include <vector>
 
 #include <progiso/core/base/error.hpp>
+#include <progiso/core/io/detail/dicom_reader.hpp>
 #include <progiso/core/io/detail/file_input.hpp>
 #include <progiso/core/io/detail/file_output.hpp>
 #include <progiso/core/io/detail/metaimage_reader.hpp>
@@ -47,10 +48,16 @@ volume make_volume(const fs::path& file, const index3& dims, sample_type type,
   }
 }
 
-enum class volume_format { nrrd, nifti, metaimage, vtk_legacy };
+enum class volume_format { nrrd, nifti, metaimage, vtk_legacy, dicom };
 
 /// The format a file name asks for; throws "FILE: unknown volume format (…)" for any other.
 volume_format format_of(const fs::path& file) {
+  std::error_code ec;
+  if (fs::is_directory(file, ec)) return volume_format::dicom;
+  if (lower_extension(file) == ".dcm") {
+    throw error(file.string() +
+                ": one DICOM file is one slice: give the directory of its series instead");
+  }
   if (detail::has_nifti_name(file)) return volume_format::nifti;
   if (detail::has_metaimage_name(file)) return volume_format::metaimage;
   if (detail::has_vtk_legacy_name(file)) return volume_format::vtk_legacy;
@@ -58,7 +65,7 @@ volume_format format_of(const fs::path& file) {
   if (ext == ".nrrd" || ext == ".nhdr") return volume_format::nrrd;
   throw error(file.string() +
               ": unknown volume format (expected .nrrd, .nhdr, .nii, .nii.gz, .hdr, .mha, .mhd, "
-              ".vtk, or a raw file with --dims and --type)");
+              ".vtk, a directory of DICOM files, or a raw file with --dims and --type)");
 }
 
 /// The header of a NRRD, MetaImage or legacy VTK file (each reads its data through
@@ -71,6 +78,7 @@ detail::nrrd_header parse_text_header(detail::input_file& in, volume_format form
       return detail::parse_vtk_legacy_header(in);
     case volume_format::nrrd:
     case volume_format::nifti:
+    case volume_format::dicom:
       break;
   }
   return detail::parse_nrrd_header(in);
@@ -84,6 +92,7 @@ std::string_view format_kind(volume_format format) {
       return "VTK";
     case volume_format::nrrd:
     case volume_format::nifti:
+    case volume_format::dicom:
       break;
   }
   return "NRRD";
@@ -96,6 +105,14 @@ volume read_text_header_volume(const fs::path& file, volume_format format,
   std::vector<std::byte> samples = detail::read_nrrd_samples(header, in);
   return make_volume(file, header.dims, header.type, std::move(samples),
                      spacing.value_or(header.spacing), header.origin);
+}
+
+volume read_dicom_with(const fs::path& directory,
+                       const std::optional<std::array<double, 3>>& spacing) {
+  const detail::dicom_series series = detail::read_dicom_series(directory);
+  std::vector<std::byte> samples = detail::read_dicom_samples(series);
+  return make_volume(directory, series.dims, series.volume_type(), std::move(samples),
+                     spacing.value_or(series.spacing), series.origin);
 }
 
 volume read_nifti_with(const fs::path& file, const std::optional<std::array<double, 3>>& spacing) {
@@ -153,6 +170,10 @@ volume read_metaimage(const std::filesystem::path& file) {
   return read_text_header_volume(file, volume_format::metaimage, std::nullopt);
 }
 
+volume read_dicom(const std::filesystem::path& directory) {
+  return read_dicom_with(directory, std::nullopt);
+}
+
 volume read_vtk_legacy(const std::filesystem::path& file) {
   return read_text_header_volume(file, volume_format::vtk_legacy, std::nullopt);
 }
@@ -164,6 +185,7 @@ volume read_volume(const std::filesystem::path& file, const std::optional<raw_la
   if (raw) return read_raw(file, *raw, spacing.value_or(std::array<double, 3>{1.0, 1.0, 1.0}));
   const volume_format format = format_of(file);
   if (format == volume_format::nifti) return read_nifti_with(file, spacing);
+  if (format == volume_format::dicom) return read_dicom_with(file, spacing);
   return read_text_header_volume(file, format, spacing);
 }
 
@@ -186,6 +208,7 @@ std::optional<index_to_world> read_volume_world(const std::filesystem::path& fil
   if (raw) return std::nullopt;
   const volume_format format = format_of(file);
   if (format == volume_format::nifti) return detail::read_nifti_header(file).world;
+  if (format == volume_format::dicom) return detail::read_dicom_series(file).world;
   detail::input_file in(file, format_kind(format));
   return parse_text_header(in, format).world;
 }
@@ -198,6 +221,12 @@ std::vector<std::filesystem::path> volume_input_files(const std::filesystem::pat
     const detail::nifti_header header = detail::read_nifti_header(file);
     if (header.data_file) return {file, *header.data_file};
     return {file};
+  }
+  if (format == volume_format::dicom) {
+    detail::dicom_series series = detail::read_dicom_series(file);
+    std::vector<std::filesystem::path> files{file};
+    for (detail::dicom_slice& d : series.slices) files.push_back(std::move(d.file));
+    return files;
   }
   detail::input_file in(file, format_kind(format));
   detail::nrrd_header header = parse_text_header(in, format);

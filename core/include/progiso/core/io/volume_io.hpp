@@ -1,7 +1,7 @@
 // progiso/core/io/volume_io.hpp — reading volumes from headerless raw files, NRRD, NIfTI,
-// MetaImage and legacy VTK.
+// MetaImage, legacy VTK and DICOM series.
 //
-// Five sources are supported. A headerless raw file holds nothing but the samples, x varying
+// Six sources are supported. A headerless raw file holds nothing but the samples, x varying
 // fastest, then y, then z; its layout (dims, sample type, byte order) comes from the caller,
 // usually the command line's --dims and --type, and the file size must match it exactly.
 // NRRD files (.nrrd with attached data, .nhdr with detached data files) describe themselves;
@@ -14,7 +14,10 @@
 // detail/metaimage_reader.hpp: raw, zlib-compressed or ASCII data, either byte order, one data
 // file, a LIST of them or a %d pattern. Legacy VTK files (.vtk) holding STRUCTURED_POINTS, the
 // classic output of simulation codes, VTK and ParaView, are read by
-// detail/vtk_legacy_reader.hpp: ASCII or big-endian binary point scalars.
+// detail/vtk_legacy_reader.hpp: ASCII or big-endian binary point scalars. A directory holding
+// one DICOM series (a file per slice, as CT and MRI scanners write them) is read by
+// detail/dicom_reader.hpp: uncompressed pixel data, slices ordered along their normal, rescaled
+// to the units the files give (Hounsfield units for CT).
 // read_volume() picks the reader the way the command-line tool does: an explicit raw layout
 // wins, otherwise the file extension decides. volume_input_files() names the files a read
 // would open, from the header alone.
@@ -86,7 +89,8 @@ struct index_to_world {
 /// columns) and "space origin" of a 3-D space; for MetaImage the TransformMatrix (row i the
 /// direction of index axis i, as ITK reads it; identity when absent) scaled by ElementSpacing,
 /// and Offset; for legacy VTK origin + index × SPACING (structured points are axis-aligned);
-/// nullopt for files without one (NIfTI with both
+/// for a DICOM series the patient (LPS) coordinates its ImageOrientationPatient, PixelSpacing
+/// and ImagePositionPatient give; nullopt for files without one (NIfTI with both
 /// codes 0, NRRD without space directions, raw files), whose positions are origin + index ×
 /// spacing only. Throws progiso::error like read_volume() for an unknown format and header
 /// errors.
@@ -124,20 +128,32 @@ struct index_to_world {
 /// VTK".
 [[nodiscard]] volume read_vtk_legacy(const std::filesystem::path& file);
 
+/// Reads the DICOM series in `directory`: every DICOM Part 10 file there with pixel data is a
+/// slice (other files are skipped); one series, at least 2 slices of one size, orientation and
+/// pixel spacing, evenly spaced along their normal; transfer syntax implicit or explicit VR
+/// little endian or explicit VR big endian; 8, 16 or 32 bits, signed or not, one sample per
+/// pixel. Spacing is (column spacing, row spacing, slice step), the origin the first slice's
+/// ImagePositionPatient; samples with a RescaleSlope or RescaleIntercept other than 1 and 0
+/// become f32 in the rescaled units. Throws progiso::error naming the directory or the file
+/// at fault; see detail/dicom_reader.hpp and docs/ARCHITECTURE.md "Reading DICOM".
+[[nodiscard]] volume read_dicom(const std::filesystem::path& directory);
+
 /// Reads a volume the way the command-line tool does: with a raw layout, read_raw(); else, for
-/// the extensions .nrrd and .nhdr, read_nrrd(); for .nii, .nii.gz, .hdr and .hdr.gz,
-/// read_nifti(); for .mha and .mhd, read_metaimage(); for .vtk, read_vtk_legacy()
-/// (case-insensitive). A given `spacing` replaces
-/// the one from the header (or the default 1,1,1 for raw files). Throws progiso::error "FILE:
-/// unknown volume format (…)" for any other file, and whatever the chosen reader throws.
+/// a directory, read_dicom(); for the extensions .nrrd and .nhdr, read_nrrd(); for .nii,
+/// .nii.gz, .hdr and .hdr.gz, read_nifti(); for .mha and .mhd, read_metaimage(); for .vtk,
+/// read_vtk_legacy() (case-insensitive). A single .dcm file is refused (one slice). A given
+/// `spacing` replaces the one from the header (or the default 1,1,1 for raw files). Throws
+/// progiso::error "FILE: unknown volume format (…)" for any other file, and whatever the chosen
+/// reader throws.
 [[nodiscard]] volume read_volume(const std::filesystem::path& file,
                                  const std::optional<raw_layout>& raw,
                                  std::optional<std::array<double, 3>> spacing);
 
 /// The files read_volume(file, raw, …) would read: `file` itself, then, for a NRRD header,
 /// every detached data file in order (patterns expanded, paths resolved against the header's
-/// directory), for a MetaImage header the data files it names (none for LOCAL data), and for
-/// a NIfTI header and data pair its .img (or .img.gz). Parses only the header;
+/// directory), for a MetaImage header the data files it names (none for LOCAL data), for a
+/// NIfTI header and data pair its .img (or .img.gz), and for a DICOM directory every slice file
+/// in order. Parses only the header;
 /// the data files need not exist. Throws progiso::error like read_volume() for an unknown format
 /// and for header errors.
 [[nodiscard]] std::vector<std::filesystem::path> volume_input_files(

@@ -1,0 +1,683 @@
+#include <progiso/core/io/detail/dicom_reader.hpp>
+
+#include <algorithm>
+#include <bit>
+#include <cmath>
+#include <cstring>
+#include <limits>
+#include <map>
+#include <optional>
+#include <span>
+#include <string>
+#include <string_view>
+#include <system_error>
+#include <vector>
+
+#include <progiso/core/base/error.hpp>
+#include <progiso/core/io/detail/file_input.hpp>
+#include <progiso/core/io/detail/header_text.hpp>
+#include <progiso/core/io/detail/nrrd_reader.hpp>
+
+namespace progiso::detail {
+namespace {
+
+namespace fs = std::filesystem;
+
+constexpr std::uint32_t undefined_length = 0xffffffffu;
+constexpr std::size_t max_value_bytes = 1024;  // of an element progiso reads
+constexpr int max_depth = 16;                  // of nested sequences
+constexpr std::size_t max_directory_entries = 1u << 20;
+
+constexpr std::uint32_t tag(std::uint16_t group, std::uint16_t element) noexcept {
+  return (std::uint32_t{group} << 16) | element;
+}
+constexpr std::uint32_t transfer_syntax_tag = tag(0x0002, 0x0010);
+constexpr std::uint32_t series_uid_tag = tag(0x0020, 0x000e);
+constexpr std::uint32_t instance_tag = tag(0x0020, 0x0013);
+constexpr std::uint32_t position_tag = tag(0x0020, 0x0032);
+constexpr std::uint32_t orientation_tag = tag(0x0020, 0x0037);
+constexpr std::uint32_t samples_tag = tag(0x0028, 0x0002);
+constexpr std::uint32_t photometric_tag = tag(0x0028, 0x0004);
+constexpr std::uint32_t frames_tag = tag(0x0028, 0x0008);
+constexpr std::uint32_t rows_tag = tag(0x0028, 0x0010);
+constexpr std::uint32_t columns_tag = tag(0x0028, 0x0011);
+constexpr std::uint32_t pixel_spacing_tag = tag(0x0028, 0x0030);
+constexpr std::uint32_t bits_allocated_tag = tag(0x0028, 0x0100);
+constexpr std::uint32_t bits_stored_tag = tag(0x0028, 0x0101);
+constexpr std::uint32_t pixel_representation_tag = tag(0x0028, 0x0103);
+constexpr std::uint32_t intercept_tag = tag(0x0028, 0x1052);
+constexpr std::uint32_t slope_tag = tag(0x0028, 0x1053);
+constexpr std::uint32_t float_pixel_tag = tag(0x7fe0, 0x0008);
+constexpr std::uint32_t double_pixel_tag = tag(0x7fe0, 0x0009);
+constexpr std::uint32_t pixel_data_tag = tag(0x7fe0, 0x0010);
+constexpr std::uint32_t item_tag = tag(0xfffe, 0xe000);
+constexpr std::uint32_t item_end_tag = tag(0xfffe, 0xe00d);
+constexpr std::uint32_t sequence_end_tag = tag(0xfffe, 0xe0dd);
+
+std::string tag_text(std::uint32_t t) {
+  static constexpr char hex[] = "0123456789ABCDEF";
+  std::string out = "(";
+  for (int shift = 28; shift >= 0; shift -= 4) {
+    out += hex[(t >> static_cast<unsigned>(shift)) & 15u];
+    if (shift == 16) out += ',';
+  }
+  return out + ")";
+}
+
+/// The transfer syntaxes progiso reads, and the names of those it refuses.
+struct syntax {
+  bool explicit_vr = true;
+  bool big_endian = false;
+};
+std::optional<syntax> syntax_of(std::string_view uid, std::string& refused) {
+  if (uid == "1.2.840.10008.1.2") return syntax{false, false};
+  if (uid == "1.2.840.10008.1.2.1") return syntax{true, false};
+  if (uid == "1.2.840.10008.1.2.2") return syntax{true, true};
+  if (uid == "1.2.840.10008.1.2.1.99") {
+    refused = "deflated explicit VR little endian";
+  } else if (uid == "1.2.840.10008.1.2.5") {
+    refused = "RLE lossless";
+  } else if (uid.rfind("1.2.840.10008.1.2.4.8", 0) == 0) {
+    refused = "JPEG-LS";
+  } else if (uid.rfind("1.2.840.10008.1.2.4.9", 0) == 0) {
+    refused = "JPEG 2000";
+  } else if (uid.rfind("1.2.840.10008.1.2.4.", 0) == 0) {
+    refused = "JPEG";
+  } else {
+    refused = "an unknown transfer syntax";
+  }
+  return std::nullopt;
+}
+
+/// VRs whose length field is 4 bytes after 2 reserved ones in explicit VR.
+bool long_vr(std::string_view vr) noexcept {
+  static constexpr std::array<std::string_view, 13> vrs{"OB", "OD", "OF", "OL", "OV", "OW", "SQ",
+                                                        "SV", "UC", "UN", "UR", "UT", "UV"};
+  return std::find(vrs.begin(), vrs.end(), vr) != vrs.end();
+}
+
+/// What one file's header says.
+struct file_header {
+  bool image = false;  ///< holds pixel data
+  bool big_endian = false;
+  std::string series;
+  std::optional<std::int64_t> instance;
+  std::optional<std::array<double, 3>> position;
+  std::optional<std::array<double, 6>> orientation;
+  std::optional<std::array<double, 2>> pixel_spacing;
+  std::uint32_t rows = 0, columns = 0, bits_allocated = 0, bits_stored = 0;
+  std::uint32_t pixel_representation = 0, samples = 1;
+  std::int64_t frames = 1;
+  std::string photometric = "MONOCHROME2";
+  double slope = 1.0;
+  double intercept = 0.0;
+  std::uint64_t pixel_offset = 0;
+  std::uint64_t pixel_length = 0;
+};
+
+/// Reads the elements of one DICOM Part 10 file up to its pixel data.
+class file_parser {
+ public:
+  explicit file_parser(input_file& in) : in_(in), name_(in.path().string()) {}
+
+  /// nullopt for a file that is not DICOM Part 10 (no "DICM" at byte 128).
+  std::optional<file_header> run() {
+    if (in_.size() < 132) return std::nullopt;
+    std::array<char, 132> head{};
+    read(head.data(), head.size());
+    if (std::string_view(head.data() + 128, 4) != "DICM") return std::nullopt;
+    file_header h;
+    // File meta information: group 0002, explicit VR little endian.
+    std::string uid;
+    for (;;) {
+      if (pos_ + 8 > in_.size()) fail("ends in the file meta information");
+      const std::uint64_t at = pos_;
+      const std::uint32_t t = read_tag(false);
+      if ((t >> 16) != 0x0002) {
+        seek(at);
+        break;
+      }
+      const element e = read_header(t, true, false);
+      if (e.length == undefined_length) fail("holds a file meta element of undefined length");
+      if (t == transfer_syntax_tag) {
+        uid = std::string(trim_value(read_value(e)));
+      } else {
+        skip(e.length);
+      }
+    }
+    if (uid.empty()) fail("has no transfer syntax (0002,0010) in its file meta information");
+    std::string refused;
+    const std::optional<syntax> s = syntax_of(uid, refused);
+    if (!s) {
+      fail("uses the transfer syntax " + detail::quoted(uid) + " (" + refused +
+           "): not supported (expected uncompressed pixel data: implicit or explicit VR)");
+    }
+    syntax_ = *s;
+    h.big_endian = s->big_endian;
+    parse_dataset(h);
+    return h;
+  }
+
+ private:
+  struct element {
+    std::uint32_t tag = 0;
+    std::string vr;  // empty in implicit VR
+    std::uint32_t length = 0;
+  };
+
+  [[noreturn]] void fail(const std::string& what) const {
+    throw error(name_ + ": DICOM file " + what);
+  }
+
+  void read(void* data, std::size_t n) {
+    if (in_.read(data, n) != n)
+      fail("ends after " + std::to_string(pos_) + " bytes, inside an element");
+    pos_ += n;
+  }
+  void seek(std::uint64_t at) {
+    in_.seek(at);
+    pos_ = at;
+  }
+  void skip(std::uint64_t n) {
+    if (n > in_.size() - pos_) {
+      fail("holds an element of " + std::to_string(n) + " bytes at byte " + std::to_string(pos_) +
+           ", past its end (" + std::to_string(in_.size()) + " bytes)");
+    }
+    seek(pos_ + n);
+  }
+  std::uint16_t read_u16(bool big) {
+    std::array<unsigned char, 2> b{};
+    read(b.data(), 2);
+    return big ? static_cast<std::uint16_t>(b[0] << 8 | b[1])
+               : static_cast<std::uint16_t>(b[1] << 8 | b[0]);
+  }
+  std::uint32_t read_u32(bool big) {
+    const std::uint32_t a = read_u16(big);
+    const std::uint32_t b = read_u16(big);
+    return big ? (a << 16) | b : (b << 16) | a;
+  }
+  std::uint32_t read_tag(bool big) {
+    const std::uint32_t group = read_u16(big);
+    const std::uint32_t elem = read_u16(big);
+    return (group << 16) | elem;
+  }
+  /// The VR and length after a tag (items and delimiters have no VR).
+  element read_header(std::uint32_t t, bool explicit_vr, bool big) {
+    element e;
+    e.tag = t;
+    if (!explicit_vr || (t >> 16) == 0xfffe) {
+      e.length = read_u32(big);
+      return e;
+    }
+    std::array<char, 2> vr{};
+    read(vr.data(), 2);
+    e.vr.assign(vr.data(), 2);
+    if (long_vr(e.vr)) {
+      skip(2);
+      e.length = read_u32(big);
+    } else {
+      e.length = read_u16(big);
+    }
+    return e;
+  }
+  std::string read_value(const element& e) {
+    if (e.length > max_value_bytes) {
+      fail("element " + tag_text(e.tag) + " holds " + std::to_string(e.length) +
+           " bytes, expected at most " + std::to_string(max_value_bytes));
+    }
+    std::string v(e.length, '\0');
+    read(v.data(), v.size());
+    return v;
+  }
+  static std::string_view trim_value(std::string_view v) noexcept {
+    while (!v.empty() && (v.back() == '\0' || v.back() == ' ')) v.remove_suffix(1);
+    while (!v.empty() && v.front() == ' ') v.remove_prefix(1);
+    return v;
+  }
+  /// Backslash-separated decimal strings (DS, IS).
+  template <std::size_t N>
+  std::array<double, N> numbers(const element& e, std::string_view v) const {
+    std::array<double, N> out{};
+    std::size_t k = 0;
+    std::size_t start = 0;
+    for (std::size_t i = 0; i <= v.size(); ++i) {
+      if (i < v.size() && v[i] != '\\') continue;
+      const std::string_view part = trim_value(v.substr(start, i - start));
+      const auto x = to_real<double>(part);
+      if (k >= N || !x || !std::isfinite(*x)) {
+        fail("element " + tag_text(e.tag) + " holds " + detail::quoted(v) + ", expected " +
+             std::to_string(N) + " finite number" + (N > 1 ? "s" : ""));
+      }
+      out[k++] = *x;
+      start = i + 1;
+    }
+    if (k != N) {
+      fail("element " + tag_text(e.tag) + " holds " + detail::quoted(v) + ", expected " +
+           std::to_string(N) + " numbers");
+    }
+    return out;
+  }
+  std::uint32_t unsigned_short(const element& e, std::string_view v) const {
+    if (v.size() != 2)
+      fail("element " + tag_text(e.tag) + " has " + std::to_string(v.size()) +
+           " bytes, expected 2 (US)");
+    const auto b0 = static_cast<unsigned char>(v[0]);
+    const auto b1 = static_cast<unsigned char>(v[1]);
+    return syntax_.big_endian ? (std::uint32_t{b0} << 8) | b1 : (std::uint32_t{b1} << 8) | b0;
+  }
+
+  void parse_dataset(file_header& h) {
+    const bool big = syntax_.big_endian;
+    while (pos_ < in_.size()) {
+      const std::uint32_t t = read_tag(big);
+      if ((t >> 16) == 0xfffe)
+        fail("holds an item tag " + tag_text(t) + " outside a sequence at byte " +
+             std::to_string(pos_ - 4));
+      const element e = read_header(t, syntax_.explicit_vr, big);
+      if (t == pixel_data_tag) {
+        if (e.length == undefined_length)
+          fail("holds encapsulated (compressed) pixel data: not supported");
+        h.image = true;
+        h.pixel_offset = pos_;
+        h.pixel_length = e.length;
+        return;
+      }
+      if (t == float_pixel_tag || t == double_pixel_tag) {
+        fail("holds floating-point pixel data " + tag_text(t) + ": not supported");
+      }
+      if (e.length == undefined_length) {
+        // A sequence (SQ; UN of undefined length is an implicit VR little endian sequence).
+        skip_sequence(syntax_.explicit_vr && e.vr != "UN", e.vr == "UN" ? false : big, 1);
+        continue;
+      }
+      switch (t) {
+        case series_uid_tag:
+          h.series = std::string(trim_value(read_value(e)));
+          break;
+        case instance_tag: {
+          const std::string v = read_value(e);
+          h.instance = static_cast<std::int64_t>(numbers<1>(e, trim_value(v))[0]);
+          break;
+        }
+        case position_tag: {
+          const std::string v = read_value(e);
+          h.position = numbers<3>(e, trim_value(v));
+          break;
+        }
+        case orientation_tag: {
+          const std::string v = read_value(e);
+          h.orientation = numbers<6>(e, trim_value(v));
+          break;
+        }
+        case pixel_spacing_tag: {
+          const std::string v = read_value(e);
+          h.pixel_spacing = numbers<2>(e, trim_value(v));
+          break;
+        }
+        case frames_tag: {
+          const std::string v = read_value(e);
+          h.frames = static_cast<std::int64_t>(numbers<1>(e, trim_value(v))[0]);
+          break;
+        }
+        case intercept_tag: {
+          const std::string v = read_value(e);
+          h.intercept = numbers<1>(e, trim_value(v))[0];
+          break;
+        }
+        case slope_tag: {
+          const std::string v = read_value(e);
+          h.slope = numbers<1>(e, trim_value(v))[0];
+          break;
+        }
+        case photometric_tag:
+          h.photometric = std::string(trim_value(read_value(e)));
+          break;
+        case samples_tag:
+          h.samples = unsigned_short(e, read_value(e));
+          break;
+        case rows_tag:
+          h.rows = unsigned_short(e, read_value(e));
+          break;
+        case columns_tag:
+          h.columns = unsigned_short(e, read_value(e));
+          break;
+        case bits_allocated_tag:
+          h.bits_allocated = unsigned_short(e, read_value(e));
+          break;
+        case bits_stored_tag:
+          h.bits_stored = unsigned_short(e, read_value(e));
+          break;
+        case pixel_representation_tag:
+          h.pixel_representation = unsigned_short(e, read_value(e));
+          break;
+        default:
+          skip(e.length);
+          break;
+      }
+    }
+  }
+
+  /// Skips the items of a sequence of undefined length, up to its delimiter.
+  void skip_sequence(bool explicit_vr, bool big, int depth) {
+    if (depth > max_depth) fail("nests sequences more than " + std::to_string(max_depth) + " deep");
+    for (;;) {
+      const std::uint32_t t = read_tag(big);
+      const std::uint32_t length = read_u32(big);
+      if (t == sequence_end_tag) return;
+      if (t != item_tag) {
+        fail("holds " + tag_text(t) + " inside a sequence at byte " + std::to_string(pos_ - 8) +
+             " (expected an item or the sequence's end)");
+      }
+      if (length != undefined_length) {
+        skip(length);
+        continue;
+      }
+      // An item of undefined length: its elements up to the item's end.
+      for (;;) {
+        const std::uint32_t et = read_tag(big);
+        const element e = read_header(et, explicit_vr, big);
+        if (et == item_end_tag) break;
+        if ((et >> 16) == 0xfffe) {
+          fail("holds " + tag_text(et) + " inside an item at byte " + std::to_string(pos_ - 8));
+        }
+        if (e.length == undefined_length) {
+          skip_sequence(explicit_vr && e.vr != "UN", e.vr == "UN" ? false : big, depth + 1);
+        } else {
+          skip(e.length);
+        }
+      }
+    }
+  }
+
+  input_file& in_;
+  std::string name_;
+  std::uint64_t pos_ = 0;
+  syntax syntax_;
+};
+
+sample_type stored_type(std::uint32_t bits, bool is_signed) {
+  switch (bits) {
+    case 8:
+      return is_signed ? sample_type::i8 : sample_type::u8;
+    case 16:
+      return is_signed ? sample_type::i16 : sample_type::u16;
+    default:
+      return is_signed ? sample_type::i32 : sample_type::u32;
+  }
+}
+
+double dot(const std::array<double, 3>& a, const std::array<double, 3>& b) noexcept {
+  return a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+}
+
+/// The stored value `raw` (BitsAllocated wide, host order) masked to BitsStored and
+/// sign-extended when signed.
+template <class U>
+std::int64_t stored_value(U raw, unsigned bits_stored, bool is_signed) noexcept {
+  const std::uint64_t mask =
+      bits_stored >= 64 ? ~std::uint64_t{0} : (std::uint64_t{1} << bits_stored) - 1;
+  std::uint64_t v = static_cast<std::uint64_t>(raw) & mask;
+  if (is_signed && bits_stored > 0 && ((v >> (bits_stored - 1)) & 1u) != 0) v |= ~mask;
+  return static_cast<std::int64_t>(v);
+}
+
+}  // namespace
+
+dicom_series read_dicom_series(const fs::path& directory) {
+  const std::string dir_name = directory.string();
+  std::error_code ec;
+  std::vector<fs::path> names;
+  for (fs::directory_iterator it(directory, ec), end; !ec && it != end; it.increment(ec)) {
+    if (names.size() == max_directory_entries) {
+      throw error(dir_name + ": holds more than " + std::to_string(max_directory_entries) +
+                  " entries, expected one DICOM series");
+    }
+    std::error_code type_ec;
+    if (it->is_regular_file(type_ec)) names.push_back(it->path());
+  }
+  if (ec) throw error(dir_name + ": cannot list the directory (" + ec.message() + ")");
+  std::sort(names.begin(), names.end());
+
+  struct found {
+    fs::path file;
+    file_header header;
+  };
+  std::map<std::string, std::vector<found>> series;
+  for (const fs::path& file : names) {
+    input_file in(file, "DICOM");
+    std::optional<file_header> h = file_parser(in).run();
+    if (!h || !h->image) continue;
+    std::vector<found>& list = series[h->series];
+    if (list.size() == dicom_max_slices) {
+      throw error(dir_name + ": holds more than " + std::to_string(dicom_max_slices) +
+                  " DICOM images of one series");
+    }
+    list.push_back({file, std::move(*h)});
+  }
+  if (series.empty()) {
+    throw error(dir_name + ": holds no DICOM image (expected DICOM Part 10 files with pixel data)");
+  }
+  if (series.size() > 1) {
+    std::string list;
+    std::size_t shown = 0;
+    for (const auto& [uid, files] : series) {
+      if (shown++ == 3) {
+        list += ", …";
+        break;
+      }
+      if (!list.empty()) list += ", ";
+      list += detail::quoted(uid, 64) + ": " + std::to_string(files.size()) + " images";
+    }
+    throw error(dir_name + ": holds " + std::to_string(series.size()) + " DICOM series (" + list +
+                "), expected one: give a directory of one series");
+  }
+  std::vector<found>& files = series.begin()->second;
+  const file_header& first = files.front().header;
+  const std::string first_name = files.front().file.string();
+  const auto refuse = [](const fs::path& f, const std::string& what) {
+    throw error(f.string() + ": " + what);
+  };
+  if (files.size() < 2) {
+    refuse(files.front().file, "the only DICOM image in " + dir_name +
+                                   ": a 2-D image, expected a series of at least 2 slices");
+  }
+  // What every slice must share.
+  for (const found& f : files) {
+    const file_header& h = f.header;
+    if (h.frames != 1) {
+      refuse(f.file, "a multi-frame image (" + std::to_string(h.frames) +
+                         " frames): not supported, expected one slice per file");
+    }
+    if (h.samples != 1) {
+      refuse(f.file, "has " + std::to_string(h.samples) + " samples per pixel (" + h.photometric +
+                         "): expected 1 (MONOCHROME1 or MONOCHROME2)");
+    }
+    if (h.bits_allocated != 8 && h.bits_allocated != 16 && h.bits_allocated != 32) {
+      refuse(f.file, "allocates " + std::to_string(h.bits_allocated) +
+                         " bits per pixel, expected 8, 16 or 32");
+    }
+    if (h.bits_stored == 0 || h.bits_stored > h.bits_allocated) {
+      refuse(f.file, "stores " + std::to_string(h.bits_stored) + " bits in " +
+                         std::to_string(h.bits_allocated) + ", expected 1 to " +
+                         std::to_string(h.bits_allocated));
+    }
+    if (h.pixel_representation > 1) {
+      refuse(f.file, "has pixel representation " + std::to_string(h.pixel_representation) +
+                         ", expected 0 (unsigned) or 1 (signed)");
+    }
+    if (h.rows < 2 || h.columns < 2) {
+      refuse(f.file, "has " + std::to_string(h.rows) + " rows and " + std::to_string(h.columns) +
+                         " columns, expected at least 2 of each");
+    }
+    if (!h.position || !h.orientation) {
+      refuse(f.file,
+             "has no ImagePositionPatient (0020,0032) or ImageOrientationPatient "
+             "(0020,0037): the slices cannot be placed");
+    }
+    if (!h.pixel_spacing || (*h.pixel_spacing)[0] <= 0.0 || (*h.pixel_spacing)[1] <= 0.0) {
+      refuse(f.file, "has no positive PixelSpacing (0028,0030)");
+    }
+    if (h.slope == 0.0) refuse(f.file, "has RescaleSlope 0");
+    const bool same = h.rows == first.rows && h.columns == first.columns &&
+                      h.bits_allocated == first.bits_allocated &&
+                      h.bits_stored == first.bits_stored &&
+                      h.pixel_representation == first.pixel_representation;
+    if (!same) {
+      refuse(f.file, "differs from " + first_name + " in its rows, columns or bits (" +
+                         std::to_string(h.columns) + "x" + std::to_string(h.rows) + ", " +
+                         std::to_string(h.bits_allocated) + " bits, against " +
+                         std::to_string(first.columns) + "x" + std::to_string(first.rows) + ", " +
+                         std::to_string(first.bits_allocated) + ")");
+    }
+    for (std::size_t i = 0; i < 6; ++i) {
+      if (std::abs((*h.orientation)[i] - (*first.orientation)[i]) > 1e-4) {
+        refuse(f.file, "has another ImageOrientationPatient than " + first_name);
+      }
+    }
+    for (std::size_t i = 0; i < 2; ++i) {
+      if (std::abs((*h.pixel_spacing)[i] - (*first.pixel_spacing)[i]) >
+          1e-6 * (*first.pixel_spacing)[i]) {
+        refuse(f.file, "has another PixelSpacing than " + first_name);
+      }
+    }
+    const std::uint64_t frame = std::uint64_t{h.rows} * h.columns * (h.bits_allocated / 8);
+    if (h.pixel_length < frame) {
+      refuse(f.file, "holds " + std::to_string(h.pixel_length) + " bytes of pixel data, expected " +
+                         std::to_string(frame) + " (" + std::to_string(h.columns) + "x" +
+                         std::to_string(h.rows) + " of " + std::to_string(h.bits_allocated) +
+                         " bits)");
+    }
+  }
+  // Directions: DICOM gives the row direction (along a row: x), then the column direction.
+  const std::array<double, 6>& o = *first.orientation;
+  const std::array<double, 3> row{o[0], o[1], o[2]};
+  const std::array<double, 3> col{o[3], o[4], o[5]};
+  std::array<double, 3> normal{row[1] * col[2] - row[2] * col[1], row[2] * col[0] - row[0] * col[2],
+                               row[0] * col[1] - row[1] * col[0]};
+  const double n = std::sqrt(dot(normal, normal));
+  if (!(n > 0.5))
+    refuse(files.front().file, "has ImageOrientationPatient without two independent directions");
+  for (double& v : normal) v /= n;
+
+  dicom_series s;
+  s.slices.reserve(files.size());
+  for (const found& f : files) {
+    dicom_slice d;
+    d.file = f.file;
+    d.pixel_offset = f.header.pixel_offset;
+    d.big_endian = f.header.big_endian;
+    d.position = *f.header.position;
+    d.slope = f.header.slope;
+    d.intercept = f.header.intercept;
+    d.along = dot(d.position, normal);
+    s.scaled = s.scaled || d.slope != 1.0 || d.intercept != 0.0;
+    s.slices.push_back(std::move(d));
+  }
+  std::stable_sort(s.slices.begin(), s.slices.end(),
+                   [](const dicom_slice& a, const dicom_slice& b) { return a.along < b.along; });
+  const double step =
+      (s.slices.back().along - s.slices.front().along) / static_cast<double>(s.slices.size() - 1);
+  const std::array<double, 2>& ps = *first.pixel_spacing;
+  if (!(step > 1e-6)) {
+    refuse(s.slices.back().file, "lies at the same position as " + s.slices.front().file.string() +
+                                     ": expected slices at distinct positions along the normal");
+  }
+  for (std::size_t k = 1; k < s.slices.size(); ++k) {
+    const double gap = s.slices[k].along - s.slices[k - 1].along;
+    if (std::abs(gap - step) > std::max(1e-3, 0.01 * step)) {
+      refuse(s.slices[k].file, "lies " + std::to_string(gap) + " mm after " +
+                                   s.slices[k - 1].file.string() +
+                                   ", where the series' slices are " + std::to_string(step) +
+                                   " mm apart on average: expected evenly spaced slices (a "
+                                   "missing or duplicated slice?)");
+    }
+    // In-plane drift along the stack: a tilted gantry (positions off the normal).
+    for (std::size_t i = 0; i < 3; ++i) {
+      const double expected =
+          s.slices[0].position[i] + normal[i] * (s.slices[k].along - s.slices[0].along);
+      if (std::abs(s.slices[k].position[i] - expected) > 0.1 * std::min(ps[0], ps[1])) {
+        refuse(s.slices[k].file,
+               "is offset in-plane from the slice normal (a tilted gantry?): "
+               "expected positions along the normal of ImageOrientationPatient");
+      }
+    }
+  }
+  s.dims = {static_cast<std::int64_t>(first.columns), static_cast<std::int64_t>(first.rows),
+            static_cast<std::int64_t>(s.slices.size())};
+  s.stored = stored_type(first.bits_allocated, first.pixel_representation == 1);
+  s.bits_stored = first.bits_stored;
+  // PixelSpacing is (row spacing, column spacing): y then x.
+  s.spacing = {ps[1], ps[0], step};
+  s.origin = s.slices.front().position;
+  for (std::size_t r = 0; r < 3; ++r) {
+    s.world.m[r][0] = row[r] * ps[1];
+    s.world.m[r][1] = col[r] * ps[0];
+    s.world.m[r][2] = normal[r] * step;
+    s.world.m[r][3] = s.origin[r];
+  }
+  return s;
+}
+
+std::vector<std::byte> read_dicom_samples(const dicom_series& s) {
+  const std::size_t item = sample_size(s.stored);
+  const auto frame_count = static_cast<std::size_t>(s.dims[0] * s.dims[1]);
+  const std::size_t frame_bytes = frame_count * item;
+  const sample_type out_type = s.volume_type();
+  const std::size_t out_item = sample_size(out_type);
+  std::vector<std::byte> out(frame_count * s.slices.size() * out_item);
+  std::vector<std::byte> frame(frame_bytes);
+  const bool is_signed =
+      s.stored == sample_type::i8 || s.stored == sample_type::i16 || s.stored == sample_type::i32;
+  const bool host_big = std::endian::native == std::endian::big;
+  for (std::size_t k = 0; k < s.slices.size(); ++k) {
+    const dicom_slice& d = s.slices[k];
+    input_file in(d.file, "DICOM");
+    if (in.size() < d.pixel_offset || in.size() - d.pixel_offset < frame_bytes) {
+      throw error(d.file.string() + ": DICOM file ends inside its pixel data (" +
+                  std::to_string(in.size()) + " bytes, the frame needs " +
+                  std::to_string(frame_bytes) + " from byte " + std::to_string(d.pixel_offset) +
+                  ")");
+    }
+    in.seek(d.pixel_offset);
+    if (in.read(frame.data(), frame.size()) != frame.size()) {
+      throw error(d.file.string() + ": DICOM file ends inside its pixel data");
+    }
+    if (item > 1 && d.big_endian != host_big) swap_sample_bytes(frame, item);
+    std::byte* dst = out.data() + k * frame_count * out_item;
+    const auto convert = [&]<class U>(U) {
+      for (std::size_t i = 0; i < frame_count; ++i) {
+        U raw;
+        std::memcpy(&raw, frame.data() + i * sizeof raw, sizeof raw);
+        const std::int64_t v = stored_value(raw, s.bits_stored, is_signed);
+        if (s.scaled) {
+          const auto f = static_cast<float>(d.slope * static_cast<double>(v) + d.intercept);
+          std::memcpy(dst + i * sizeof f, &f, sizeof f);
+        } else {
+          // The stored type holds every masked, sign-extended value.
+          if (is_signed) {
+            using S = std::make_signed_t<U>;
+            const auto x = static_cast<S>(v);
+            std::memcpy(dst + i * sizeof x, &x, sizeof x);
+          } else {
+            const auto x = static_cast<U>(v);
+            std::memcpy(dst + i * sizeof x, &x, sizeof x);
+          }
+        }
+      }
+    };
+    switch (item) {
+      case 1:
+        convert(std::uint8_t{});
+        break;
+      case 2:
+        convert(std::uint16_t{});
+        break;
+      default:
+        convert(std::uint32_t{});
+        break;
+    }
+  }
+  return out;
+}
+
+}  // namespace progiso::detail
