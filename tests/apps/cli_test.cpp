@@ -71,6 +71,17 @@ class Cli : public ::testing::Test {
     return p;
   }
 
+  // The mesh of cube_bytes(9) as a raw u8 file with `spacing` ("SX,SY,SZ"), isovalue 100, full
+  // refinement: the reference the format tests compare their files' meshes with.
+  fs::path raw_cube_mesh(const std::string& spacing) const;
+  // Extracts `in` (isovalue 100, full) and expects the same file as `want`, byte for byte.
+  void expect_same_mesh(const fs::path& in, const fs::path& want) const {
+    const fs::path out = dir_ / (in.filename().string() + ".obj");
+    const run_result r = run("extract " + in.string() + " --iso 100 --full -o " + out.string());
+    ASSERT_EQ(r.status, 0) << r.err;
+    EXPECT_EQ(slurp(out), slurp(want)) << in;
+  }
+
   // Expects exit status 2, exactly one stderr line containing `needle`, and no output files.
   void expect_bad_input(const std::string& args, const std::string& needle) const {
     const run_result r = run(args + " -o " + (dir_ / "out.ply").string() + " --stats-json " +
@@ -92,6 +103,15 @@ std::string cube_bytes(int n) {
   std::string s(static_cast<std::size_t>(n * n * n), '\0');
   for (int i = 0; i < n * n * n; ++i) s[static_cast<std::size_t>(i)] = static_cast<char>(i % 200);
   return s;
+}
+
+fs::path Cli::raw_cube_mesh(const std::string& spacing) const {
+  const fs::path raw = write_file("cube.raw", cube_bytes(9));
+  const fs::path want = dir_ / "raw.obj";
+  const run_result r = run("extract " + raw.string() + " --dims 9,9,9 --type u8 --spacing " +
+                           spacing + " --iso 100 --full -o " + want.string());
+  EXPECT_EQ(r.status, 0) << r.err;
+  return want;
 }
 
 TEST_F(Cli, demo_writes_a_ply_mesh_and_statistics) {
@@ -351,24 +371,11 @@ TEST_F(Cli, nrrd_input_is_read_with_its_spacing) {
 TEST_F(Cli, nifti_input_gives_the_surface_of_the_same_samples_as_raw) {
   // A CT-like volume in NIfTI-1, plain and gzip, against the same bytes as a raw file with the
   // same spacing: the same mesh file, byte for byte.
-  std::string payload = cube_bytes(9);
-  const fs::path raw = write_file("v.raw", payload);
-  const std::string nii = test::nifti1_file({9, 9, 9}, 2, 8, {2.0f, 1.5f, 0.5f}, payload);
+  const std::string nii = test::nifti1_file({9, 9, 9}, 2, 8, {2.0f, 1.5f, 0.5f}, cube_bytes(9));
   const fs::path plain = write_file("v.nii", nii);
   const fs::path gz = write_file("v.nii.gz", test::gzip(nii));
-  const fs::path want = dir_ / "raw.obj";
-  ASSERT_EQ(run("extract " + raw.string() +
-                " --dims 9,9,9 --type u8 --spacing 2,1.5,0.5 --iso 100 "
-                "--full -o " +
-                want.string())
-                .status,
-            0);
-  for (const fs::path& in : {plain, gz}) {
-    const fs::path out = dir_ / (in.filename().string() + ".obj");
-    const run_result r = run("extract " + in.string() + " --iso 100 --full -o " + out.string());
-    ASSERT_EQ(r.status, 0) << r.err;
-    EXPECT_EQ(slurp(out), slurp(want)) << in;
-  }
+  const fs::path want = raw_cube_mesh("2,1.5,0.5");
+  for (const fs::path& in : {plain, gz}) expect_same_mesh(in, want);
   // A NIfTI file that ends inside its data: one line naming it, exit 2, no output.
   const fs::path cut = write_file("cut.nii", nii.substr(0, nii.size() - 10));
   expect_bad_input("extract " + cut.string() + " --iso 100", "cut.nii: NIfTI data ends");
@@ -378,12 +385,7 @@ TEST_F(Cli, metaimage_input_gives_the_surface_of_the_same_samples_as_raw) {
   // The same bytes as a raw file, an .mha with the data after the header (big-endian 16-bit),
   // and an .mhd whose zlib-compressed data lies in another file: the same mesh, byte for byte.
   const std::string bytes = cube_bytes(9);
-  const fs::path raw = write_file("v.raw", bytes);
-  const fs::path want = dir_ / "raw.obj";
-  ASSERT_EQ(run("extract " + raw.string() +
-                " --dims 9,9,9 --type u8 --spacing 2,1.5,0.5 --iso 100 --full -o " + want.string())
-                .status,
-            0);
+  const fs::path want = raw_cube_mesh("2,1.5,0.5");
   std::string wide;  // the samples as big-endian u16
   for (const char c : bytes) {
     wide += '\0';
@@ -399,12 +401,7 @@ TEST_F(Cli, metaimage_input_gives_the_surface_of_the_same_samples_as_raw) {
                                   "NDims = 3\nDimSize = 9 9 9\nElementSpacing = 2 1.5 0.5\n"
                                   "CompressedData = True\nElementType = MET_UCHAR\n"
                                   "ElementDataFile = v.zraw\n");
-  for (const fs::path& in : {mha, mhd}) {
-    const fs::path out = dir_ / (in.filename().string() + ".obj");
-    const run_result r = run("extract " + in.string() + " --iso 100 --full -o " + out.string());
-    ASSERT_EQ(r.status, 0) << r.err;
-    EXPECT_EQ(slurp(out), slurp(want)) << in;
-  }
+  for (const fs::path& in : {mha, mhd}) expect_same_mesh(in, want);
   // An .mhd whose data file is one byte short: one line naming the data file, exit 2.
   write_file("short.raw", bytes.substr(0, bytes.size() - 1));
   const fs::path cut = write_file("cut.mhd",
@@ -416,12 +413,7 @@ TEST_F(Cli, metaimage_input_gives_the_surface_of_the_same_samples_as_raw) {
 TEST_F(Cli, legacy_vtk_input_gives_the_surface_of_the_same_samples_as_raw) {
   // The same bytes as a raw file and as binary and ASCII STRUCTURED_POINTS: the same mesh.
   const std::string bytes = cube_bytes(9);
-  const fs::path raw = write_file("v.raw", bytes);
-  const fs::path want = dir_ / "raw.obj";
-  ASSERT_EQ(run("extract " + raw.string() +
-                " --dims 9,9,9 --type u8 --spacing 2,1.5,0.5 --iso 100 --full -o " + want.string())
-                .status,
-            0);
+  const fs::path want = raw_cube_mesh("2,1.5,0.5");
   const std::string head =
       "DATASET STRUCTURED_POINTS\nDIMENSIONS 9 9 9\nSPACING 2 1.5 0.5\nORIGIN 0 0 0\n"
       "POINT_DATA 729\nSCALARS density unsigned_char 1\nLOOKUP_TABLE default\n";
@@ -431,12 +423,7 @@ TEST_F(Cli, legacy_vtk_input_gives_the_surface_of_the_same_samples_as_raw) {
       write_file("b.vtk", "# vtk DataFile Version 3.0\ncube\nBINARY\n" + head + bytes + "\n");
   const fs::path ascii =
       write_file("a.vtk", "# vtk DataFile Version 2.0\ncube\nASCII\n" + head + text);
-  for (const fs::path& in : {binary, ascii}) {
-    const fs::path out = dir_ / (in.filename().string() + ".obj");
-    const run_result r = run("extract " + in.string() + " --iso 100 --full -o " + out.string());
-    ASSERT_EQ(r.status, 0) << r.err;
-    EXPECT_EQ(slurp(out), slurp(want)) << in;
-  }
+  for (const fs::path& in : {binary, ascii}) expect_same_mesh(in, want);
   const fs::path vectors =
       write_file("vec.vtk",
                  "# vtk DataFile Version 3.0\nv\nBINARY\nDATASET STRUCTURED_POINTS\n"
@@ -448,12 +435,7 @@ TEST_F(Cli, dicom_directory_gives_the_surface_of_the_same_samples_as_raw) {
   // A CT-like series: 9 slice files of 9 × 9 unsigned bytes, spacing 1.5 (columns), 2 (rows)
   // and 0.5 (slices), named in reverse order of their positions, against the same bytes as raw.
   const std::string bytes = cube_bytes(9);
-  const fs::path raw = write_file("v.raw", bytes);
-  const fs::path want = dir_ / "raw.obj";
-  ASSERT_EQ(run("extract " + raw.string() +
-                " --dims 9,9,9 --type u8 --spacing 1.5,2,0.5 --iso 100 --full -o " + want.string())
-                .status,
-            0);
+  const fs::path want = raw_cube_mesh("1.5,2,0.5");
   const fs::path series = dir_ / "series";
   fs::create_directory(series);
   for (int k = 0; k < 9; ++k) {
@@ -472,10 +454,7 @@ TEST_F(Cli, dicom_directory_gives_the_surface_of_the_same_samples_as_raw) {
     f.pixels.assign(p, p + 81);
     f.write(series, "IM" + std::to_string(100 - k));
   }
-  const fs::path out = dir_ / "dicom.obj";
-  const run_result r = run("extract " + series.string() + " --iso 100 --full -o " + out.string());
-  ASSERT_EQ(r.status, 0) << r.err;
-  EXPECT_EQ(slurp(out), slurp(want));
+  expect_same_mesh(series, want);
   // An output named like one of the slices is refused, and the slice is kept.
   const fs::path slice = series / "IM100";
   const std::string before = test::read_whole_file(slice);

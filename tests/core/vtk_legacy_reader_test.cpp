@@ -119,6 +119,16 @@ TEST(VtkLegacyReader, the_shared_hipip_volume_as_vtk_equals_its_raw_file) {
   EXPECT_EQ(std::memcmp(v.bytes(), raw.data(), raw.size()), 0);
 }
 
+/// Writes `text` as STEM.vtk in `dir` and expects the reader to refuse it with one line that
+/// names the file and contains `what`.
+void expect_refused(const scratch_dir& dir, const std::string& stem, const std::string& text,
+                    const std::string& what) {
+  const fs::path file = dir / (stem + ".vtk");
+  progiso::test::write_file(file, text);
+  const std::string message = error_naming(file, [&] { (void)progiso::read_vtk_legacy(file); });
+  EXPECT_TRUE(contains(message, what)) << stem << ": " << message;
+}
+
 TEST(VtkLegacyReader, refuses_hostile_headers_with_one_line_naming_the_file) {
   scratch_dir dir;
   const std::string magic = "# vtk DataFile Version 3.0\ntitle\n";
@@ -126,12 +136,7 @@ TEST(VtkLegacyReader, refuses_hostile_headers_with_one_line_naming_the_file) {
   const std::string points = "DIMENSIONS 5 4 3\nPOINT_DATA 60\n";
   const std::string data(61, '\x07');
   const auto expect_error = [&](const std::string& stem, const std::string& text,
-                                const std::string& what) {
-    const fs::path file = dir / (stem + ".vtk");
-    progiso::test::write_file(file, text);
-    const std::string message = error_naming(file, [&] { (void)progiso::read_vtk_legacy(file); });
-    EXPECT_TRUE(contains(message, what)) << stem << ": " << message;
-  };
+                                const std::string& what) { expect_refused(dir, stem, text, what); };
   expect_error("png", std::string("\x89PNG\r\n\x1a\n", 8) + data, "not a legacy VTK file");
   expect_error("notitle", "# vtk DataFile Version 3.0\n", "expected a title line");
   expect_error("mode", magic + "TEXT\n", "expected ASCII or BINARY");
@@ -163,12 +168,7 @@ TEST(VtkLegacyReader, refuses_hostile_headers_with_one_line_naming_the_file) {
 TEST(VtkLegacyReader, refuses_short_data_without_allocating_the_declared_size) {
   scratch_dir dir;
   const auto expect_error = [&](const std::string& stem, const std::string& text,
-                                const std::string& what) {
-    const fs::path file = dir / (stem + ".vtk");
-    progiso::test::write_file(file, text);
-    const std::string message = error_naming(file, [&] { (void)progiso::read_vtk_legacy(file); });
-    EXPECT_TRUE(contains(message, what)) << stem << ": " << message;
-  };
+                                const std::string& what) { expect_refused(dir, stem, text, what); };
   const std::string huge =
       "# vtk DataFile Version 3.0\nt\nBINARY\nDATASET STRUCTURED_POINTS\n"
       "DIMENSIONS 32769 32769 32769\nPOINT_DATA 35187593412609\nSCALARS s double\n"

@@ -15,6 +15,7 @@
 #include <cstdint>
 #include <cstdio>
 #include <filesystem>
+#include <initializer_list>
 #include <string>
 #include <string_view>
 #include <system_error>
@@ -69,6 +70,20 @@ inline void read_volume_file(const std::filesystem::path& file) {
 
 inline std::string_view as_text(const std::uint8_t* data, std::size_t size) {
   return {reinterpret_cast<const char*>(data), size};
+}
+
+/// A header file and its data files in one input: what comes before the separator "\0DATA\0" is
+/// written as `header_name` and what follows as each of `data_names`; without the separator, the
+/// whole input is written as `single_name`. Returns the file to read.
+inline std::filesystem::path write_header_and_data(std::string_view text,
+                                                   const std::string& single_name,
+                                                   const std::string& header_name,
+                                                   std::initializer_list<const char*> data_names) {
+  constexpr std::string_view separator("\0DATA\0", 6);
+  const std::size_t cut = text.find(separator);
+  if (cut == std::string_view::npos) return write_file(single_name, text);
+  for (const char* name : data_names) write_file(name, text.substr(cut + separator.size()));
+  return write_file(header_name, text.substr(0, cut));
 }
 
 }  // namespace progiso::fuzz

@@ -10,19 +10,8 @@
 #include "fuzz_support.hpp"
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
-  const std::string_view text = progiso::fuzz::as_text(data, size);
-  constexpr std::string_view separator("\0DATA\0", 6);
-  const std::size_t cut = text.find(separator);
-  std::filesystem::path file;
-  if (cut == std::string_view::npos) {
-    file = progiso::fuzz::write_file("v.mha", text);
-  } else {
-    const std::string_view payload = text.substr(cut + separator.size());
-    for (const char* name : {"d.raw", "d1.raw", "d2.raw", "d3.raw"}) {
-      progiso::fuzz::write_file(name, payload);
-    }
-    file = progiso::fuzz::write_file("v.mhd", text.substr(0, cut));
-  }
-  progiso::fuzz::read_volume_file(file);
+  progiso::fuzz::read_volume_file(
+      progiso::fuzz::write_header_and_data(progiso::fuzz::as_text(data, size), "v.mha", "v.mhd",
+                                           {"d.raw", "d1.raw", "d2.raw", "d3.raw"}));
   return 0;
 }

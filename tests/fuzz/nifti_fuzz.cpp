@@ -10,16 +10,7 @@
 #include "fuzz_support.hpp"
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
-  const std::string_view text = progiso::fuzz::as_text(data, size);
-  constexpr std::string_view separator("\0DATA\0", 6);
-  const std::size_t cut = text.find(separator);
-  std::filesystem::path file;
-  if (cut == std::string_view::npos) {
-    file = progiso::fuzz::write_file("v.nii", text);
-  } else {
-    progiso::fuzz::write_file("v.img", text.substr(cut + separator.size()));
-    file = progiso::fuzz::write_file("v.hdr", text.substr(0, cut));
-  }
-  progiso::fuzz::read_volume_file(file);
+  progiso::fuzz::read_volume_file(progiso::fuzz::write_header_and_data(
+      progiso::fuzz::as_text(data, size), "v.nii", "v.hdr", {"v.img"}));
   return 0;
 }
