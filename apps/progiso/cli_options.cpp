@@ -15,7 +15,7 @@ const char* const usage_text =
     "usage:\n"
     "  progiso extract INPUT -o OUT.ply|OUT.obj --iso W\n"
     "          [--dims NX,NY,NZ --type u8|i8|u16|i16|u32|i32|f32|f64 [--big-endian]]\n"
-    "          [--spacing SX,SY,SZ | --world]\n"
+    "          [--spacing SX,SY,SZ | --world] [--series N|UID]\n"
     "          [--full | --error E | --max-triangles K | --time-ms T]\n"
     "          [--stats-json FILE] [--threads N]\n"
     "          [--smooth S] [--smooth-from K] [--smooth-region X0,Y0,Z0,X1,Y1,Z1] [--alpha A]\n"
@@ -28,9 +28,10 @@ const char* const usage_text =
     "INPUT is a .nrrd/.nhdr file, a NIfTI-1/2 file (.nii, .nii.gz, or .hdr with its .img;\n"
     "scl_slope/scl_inter applied, so isovalues are in physical units), a MetaImage file\n"
     "(.mha, or .mhd with its data files), a legacy VTK file of STRUCTURED_POINTS (.vtk), a\n"
-    "directory holding one DICOM series (uncompressed; rescaled, so CT isovalues are in\n"
-    "Hounsfield units), or a headerless raw file described by --dims and --type (x fastest,\n"
-    "little-endian unless --big-endian).\n"
+    "directory of DICOM files (uncompressed; rescaled, so CT isovalues are in Hounsfield\n"
+    "units; --series picks one of several series by the number or UID the error lists), or a\n"
+    "headerless raw file described by --dims and --type (x fastest, little-endian unless\n"
+    "--big-endian).\n"
     "--world writes the vertices in the coordinates the file declares (a NIfTI sform, else\n"
     "qform; NRRD space directions and origin; MetaImage TransformMatrix and Offset; DICOM\n"
     "patient coordinates): rotations and flips applied.\n"
@@ -284,6 +285,8 @@ extract_arguments parse_extract(const std::vector<std::string>& args) {
       a.big_endian = true;
     } else if (f == "--world") {
       a.world = true;
+    } else if (f == "--series") {
+      a.series = value();
     } else if (f == "--spacing") {
       const auto parts = split_three(f, value());
       std::array<double, 3> s{};
@@ -318,6 +321,9 @@ extract_arguments parse_extract(const std::vector<std::string>& args) {
     throw error(
         "--world needs an input file that declares its orientation (a NIfTI sform or qform, "
         "NRRD space directions, or a MetaImage header)");
+  }
+  if (a.series && (a.dims || a.demo)) {
+    throw error("--series picks a series of a DICOM directory, not of a raw or demo volume");
   }
   if (a.world && a.spacing) {
     throw error("--world and --spacing: the orientation the file declares sets the spacing");

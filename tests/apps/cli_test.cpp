@@ -464,6 +464,26 @@ TEST_F(Cli, dicom_directory_gives_the_surface_of_the_same_samples_as_raw) {
   EXPECT_EQ(clash.status, 2);
   EXPECT_NE(clash.err.find("names the input file"), std::string::npos) << clash.err;
   EXPECT_EQ(test::read_whole_file(slice), before);
+  // Beside a second series (a 2-slice scout), the directory is refused with the list, and
+  // --series picks the first by number or by UID; --series on a raw volume is refused.
+  for (int k = 0; k < 2; ++k) {
+    test::dicom_slice_file scout;
+    scout.series_uid = "1.2.826.0.1.3680043.2.1125.9";
+    scout.position = {0.0, 0.0, 5.0 * k};
+    scout.pixels.resize(40);
+    scout.write(series, "SCOUT" + std::to_string(k));
+  }
+  expect_bad_input("extract " + series.string() + " --iso 100", "holds 2 DICOM series (1: ");
+  for (const std::string choice : {"1", "1.2.826.0.1.3680043.2.1125.1"}) {
+    const fs::path chosen = dir_ / ("series_" + choice + ".obj");
+    const run_result pick = run("extract " + series.string() + " --series " + choice +
+                                " --iso 100 --full -o " + chosen.string());
+    ASSERT_EQ(pick.status, 0) << pick.err;
+    EXPECT_EQ(slurp(chosen), slurp(want)) << choice;
+  }
+  expect_bad_input("extract " + write_file("c.raw", bytes).string() +
+                       " --dims 9,9,9 --type u8 --iso 100 --series 1",
+                   "--series");
   // A single slice file is refused, naming it.
   expect_bad_input(
       "extract " + write_file("one.dcm", test::read_whole_file(slice)).string() + " --iso 100",

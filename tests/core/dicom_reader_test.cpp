@@ -413,6 +413,52 @@ TEST(DicomReader, refuses_truncated_and_malformed_files_without_reading_past_the
   expect_error("nots", no_ts, "has no transfer syntax");
 }
 
+TEST(DicomReader, picks_one_of_several_series_by_number_or_uid) {
+  scratch_dir dir;
+  series_spec a;
+  a.slices = 4;
+  write_series(dir.path(), a, 11);  // series "1.2.826.0.1.3680043.2.1125.1", 4 slices
+  // A second series of 3 slices, 8-bit, another UID ordered after the first.
+  for (int k = 0; k < 3; ++k) {
+    dicom_slice_file f;
+    f.series_uid = "1.2.826.0.1.3680043.2.1125.2";
+    f.instance = k + 1;
+    f.position = {0.0, 0.0, 2.0 * k};
+    f.bits_allocated = 8;
+    f.bits_stored = 8;
+    f.pixel_representation = 0;
+    f.slope = "1";
+    f.intercept = "0";
+    f.pixels.assign(20, static_cast<std::byte>(k));
+    f.write(dir.path(), "B" + std::to_string(k));
+  }
+  const std::string message =
+      error_naming(dir.path(), [&] { (void)progiso::read_dicom(dir.path()); });
+  EXPECT_TRUE(contains(message,
+                       "holds 2 DICOM series (1: \"1.2.826.0.1.3680043.2.1125.1\" (4 "
+                       "images), 2: \"1.2.826.0.1.3680043.2.1125.2\" (3 images))"))
+      << message;
+  const progiso::volume first = progiso::read_dicom(dir.path(), {"1"});
+  EXPECT_EQ(first.dims()[2], 4);
+  EXPECT_EQ(first.type(), sample_type::f32);
+  for (const char* choice : {"2", "1.2.826.0.1.3680043.2.1125.2"}) {
+    const progiso::volume second = progiso::read_dicom(dir.path(), {choice});
+    EXPECT_EQ(second.dims()[2], 3) << choice;
+    EXPECT_EQ(second.type(), sample_type::u8) << choice;
+    EXPECT_EQ(second.spacing()[2], 2.0) << choice;
+    EXPECT_EQ(sample_at(second, 2 * 20), 2.0) << choice;  // the third slice's pixels
+    EXPECT_EQ(progiso::volume_input_files(dir.path(), std::nullopt, {choice}).size(), 4u);
+  }
+  const std::string unknown =
+      error_naming(dir.path(), [&] { (void)progiso::read_dicom(dir.path(), {"3"}); });
+  EXPECT_TRUE(contains(unknown, "holds no DICOM series \"3\"")) << unknown;
+  // A series chosen for another input is refused.
+  const fs::path raw = dir / "v.nrrd";
+  const std::string other = error_naming(
+      raw, [&] { (void)progiso::read_volume(raw, std::nullopt, std::nullopt, {"1"}); });
+  EXPECT_TRUE(contains(other, "not a DICOM directory")) << other;
+}
+
 TEST(DicomReader, a_single_dcm_file_is_refused_as_one_slice) {
   scratch_dir dir;
   dicom_slice_file f;

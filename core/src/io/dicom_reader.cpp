@@ -4,6 +4,7 @@
 #include <bit>
 #include <cmath>
 #include <cstring>
+#include <iterator>
 #include <limits>
 #include <map>
 #include <optional>
@@ -423,7 +424,8 @@ std::int64_t stored_value(U raw, unsigned bits_stored, bool is_signed) noexcept 
 
 }  // namespace
 
-dicom_series read_dicom_series(const fs::path& directory) {
+dicom_series read_dicom_series(const fs::path& directory,
+                               const std::optional<std::string>& chosen) {
   const std::string dir_name = directory.string();
   std::error_code ec;
   std::vector<fs::path> names;
@@ -457,21 +459,37 @@ dicom_series read_dicom_series(const fs::path& directory) {
   if (series.empty()) {
     throw error(dir_name + ": holds no DICOM image (expected DICOM Part 10 files with pixel data)");
   }
-  if (series.size() > 1) {
+  // The series: the only one, or the one chosen by UID or by number in UID order.
+  const auto listing = [&] {
     std::string list;
-    std::size_t shown = 0;
+    std::size_t number = 0;
     for (const auto& [uid, files] : series) {
-      if (shown++ == 3) {
+      if (++number > 8) {
         list += ", …";
         break;
       }
       if (!list.empty()) list += ", ";
-      list += detail::quoted(uid, 64) + ": " + std::to_string(files.size()) + " images";
+      list += std::to_string(number) + ": " + detail::quoted(uid, 64) + " (" +
+              std::to_string(files.size()) + " images)";
     }
-    throw error(dir_name + ": holds " + std::to_string(series.size()) + " DICOM series (" + list +
-                "), expected one: give a directory of one series");
+    return list;
+  };
+  auto picked = series.begin();
+  if (chosen) {
+    picked = series.find(*chosen);
+    const auto number = to_integer<std::size_t>(*chosen);
+    if (picked == series.end() && number && *number >= 1 && *number <= series.size()) {
+      picked = std::next(series.begin(), static_cast<std::ptrdiff_t>(*number - 1));
+    }
+    if (picked == series.end()) {
+      throw error(dir_name + ": holds no DICOM series " + detail::quoted(*chosen, 64) +
+                  " (its series: " + listing() + ")");
+    }
+  } else if (series.size() > 1) {
+    throw error(dir_name + ": holds " + std::to_string(series.size()) + " DICOM series (" +
+                listing() + "), expected one: choose one by its number or UID");
   }
-  std::vector<found>& files = series.begin()->second;
+  std::vector<found>& files = picked->second;
   const file_header& first = files.front().header;
   const std::string first_name = files.front().file.string();
   const auto refuse = [](const fs::path& f, const std::string& what) {

@@ -98,6 +98,14 @@ std::string_view format_kind(volume_format format) {
   return "NRRD";
 }
 
+/// A chosen series applies to DICOM directories only.
+void check_choice(const fs::path& file, bool dicom, const volume_choice& choice) {
+  if (choice.series && !dicom) {
+    throw error(file.string() + ": a series (" + detail::quoted(*choice.series, 64) +
+                ") was chosen, but the input is not a DICOM directory");
+  }
+}
+
 volume read_text_header_volume(const fs::path& file, volume_format format,
                                const std::optional<std::array<double, 3>>& spacing) {
   detail::input_file in(file, format_kind(format));
@@ -108,8 +116,9 @@ volume read_text_header_volume(const fs::path& file, volume_format format,
 }
 
 volume read_dicom_with(const fs::path& directory,
-                       const std::optional<std::array<double, 3>>& spacing) {
-  const detail::dicom_series series = detail::read_dicom_series(directory);
+                       const std::optional<std::array<double, 3>>& spacing,
+                       const volume_choice& choice) {
+  const detail::dicom_series series = detail::read_dicom_series(directory, choice.series);
   std::vector<std::byte> samples = detail::read_dicom_samples(series);
   return make_volume(directory, series.dims, series.volume_type(), std::move(samples),
                      spacing.value_or(series.spacing), series.origin);
@@ -170,8 +179,8 @@ volume read_metaimage(const std::filesystem::path& file) {
   return read_text_header_volume(file, volume_format::metaimage, std::nullopt);
 }
 
-volume read_dicom(const std::filesystem::path& directory) {
-  return read_dicom_with(directory, std::nullopt);
+volume read_dicom(const std::filesystem::path& directory, const volume_choice& choice) {
+  return read_dicom_with(directory, std::nullopt, choice);
 }
 
 volume read_vtk_legacy(const std::filesystem::path& file) {
@@ -181,11 +190,15 @@ volume read_vtk_legacy(const std::filesystem::path& file) {
 volume read_nifti(const std::filesystem::path& file) { return read_nifti_with(file, std::nullopt); }
 
 volume read_volume(const std::filesystem::path& file, const std::optional<raw_layout>& raw,
-                   std::optional<std::array<double, 3>> spacing) {
-  if (raw) return read_raw(file, *raw, spacing.value_or(std::array<double, 3>{1.0, 1.0, 1.0}));
+                   std::optional<std::array<double, 3>> spacing, const volume_choice& choice) {
+  if (raw) {
+    check_choice(file, false, choice);
+    return read_raw(file, *raw, spacing.value_or(std::array<double, 3>{1.0, 1.0, 1.0}));
+  }
   const volume_format format = format_of(file);
+  check_choice(file, format == volume_format::dicom, choice);
   if (format == volume_format::nifti) return read_nifti_with(file, spacing);
-  if (format == volume_format::dicom) return read_dicom_with(file, spacing);
+  if (format == volume_format::dicom) return read_dicom_with(file, spacing, choice);
   return read_text_header_volume(file, format, spacing);
 }
 
@@ -204,26 +217,36 @@ std::array<double, 3> index_to_world::apply(const std::array<double, 3>& index) 
 }
 
 std::optional<index_to_world> read_volume_world(const std::filesystem::path& file,
-                                                const std::optional<raw_layout>& raw) {
-  if (raw) return std::nullopt;
+                                                const std::optional<raw_layout>& raw,
+                                                const volume_choice& choice) {
+  if (raw) {
+    check_choice(file, false, choice);
+    return std::nullopt;
+  }
   const volume_format format = format_of(file);
+  check_choice(file, format == volume_format::dicom, choice);
   if (format == volume_format::nifti) return detail::read_nifti_header(file).world;
-  if (format == volume_format::dicom) return detail::read_dicom_series(file).world;
+  if (format == volume_format::dicom) return detail::read_dicom_series(file, choice.series).world;
   detail::input_file in(file, format_kind(format));
   return parse_text_header(in, format).world;
 }
 
 std::vector<std::filesystem::path> volume_input_files(const std::filesystem::path& file,
-                                                      const std::optional<raw_layout>& raw) {
-  if (raw) return {file};
+                                                      const std::optional<raw_layout>& raw,
+                                                      const volume_choice& choice) {
+  if (raw) {
+    check_choice(file, false, choice);
+    return {file};
+  }
   const volume_format format = format_of(file);
+  check_choice(file, format == volume_format::dicom, choice);
   if (format == volume_format::nifti) {
     const detail::nifti_header header = detail::read_nifti_header(file);
     if (header.data_file) return {file, *header.data_file};
     return {file};
   }
   if (format == volume_format::dicom) {
-    detail::dicom_series series = detail::read_dicom_series(file);
+    detail::dicom_series series = detail::read_dicom_series(file, choice.series);
     std::vector<std::filesystem::path> files{file};
     for (detail::dicom_slice& d : series.slices) files.push_back(std::move(d.file));
     return files;

@@ -40,6 +40,7 @@
 #include <array>
 #include <filesystem>
 #include <optional>
+#include <string>
 #include <vector>
 
 #include <progiso/core/base/config.hpp>
@@ -47,6 +48,13 @@
 #include <progiso/core/field/volume.hpp>
 
 namespace progiso {
+
+/// Which volume to read from an input that holds several: for a DICOM directory with several
+/// series, `series` is one's SeriesInstanceUID or its number (1-based) in the list the error
+/// for an unchosen directory gives (series ordered by UID). Empty: the input must hold one.
+struct volume_choice {
+  std::optional<std::string> series;
+};
 
 /// The layout of a headerless raw file: grid dims (x fastest), sample type and byte order.
 struct raw_layout {
@@ -95,7 +103,8 @@ struct index_to_world {
 /// spacing only. Throws progiso::error like read_volume() for an unknown format and header
 /// errors.
 [[nodiscard]] std::optional<index_to_world> read_volume_world(const std::filesystem::path& file,
-                                                              const std::optional<raw_layout>& raw);
+                                                              const std::optional<raw_layout>& raw,
+                                                              const volume_choice& choice = {});
 
 /// Reads a NIfTI-1 or NIfTI-2 volume: a .nii (plain or gzip) or a .hdr header whose data lies
 /// in the .img (or .img.gz) beside it. The array must be 3-D (trailing dimensions of size 1
@@ -136,18 +145,22 @@ struct index_to_world {
 /// ImagePositionPatient; samples with a RescaleSlope or RescaleIntercept other than 1 and 0
 /// become f32 in the rescaled units. Throws progiso::error naming the directory or the file
 /// at fault; see detail/dicom_reader.hpp and docs/ARCHITECTURE.md "Reading DICOM".
-[[nodiscard]] volume read_dicom(const std::filesystem::path& directory);
+/// `choice.series` picks one of several series (see volume_choice).
+[[nodiscard]] volume read_dicom(const std::filesystem::path& directory,
+                                const volume_choice& choice = {});
 
 /// Reads a volume the way the command-line tool does: with a raw layout, read_raw(); else, for
 /// a directory, read_dicom(); for the extensions .nrrd and .nhdr, read_nrrd(); for .nii,
 /// .nii.gz, .hdr and .hdr.gz, read_nifti(); for .mha and .mhd, read_metaimage(); for .vtk,
-/// read_vtk_legacy() (case-insensitive). A single .dcm file is refused (one slice). A given
+/// read_vtk_legacy() (case-insensitive). A single .dcm file is refused (one slice). A
+/// `choice` that names a series is refused for anything but a DICOM directory. A given
 /// `spacing` replaces the one from the header (or the default 1,1,1 for raw files). Throws
 /// progiso::error "FILE: unknown volume format (…)" for any other file, and whatever the chosen
 /// reader throws.
 [[nodiscard]] volume read_volume(const std::filesystem::path& file,
                                  const std::optional<raw_layout>& raw,
-                                 std::optional<std::array<double, 3>> spacing);
+                                 std::optional<std::array<double, 3>> spacing,
+                                 const volume_choice& choice = {});
 
 /// The files read_volume(file, raw, …) would read: `file` itself, then, for a NRRD header,
 /// every detached data file in order (patterns expanded, paths resolved against the header's
@@ -157,6 +170,7 @@ struct index_to_world {
 /// the data files need not exist. Throws progiso::error like read_volume() for an unknown format
 /// and for header errors.
 [[nodiscard]] std::vector<std::filesystem::path> volume_input_files(
-    const std::filesystem::path& file, const std::optional<raw_layout>& raw);
+    const std::filesystem::path& file, const std::optional<raw_layout>& raw,
+    const volume_choice& choice = {});
 
 }  // namespace progiso

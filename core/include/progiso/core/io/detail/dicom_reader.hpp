@@ -4,7 +4,8 @@
 //
 // Input: a directory. Every regular file in it that is a DICOM Part 10 file (128 bytes, then
 // "DICM") holding one frame of pixel data is a slice; other files (DICOMDIR, reports, non-DICOM
-// files) are skipped. All slices must belong to one series (SeriesInstanceUID) and agree on
+// files) are skipped. All slices must belong to one series (SeriesInstanceUID; where the
+// directory holds several, the caller names one) and agree on
 // Rows, Columns, BitsAllocated, PixelRepresentation, PixelSpacing and ImageOrientationPatient;
 // they are ordered by their ImagePositionPatient along the slice normal (row × column
 // direction) and must be evenly spaced (a gap or a tilt is refused, naming the slices).
@@ -33,6 +34,7 @@
 #include <array>
 #include <cstdint>
 #include <filesystem>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -70,9 +72,12 @@ struct dicom_series {
   }
 };
 
-/// Reads and checks the headers of every file in `directory`. Throws progiso::error naming the
-/// directory or the file at fault.
-[[nodiscard]] dicom_series read_dicom_series(const std::filesystem::path& directory);
+/// Reads and checks the headers of every file in `directory`: the one series there, or the one
+/// `series` names (its UID, or its number in UID order) among several. Throws progiso::error
+/// naming the directory or the file at fault; for several series and no choice, or a choice that
+/// names none of them, the message lists them by number, UID and image count.
+[[nodiscard]] dicom_series read_dicom_series(const std::filesystem::path& directory,
+                                             const std::optional<std::string>& series = {});
 
 /// Reads the frames of `series` into one array (x fastest, slices in order), host byte order,
 /// masked and sign-extended to BitsStored, rescaled when the series says so.
