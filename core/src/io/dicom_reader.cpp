@@ -34,7 +34,6 @@ constexpr std::uint32_t tag(std::uint16_t group, std::uint16_t element) noexcept
 }
 constexpr std::uint32_t transfer_syntax_tag = tag(0x0002, 0x0010);
 constexpr std::uint32_t series_uid_tag = tag(0x0020, 0x000e);
-constexpr std::uint32_t instance_tag = tag(0x0020, 0x0013);
 constexpr std::uint32_t position_tag = tag(0x0020, 0x0032);
 constexpr std::uint32_t orientation_tag = tag(0x0020, 0x0037);
 constexpr std::uint32_t samples_tag = tag(0x0028, 0x0002);
@@ -102,7 +101,6 @@ struct file_header {
   bool image = false;  ///< holds pixel data
   bool big_endian = false;
   std::string series;
-  std::optional<std::int64_t> instance;
   std::optional<std::array<double, 3>> position;
   std::optional<std::array<double, 6>> orientation;
   std::optional<std::array<double, 2>> pixel_spacing;
@@ -295,11 +293,6 @@ class file_parser {
         case series_uid_tag:
           h.series = std::string(trim_value(read_value(e)));
           break;
-        case instance_tag: {
-          const std::string v = read_value(e);
-          h.instance = static_cast<std::int64_t>(numbers<1>(e, trim_value(v))[0]);
-          break;
-        }
         case position_tag: {
           const std::string v = read_value(e);
           h.position = numbers<3>(e, trim_value(v));
