@@ -15,7 +15,7 @@ const char* const usage_text =
     "usage:\n"
     "  progiso extract INPUT -o OUT.ply|OUT.obj --iso W\n"
     "          [--dims NX,NY,NZ --type u8|i8|u16|i16|u32|i32|f32|f64 [--big-endian]]\n"
-    "          [--spacing SX,SY,SZ | --world] [--series N|UID]\n"
+    "          [--spacing SX,SY,SZ | --world] [--series N|UID] [--volume K]\n"
     "          [--full | --error E | --max-triangles K | --time-ms T]\n"
     "          [--stats-json FILE] [--threads N]\n"
     "          [--smooth S] [--smooth-from K] [--smooth-region X0,Y0,Z0,X1,Y1,Z1] [--alpha A]\n"
@@ -31,7 +31,7 @@ const char* const usage_text =
     "directory of DICOM files (uncompressed; rescaled, so CT isovalues are in Hounsfield\n"
     "units; --series picks one of several series by the number or UID the error lists), or a\n"
     "headerless raw file described by --dims and --type (x fastest, little-endian unless\n"
-    "--big-endian).\n"
+    "--big-endian). --volume K reads volume K (0-based) of a NIfTI time series (dim[4] > 1).\n"
     "--world writes the vertices in the coordinates the file declares (a NIfTI sform, else\n"
     "qform; NRRD space directions and origin; MetaImage TransformMatrix and Offset; DICOM\n"
     "patient coordinates): rotations and flips applied.\n"
@@ -287,6 +287,13 @@ extract_arguments parse_extract(const std::vector<std::string>& args) {
       a.world = true;
     } else if (f == "--series") {
       a.series = value();
+    } else if (f == "--volume") {
+      const std::string k = value();
+      const std::uint64_t n = parse_count(f, k);
+      if (n > 2147483647) {
+        throw error("--volume: expected an index from 0 to 2147483647, found " + shown(k));
+      }
+      a.volume = static_cast<std::int64_t>(n);
     } else if (f == "--spacing") {
       const auto parts = split_three(f, value());
       std::array<double, 3> s{};
@@ -325,6 +332,7 @@ extract_arguments parse_extract(const std::vector<std::string>& args) {
   if (a.series && (a.dims || a.demo)) {
     throw error("--series picks a series of a DICOM directory, not of a raw or demo volume");
   }
+  if (a.volume && a.demo) throw error("--volume picks a volume of an input file, not of --demo");
   if (a.world && a.spacing) {
     throw error("--world and --spacing: the orientation the file declares sets the spacing");
   }

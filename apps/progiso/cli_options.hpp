@@ -39,8 +39,9 @@ struct extract_arguments {
   std::optional<sample_type> type;
   bool big_endian = false;
   std::optional<std::array<double, 3>> spacing;
-  bool world = false;                 // --world: vertices in the file's scanner coordinates
-  std::optional<std::string> series;  // --series: which series of a DICOM directory
+  bool world = false;                  // --world: vertices in the file's scanner coordinates
+  std::optional<std::string> series;   // --series: which series of a DICOM directory
+  std::optional<std::int64_t> volume;  // --volume: which volume of a NIfTI time series
   extract_options options;
   std::optional<std::string> stats_json;
   unsigned threads = 0;  // 0: all cores

@@ -187,14 +187,14 @@ int run(const std::vector<std::string>& args) {
   // before anything is read or computed.
   {
     std::vector<fs::path> inputs;
-    if (!a.demo) inputs = progiso::volume_input_files(*a.input, raw, {a.series});
+    if (!a.demo) inputs = progiso::volume_input_files(*a.input, raw, {a.series, a.volume});
     std::vector<named_output> outputs{{"-o", *a.output}};
     if (a.stats_json) outputs.push_back({"--stats-json", *a.stats_json});
     refuse_clashing_outputs(inputs, outputs);
   }
   std::optional<progiso::index_to_world> world;
   if (a.world) {
-    world = progiso::read_volume_world(*a.input, raw, {a.series});
+    world = progiso::read_volume_world(*a.input, raw, {a.series, a.volume});
     if (!world) {
       throw error(*a.input +
                   ": --world: the file declares no orientation (expected a NIfTI sform or qform, "
@@ -213,7 +213,7 @@ int run(const std::vector<std::string>& args) {
     iso = a.iso.value_or(progiso::demo_isovalue);
   } else {
     data = std::make_shared<const progiso::volume>(
-        progiso::read_volume(*a.input, raw, a.spacing, {a.series}));
+        progiso::read_volume(*a.input, raw, a.spacing, {a.series, a.volume}));
     iso = *a.iso;
   }
   // The field refined: the data, or its smoothed field (samples computed on demand).

@@ -381,6 +381,40 @@ TEST_F(Cli, nifti_input_gives_the_surface_of_the_same_samples_as_raw) {
   expect_bad_input("extract " + cut.string() + " --iso 100", "cut.nii: NIfTI data ends");
 }
 
+TEST_F(Cli, volume_picks_one_volume_of_a_nifti_time_series) {
+  // Three volumes of 9³ bytes (dim[4] = 3), the middle one the cube: --volume 1 gives the raw
+  // cube's mesh, plain and gzip; without --volume, or past the last, one line and exit 2.
+  std::string nii =
+      test::nifti1_file({9, 9, 9}, 2, 8, {2.0f, 1.5f, 0.5f},
+                        std::string(729, '\0') + cube_bytes(9) + std::string(729, '\x7f'));
+  const std::int16_t four = 4;
+  const std::int16_t three = 3;
+  std::memcpy(nii.data() + 40, &four, 2);   // dim[0]
+  std::memcpy(nii.data() + 48, &three, 2);  // dim[4]
+  const fs::path plain = write_file("t.nii", nii);
+  const fs::path gz = write_file("t.nii.gz", test::gzip(nii));
+  const fs::path want = raw_cube_mesh("2,1.5,0.5");
+  for (const fs::path& in : {plain, gz}) {
+    const fs::path out = dir_ / (in.filename().string() + ".obj");
+    const run_result r =
+        run("extract " + in.string() + " --volume 1 --iso 100 --full -o " + out.string());
+    ASSERT_EQ(r.status, 0) << r.err;
+    EXPECT_EQ(slurp(out), slurp(want)) << in;
+  }
+  expect_bad_input("extract " + plain.string() + " --iso 100",
+                   "t.nii: a time series of 3 volumes (dim[4] = 3): choose one by its index, "
+                   "0 to 2");
+  expect_bad_input("extract " + gz.string() + " --iso 100 --volume 3",
+                   "t.nii.gz: volume 3 was chosen, but the input is a time series of 3 volumes");
+  expect_bad_input("extract " + plain.string() + " --iso 100 --volume -1", "--volume");
+  expect_bad_input("extract " + plain.string() + " --iso 100 --volume x", "--volume");
+  expect_bad_input("extract --demo --volume 0", "--volume picks a volume of an input file");
+  // A 3-D input holds volume 0 only.
+  const fs::path raw = write_file("one.raw", cube_bytes(9));
+  expect_bad_input("extract " + raw.string() + " --dims 9,9,9 --type u8 --iso 100 --volume 1",
+                   "one.raw: volume 1 was chosen, but the input holds one volume (0)");
+}
+
 TEST_F(Cli, metaimage_input_gives_the_surface_of_the_same_samples_as_raw) {
   // The same bytes as a raw file, an .mha with the data after the header (big-endian 16-bit),
   // and an .mhd whose zlib-compressed data lies in another file: the same mesh, byte for byte.

@@ -28,6 +28,7 @@ extern "C" {
 #include <bit>
 #include <cmath>
 #include <cstdint>
+#include <cstdlib>
 #include <cstring>
 #include <filesystem>
 #include <memory>
@@ -206,6 +207,25 @@ struct nifti_file {
   }
 };
 
+/// Calls f(file, gz) for the 16 layouts of a file: NIfTI-1 and NIfTI-2, both byte orders, single
+/// file and header and data pair, plain and gzip (`file` otherwise as nifti_file's defaults).
+template <class F>
+void for_each_layout(F&& f) {
+  for (const int version : {1, 2}) {
+    for (const bool big : {false, true}) {
+      for (const bool pair : {false, true}) {
+        for (const bool gz : {false, true}) {
+          nifti_file file;
+          file.version = version;
+          file.big_endian = big;
+          file.pair = pair;
+          f(file, gz);
+        }
+      }
+    }
+  }
+}
+
 /// Random samples of `type` (finite floats), `count` of them.
 struct reference_image {
   struct free_image {
@@ -279,31 +299,20 @@ TEST(NiftiReader, agrees_with_nifti_clib_on_every_type_version_byte_order_layout
   scratch_dir dir;
   int files = 0;
   for (const type_info& t : types) {
-    for (const int version : {1, 2}) {
-      for (const bool big : {false, true}) {
-        for (const bool pair : {false, true}) {
-          for (const bool gz : {false, true}) {
-            nifti_file f;
-            f.version = version;
-            f.big_endian = big;
-            f.pair = pair;
-            f.datatype = t.code;
-            f.bitpix = static_cast<std::int16_t>(8 * progiso::sample_size(t.type));
-            const std::size_t count = 5 * 4 * 3;
-            const auto samples = random_samples(t.type, count, static_cast<unsigned>(files));
-            const std::string stem = "v" + std::to_string(files++);
-            const fs::path file =
-                f.write(dir.path(), stem, samples, progiso::sample_size(t.type), gz);
-            const progiso::volume v = progiso::read_nifti(file);
-            EXPECT_EQ(v.type(), t.type) << file;
-            EXPECT_EQ(std::memcmp(v.bytes(), samples.data(), samples.size()), 0) << file;
-            EXPECT_EQ(v.origin(), (std::array<double, 3>{-10.5, 20.25, 3.0})) << file;
-            EXPECT_EQ(v.spacing(), (std::array<double, 3>{1.5, 2.0, 0.75})) << file;
-            expect_same_as_reference(v, file);
-          }
-        }
-      }
-    }
+    for_each_layout([&](nifti_file& f, bool gz) {
+      f.datatype = t.code;
+      f.bitpix = static_cast<std::int16_t>(8 * progiso::sample_size(t.type));
+      const std::size_t count = 5 * 4 * 3;
+      const auto samples = random_samples(t.type, count, static_cast<unsigned>(files));
+      const std::string stem = "v" + std::to_string(files++);
+      const fs::path file = f.write(dir.path(), stem, samples, progiso::sample_size(t.type), gz);
+      const progiso::volume v = progiso::read_nifti(file);
+      EXPECT_EQ(v.type(), t.type) << file;
+      EXPECT_EQ(std::memcmp(v.bytes(), samples.data(), samples.size()), 0) << file;
+      EXPECT_EQ(v.origin(), (std::array<double, 3>{-10.5, 20.25, 3.0})) << file;
+      EXPECT_EQ(v.spacing(), (std::array<double, 3>{1.5, 2.0, 0.75})) << file;
+      expect_same_as_reference(v, file);
+    });
   }
   EXPECT_EQ(files, 128);
 }
@@ -418,6 +427,169 @@ TEST(NiftiReader, skips_header_extensions_and_reads_one_time_point_of_a_4d_file)
   q.qform_code = 0;
   EXPECT_EQ(progiso::read_nifti(q.write(dir.path(), "n", bytes, 1, false)).origin(),
             (std::array<double, 3>{0.0, 0.0, 0.0}));
+}
+
+/// nifti_clib's reading of volume t of a time series (nifti_read_collapsed_image with dim[4]
+/// fixed), as stored bytes.
+std::vector<std::byte> reference_volume(const fs::path& file, std::int64_t t) {
+  nifti_set_debug_level(0);
+  const reference_image ref{
+      std::unique_ptr<nifti_image, reference_image::free_image>(nifti_image_read(file.c_str(), 0))};
+  EXPECT_NE(ref.image, nullptr) << file;
+  if (!ref.image) return {};
+  const std::int64_t dims[8] = {-1, -1, -1, -1, t, -1, -1, -1};
+  void* data = nullptr;
+  const std::int64_t n = nifti_read_collapsed_image(ref.image.get(), dims, &data);
+  EXPECT_GT(n, 0) << file << " volume " << t;
+  std::vector<std::byte> out;
+  if (n > 0) out.assign(static_cast<std::byte*>(data), static_cast<std::byte*>(data) + n);
+  std::free(data);
+  return out;
+}
+
+TEST(NiftiReader, reads_the_chosen_volume_of_a_time_series_as_nifti_clib_does) {
+  // A 4-D file (dim[4] = 5 volumes of 5 × 4 × 3) as NIfTI-1 and -2, single file and pair, plain
+  // and gzip, both byte orders: volume k is the k-th block of samples, and nifti_clib's
+  // collapsed image of t = k; read_volume() and volume_input_files() take the same choice.
+  scratch_dir dir;
+  const std::int64_t volumes = 5;
+  const std::size_t voxels = 5 * 4 * 3;
+  int n = 0;
+  for_each_layout([&](nifti_file& f, bool gz) {
+    f.datatype = 4;  // INT16
+    f.bitpix = 16;
+    f.dim = {4, 5, 4, 3, volumes, 1, 1, 1};
+    const auto samples =
+        random_samples(sample_type::i16, voxels * volumes, static_cast<unsigned>(200 + n));
+    const fs::path file = f.write(dir.path(), "t" + std::to_string(n++), samples, 2, gz);
+    for (std::int64_t k = 0; k < volumes; ++k) {
+      const progiso::volume v = progiso::read_nifti(file, {.volume = k});
+      ASSERT_EQ(v.dims(), (index3{5, 4, 3})) << file;
+      const std::size_t at = static_cast<std::size_t>(k) * voxels * 2;
+      EXPECT_EQ(std::memcmp(v.bytes(), samples.data() + at, voxels * 2), 0)
+          << file << " volume " << k;
+      const std::vector<std::byte> ref = reference_volume(file, k);
+      ASSERT_EQ(ref.size(), voxels * 2) << file;
+      EXPECT_EQ(std::memcmp(v.bytes(), ref.data(), ref.size()), 0) << file << " " << k;
+      EXPECT_EQ(v.origin(), (std::array<double, 3>{-10.5, 20.25, 3.0})) << file;
+    }
+    const progiso::volume last =
+        progiso::read_volume(file, std::nullopt, std::nullopt, {.volume = volumes - 1});
+    EXPECT_EQ(std::memcmp(last.bytes(), samples.data() + (volumes - 1) * voxels * 2, voxels * 2), 0)
+        << file;
+    EXPECT_EQ(progiso::volume_input_files(file, std::nullopt, {.volume = 2}).size(),
+              f.pair ? 2u : 1u);
+    EXPECT_TRUE(progiso::read_volume_world(file, std::nullopt, {.volume = 0}).has_value());
+  });
+  EXPECT_EQ(n, 16);
+  // Scaled volumes are scaled as the first is.
+  nifti_file s;
+  s.dim = {4, 5, 4, 3, 3, 1, 1, 1};
+  s.scl_slope = 0.5;
+  s.scl_inter = -3.0;
+  std::vector<std::byte> bytes(voxels * 3);
+  for (std::size_t i = 0; i < bytes.size(); ++i) bytes[i] = static_cast<std::byte>(i % 251);
+  const fs::path scaled = s.write(dir.path(), "scaled", bytes, 1, true);
+  const progiso::volume v = progiso::read_nifti(scaled, {.volume = 2});
+  EXPECT_EQ(v.type(), sample_type::f32);
+  for (std::size_t i = 0; i < voxels; ++i) {
+    EXPECT_EQ(v.at(i), 0.5 * static_cast<double>((2 * voxels + i) % 251) - 3.0) << i;
+  }
+}
+
+TEST(NiftiReader,
+     a_time_series_needs_a_volume_that_exists_and_a_volume_needs_an_input_that_has_it) {
+  scratch_dir dir;
+  nifti_file f;
+  f.dim = {4, 5, 4, 3, 20, 1, 1, 1};
+  const auto samples = random_samples(sample_type::u8, 60 * 20, 21);
+  const fs::path series = f.write(dir.path(), "series", samples, 1, false);
+  const auto message = [&](const fs::path& file, const progiso::volume_choice& choice) {
+    return error_naming(
+        file, [&] { (void)progiso::read_volume(file, std::nullopt, std::nullopt, choice); });
+  };
+  // No choice: the error says how many there are and how to choose.
+  std::string m = message(series, {});
+  EXPECT_TRUE(contains(m, "time series of 20 volumes")) << m;
+  EXPECT_TRUE(contains(m, "0 to 19")) << m;
+  for (const std::int64_t k : {std::int64_t{20}, std::int64_t{-1}, std::int64_t{1} << 40}) {
+    m = message(series, {.volume = k});
+    EXPECT_TRUE(contains(m, "volume " + std::to_string(k) + " was chosen")) << m;
+    EXPECT_TRUE(contains(m, "0 to 19")) << m;
+    // The header-only calls refuse it the same way.
+    const std::string w = error_naming(
+        series, [&] { (void)progiso::read_volume_world(series, std::nullopt, {.volume = k}); });
+    EXPECT_TRUE(contains(w, "was chosen")) << w;
+    const std::string in = error_naming(
+        series, [&] { (void)progiso::volume_input_files(series, std::nullopt, {.volume = k}); });
+    EXPECT_TRUE(contains(in, "was chosen")) << in;
+  }
+  // A 3-D NIfTI, a NRRD or a raw file hold volume 0 only.
+  nifti_file one;
+  const fs::path three =
+      one.write(dir.path(), "three", random_samples(sample_type::u8, 60, 22), 1, false);
+  EXPECT_EQ(progiso::read_volume(three, std::nullopt, std::nullopt, {.volume = 0}).dims(),
+            (index3{5, 4, 3}));
+  m = message(three, {.volume = 1});
+  EXPECT_TRUE(contains(m, "holds one volume (0)")) << m;
+  const fs::path nrrd = dir.path() / "v.nrrd";
+  progiso::test::write_file(nrrd,
+                            "NRRD0004\ntype: uchar\ndimension: 3\nsizes: 2 2 2\n"
+                            "encoding: raw\n\n" +
+                                std::string(8, '\1'));
+  EXPECT_EQ(progiso::read_volume(nrrd, std::nullopt, std::nullopt, {.volume = 0}).dims(),
+            (index3{2, 2, 2}));
+  m = message(nrrd, {.volume = 3});
+  EXPECT_TRUE(contains(m, "holds one volume (0)")) << m;
+  const fs::path raw = dir.path() / "v.raw";
+  progiso::test::write_file(raw, std::string(8, '\2'));
+  const progiso::raw_layout layout{{2, 2, 2}, sample_type::u8, false};
+  m = error_naming(raw,
+                   [&] { (void)progiso::read_volume(raw, layout, std::nullopt, {.volume = 1}); });
+  EXPECT_TRUE(contains(m, "holds one volume (0)")) << m;
+  // Dimensions above the fourth are still refused: a vector per voxel is not a volume.
+  nifti_file vec;
+  vec.dim = {5, 5, 4, 3, 1, 3, 1, 1};
+  const fs::path vf =
+      vec.write(dir.path(), "vector", random_samples(sample_type::u8, 180, 23), 1, false);
+  m = error_naming(vf, [&] { (void)progiso::read_nifti(vf, {.volume = 0}); });
+  EXPECT_TRUE(contains(m, "dim[5] is 3")) << m;
+}
+
+TEST(NiftiReader, refuses_a_time_series_whose_data_cannot_hold_every_volume_before_allocating) {
+  // The chosen volume lies in the file, the declared ones after it do not: refused all the
+  // same (the header is wrong), from the sizes; gzip data is measured against every volume too.
+  scratch_dir dir;
+  nifti_file f;
+  f.dim = {4, 5, 4, 3, 4, 1, 1, 1};
+  const auto samples = random_samples(sample_type::u8, 60 * 4, 24);
+  std::string whole =
+      f.header() + std::string(reinterpret_cast<const char*>(samples.data()), samples.size());
+  const fs::path cut = dir.path() / "cut.nii";
+  progiso::test::write_file(cut, whole.substr(0, whole.size() - 1));
+  std::string m = error_naming(cut, [&] { (void)progiso::read_nifti(cut, {.volume = 0}); });
+  EXPECT_TRUE(contains(m, "NIfTI data ends")) << m;
+  EXPECT_TRUE(contains(m, "5x4x3x4")) << m;
+  // gzip data that ends inside volume 2.
+  const fs::path gz = dir.path() / "cut.nii.gz";
+  progiso::test::write_file(gz, gzip(whole.substr(0, whole.size() - 100)));
+  m = error_naming(gz, [&] { (void)progiso::read_nifti(gz, {.volume = 2}); });
+  EXPECT_TRUE(contains(m, "NIfTI data ends")) << m;
+  EXPECT_TRUE(contains(m, "volume 2")) << m;
+  // 2^40 volumes of 281 TB each: refused from the sizes, at once (the product overflows).
+  nifti_file huge;
+  huge.version = 2;
+  huge.dim = {4, 32769, 32769, 32769, std::int64_t{1} << 40, 1, 1, 1};
+  huge.datatype = 64;
+  huge.bitpix = 64;
+  const fs::path hf = dir.path() / "huge.nii";
+  progiso::test::write_file(hf, huge.header() + std::string(64, '\0'));
+  m = error_naming(hf, [&] { (void)progiso::read_nifti(hf, {.volume = 5}); });
+  EXPECT_TRUE(contains(m, "more than 2^64")) << m;
+  const fs::path hgz = dir.path() / "huge.nii.gz";
+  progiso::test::write_file(hgz, gzip(huge.header() + std::string(64, '\0')));
+  m = error_naming(hgz, [&] { (void)progiso::read_nifti(hgz, {.volume = 5}); });
+  EXPECT_TRUE(contains(m, "cannot hold")) << m;
 }
 
 TEST(NiftiReader, read_volume_picks_nifti_by_name_in_any_case_and_a_given_spacing_wins) {
@@ -582,7 +754,12 @@ TEST(NiftiReader, refuses_hostile_headers_with_one_line_naming_the_file) {
   {
     nifti_file f;
     f.dim = {4, 5, 4, 3, 20, 1, 1, 1};
-    expect_error(f, "series", "time series of 20 volumes");
+    expect_error(f, "series", "time series of 20 volumes");  // no volume chosen
+  }
+  {
+    nifti_file f;
+    f.dim = {6, 5, 4, 3, 2, 1, 7, 1};
+    expect_error(f, "dim6", "dim[6] is 7");
   }
   for (const std::int64_t d : {std::int64_t{1}, std::int64_t{-5}, std::int64_t{40000}}) {
     nifti_file f;

@@ -56,13 +56,13 @@ inline std::filesystem::path write_file(const std::string& name, std::string_vie
 
 /// What the command does with a volume file it is given: lists its input files (a header's
 /// data files) and reads it. Only progiso::error may come out.
-inline void read_volume_file(const std::filesystem::path& file) {
+inline void read_volume_file(const std::filesystem::path& file, const volume_choice& choice = {}) {
   try {
-    (void)volume_input_files(file, std::nullopt);
+    (void)volume_input_files(file, std::nullopt, choice);
   } catch (const progiso::error&) {
   }
   try {
-    const volume v = read_volume(file, std::nullopt, std::nullopt);
+    const volume v = read_volume(file, std::nullopt, std::nullopt, choice);
     (void)v.value_range();
   } catch (const progiso::error&) {
   }

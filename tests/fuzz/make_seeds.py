@@ -151,6 +151,9 @@ def nifti_seeds(out, crops):
     put(out, "nifti", "pair_ni1", nifti_header(1, (4, 4, 4), 2, 8, pair=True) + SEP + cube)
     put(out, "nifti", "pair_ni2_gzip", nifti_header(2, (4, 4, 4), 2, 8, pair=True) + SEP + gzip.compress(cube))
     put(out, "nifti", "time_series", nifti_header(1, (4, 4, 4, 3), 2, 8) + cube * 3)
+    put(out, "nifti", "time_series_gzip",
+        gzip.compress(nifti_header(2, (4, 4, 4, 3), 2, 8, slope=2.0, inter=1.0) + cube * 3))
+    put(out, "nifti", "time_series_pair", nifti_header(1, (4, 4, 4, 3), 2, 8, pair=True) + SEP + cube * 3)
     put(out, "nifti", "declared_2000x2000x1000",
         nifti_header(1, (2000, 2000, 1000), 2, 8) + cube)
     put(out, "nifti", "declared_gzip_doubles",

@@ -13,6 +13,7 @@
 #include <system_error>
 #include <vector>
 
+#include <progiso/core/base/assert.hpp>
 #include <progiso/core/base/error.hpp>
 #include <progiso/core/io/detail/file_output.hpp>
 #include <progiso/core/io/detail/gzip_input.hpp>
@@ -243,13 +244,14 @@ nifti_header read_nifti_header(const fs::path& file) {
     h.dims[i - 1] = dim[i];
   }
   // Above the third, only sizes above 1 matter (0 and negatives read as 1, as nifti_clib
-  // reads them): a time series or a vector field is not a scalar volume.
-  for (std::size_t i = 4; i <= static_cast<std::size_t>(dim[0]); ++i) {
+  // reads them): dim[4] counts the volumes of a time series, of which one is read; above it, a
+  // vector or matrix per voxel is not a scalar volume.
+  if (dim[0] >= 4 && dim[4] > 1) h.volumes = dim[4];
+  for (std::size_t i = 5; i <= static_cast<std::size_t>(dim[0]); ++i) {
     if (dim[i] > 1) {
-      throw error(
-          name + ": dim[" + std::to_string(i) + "] is " + std::to_string(dim[i]) +
-          (i == 4 ? " (a time series of " + std::to_string(dim[i]) + " volumes)" : std::string()) +
-          ": expected a 3-D volume (dimensions above 3 of size 1)");
+      throw error(name + ": dim[" + std::to_string(i) + "] is " + std::to_string(dim[i]) +
+                  ": expected a 3-D volume or a time series of them (dimensions above 4 of "
+                  "size 1)");
     }
   }
 
@@ -370,7 +372,9 @@ nifti_header read_nifti_header(const fs::path& file) {
   return h;
 }
 
-std::vector<std::byte> read_nifti_samples(const nifti_header& h, const fs::path& file) {
+std::vector<std::byte> read_nifti_samples(const nifti_header& h, const fs::path& file,
+                                          std::int64_t volume) {
+  PROGISO_ASSERT(volume >= 0 && volume < h.volumes);
   const std::size_t item = sample_size(h.stored);
   const auto count = static_cast<std::uint64_t>(h.dims[0]) * static_cast<std::uint64_t>(h.dims[1]) *
                      static_cast<std::uint64_t>(h.dims[2]);
@@ -378,25 +382,36 @@ std::vector<std::byte> read_nifti_samples(const nifti_header& h, const fs::path&
   const fs::path& source = h.data_file ? *h.data_file : file;
   sequential_input in(source, h.data_file ? "NIfTI data" : "NIfTI");
   const std::string name = source.string();
-  const std::string declared = std::to_string(bytes) + " bytes (" + std::to_string(h.dims[0]) +
-                               "x" + std::to_string(h.dims[1]) + "x" + std::to_string(h.dims[2]) +
-                               " of " + std::string(to_string(h.stored)) + ")";
-  // The data must be able to hold the array before anything is allocated for it.
+  const std::string shape = std::to_string(h.dims[0]) + "x" + std::to_string(h.dims[1]) + "x" +
+                            std::to_string(h.dims[2]) +
+                            (h.volumes > 1 ? "x" + std::to_string(h.volumes) : std::string());
+  // Every declared volume, from vox_offset; more than 2^64 bytes cannot be present.
   const std::uint64_t start = h.vox_offset;
+  const auto volumes = static_cast<std::uint64_t>(h.volumes);
+  const bool fits = volumes <= (std::numeric_limits<std::uint64_t>::max() - start) / bytes;
+  const std::uint64_t all = fits ? bytes * volumes : 0;
+  const std::string declared = (fits ? std::to_string(all) : std::string("more than 2^64")) +
+                               " bytes (" + shape + " of " + std::string(to_string(h.stored)) + ")";
+  // The data must be able to hold the array before anything is allocated for it.
   if (in.gzipped()) {
-    if (!gzip_can_hold(in.size(), start + bytes)) {
+    if (!fits || !gzip_can_hold(in.size(), start + all)) {
       throw error(name + ": " + std::to_string(in.size()) +
                   " bytes of gzip data cannot hold the declared " + declared +
                   " after byte offset " + std::to_string(start) + " (gzip expands at most " +
                   std::to_string(gzip_max_ratio) + ":1)");
     }
-  } else if (in.size() < start || in.size() - start < bytes) {
+  } else if (!fits || in.size() < start || in.size() - start < all) {
     throw error(name + ": NIfTI data ends: the file has " + std::to_string(in.size()) +
                 " bytes, too few for the declared " + declared + " from byte offset " +
                 std::to_string(start));
   }
-  if (!in.skip_to(start)) {
-    throw error(name + ": NIfTI data ends before vox_offset " + std::to_string(start));
+  // The chosen volume's first byte; a gzip file inflates the volumes before it.
+  const std::uint64_t first = start + static_cast<std::uint64_t>(volume) * bytes;
+  if (!in.skip_to(first)) {
+    throw error(name + ": NIfTI data ends before " +
+                (volume == 0 ? "vox_offset " + std::to_string(start)
+                             : "volume " + std::to_string(volume) + " (byte " +
+                                   std::to_string(first) + ")"));
   }
   // Scaled samples are read into the tail of the output array and converted front to back in
   // place: the output is never narrower than the stored type, so element i is written only
@@ -408,7 +423,10 @@ std::vector<std::byte> read_nifti_samples(const nifti_header& h, const fs::path&
   const std::span<std::byte> stored(out.data() + tail, static_cast<std::size_t>(bytes));
   const std::size_t got = in.read(stored);
   if (got < stored.size()) {
-    throw error(name + ": NIfTI data ends after " + std::to_string(got) + " of the declared " +
+    throw error(name + ": NIfTI data ends after " + std::to_string(got) + " of the " +
+                std::to_string(bytes) + " bytes of " +
+                (h.volumes > 1 ? "volume " + std::to_string(volume) + " of the declared "
+                               : std::string("the declared ")) +
                 declared);
   }
   if (item > 1 && h.big_endian != (std::endian::native == std::endian::big)) {

@@ -106,6 +106,26 @@ void check_choice(const fs::path& file, bool dicom, const volume_choice& choice)
   }
 }
 
+/// The volume to read of an input that holds `volumes` (a NIfTI time series; 1 for any other
+/// input): the chosen one, which must exist, or the only one.
+std::int64_t pick_volume(const fs::path& file, std::int64_t volumes, const volume_choice& choice) {
+  const std::string last = std::to_string(volumes - 1);
+  if (!choice.volume) {
+    if (volumes == 1) return 0;
+    throw error(file.string() + ": a time series of " + std::to_string(volumes) +
+                " volumes (dim[4] = " + std::to_string(volumes) +
+                "): choose one by its index, 0 to " + last);
+  }
+  const std::int64_t k = *choice.volume;
+  if (k < 0 || k >= volumes) {
+    throw error(file.string() + ": volume " + std::to_string(k) + " was chosen, but the input " +
+                (volumes == 1 ? std::string("holds one volume (0)")
+                              : "is a time series of " + std::to_string(volumes) +
+                                    " volumes (0 to " + last + ")"));
+  }
+  return k;
+}
+
 volume read_text_header_volume(const fs::path& file, volume_format format,
                                const std::optional<std::array<double, 3>>& spacing) {
   detail::input_file in(file, format_kind(format));
@@ -124,9 +144,11 @@ volume read_dicom_with(const fs::path& directory,
                      spacing.value_or(series.spacing), series.origin);
 }
 
-volume read_nifti_with(const fs::path& file, const std::optional<std::array<double, 3>>& spacing) {
+volume read_nifti_with(const fs::path& file, const std::optional<std::array<double, 3>>& spacing,
+                       const volume_choice& choice) {
   const detail::nifti_header header = detail::read_nifti_header(file);
-  std::vector<std::byte> samples = detail::read_nifti_samples(header, file);
+  const std::int64_t k = pick_volume(file, header.volumes, choice);
+  std::vector<std::byte> samples = detail::read_nifti_samples(header, file, k);
   return make_volume(header.data_file ? *header.data_file : file, header.dims, header.volume_type(),
                      std::move(samples), spacing.value_or(header.spacing), header.origin);
 }
@@ -187,17 +209,21 @@ volume read_vtk_legacy(const std::filesystem::path& file) {
   return read_text_header_volume(file, volume_format::vtk_legacy, std::nullopt);
 }
 
-volume read_nifti(const std::filesystem::path& file) { return read_nifti_with(file, std::nullopt); }
+volume read_nifti(const std::filesystem::path& file, const volume_choice& choice) {
+  return read_nifti_with(file, std::nullopt, choice);
+}
 
 volume read_volume(const std::filesystem::path& file, const std::optional<raw_layout>& raw,
                    std::optional<std::array<double, 3>> spacing, const volume_choice& choice) {
   if (raw) {
     check_choice(file, false, choice);
+    (void)pick_volume(file, 1, choice);
     return read_raw(file, *raw, spacing.value_or(std::array<double, 3>{1.0, 1.0, 1.0}));
   }
   const volume_format format = format_of(file);
   check_choice(file, format == volume_format::dicom, choice);
-  if (format == volume_format::nifti) return read_nifti_with(file, spacing);
+  if (format == volume_format::nifti) return read_nifti_with(file, spacing, choice);
+  (void)pick_volume(file, 1, choice);
   if (format == volume_format::dicom) return read_dicom_with(file, spacing, choice);
   return read_text_header_volume(file, format, spacing);
 }
@@ -221,11 +247,17 @@ std::optional<index_to_world> read_volume_world(const std::filesystem::path& fil
                                                 const volume_choice& choice) {
   if (raw) {
     check_choice(file, false, choice);
+    (void)pick_volume(file, 1, choice);
     return std::nullopt;
   }
   const volume_format format = format_of(file);
   check_choice(file, format == volume_format::dicom, choice);
-  if (format == volume_format::nifti) return detail::read_nifti_header(file).world;
+  if (format == volume_format::nifti) {
+    const detail::nifti_header header = detail::read_nifti_header(file);
+    (void)pick_volume(file, header.volumes, choice);
+    return header.world;
+  }
+  (void)pick_volume(file, 1, choice);
   if (format == volume_format::dicom) return detail::read_dicom_series(file, choice.series).world;
   detail::input_file in(file, format_kind(format));
   return parse_text_header(in, format).world;
@@ -236,15 +268,18 @@ std::vector<std::filesystem::path> volume_input_files(const std::filesystem::pat
                                                       const volume_choice& choice) {
   if (raw) {
     check_choice(file, false, choice);
+    (void)pick_volume(file, 1, choice);
     return {file};
   }
   const volume_format format = format_of(file);
   check_choice(file, format == volume_format::dicom, choice);
   if (format == volume_format::nifti) {
     const detail::nifti_header header = detail::read_nifti_header(file);
+    (void)pick_volume(file, header.volumes, choice);
     if (header.data_file) return {file, *header.data_file};
     return {file};
   }
+  (void)pick_volume(file, 1, choice);
   if (format == volume_format::dicom) {
     detail::dicom_series series = detail::read_dicom_series(file, choice.series);
     std::vector<std::filesystem::path> files{file};

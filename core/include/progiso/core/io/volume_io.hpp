@@ -51,9 +51,13 @@ namespace progiso {
 
 /// Which volume to read from an input that holds several: for a DICOM directory with several
 /// series, `series` is one's SeriesInstanceUID or its number (1-based) in the list the error
-/// for an unchosen directory gives (series ordered by UID). Empty: the input must hold one.
+/// for an unchosen directory gives (series ordered by UID); for a NIfTI time series (dim[4] > 1:
+/// fMRI, diffusion, perfusion), `volume` is the index of one of its 3-D volumes, 0-based (the
+/// index FSL, AFNI and nibabel give). Empty: the input must hold one, which `volume` 0 also
+/// names for any input.
 struct volume_choice {
-  std::optional<std::string> series;
+  std::optional<std::string> series = {};
+  std::optional<std::int64_t> volume = {};
 };
 
 /// The layout of a headerless raw file: grid dims (x fastest), sample type and byte order.
@@ -113,9 +117,12 @@ struct index_to_world {
 /// sform_code > 0, else the qform's when qform_code > 0, else 0 (rotations and flips are not
 /// applied here: read_volume_world() gives the whole map). Samples with a scl_slope other than
 /// 0 and (1, 0) are scaled to physical values, as f32 (f64 for 32-bit integer and f64 data).
-/// Throws progiso::error naming the file on any failure; see detail/nifti_reader.hpp and
-/// docs/ARCHITECTURE.md "Reading NIfTI".
-[[nodiscard]] volume read_nifti(const std::filesystem::path& file);
+/// A time series (dim[4] > 1, dimensions above the fourth of size 1) reads one volume, the one
+/// `choice.volume` names (see volume_choice; refused without it). Throws progiso::error naming
+/// the file on any failure; see detail/nifti_reader.hpp and docs/ARCHITECTURE.md "Reading
+/// NIfTI".
+[[nodiscard]] volume read_nifti(const std::filesystem::path& file,
+                                const volume_choice& choice = {});
 
 /// Reads a MetaImage volume: a .mha or .mhd header (one "Key = Value" field per line, up to
 /// ElementDataFile) and its data (LOCAL: in the same file; else the files it names). NDims 3
@@ -153,7 +160,8 @@ struct index_to_world {
 /// a directory, read_dicom(); for the extensions .nrrd and .nhdr, read_nrrd(); for .nii,
 /// .nii.gz, .hdr and .hdr.gz, read_nifti(); for .mha and .mhd, read_metaimage(); for .vtk,
 /// read_vtk_legacy() (case-insensitive). A single .dcm file is refused (one slice). A
-/// `choice` that names a series is refused for anything but a DICOM directory. A given
+/// `choice` that names a series is refused for anything but a DICOM directory, one that names
+/// a volume other than 0 for anything but a NIfTI time series that has it. A given
 /// `spacing` replaces the one from the header (or the default 1,1,1 for raw files). Throws
 /// progiso::error "FILE: unknown volume format (…)" for any other file, and whatever the chosen
 /// reader throws.

@@ -8,9 +8,11 @@
 // the header and vox_offset are skipped unread. The array must be 3-D with 2 to 32769 samples
 // per axis (trailing dimensions of size 1 allowed, so a 4-D file with one time point reads) and
 // one of the types u8 i8 u16 i16 u32 i32 f32 f64 (datatype codes 2, 256, 512, 4, 768, 8, 16,
-// 64; bitpix, redundant, is ignored as nifti_clib ignores it). Refused with a message: Analyze 7.5
-// headers (no NIfTI magic), time series and other arrays of more than 3 non-trivial dimensions,
-// complex, RGB and 64-bit integer types.
+// 64; bitpix, redundant, is ignored as nifti_clib ignores it). A time series (dim[4] > 1, each
+// dimension above the fourth of size 1) is a sequence of 3-D volumes, of which one is read: the
+// caller picks it (volume_choice::volume). Refused with a message: Analyze 7.5 headers (no NIfTI
+// magic), arrays with a fifth or higher dimension above 1 (vector, matrix and other
+// per-voxel data), complex, RGB and 64-bit integer types.
 //
 // Geometry: spacing per axis is |pixdim[i]| (zero or non-finite: 1); the origin is the
 // translation of the sform when sform_code > 0, else of the qform when qform_code > 0, else 0.
@@ -22,9 +24,11 @@
 // scl_slope × stored + scl_inter, stored as f32 (f64 for 32-bit integer and f64 data), so that
 // isovalues are given in the file's physical units (Hounsfield units for CT, say).
 //
-// Bounds: memory follows the data present, never the declared size. Before allocating, a
-// plain data file must hold vox_offset + the array's bytes, and a gzip file's compressed size
-// must be able to inflate to them (gzip_can_hold()). Every failure throws progiso::error with
+// Bounds: memory follows the data present, never the declared size, and holds one volume of a
+// time series. Before allocating, a plain data file must hold vox_offset + the bytes of every
+// volume declared, and a gzip file's compressed size must be able to inflate to them
+// (gzip_can_hold()); the volumes before the chosen one are skipped (a plain file seeks over
+// them, a gzip file inflates them into a small buffer). Every failure throws progiso::error with
 // one line that names the file, what was expected and what was found.
 //
 // Thread safety: no global state; different files may be read concurrently.
@@ -50,6 +54,8 @@ struct nifti_header {
   int version = 1;  ///< 1 or 2
   bool big_endian = false;
   index3 dims{};  ///< each in 2..nifti_max_axis_size
+  /// dim[4] of a time series (each volume dims[0] × dims[1] × dims[2]); 1 otherwise.
+  std::int64_t volumes = 1;
   sample_type stored = sample_type::u8;
   /// scl_slope × stored + scl_inter applies (see the file comment).
   bool scaled = false;
@@ -75,11 +81,13 @@ struct nifti_header {
 /// names the data file it looked for when neither .img nor .img.gz exists.
 [[nodiscard]] nifti_header read_nifti_header(const std::filesystem::path& file);
 
-/// Reads the samples `header` describes from `file` (or its data file) in host byte order,
-/// scaled when the header says so. Throws progiso::error naming the data file when it cannot
-/// hold the declared array, ends early or is corrupt.
+/// Reads the samples of volume `volume` (0 ≤ volume < header.volumes) of what `header`
+/// describes from `file` (or its data file) in host byte order, scaled when the header says so.
+/// Throws progiso::error naming the data file when it cannot hold every declared volume, ends
+/// early or is corrupt.
 [[nodiscard]] std::vector<std::byte> read_nifti_samples(const nifti_header& header,
-                                                        const std::filesystem::path& file);
+                                                        const std::filesystem::path& file,
+                                                        std::int64_t volume = 0);
 
 /// Whether a file name asks for the NIfTI reader: .nii, .nii.gz, .hdr, .hdr.gz (any case).
 [[nodiscard]] bool has_nifti_name(const std::filesystem::path& file);
