@@ -63,6 +63,7 @@ std::string stats_json(const arguments& a, const std::string& input, double iso,
   std::ostringstream o;
   o << "{\n";
   o << "  \"input\": \"" << json_escape(input) << "\",\n";
+  if (a.volume) o << "  \"volume\": " << *a.volume << ",\n";
   o << "  \"dims\": [" << vol.dims()[0] << ", " << vol.dims()[1] << ", " << vol.dims()[2] << "],\n";
   o << "  \"isovalue\": " << json_number(iso) << ",\n";
   o << "  \"mode\": \"" << mode_names[static_cast<int>(a.options.mode)] << "\",\n";
@@ -227,8 +228,10 @@ int run(const std::vector<std::string>& args) {
     vol = std::make_shared<const progiso::volume>(progiso::smooth(data, a.smooth));
   }
   check_ply_range(*a.output, *data, world);
-  std::cerr << "progiso: " << input << ", " << data->dims()[0] << "x" << data->dims()[1] << "x"
-            << data->dims()[2] << " " << progiso::to_string(data->type()) << ", isovalue " << iso;
+  std::cerr << "progiso: " << input;
+  if (a.volume) std::cerr << " volume " << *a.volume;
+  std::cerr << ", " << data->dims()[0] << "x" << data->dims()[1] << "x" << data->dims()[2] << " "
+            << progiso::to_string(data->type()) << ", isovalue " << iso;
   if (a.smooth.active()) {
     std::cerr << ", smoothed to " << vol->dims()[0] << "x" << vol->dims()[1] << "x"
               << vol->dims()[2] << " (S " << a.smooth.levels << ", K " << a.smooth.from

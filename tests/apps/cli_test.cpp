@@ -396,10 +396,15 @@ TEST_F(Cli, volume_picks_one_volume_of_a_nifti_time_series) {
   const fs::path want = raw_cube_mesh("2,1.5,0.5");
   for (const fs::path& in : {plain, gz}) {
     const fs::path out = dir_ / (in.filename().string() + ".obj");
-    const run_result r =
-        run("extract " + in.string() + " --volume 1 --iso 100 --full -o " + out.string());
+    const fs::path stats = dir_ / (in.filename().string() + ".json");
+    const run_result r = run("extract " + in.string() + " --volume 1 --iso 100 --full -o " +
+                             out.string() + " --stats-json " + stats.string());
     ASSERT_EQ(r.status, 0) << r.err;
     EXPECT_EQ(slurp(out), slurp(want)) << in;
+    // The chosen volume is named in the report and the statistics.
+    EXPECT_NE(r.err.find(in.filename().string() + " volume 1, 9x9x9 u8"), std::string::npos)
+        << r.err;
+    EXPECT_NE(slurp(stats).find("\"volume\": 1,"), std::string::npos) << slurp(stats);
   }
   expect_bad_input("extract " + plain.string() + " --iso 100",
                    "t.nii: a time series of 3 volumes (dim[4] = 3): choose one by its index, "
