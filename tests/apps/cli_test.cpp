@@ -381,7 +381,7 @@ TEST_F(Cli, nifti_input_gives_the_surface_of_the_same_samples_as_raw) {
   expect_bad_input("extract " + cut.string() + " --iso 100", "cut.nii: NIfTI data ends");
 }
 
-TEST_F(Cli, volume_picks_one_volume_of_a_nifti_time_series) {
+TEST_F(Cli, volume_picks_one_volume_of_a_nifti_or_metaimage_series) {
   // Three volumes of 9³ bytes (dim[4] = 3), the middle one the cube: --volume 1 gives the raw
   // cube's mesh, plain and gzip; without --volume, or past the last, one line and exit 2.
   std::string nii =
@@ -414,6 +414,20 @@ TEST_F(Cli, volume_picks_one_volume_of_a_nifti_time_series) {
   expect_bad_input("extract " + plain.string() + " --iso 100 --volume -1", "--volume");
   expect_bad_input("extract " + plain.string() + " --iso 100 --volume x", "--volume");
   expect_bad_input("extract --demo --volume 0", "--volume picks a volume of an input file");
+  // A MetaImage series (NDims 4) the same way, its volumes in one zlib data file.
+  write_file("t.zraw", test::gzip(std::string(729, '\0') + cube_bytes(9) + std::string(729, '\x7f'),
+                                  6, true));
+  const fs::path mhd = write_file("t.mhd",
+                                  "NDims = 4\nDimSize = 9 9 9 3\nElementSpacing = 2 1.5 0.5 1\n"
+                                  "CompressedData = True\nElementType = MET_UCHAR\n"
+                                  "ElementDataFile = t.zraw\n");
+  const fs::path mesh = dir_ / "t.mhd.obj";
+  const run_result m =
+      run("extract " + mhd.string() + " --volume 1 --iso 100 --full -o " + mesh.string());
+  ASSERT_EQ(m.status, 0) << m.err;
+  EXPECT_EQ(slurp(mesh), slurp(want));
+  expect_bad_input("extract " + mhd.string() + " --iso 100",
+                   "t.mhd: a time series of 3 volumes (DimSize[3] = 3)");
   // A 3-D input holds volume 0 only.
   const fs::path raw = write_file("one.raw", cube_bytes(9));
   expect_bad_input("extract " + raw.string() + " --dims 9,9,9 --type u8 --iso 100 --volume 1",

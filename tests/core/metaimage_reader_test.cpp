@@ -250,6 +250,93 @@ TEST(MetaImageReader, the_shared_volumes_described_by_mhd_headers_equal_their_ra
   }
 }
 
+TEST(MetaImageReader, reads_the_chosen_volume_of_a_series_in_every_layout_and_encoding) {
+  // NDims 4, DimSize 5 4 3 3: three volumes after the header, in one data file, a LIST or a
+  // pattern of one file per volume (MetaIO's default piece for NDims 4), raw, zlib and ASCII,
+  // both byte orders: volume k is the k-th block of 60 samples; the skipped volumes are sought
+  // over, inflated or parsed and dropped.
+  scratch_dir dir;
+  unsigned seed = 400;
+  for (const auto& t : {progiso::test::metaimage_types[3], progiso::test::metaimage_types[8]}) {
+    for (const auto where : {metaimage_file::layout::local, metaimage_file::layout::detached,
+                             metaimage_file::layout::list, metaimage_file::layout::pattern}) {
+      for (int encoding = 0; encoding < 3; ++encoding) {
+        metaimage_file f = progiso::test::make_metaimage_file(t, 3, seed, where, encoding, "%d");
+        f.extra_fields = "ElementSpacing = 0.5 2 1.25 10\nOffset = -3 4.5 100 0\n";
+        const fs::path header = f.write(dir.path(), "s" + std::to_string(seed++));
+        for (std::int64_t k = 0; k < 3; ++k) {
+          const progiso::volume v = progiso::read_metaimage(header, {.volume = k});
+          ASSERT_EQ(v.dims(), (progiso::index3{5, 4, 3})) << header;
+          ASSERT_EQ(v.byte_size(), 60 * f.item) << header;
+          EXPECT_EQ(
+              std::memcmp(v.bytes(), f.samples.data() + static_cast<std::size_t>(k) * 60 * f.item,
+                          v.byte_size()),
+              0)
+              << header << " volume " << k;
+          EXPECT_EQ(v.spacing(), (std::array<double, 3>{0.5, 2, 1.25})) << header;
+          EXPECT_EQ(v.origin(), (std::array<double, 3>{-3, 4.5, 100})) << header;
+        }
+        const std::size_t files = where == metaimage_file::layout::local
+                                      ? 1
+                                      : (where == metaimage_file::layout::detached ? 2 : 4);
+        EXPECT_EQ(progiso::volume_input_files(header, std::nullopt, {.volume = 1}).size(), files)
+            << header;
+        EXPECT_TRUE(progiso::read_volume_world(header, std::nullopt, {.volume = 2}).has_value());
+      }
+    }
+  }
+  // LIST 2D: a file per slice of every volume, nine in all; volume 1 is files 3 to 5.
+  std::string h =
+      "NDims = 4\nDimSize = 5 4 3 3\nElementType = MET_UCHAR\nElementDataFile = LIST 2D\n";
+  std::string all;
+  for (int i = 0; i < 9; ++i) {
+    const std::string name = "slice" + std::to_string(i) + ".raw";
+    const std::string bytes(20, static_cast<char>(10 + i));
+    progiso::test::write_file(dir / name, bytes);
+    h += name + "\n";
+    all += bytes;
+  }
+  progiso::test::write_file(dir / "slices.mhd", h);
+  const progiso::volume v = progiso::read_metaimage(dir / "slices.mhd", {.volume = 1});
+  EXPECT_EQ(std::memcmp(v.bytes(), all.data() + 60, 60), 0);
+  // A LIST of one slice per file for a series must name every slice of every volume.
+  progiso::test::write_file(dir / "few.mhd",
+                            "NDims = 4\nDimSize = 5 4 3 3\nElementType = MET_UCHAR\n"
+                            "ElementDataFile = LIST 2D\nslice0.raw\nslice1.raw\nslice2.raw\n");
+  const std::string m = error_naming(
+      dir / "few.mhd", [&] { (void)progiso::read_metaimage(dir / "few.mhd", {.volume = 0}); });
+  EXPECT_TRUE(contains(m, "names 3 files of one slice each")) << m;
+}
+
+TEST(MetaImageReader, a_series_needs_a_volume_that_exists_and_data_that_holds_every_volume) {
+  scratch_dir dir;
+  metaimage_file f = file_of(progiso::test::metaimage_types[0], 500);
+  f.volumes = 4;
+  f.samples = random_samples(sample_type::u8, 240, 500);
+  f.where = metaimage_file::layout::detached;
+  const fs::path header = f.write(dir.path(), "series");
+  const auto message = [&](const fs::path& named, const progiso::volume_choice& choice) {
+    return error_naming(
+        named, [&] { (void)progiso::read_volume(header, std::nullopt, std::nullopt, choice); });
+  };
+  std::string m = message(header, {});
+  EXPECT_TRUE(contains(m, "a time series of 4 volumes (DimSize[3] = 4)")) << m;
+  m = message(header, {.volume = 4});
+  EXPECT_TRUE(contains(m, "volume 4 was chosen, but the input is a time series of 4 volumes")) << m;
+  // One byte short of the fourth volume: refused whichever volume is asked for.
+  const std::string whole = progiso::test::read_whole_file(dir / "series.raw");
+  progiso::test::write_file(dir / "series.raw", whole.substr(0, whole.size() - 1));
+  m = message(dir / "series.raw", {.volume = 0});
+  EXPECT_TRUE(contains(m, "cannot hold")) << m;
+  // 2^31 − 1 volumes of 32769³ doubles: refused from the sizes.
+  progiso::test::write_file(dir / "huge.mha",
+                            "NDims = 4\nDimSize = 32769 32769 32769 2147483647\n"
+                            "ElementType = MET_DOUBLE\nElementDataFile = LOCAL\n12345678");
+  m = error_naming(dir / "huge.mha",
+                   [&] { (void)progiso::read_metaimage(dir / "huge.mha", {.volume = 3}); });
+  EXPECT_TRUE(contains(m, "pass 2^64 bytes")) << m;
+}
+
 TEST(MetaImageReader, refuses_hostile_headers_with_one_line_naming_the_file) {
   scratch_dir dir;
   const std::string good = "NDims = 3\nDimSize = 5 4 3\nElementType = MET_UCHAR\n";
@@ -273,8 +360,16 @@ TEST(MetaImageReader, refuses_hostile_headers_with_one_line_naming_the_file) {
                "NDims = 2\nDimSize = 5 4\nElementType = MET_UCHAR\nElementDataFile = LOCAL\n",
                "a 2-D image");
   expect_error("series",
-               "NDims = 4\nDimSize = 5 4 3 7\nElementType = MET_UCHAR\nElementDataFile = LOCAL\n",
-               "axis 3 7 samples");
+               "NDims = 4\nDimSize = 5 4 3 7\nElementType = MET_UCHAR\nElementDataFile = LOCAL\n" +
+                   std::string(420, '\1'),
+               "a time series of 7 volumes (DimSize[3] = 7): choose one by its index, 0 to 6");
+  expect_error("ndims5",
+               "NDims = 5\nDimSize = 5 4 3 2 2\nElementType = MET_UCHAR\nElementDataFile = LOCAL\n",
+               "axis 4 2 samples");
+  expect_error("volumes",
+               "NDims = 4\nDimSize = 5 4 3 2147483648\nElementType = MET_UCHAR\n"
+               "ElementDataFile = LOCAL\n",
+               "at most 2147483647");
   expect_error("count",
                "NDims = 3\nDimSize = 5 4\nElementType = MET_UCHAR\nElementDataFile = LOCAL\n",
                "has 2 sizes");

@@ -190,6 +190,12 @@ def metaimage_seeds(out, crops):
     put(out, "metaimage", "declared_zlib_doubles",
         "NDims = 3\nDimSize = 2000 2000 1000\nElementType = MET_DOUBLE\nCompressedData = True\n"
         "ElementDataFile = LOCAL\n".encode() + zlib.compress(bytes(100000)))
+    series = "NDims = 4\nDimSize = 4 4 4 3\nElementSpacing = 1 1 1 5\nElementType = MET_UCHAR\n"
+    put(out, "metaimage", "series_local", (series + "ElementDataFile = LOCAL\n").encode() + cube * 3)
+    put(out, "metaimage", "series_ascii", (series + "BinaryData = False\nElementDataFile = LOCAL\n").encode()
+        + " ".join(str(b) for b in cube * 3).encode())
+    put(out, "metaimage", "series_list", (series + "ElementDataFile = LIST\nd.raw\nd1.raw\nd2.raw\n").encode()
+        + SEP + cube)
     det = base + "ElementType = MET_UCHAR\n"
     put(out, "metaimage", "detached_single", (det + "ElementDataFile = d.raw\n").encode() + SEP + cube)
     put(out, "metaimage", "detached_skip", (det + "HeaderSize = 3\nElementDataFile = d.raw\n").encode()

@@ -42,6 +42,7 @@ struct metaimage_file {
   std::string type_name = "MET_UCHAR";
   std::size_t item = 1;
   std::array<int, 3> dims{5, 4, 3};
+  int volumes = 1;                 ///< above 1: NDims 4, the volumes one after the other
   std::vector<std::byte> samples;  ///< host byte order, x fastest
   bool msb = false;
   bool msb_by_element_key = true;  ///< ElementByteOrderMSB, else BinaryDataByteOrderMSB
@@ -85,10 +86,15 @@ struct metaimage_file {
 
   /// Writes the file(s) into `dir` as `stem` + .mha (local) or .mhd; returns the header's path.
   std::filesystem::path write(const std::filesystem::path& dir, const std::string& stem) const {
-    const auto count = static_cast<std::size_t>(dims[0] * dims[1] * dims[2]);
-    const auto slice = static_cast<std::size_t>(dims[0] * dims[1]);
-    std::string h = "ObjectType = Image\nNDims = 3\nDimSize = " + std::to_string(dims[0]) + " " +
-                    std::to_string(dims[1]) + " " + std::to_string(dims[2]) + "\n";
+    const auto count = static_cast<std::size_t>(dims[0] * dims[1] * dims[2] * volumes);
+    // A file of the list and pattern layouts holds a slice, or in a series (MetaIO's default
+    // piece: NDims − 1 dimensions) a volume.
+    const auto slice = static_cast<std::size_t>(dims[0] * dims[1] * (volumes > 1 ? dims[2] : 1));
+    const int files = volumes > 1 ? volumes : dims[2];
+    std::string h = "ObjectType = Image\nNDims = " + std::string(volumes > 1 ? "4" : "3") +
+                    "\nDimSize = " + std::to_string(dims[0]) + " " + std::to_string(dims[1]) + " " +
+                    std::to_string(dims[2]) +
+                    (volumes > 1 ? " " + std::to_string(volumes) : std::string()) + "\n";
     if (ascii) h += "BinaryData = False\n";
     if (compressed) {
       h += "CompressedData = True\n";
@@ -119,7 +125,7 @@ struct metaimage_file {
         break;
       case layout::list:
         h += "ElementDataFile = LIST\n";
-        for (int z = 0; z < dims[2]; ++z) {
+        for (int z = 0; z < files; ++z) {
           const std::string name = stem + "_slice" + std::to_string(z) + ".raw";
           h += name + "\n";
           write_file(dir / name, data(static_cast<std::size_t>(z) * slice, slice));
@@ -128,8 +134,8 @@ struct metaimage_file {
       case layout::pattern: {
         // Files numbered 1, 2, … with the digits given, e.g. stem_001.raw.
         h += "ElementDataFile = " + stem + "_" + pattern_digits + ".raw 1 " +
-             std::to_string(dims[2]) + " 1\n";
-        for (int z = 0; z < dims[2]; ++z) {
+             std::to_string(files) + " 1\n";
+        for (int z = 0; z < files; ++z) {
           char number[32];
           std::snprintf(number, sizeof number, pattern_digits.c_str(), z + 1);
           write_file(dir / (stem + "_" + number + ".raw"),
@@ -174,5 +180,24 @@ struct metaimage_file {
     return out.substr(0, size);
   }
 };
+
+/// A file of `volumes` volumes of 5 × 4 × 3 random samples of `t` (seeded), laid out as
+/// `where` (`digits` naming a pattern's files) in `encoding` (0 raw, 1 zlib, 2 ASCII), most
+/// significant byte first for even seeds.
+inline metaimage_file make_metaimage_file(const metaimage_type& t, int volumes, unsigned seed,
+                                          metaimage_file::layout where, int encoding,
+                                          const char* digits) {
+  metaimage_file f;
+  f.type_name = t.name;
+  f.item = sample_size(t.type);
+  f.volumes = volumes;
+  f.samples = random_samples(t.type, 60 * static_cast<std::size_t>(volumes), seed);
+  f.where = where;
+  f.pattern_digits = digits;
+  f.msb = seed % 2 == 0;
+  f.compressed = encoding == 1;
+  f.ascii = encoding == 2;
+  return f;
+}
 
 }  // namespace progiso::test

@@ -20,6 +20,7 @@ namespace fs = std::filesystem;
 
 constexpr std::int64_t max_axis_size = nrrd_max_axis_size;
 constexpr std::int64_t max_pattern_number = INT32_MAX;  // MetaIO's numbers are C ints
+constexpr std::int64_t max_volumes = INT32_MAX;         // so are its sizes
 
 // The keys progiso reads; every other key is ignored, as MetaIO ignores unknown keys. Synonyms
 // share a slot (one of them per header).
@@ -102,8 +103,10 @@ class parser {
       fail(*v, "is " + detail::quoted(v->text) + ": only Image objects are volumes");
     }
     const unsigned n = parse_ndims();
+    ndims_ = n;
     const std::vector<std::int64_t> sizes = parse_dim_size(n);
     for (std::size_t a = 0; a < 3; ++a) h.dims[a] = sizes[a];
+    if (n >= 4) h.volumes = sizes[3];
     h.type = parse_type();
     parse_channels();
     const bool binary = parse_bool(key::binary_data).value_or(true);
@@ -234,9 +237,14 @@ class parser {
         fail(v, "gives axis " + std::to_string(a) + " " + std::to_string(*s) +
                     " samples, expected 2 to " + std::to_string(max_axis_size));
       }
-      if (a >= 3 && *s != 1) {
+      if (a == 3 && *s > max_volumes) {
+        fail(v, "gives axis 3 " + std::to_string(*s) + " volumes, expected at most " +
+                    std::to_string(max_volumes));
+      }
+      if (a >= 4 && *s != 1) {
         fail(v, "gives axis " + std::to_string(a) + " " + std::to_string(*s) +
-                    " samples: expected a 3-D volume (sizes above the third of 1)");
+                    " samples: expected a 3-D volume or a series of them (sizes above the "
+                    "fourth of 1)");
       }
       sizes.push_back(*s);
     }
@@ -347,9 +355,9 @@ class parser {
     if (w[0] == "LIST") {
       if (w.size() > 2)
         fail(data_file_, "is " + detail::quoted(data_file_.text) + ", expected LIST [kD]");
-      const unsigned subdim = w.size() == 2 ? parse_subdimension(w[1]) : 2;
+      const unsigned subdim = w.size() == 2 ? parse_subdimension(w[1]) : default_subdimension();
       if (list_.empty()) fail(data_file_, "is LIST, followed by no file names");
-      check_pieces(list_.size(), subdim, h.dims);
+      check_pieces(list_.size(), subdim, h);
       for (const std::string& name : list_) h.data_files.push_back(resolve(name));
       return;
     }
@@ -378,8 +386,8 @@ class parser {
                            ", which does not reach the last");
     }
     const auto count = static_cast<std::uint64_t>((last - first) / step + 1);
-    const unsigned subdim = w.size() == 5 ? parse_subdimension(w[4]) : 2;
-    check_pieces(count, subdim, h.dims);  // bounds count by the slices (≤ 32769)
+    const unsigned subdim = w.size() == 5 ? parse_subdimension(w[4]) : default_subdimension();
+    check_pieces(count, subdim, h);  // bounds count by the slices
     for (std::int64_t i = first; step > 0 ? i <= last : i >= last; i += step) {
       h.data_files.push_back(resolve(
           pattern->prefix + format_number(i, pattern->zero_pad, pattern->width) + pattern->suffix));
@@ -397,10 +405,15 @@ class parser {
     return *d;
   }
 
-  /// `count` files of `subdim`-D pieces must make up the volume: one slice each, or an equal
-  /// share of the slices.
-  void check_pieces(std::uint64_t count, unsigned subdim, const index3& dims) const {
-    const auto slices = static_cast<std::uint64_t>(dims[2]);
+  /// MetaIO's default dimension of a file's piece: NDims − 1 (a slice of a volume, a volume of
+  /// a series).
+  [[nodiscard]] unsigned default_subdimension() const { return std::min(ndims_ - 1, 3u); }
+
+  /// `count` files of `subdim`-D pieces must make up the data: one slice each, or an equal
+  /// share of the slices (of every volume of a series, one after the other).
+  void check_pieces(std::uint64_t count, unsigned subdim, const nrrd_header& h) const {
+    const std::uint64_t slices =
+        static_cast<std::uint64_t>(h.dims[2]) * static_cast<std::uint64_t>(h.volumes);
     if (subdim == 2 && count != slices) {
       fail(data_file_, "names " + std::to_string(count) + " files of one slice each, but DimSize " +
                            "has " + std::to_string(slices) + " slices");
@@ -423,6 +436,7 @@ class parser {
   value data_file_;
   std::uint64_t data_offset_ = 0;
   std::vector<std::string> list_;
+  unsigned ndims_ = 3;
 };
 
 }  // namespace

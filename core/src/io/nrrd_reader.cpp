@@ -1033,18 +1033,21 @@ bool is_ascii_separator(char c) noexcept {
   return c == ' ' || c == '\t' || c == '\n' || c == '\r' || c == '\f' || c == '\v' || c == ',';
 }
 
-/// Reads whitespace- or comma-separated values, one per sample; values after the last
-/// sample are ignored.
+/// Reads whitespace- or comma-separated values, one per sample, after `skip` values parsed and
+/// dropped (the volumes before a chosen one); values after the last sample are ignored.
 void read_ascii_piece(std::string_view format, input_file& in, sample_type type,
-                      std::span<std::byte> out) {
+                      std::span<std::byte> out, std::uint64_t skip = 0) {
   const std::size_t item = sample_size(type);
-  const std::size_t values = out.size() / item;
+  const std::uint64_t values = skip + out.size() / item;
   std::vector<char> buf(chunk_bytes);
   std::string token;
-  std::size_t done = 0;
+  std::uint64_t done = 0;
+  std::array<std::byte, 8> dropped{};
   const auto take = [&] {
     if (token.empty()) return;
-    const parse_status status = store_ascii_value(type, token, out.data() + done * item);
+    std::byte* const dst =
+        done < skip ? dropped.data() : out.data() + static_cast<std::size_t>(done - skip) * item;
+    const parse_status status = store_ascii_value(type, token, dst);
     if (status != parse_status::ok) {
       throw error(
           in.path().string() + ": " + std::string(format) + " ascii value " +
@@ -1087,15 +1090,17 @@ int hex_digit(char c) noexcept {
   return -1;
 }
 
-/// Reads two hex digits per byte, whitespace ignored.
-void read_hex_piece(std::string_view format, input_file& in, std::span<std::byte> out) {
+/// Reads two hex digits per byte, whitespace ignored, after `skip` bytes' digits dropped.
+void read_hex_piece(std::string_view format, input_file& in, std::span<std::byte> out,
+                    std::uint64_t skip = 0) {
   std::vector<char> buf(chunk_bytes);
-  std::size_t done = 0;
+  const std::uint64_t want = skip + out.size();
+  std::uint64_t done = 0;
   int high = -1;
-  while (done < out.size()) {
+  while (done < want) {
     const std::size_t got = in.read(buf.data(), buf.size());
     if (got == 0) break;
-    for (std::size_t i = 0; i < got && done < out.size(); ++i) {
+    for (std::size_t i = 0; i < got && done < want; ++i) {
       const int d = hex_digit(buf[i]);
       if (d < 0) {
         if (is_ascii_separator(buf[i]) && buf[i] != ',') continue;
@@ -1106,44 +1111,52 @@ void read_hex_piece(std::string_view format, input_file& in, std::span<std::byte
       if (high < 0) {
         high = d;
       } else {
-        out[done++] = static_cast<std::byte>((high << 4) | d);
+        if (done >= skip)
+          out[static_cast<std::size_t>(done - skip)] = static_cast<std::byte>((high << 4) | d);
+        ++done;
         high = -1;
       }
     }
   }
-  if (done < out.size()) {
-    data_ends(format, in, done, out.size(), high >= 0 ? " (an odd number of hex digits)" : "");
+  if (done < want) {
+    data_ends(format, in, done, want, high >= 0 ? " (an odd number of hex digits)" : "");
   }
 }
 
 /// Decodes one piece from `in`, whose data (before any line and byte skip) starts at `start`.
+/// `out` receives the piece's bytes from `skip` on (a chosen volume's part of it); `piece` is
+/// the whole piece's size.
 void decode_piece(const nrrd_header& h, input_file& in, std::uint64_t start,
-                  std::span<std::byte> out) {
+                  std::span<std::byte> out, std::uint64_t skip, std::uint64_t piece) {
+  PROGISO_ASSERT(skip + out.size() <= piece);
   std::uint64_t pos = start;
   if (h.byte_skip == -1) {
     // The data ends the file; the capacity check made sure it lies after `start`.
-    if (in.size() < start + out.size())
-      data_ends(h.format, in, in.size() - std::min(in.size(), start), out.size());
-    pos = in.size() - out.size();
+    if (in.size() < start + piece)
+      data_ends(h.format, in, in.size() - std::min(in.size(), start), piece);
+    pos = in.size() - piece;
   } else {
     pos = skip_lines(h.format, in, pos, h.line_skip);
     // Compressed data skips its bytes inside the decompressed stream.
     if (!deflated(h.encoding)) pos += static_cast<std::uint64_t>(h.byte_skip);
   }
-  in.seek(pos);
   switch (h.encoding) {
     case nrrd_encoding::raw:
+      in.seek(pos + skip);
       read_raw_piece(h.format, in, out);
       break;
     case nrrd_encoding::gzip:
     case nrrd_encoding::zlib:
-      inflate_piece(h, in, static_cast<std::uint64_t>(h.byte_skip), out);
+      in.seek(pos);
+      inflate_piece(h, in, static_cast<std::uint64_t>(h.byte_skip) + skip, out);
       break;
     case nrrd_encoding::ascii:
-      read_ascii_piece(h.format, in, h.type, out);
+      in.seek(pos);
+      read_ascii_piece(h.format, in, h.type, out, skip / sample_size(h.type));
       break;
     case nrrd_encoding::hex:
-      read_hex_piece(h.format, in, out);
+      in.seek(pos);
+      read_hex_piece(h.format, in, out, skip);
       break;
   }
 }
@@ -1181,16 +1194,25 @@ nrrd_header parse_nrrd_header(input_file& header_file) {
   return header_parser(header_file.path(), read_header_lines(header_file)).run();
 }
 
-std::vector<std::byte> read_nrrd_samples(const nrrd_header& header, input_file& header_file) {
+std::vector<std::byte> read_nrrd_samples(const nrrd_header& header, input_file& header_file,
+                                         std::int64_t volume) {
+  PROGISO_ASSERT(volume >= 0 && volume < header.volumes);
   const std::size_t item = sample_size(header.type);
   data_plan plan{header};
-  plan.total = item;
-  for (std::int64_t d : header.dims) plan.total *= static_cast<std::uint64_t>(d);
+  std::uint64_t bytes = item;  // of one volume: ≤ 32769³ × 8 < 2^48
+  for (std::int64_t d : header.dims) bytes *= static_cast<std::uint64_t>(d);
+  const auto volumes = static_cast<std::uint64_t>(header.volumes);
+  if (volumes > std::numeric_limits<std::uint64_t>::max() / bytes) {
+    throw error(header_file.path().string() + ": the declared " + dims_text(header.dims) + " × " +
+                std::to_string(volumes) + " volumes of " + std::string(to_string(header.type)) +
+                " pass 2^64 bytes");
+  }
+  plan.total = bytes * volumes;
   plan.files = header.data_files.empty() ? 1 : header.data_files.size();
   plan.piece = plan.total / plan.files;
   PROGISO_ASSERT(plan.piece * plan.files == plan.total);
-  if (plan.total > std::numeric_limits<std::size_t>::max()) {
-    throw error(header_file.path().string() + ": the declared " + std::to_string(plan.total) +
+  if (bytes > std::numeric_limits<std::size_t>::max()) {
+    throw error(header_file.path().string() + ": the declared " + std::to_string(bytes) +
                 " bytes do not fit in memory");
   }
 
@@ -1215,17 +1237,23 @@ std::vector<std::byte> read_nrrd_samples(const nrrd_header& header, input_file& 
     }
   }
 
-  // Pass 2: decode every piece in place.
-  std::vector<std::byte> samples(static_cast<std::size_t>(plan.total));
+  // Pass 2: decode the chosen volume's bytes, [first, first + bytes) of the data, in place.
+  std::vector<std::byte> samples(static_cast<std::size_t>(bytes));
   const std::span<std::byte> all(samples);
-  const auto piece = static_cast<std::size_t>(plan.piece);
+  const std::uint64_t first = static_cast<std::uint64_t>(volume) * bytes;
   if (header.data_files.empty()) {
-    decode_piece(header, header_file, header.data_offset, all);
+    decode_piece(header, header_file, header.data_offset, all, first, plan.piece);
   } else {
     for (std::size_t i = 0; i < plan.files; ++i) {
+      const std::uint64_t lo = std::max<std::uint64_t>(first, i * plan.piece);
+      const std::uint64_t hi = std::min<std::uint64_t>(first + bytes, (i + 1) * plan.piece);
+      if (lo >= hi) continue;  // a file of other volumes
       for_data_file(header_file.path(), i, plan.files, [&] {
         input_file in(header.data_files[i], std::string(header.format) + " data");
-        decode_piece(header, in, 0, all.subspan(i * piece, piece));
+        decode_piece(
+            header, in, 0,
+            all.subspan(static_cast<std::size_t>(lo - first), static_cast<std::size_t>(hi - lo)),
+            lo - i * plan.piece, plan.piece);
       });
     }
   }

@@ -106,14 +106,16 @@ void check_choice(const fs::path& file, bool dicom, const volume_choice& choice)
   }
 }
 
-/// The volume to read of an input that holds `volumes` (a NIfTI time series; 1 for any other
-/// input): the chosen one, which must exist, or the only one.
-std::int64_t pick_volume(const fs::path& file, std::int64_t volumes, const volume_choice& choice) {
+/// The volume to read of an input that holds `volumes` (a NIfTI time series, a MetaImage of
+/// NDims 4; 1 for any other input), whose count the header gives in `field` ("dim[4]"): the
+/// chosen one, which must exist, or the only one.
+std::int64_t pick_volume(const fs::path& file, std::int64_t volumes, const volume_choice& choice,
+                         std::string_view field = "dim[4]") {
   const std::string last = std::to_string(volumes - 1);
   if (!choice.volume) {
     if (volumes == 1) return 0;
-    throw error(file.string() + ": a time series of " + std::to_string(volumes) +
-                " volumes (dim[4] = " + std::to_string(volumes) +
+    throw error(file.string() + ": a time series of " + std::to_string(volumes) + " volumes (" +
+                std::string(field) + " = " + std::to_string(volumes) +
                 "): choose one by its index, 0 to " + last);
   }
   const std::int64_t k = *choice.volume;
@@ -126,11 +128,18 @@ std::int64_t pick_volume(const fs::path& file, std::int64_t volumes, const volum
   return k;
 }
 
+/// Where a text header gives its count of volumes (pick_volume()).
+std::string_view volumes_field(volume_format format) {
+  return format == volume_format::metaimage ? "DimSize[3]" : "sizes";
+}
+
 volume read_text_header_volume(const fs::path& file, volume_format format,
-                               const std::optional<std::array<double, 3>>& spacing) {
+                               const std::optional<std::array<double, 3>>& spacing,
+                               const volume_choice& choice) {
   detail::input_file in(file, format_kind(format));
   const detail::nrrd_header header = parse_text_header(in, format);
-  std::vector<std::byte> samples = detail::read_nrrd_samples(header, in);
+  const std::int64_t k = pick_volume(file, header.volumes, choice, volumes_field(format));
+  std::vector<std::byte> samples = detail::read_nrrd_samples(header, in, k);
   return make_volume(file, header.dims, header.type, std::move(samples),
                      spacing.value_or(header.spacing), header.origin);
 }
@@ -194,11 +203,11 @@ volume read_raw(const std::filesystem::path& file, const raw_layout& layout,
 // NRRD and NIfTI files, and dispatch.
 
 volume read_nrrd(const std::filesystem::path& file) {
-  return read_text_header_volume(file, volume_format::nrrd, std::nullopt);
+  return read_text_header_volume(file, volume_format::nrrd, std::nullopt, {});
 }
 
-volume read_metaimage(const std::filesystem::path& file) {
-  return read_text_header_volume(file, volume_format::metaimage, std::nullopt);
+volume read_metaimage(const std::filesystem::path& file, const volume_choice& choice) {
+  return read_text_header_volume(file, volume_format::metaimage, std::nullopt, choice);
 }
 
 volume read_dicom(const std::filesystem::path& directory, const volume_choice& choice) {
@@ -206,7 +215,7 @@ volume read_dicom(const std::filesystem::path& directory, const volume_choice& c
 }
 
 volume read_vtk_legacy(const std::filesystem::path& file) {
-  return read_text_header_volume(file, volume_format::vtk_legacy, std::nullopt);
+  return read_text_header_volume(file, volume_format::vtk_legacy, std::nullopt, {});
 }
 
 volume read_nifti(const std::filesystem::path& file, const volume_choice& choice) {
@@ -223,9 +232,11 @@ volume read_volume(const std::filesystem::path& file, const std::optional<raw_la
   const volume_format format = format_of(file);
   check_choice(file, format == volume_format::dicom, choice);
   if (format == volume_format::nifti) return read_nifti_with(file, spacing, choice);
-  (void)pick_volume(file, 1, choice);
-  if (format == volume_format::dicom) return read_dicom_with(file, spacing, choice);
-  return read_text_header_volume(file, format, spacing);
+  if (format == volume_format::dicom) {
+    (void)pick_volume(file, 1, choice);
+    return read_dicom_with(file, spacing, choice);
+  }
+  return read_text_header_volume(file, format, spacing, choice);
 }
 
 double index_to_world::determinant() const noexcept {
@@ -257,10 +268,14 @@ std::optional<index_to_world> read_volume_world(const std::filesystem::path& fil
     (void)pick_volume(file, header.volumes, choice);
     return header.world;
   }
-  (void)pick_volume(file, 1, choice);
-  if (format == volume_format::dicom) return detail::read_dicom_series(file, choice.series).world;
+  if (format == volume_format::dicom) {
+    (void)pick_volume(file, 1, choice);
+    return detail::read_dicom_series(file, choice.series).world;
+  }
   detail::input_file in(file, format_kind(format));
-  return parse_text_header(in, format).world;
+  const detail::nrrd_header header = parse_text_header(in, format);
+  (void)pick_volume(file, header.volumes, choice, volumes_field(format));
+  return header.world;
 }
 
 std::vector<std::filesystem::path> volume_input_files(const std::filesystem::path& file,
@@ -279,8 +294,8 @@ std::vector<std::filesystem::path> volume_input_files(const std::filesystem::pat
     if (header.data_file) return {file, *header.data_file};
     return {file};
   }
-  (void)pick_volume(file, 1, choice);
   if (format == volume_format::dicom) {
+    (void)pick_volume(file, 1, choice);
     detail::dicom_series series = detail::read_dicom_series(file, choice.series);
     std::vector<std::filesystem::path> files{file};
     for (detail::dicom_slice& d : series.slices) files.push_back(std::move(d.file));
@@ -288,6 +303,7 @@ std::vector<std::filesystem::path> volume_input_files(const std::filesystem::pat
   }
   detail::input_file in(file, format_kind(format));
   detail::nrrd_header header = parse_text_header(in, format);
+  (void)pick_volume(file, header.volumes, choice, volumes_field(format));
   std::vector<std::filesystem::path> files;
   files.reserve(1 + header.data_files.size());
   files.push_back(file);

@@ -53,8 +53,8 @@ namespace progiso {
 /// series, `series` is one's SeriesInstanceUID or its number (1-based) in the list the error
 /// for an unchosen directory gives (series ordered by UID); for a NIfTI time series (dim[4] > 1:
 /// fMRI, diffusion, perfusion), `volume` is the index of one of its 3-D volumes, 0-based (the
-/// index FSL, AFNI and nibabel give). Empty: the input must hold one, which `volume` 0 also
-/// names for any input.
+/// index FSL, AFNI and nibabel give), and the same for a MetaImage series (NDims 4, the fourth
+/// size > 1). Empty: the input must hold one, which `volume` 0 also names for any input.
 struct volume_choice {
   std::optional<std::string> series = {};
   std::optional<std::int64_t> volume = {};
@@ -126,14 +126,16 @@ struct index_to_world {
 
 /// Reads a MetaImage volume: a .mha or .mhd header (one "Key = Value" field per line, up to
 /// ElementDataFile) and its data (LOCAL: in the same file; else the files it names). NDims 3
-/// (sizes above the third of 1 allowed), 2 to 32769 samples per axis, ElementType MET_UCHAR,
+/// (sizes above the third of 1 allowed), or 4 for a series of volumes (the fourth size, one of
+/// which `choice.volume` names, as for NIfTI), 2 to 32769 samples per axis, ElementType MET_UCHAR,
 /// MET_CHAR, MET_USHORT, MET_SHORT, MET_UINT, MET_INT, MET_ULONG, MET_LONG (4 bytes), MET_FLOAT
 /// or MET_DOUBLE, one channel; binary (either byte order, zlib-compressed or not) or ASCII data.
 /// Spacing is |ElementSpacing| per axis, the origin Offset (or Position, Origin);
 /// TransformMatrix is not applied (read_volume_world() gives the whole map). Throws
 /// progiso::error naming the file on any failure; see detail/metaimage_reader.hpp and
 /// docs/ARCHITECTURE.md "Reading MetaImage".
-[[nodiscard]] volume read_metaimage(const std::filesystem::path& file);
+[[nodiscard]] volume read_metaimage(const std::filesystem::path& file,
+                                    const volume_choice& choice = {});
 
 /// Reads a legacy VTK file (.vtk) of DATASET STRUCTURED_POINTS: DIMENSIONS 2 to 32769 per axis,
 /// SPACING (or ASPECT_RATIO), ORIGIN, and POINT_DATA whose first attribute is SCALARS with one
@@ -161,7 +163,7 @@ struct index_to_world {
 /// .nii.gz, .hdr and .hdr.gz, read_nifti(); for .mha and .mhd, read_metaimage(); for .vtk,
 /// read_vtk_legacy() (case-insensitive). A single .dcm file is refused (one slice). A
 /// `choice` that names a series is refused for anything but a DICOM directory, one that names
-/// a volume other than 0 for anything but a NIfTI time series that has it. A given
+/// a volume other than 0 for anything but a NIfTI or MetaImage series that has it. A given
 /// `spacing` replaces the one from the header (or the default 1,1,1 for raw files). Throws
 /// progiso::error "FILE: unknown volume format (…)" for any other file, and whatever the chosen
 /// reader throws.

@@ -58,6 +58,9 @@ enum class nrrd_encoding : std::uint8_t { raw, gzip, ascii, hex, zlib };
 /// A checked NRRD header, reduced to what reading a 3-D progiso volume needs.
 struct nrrd_header {
   index3 dims{};  ///< each in 2..nrrd_max_axis_size
+  /// Volumes of dims each, one after the other in the data (a MetaImage of NDims 4); 1 for a
+  /// single volume.
+  std::int64_t volumes = 1;
   sample_type type = sample_type::u8;
   nrrd_encoding encoding = nrrd_encoding::raw;
   bool big_endian = false;     ///< byte order of raw, gzip and hex data (samples > 1 byte)
@@ -85,14 +88,17 @@ struct nrrd_header {
 /// type or encoding, and a "data file" field that is malformed or names too many files.
 [[nodiscard]] nrrd_header parse_nrrd_header(input_file& header_file);
 
-/// Reads the samples `header` describes (from `header_file` when attached, else from each
-/// data file, opened through input_file) in host byte order. Before allocating, checks that
-/// each source can hold its share: raw data needs its bytes, gzip data at most
+/// Reads the samples of volume `volume` (0 ≤ volume < header.volumes) of what `header`
+/// describes (from `header_file` when attached, else from the data files that hold it, opened
+/// through input_file) in host byte order; the volumes before it are skipped (raw data by a
+/// seek, other encodings decoded and dropped). Before allocating, checks that each source can
+/// hold its share of every declared volume: raw data needs its bytes, gzip data at most
 /// gzip_max_ratio times its size plus slack, ascii 2 bytes per value, hex 2 digits per
 /// byte; throws "FILE: … cannot hold …" otherwise. Throws "FILE: NRRD data ends after X of Y
 /// bytes" for data that ends early, and names zlib's message for corrupt gzip data.
 [[nodiscard]] std::vector<std::byte> read_nrrd_samples(const nrrd_header& header,
-                                                       input_file& header_file);
+                                                       input_file& header_file,
+                                                       std::int64_t volume = 0);
 
 /// Reverses the bytes of every `item`-byte sample of `bytes` in place (item 1, 2, 4 or 8).
 void swap_sample_bytes(std::span<std::byte> bytes, std::size_t item) noexcept;
