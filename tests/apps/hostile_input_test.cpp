@@ -194,6 +194,39 @@ TEST_F(Hostile, declared_sizes_beyond_the_data_fail_before_allocating) {
     EXPECT_LT(r.max_rss_kib, 400 * 1024) << in;
     EXPECT_TRUE(snapshot() == before);
   }
+  // Series whose chosen volume is small but whose declared volumes are not there: a NIfTI of
+  // 1000 volumes of 125 MB in 33 KB, plain, and of 2 volumes of 32 GB doubles in 4 MB of gzip;
+  // a MetaImage of 50 volumes of 4 GB in 33 KB. Refused from the sizes, whichever volume.
+  const auto series_of = [](std::string file, std::int16_t volumes) {
+    const std::int16_t four = 4;
+    std::memcpy(file.data() + 40, &four, 2);
+    std::memcpy(file.data() + 48, &volumes, 2);
+    return file;
+  };
+  const fs::path nii_series = write(
+      "series.nii",
+      series_of(test::nifti1_file({500, 500, 500}, 2, 8, {1, 1, 1}, std::string(33000, '\x11')),
+                1000));
+  const fs::path nii_gz_series =
+      write("series.nii.gz", gzip(series_of(test::nifti1_file({2000, 2000, 1000}, 64, 64, {1, 1, 1},
+                                                              std::string(4 << 20, '\0')),
+                                            2)));
+  const fs::path mha_series = write("series.mha",
+                                    "NDims = 4\nDimSize = 2000 2000 1000 50\n"
+                                    "ElementType = MET_UCHAR\nElementDataFile = LOCAL\n" +
+                                        std::string(33000, '\x11'));
+  for (const fs::path& in : {nii_series, nii_gz_series, mha_series}) {
+    const auto before = snapshot();
+    const bounded_result r =
+        run({"extract", in.string(), "--volume", "1", "--iso", "1", "-o", path("o.ply").string()},
+            test::limited(std::chrono::seconds(30), one_gib));
+    EXPECT_FALSE(r.timed_out);
+    EXPECT_EQ(r.status, 2) << r.err;
+    EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
+    EXPECT_NE(r.err.find(in.filename().string()), std::string::npos) << r.err;
+    EXPECT_LT(r.max_rss_kib, 400 * 1024) << in;
+    EXPECT_TRUE(snapshot() == before);
+  }
 }
 
 // ---- 3. Only regular files are read: devices and FIFOs are refused at once.

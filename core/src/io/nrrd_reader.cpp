@@ -886,6 +886,12 @@ std::string encoding_bound(nrrd_encoding e) {
   return "";
 }
 
+/// "X,Y,Z", and " × N volumes" for a series.
+std::string shape_text(const nrrd_header& h) {
+  return dims_text(h.dims) +
+         (h.volumes > 1 ? " × " + std::to_string(h.volumes) + " volumes" : std::string());
+}
+
 struct data_plan {
   const nrrd_header& header;
   std::uint64_t total = 0;  ///< declared bytes
@@ -929,8 +935,8 @@ void check_capacity(const data_plan& plan, input_file& in, std::uint64_t start,
   if (plan.files > 1) {
     what += "this file's share, " + std::to_string(plan.piece) + " bytes, of ";
   }
-  what += "the declared " + std::to_string(plan.total) + " bytes (sizes " + dims_text(h.dims) +
-          " of " + std::string(to_string(h.type));
+  what += "the declared " + std::to_string(plan.total) + " bytes (sizes " + shape_text(h) + " of " +
+          std::string(to_string(h.type));
   if (plan.files > 1) what += " in " + std::to_string(plan.files) + " data files";
   throw error(what + encoding_bound(h.encoding) + ")");
 }
@@ -1232,7 +1238,7 @@ std::vector<std::byte> read_nrrd_samples(const nrrd_header& header, input_file& 
       throw error(header_file.path().string() + ": the " + std::to_string(found) + " bytes of " +
                   std::string(to_string(header.encoding)) + " data in " +
                   std::to_string(plan.files) + " data files cannot hold the declared " +
-                  std::to_string(plan.total) + " bytes (sizes " + dims_text(header.dims) + " of " +
+                  std::to_string(plan.total) + " bytes (sizes " + shape_text(header) + " of " +
                   std::string(to_string(header.type)) + encoding_bound(header.encoding) + ")");
     }
   }
