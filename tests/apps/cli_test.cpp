@@ -384,13 +384,10 @@ TEST_F(Cli, nifti_input_gives_the_surface_of_the_same_samples_as_raw) {
 TEST_F(Cli, volume_picks_one_volume_of_a_nifti_or_metaimage_series) {
   // Three volumes of 9³ bytes (dim[4] = 3), the middle one the cube: --volume 1 gives the raw
   // cube's mesh, plain and gzip; without --volume, or past the last, one line and exit 2.
-  std::string nii =
+  const std::string nii = test::nifti1_series(
       test::nifti1_file({9, 9, 9}, 2, 8, {2.0f, 1.5f, 0.5f},
-                        std::string(729, '\0') + cube_bytes(9) + std::string(729, '\x7f'));
-  const std::int16_t four = 4;
-  const std::int16_t three = 3;
-  std::memcpy(nii.data() + 40, &four, 2);   // dim[0]
-  std::memcpy(nii.data() + 48, &three, 2);  // dim[4]
+                        std::string(729, '\0') + cube_bytes(9) + std::string(729, '\x7f')),
+      3);
   const fs::path plain = write_file("t.nii", nii);
   const fs::path gz = write_file("t.nii.gz", test::gzip(nii));
   const fs::path want = raw_cube_mesh("2,1.5,0.5");

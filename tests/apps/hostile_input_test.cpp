@@ -197,12 +197,7 @@ TEST_F(Hostile, declared_sizes_beyond_the_data_fail_before_allocating) {
   // Series whose chosen volume is small but whose declared volumes are not there: a NIfTI of
   // 1000 volumes of 125 MB in 33 KB, plain, and of 2 volumes of 32 GB doubles in 4 MB of gzip;
   // a MetaImage of 50 volumes of 4 GB in 33 KB. Refused from the sizes, whichever volume.
-  const auto series_of = [](std::string file, std::int16_t volumes) {
-    const std::int16_t four = 4;
-    std::memcpy(file.data() + 40, &four, 2);
-    std::memcpy(file.data() + 48, &volumes, 2);
-    return file;
-  };
+  const auto series_of = test::nifti1_series;
   const fs::path nii_series = write(
       "series.nii",
       series_of(test::nifti1_file({500, 500, 500}, 2, 8, {1, 1, 1}, std::string(33000, '\x11')),

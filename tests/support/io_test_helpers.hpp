@@ -97,6 +97,15 @@ inline std::string nifti1_file(const std::array<std::int16_t, 3>& dims, std::int
   return h + payload;
 }
 
+/// A nifti1_file() made a time series of `volumes` (dim[0] = 4, dim[4] = volumes); its payload
+/// holds (or is meant to lack) the volumes one after the other.
+inline std::string nifti1_series(std::string file, std::int16_t volumes) {
+  const std::int16_t four = 4;
+  std::memcpy(file.data() + 40, &four, sizeof four);        // dim[0]
+  std::memcpy(file.data() + 48, &volumes, sizeof volumes);  // dim[4]
+  return file;
+}
+
 inline bool contains(const std::string& haystack, const std::string& needle) {
   return haystack.find(needle) != std::string::npos;
 }
