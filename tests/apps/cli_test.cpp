@@ -22,6 +22,7 @@
 #include "support/io_test_helpers.hpp"
 #include "support/mesh_checks.hpp"
 #include "support/test_data.hpp"
+#include "support/vti_files.hpp"
 
 namespace progiso {
 namespace {
@@ -563,6 +564,65 @@ obj_mesh read_obj_file(const fs::path& file) {
     }
   }
   return m;
+}
+
+TEST_F(Cli, vti_input_gives_the_surface_of_the_same_samples_as_raw) {
+  // The same bytes as a raw file and as VTK XML image data, appended raw, base64 in zlib blocks
+  // and ascii, on an extent that starts at 0: the same mesh, byte for byte.
+  const std::string bytes = cube_bytes(9);
+  const fs::path want = raw_cube_mesh("2,1.5,0.5");
+  std::vector<std::byte> samples(bytes.size());
+  std::memcpy(samples.data(), bytes.data(), bytes.size());
+  for (int m = 0; m < 3; ++m) {
+    test::vti_file f;
+    f.extent = {0, 8, 0, 8, 0, 8};
+    f.samples = samples;
+    f.origin = "0 0 0";
+    f.spacing = "2 1.5 0.5";
+    f.how = m == 0 ? test::vti_file::mode::appended_raw
+                   : (m == 1 ? test::vti_file::mode::binary : test::vti_file::mode::ascii);
+    f.zlib = m == 1;
+    f.block_bytes = 100;
+    expect_same_mesh(f.write(dir_, "cube" + std::to_string(m)), want);
+  }
+  // --world: Direction swaps x and y (a mirror), after Spacing, plus Origin; the winding of
+  // every triangle is reversed.
+  test::vti_file turned;
+  turned.extent = {0, 8, 0, 8, 0, 8};
+  turned.samples = samples;
+  turned.origin = "10 20 30";
+  turned.spacing = "2 1.5 0.5";
+  turned.direction = "0 1 0 1 0 0 0 0 1";
+  const fs::path in = turned.write(dir_, "turned");
+  const fs::path plain = dir_ / "vti_plain.obj";
+  const fs::path world = dir_ / "vti_world.obj";
+  ASSERT_EQ(run("extract " + in.string() + " --iso 100 -o " + plain.string()).status, 0);
+  ASSERT_EQ(run("extract " + in.string() + " --iso 100 --world -o " + world.string()).status, 0);
+  const obj_mesh a = read_obj_file(plain);
+  const obj_mesh b = read_obj_file(world);
+  ASSERT_GT(a.faces.size(), 100u);
+  ASSERT_EQ(a.vertices.size(), b.vertices.size());
+  ASSERT_EQ(a.faces.size(), b.faces.size());
+  for (std::size_t i = 0; i < a.vertices.size(); ++i) {
+    // Plain (10 + 2i, 20 + 1.5j, 30 + 0.5k); world (10 + 1.5j, 20 + 2i, 30 + 0.5k).
+    const double x = 10.0 + (a.vertices[i][1] - 20.0);
+    const double y = 20.0 + (a.vertices[i][0] - 10.0);
+    ASSERT_NEAR(b.vertices[i][0], x, 1e-9 * (1 + std::abs(x))) << "vertex " << i;
+    ASSERT_NEAR(b.vertices[i][1], y, 1e-9 * (1 + std::abs(y))) << "vertex " << i;
+    ASSERT_NEAR(b.vertices[i][2], a.vertices[i][2], 1e-9 * (1 + std::abs(a.vertices[i][2])));
+  }
+  for (std::size_t t = 0; t < a.faces.size(); ++t) {
+    ASSERT_EQ(b.faces[t], (std::array<long, 3>{a.faces[t][0], a.faces[t][2], a.faces[t][1]}));
+  }
+  // A vector array: one line naming the file, exit 2.
+  test::vti_file f;
+  f.samples.resize(60);
+  const fs::path vectors = write_file("vec.vti", [&] {
+    std::string t = f.text();
+    const std::string one = "Name=\"density\" NumberOfComponents=\"1\"";
+    return t.replace(t.find(one), one.size(), "Name=\"density\" NumberOfComponents=\"3\"");
+  }());
+  expect_bad_input("extract " + vectors.string() + " --iso 100", "vec.vti: point array");
 }
 
 TEST_F(Cli, world_writes_the_coordinates_a_nifti_nrrd_or_metaimage_file_declares) {

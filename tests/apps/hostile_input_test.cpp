@@ -165,6 +165,25 @@ TEST_F(Hostile, declared_sizes_beyond_the_data_fail_before_allocating) {
                              "DIMENSIONS 2000 2000 1000\nPOINT_DATA 4000000000\n"
                              "SCALARS s unsigned_char\nLOOKUP_TABLE default\n" +
                                  std::string(33000, '\x11'));
+  // And in VTK XML image data: appended raw bytes, and one zlib block said to inflate to 4 GB.
+  const auto vti_head = [](const std::string& compressor) {
+    return "<VTKFile type=\"ImageData\" version=\"1.0\" byte_order=\"LittleEndian\" "
+           "header_type=\"UInt64\"" +
+           compressor +
+           ">\n<ImageData WholeExtent=\"0 1999 0 1999 0 999\">\n"
+           "<Piece Extent=\"0 1999 0 1999 0 999\"><PointData><DataArray type=\"UInt8\" "
+           "Name=\"s\" format=\"appended\" offset=\"0\"/></PointData></Piece></ImageData>\n"
+           "<AppendedData encoding=\"raw\">_";
+  };
+  const auto u64 = [](std::uint64_t v) {
+    return std::string(reinterpret_cast<const char*>(&v), sizeof v);
+  };
+  const std::uint64_t four_gb = 4000000000;
+  const fs::path vti = write("big.vti", vti_head("") + u64(four_gb) + std::string(33000, '\x11'));
+  const std::string packed = test::gzip(std::string(4 << 20, '\0'), 6, true);
+  const fs::path vti_z =
+      write("big_z.vti", vti_head(" compressor=\"vtkZLibDataCompressor\"") + u64(1) + u64(four_gb) +
+                             u64(0) + u64(packed.size()) + packed);
   // And a DICOM series whose two slices declare 65535 × 65535 pixels of 32 bits (17 GB) each,
   // with 4 KB of pixel data.
   const fs::path series = path("series");
@@ -179,7 +198,7 @@ TEST_F(Hostile, declared_sizes_beyond_the_data_fail_before_allocating) {
     f.pixels.resize(4096);
     f.write(series, "IM" + std::to_string(k));
   }
-  for (const fs::path& in : {raw, gz, nii, nii_gz, mha, mhd, vtk, series}) {
+  for (const fs::path& in : {raw, gz, nii, nii_gz, mha, mhd, vtk, vti, vti_z, series}) {
     const auto before = snapshot();
     const bounded_result r =
         run({"extract", in.string(), "--iso", "1", "-o", path("o.ply").string()},

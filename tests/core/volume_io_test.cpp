@@ -570,7 +570,7 @@ TEST(VolumeIo, read_volume_rejects_an_unknown_format) {
       error_message([&] { (void)progiso::read_volume(dir / "v.xyz", std::nullopt, std::nullopt); });
   EXPECT_EQ(msg, (dir / "v.xyz").string() +
                      ": unknown volume format (expected .nrrd, .nhdr, .nii, .nii.gz, .hdr, .mha, "
-                     ".mhd, .vtk, a directory of DICOM files, or a raw file with --dims and "
+                     ".mhd, .vtk, .vti, a directory of DICOM files, or a raw file with --dims and "
                      "--type)");
 }
 

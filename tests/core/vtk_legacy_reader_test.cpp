@@ -5,7 +5,7 @@
 // binary (big-endian) and ASCII, SCALARS (with their LOOKUP_TABLE line) and FIELD arrays,
 // keywords in either case, SPACING or ASPECT_RATIO; the shared hipip volume as the legacy file it
 // came from (VTK's ironProt.vtk layout). The comparison with VTK's own reader is
-// vtk_legacy_vtk_test.cpp, built where VTK is installed.
+// vtk_vs_vtk_test.cpp, built where VTK is installed.
 //
 // Hostile: files that are not legacy VTK, other datasets, 2-D images, sizes out of range, point
 // counts that do not match, vectors, several components, unsupported types, data far shorter than

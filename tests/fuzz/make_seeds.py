@@ -3,7 +3,7 @@
 
     make_seeds.py OUT_DIR [SHARED_DATA_DIR]
 
-writes OUT_DIR/<harness>/<name> for the harnesses raw, extract, nrrd, nifti, metaimage, vtk, dicom, pgm, png, ply, obj and cli: small
+writes OUT_DIR/<harness>/<name> for the harnesses raw, extract, nrrd, nifti, metaimage, vtk, vti, dicom, pgm, png, ply, obj and cli: small
 valid files of every kind the readers accept, and the hostile cases of issue 11 (printf field
 widths in data file names, declared sizes far beyond the data, NaN samples, numbers beyond
 their types …). With SHARED_DATA_DIR (../shared/data), it adds crops of the real volumes and
@@ -244,6 +244,59 @@ def vtk_seeds(out, crops):
         put(out, "vtk", "shared_%s" % name, h.encode() + data)
 
 
+# ---- vti: VTK XML image data (ascii, inline base64, appended raw or base64; zlib blocks).
+
+def vti_file(dims, type_name, payload, mode, zlib_blocks=0, big=False, u64=False, values=None):
+    """A .vti of one point array over dims; payload is the array's bytes in the file's order."""
+    word = (">" if big else "<") + ("Q" if u64 else "I")
+    w = lambda v: struct.pack(word, v)
+    if zlib_blocks:
+        pieces = [payload[i:i + zlib_blocks] for i in range(0, len(payload), zlib_blocks)]
+        packed = [zlib.compress(p) for p in pieces]
+        head = w(len(pieces)) + w(zlib_blocks) + w(len(payload) % zlib_blocks) + b"".join(w(len(p)) for p in packed)
+        runs = [head, b"".join(packed)]
+    else:
+        runs = [w(len(payload)) + payload]
+    import base64
+    ext = "0 %d 0 %d 0 %d" % (dims[0] - 1, dims[1] - 1, dims[2] - 1)
+    text = ('<?xml version="1.0"?>\n<VTKFile type="ImageData" version="1.0" byte_order="%s" header_type="%s"%s>\n'
+            '<ImageData WholeExtent="%s" Origin="-3 4.5 100" Spacing="0.5 2 1.25" Direction="1 0 0 0 1 0 0 0 1">\n'
+            '<Piece Extent="%s">\n<PointData Scalars="s">\n'
+            % ("BigEndian" if big else "LittleEndian", "UInt64" if u64 else "UInt32",
+               ' compressor="vtkZLibDataCompressor"' if zlib_blocks else "", ext, ext))
+    tail = "</PointData>\n</Piece>\n</ImageData>\n"
+    a = '<DataArray type="%s" Name="s" NumberOfComponents="1" format="%%s"' % type_name
+    if mode == "ascii":
+        return (text + a % "ascii" + ">\n" + " ".join(values) + "\n</DataArray>\n" + tail + "</VTKFile>\n").encode()
+    if mode == "binary":
+        data = "".join(base64.b64encode(r).decode() for r in runs)
+        return (text + a % "binary" + ">\n" + data + "\n</DataArray>\n" + tail + "</VTKFile>\n").encode()
+    body = b"".join(runs) if mode == "raw" else "".join(base64.b64encode(r).decode() for r in runs).encode()
+    return ((text + a % "appended" + ' offset="0"/>\n' + tail +
+             '<AppendedData encoding="%s">\n_' % ("raw" if mode == "raw" else "base64")).encode()
+            + body + b"\n</AppendedData>\n</VTKFile>\n")
+
+
+def vti_seeds(out, crops):
+    cube = bytes((x * 7 + y * 13 + z * 29) % 251 for z in range(4) for y in range(4) for x in range(4))
+    put(out, "vti", "appended_raw_u8", vti_file((4, 4, 4), "UInt8", cube, "raw"))
+    put(out, "vti", "appended_raw_zlib_u8", vti_file((4, 4, 4), "UInt8", cube, "raw", zlib_blocks=24))
+    f32 = b"".join(struct.pack("<f", math.sin(i * 0.3)) for i in range(64))
+    put(out, "vti", "binary_f32", vti_file((4, 4, 4), "Float32", f32, "binary"))
+    put(out, "vti", "binary_zlib_f32_u64", vti_file((4, 4, 4), "Float32", f32, "binary", zlib_blocks=100, u64=True))
+    i16 = b"".join(struct.pack(">h", v * 37 - 900) for v in range(64))
+    put(out, "vti", "appended_base64_i16_big", vti_file((4, 4, 4), "Int16", i16, "base64", big=True))
+    put(out, "vti", "appended_base64_zlib_i16_big", vti_file((4, 4, 4), "Int16", i16, "base64", zlib_blocks=32, big=True))
+    put(out, "vti", "ascii_f64", vti_file((4, 4, 4), "Float64", b"", "ascii",
+                                          values=["%g" % (v * 0.25 - 3) for v in range(64)]))
+    # 32769³ doubles declared in a few hundred bytes, plain and in one block.
+    big = vti_file((2, 2, 2), "Float64", b"", "raw", u64=True).replace(b"0 1 0 1 0 1", b"0 32768 0 32768 0 32768")
+    declared = 32769 ** 3 * 8
+    put(out, "vti", "declared_32769_cubed", big.replace(struct.pack("<Q", 0), struct.pack("<Q", declared), 1))
+    for name, (dims, data) in crops.items():
+        put(out, "vti", "shared_%s" % name, vti_file(dims, "UInt8", data, "raw", zlib_blocks=4096))
+
+
 # ---- dicom: series of slice files "s0 \0NEXT\0 s1 \0NEXT\0 ...".
 
 NEXT = b"\0NEXT\0"
@@ -448,6 +501,7 @@ def main():
     nifti_seeds(out, crops)
     metaimage_seeds(out, crops)
     vtk_seeds(out, crops)
+    vti_seeds(out, crops)
     dicom_seeds(out)
     image_seeds(out, images)
     mesh_seeds(out)

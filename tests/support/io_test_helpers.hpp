@@ -3,6 +3,7 @@
 
 #include <array>
 #include <cstdint>
+#include <cstdio>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
@@ -129,6 +130,39 @@ inline std::vector<std::byte> random_samples(sample_type type, std::size_t count
     }
   }
   return out;
+}
+
+/// Sample i of `samples` (host byte order) as text: integers in decimal, floats with enough
+/// digits to read back the same value (%.9g, %.17g).
+inline std::string sample_text(sample_type type, const std::vector<std::byte>& samples,
+                               std::size_t i) {
+  const std::byte* p = samples.data() + i * sample_size(type);
+  const auto load = [p](auto x) {
+    std::memcpy(&x, p, sizeof x);
+    return x;
+  };
+  char buf[64];
+  switch (type) {
+    case sample_type::u8:
+      return std::to_string(load(std::uint8_t{}));
+    case sample_type::i8:
+      return std::to_string(load(std::int8_t{}));
+    case sample_type::u16:
+      return std::to_string(load(std::uint16_t{}));
+    case sample_type::i16:
+      return std::to_string(load(std::int16_t{}));
+    case sample_type::u32:
+      return std::to_string(load(std::uint32_t{}));
+    case sample_type::i32:
+      return std::to_string(load(std::int32_t{}));
+    case sample_type::f32:
+      std::snprintf(buf, sizeof buf, "%.9g", static_cast<double>(load(float{})));
+      return buf;
+    case sample_type::f64:
+      std::snprintf(buf, sizeof buf, "%.17g", load(double{}));
+      return buf;
+  }
+  return {};
 }
 
 }  // namespace progiso::test

@@ -58,7 +58,7 @@ struct vtk_legacy_file {
     std::string out;
     if (ascii) {
       for (std::size_t i = 0; i < count(); ++i) {
-        out += value_text(i);
+        out += sample_text(type, samples, i);
         out += (i + 1) % 9 == 0 ? "\n" : " ";
       }
       return out + "\n";
@@ -100,37 +100,6 @@ struct vtk_legacy_file {
     const std::filesystem::path file = dir / (stem + ".vtk");
     write_file(file, text());
     return file;
-  }
-
- private:
-  [[nodiscard]] std::string value_text(std::size_t i) const {
-    const std::byte* p = samples.data() + i * sample_size(type);
-    const auto load = [p](auto x) {
-      std::memcpy(&x, p, sizeof x);
-      return x;
-    };
-    char buf[64];
-    switch (type) {
-      case sample_type::u8:
-        return std::to_string(load(std::uint8_t{}));
-      case sample_type::i8:
-        return std::to_string(load(std::int8_t{}));
-      case sample_type::u16:
-        return std::to_string(load(std::uint16_t{}));
-      case sample_type::i16:
-        return std::to_string(load(std::int16_t{}));
-      case sample_type::u32:
-        return std::to_string(load(std::uint32_t{}));
-      case sample_type::i32:
-        return std::to_string(load(std::int32_t{}));
-      case sample_type::f32:
-        std::snprintf(buf, sizeof buf, "%.9g", static_cast<double>(load(float{})));
-        return buf;
-      case sample_type::f64:
-        std::snprintf(buf, sizeof buf, "%.17g", load(double{}));
-        return buf;
-    }
-    return {};
   }
 };
 

@@ -17,6 +17,7 @@
 #include <progiso/core/io/detail/metaimage_reader.hpp>
 #include <progiso/core/io/detail/nifti_reader.hpp>
 #include <progiso/core/io/detail/nrrd_reader.hpp>
+#include <progiso/core/io/detail/vti_reader.hpp>
 #include <progiso/core/io/detail/vtk_legacy_reader.hpp>
 
 namespace progiso {
@@ -48,7 +49,7 @@ volume make_volume(const fs::path& file, const index3& dims, sample_type type,
   }
 }
 
-enum class volume_format { nrrd, nifti, metaimage, vtk_legacy, dicom };
+enum class volume_format { nrrd, nifti, metaimage, vtk_legacy, vti, dicom };
 
 /// The format a file name asks for; throws "FILE: unknown volume format (…)" for any other.
 volume_format format_of(const fs::path& file) {
@@ -61,11 +62,12 @@ volume_format format_of(const fs::path& file) {
   if (detail::has_nifti_name(file)) return volume_format::nifti;
   if (detail::has_metaimage_name(file)) return volume_format::metaimage;
   if (detail::has_vtk_legacy_name(file)) return volume_format::vtk_legacy;
+  if (detail::has_vti_name(file)) return volume_format::vti;
   const std::string ext = lower_extension(file);
   if (ext == ".nrrd" || ext == ".nhdr") return volume_format::nrrd;
   throw error(file.string() +
               ": unknown volume format (expected .nrrd, .nhdr, .nii, .nii.gz, .hdr, .mha, .mhd, "
-              ".vtk, a directory of DICOM files, or a raw file with --dims and --type)");
+              ".vtk, .vti, a directory of DICOM files, or a raw file with --dims and --type)");
 }
 
 /// The header of a NRRD, MetaImage or legacy VTK file (each reads its data through
@@ -78,6 +80,7 @@ detail::nrrd_header parse_text_header(detail::input_file& in, volume_format form
       return detail::parse_vtk_legacy_header(in);
     case volume_format::nrrd:
     case volume_format::nifti:
+    case volume_format::vti:
     case volume_format::dicom:
       break;
   }
@@ -90,6 +93,8 @@ std::string_view format_kind(volume_format format) {
       return "MetaImage";
     case volume_format::vtk_legacy:
       return "VTK";
+    case volume_format::vti:
+      return "VTK XML";
     case volume_format::nrrd:
     case volume_format::nifti:
     case volume_format::dicom:
@@ -151,6 +156,14 @@ volume read_dicom_with(const fs::path& directory,
   std::vector<std::byte> samples = detail::read_dicom_samples(series);
   return make_volume(directory, series.dims, series.volume_type(), std::move(samples),
                      spacing.value_or(series.spacing), series.origin);
+}
+
+volume read_vti_with(const fs::path& file, const std::optional<std::array<double, 3>>& spacing) {
+  detail::input_file in(file, "VTK XML");
+  const detail::vti_header header = detail::parse_vti_header(in);
+  std::vector<std::byte> samples = detail::read_vti_samples(header, in);
+  return make_volume(file, header.dims, header.type, std::move(samples),
+                     spacing.value_or(header.spacing), header.origin);
 }
 
 volume read_nifti_with(const fs::path& file, const std::optional<std::array<double, 3>>& spacing,
@@ -218,6 +231,8 @@ volume read_vtk_legacy(const std::filesystem::path& file) {
   return read_text_header_volume(file, volume_format::vtk_legacy, std::nullopt, {});
 }
 
+volume read_vti(const std::filesystem::path& file) { return read_vti_with(file, std::nullopt); }
+
 volume read_nifti(const std::filesystem::path& file, const volume_choice& choice) {
   return read_nifti_with(file, std::nullopt, choice);
 }
@@ -235,6 +250,10 @@ volume read_volume(const std::filesystem::path& file, const std::optional<raw_la
   if (format == volume_format::dicom) {
     (void)pick_volume(file, 1, choice);
     return read_dicom_with(file, spacing, choice);
+  }
+  if (format == volume_format::vti) {
+    (void)pick_volume(file, 1, choice);
+    return read_vti_with(file, spacing);
   }
   return read_text_header_volume(file, format, spacing, choice);
 }
@@ -272,6 +291,11 @@ std::optional<index_to_world> read_volume_world(const std::filesystem::path& fil
     (void)pick_volume(file, 1, choice);
     return detail::read_dicom_series(file, choice.series).world;
   }
+  if (format == volume_format::vti) {
+    (void)pick_volume(file, 1, choice);
+    detail::input_file in(file, "VTK XML");
+    return detail::parse_vti_header(in).world;
+  }
   detail::input_file in(file, format_kind(format));
   const detail::nrrd_header header = parse_text_header(in, format);
   (void)pick_volume(file, header.volumes, choice, volumes_field(format));
@@ -300,6 +324,12 @@ std::vector<std::filesystem::path> volume_input_files(const std::filesystem::pat
     std::vector<std::filesystem::path> files{file};
     for (detail::dicom_slice& d : series.slices) files.push_back(std::move(d.file));
     return files;
+  }
+  if (format == volume_format::vti) {
+    (void)pick_volume(file, 1, choice);
+    detail::input_file in(file, "VTK XML");
+    (void)detail::parse_vti_header(in);
+    return {file};
   }
   detail::input_file in(file, format_kind(format));
   detail::nrrd_header header = parse_text_header(in, format);

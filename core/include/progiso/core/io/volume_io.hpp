@@ -146,6 +146,16 @@ struct index_to_world {
 /// VTK".
 [[nodiscard]] volume read_vtk_legacy(const std::filesystem::path& file);
 
+/// Reads a VTK XML image data file (.vti), as VTK and ParaView write it: one piece, the point
+/// array named by PointData's Scalars attribute (else its first array), of one component and
+/// type Int8, UInt8, Int16, UInt16, Int32, UInt32, Float32 or Float64; ascii, base64 or
+/// appended (raw or base64) data, uncompressed or zlib-compressed, either byte order, UInt32 or
+/// UInt64 block headers; 2 to 32769 points per axis. Spacing is |Spacing|, the origin the
+/// extent's first point (Origin + Spacing ⊙ the extent's start). Throws progiso::error naming
+/// the file on any failure; see detail/vti_reader.hpp and docs/ARCHITECTURE.md "Reading VTK XML
+/// image data".
+[[nodiscard]] volume read_vti(const std::filesystem::path& file);
+
 /// Reads the DICOM series in `directory`: every DICOM Part 10 file there with pixel data is a
 /// slice (other files are skipped); one series, at least 2 slices of one size, orientation and
 /// pixel spacing, evenly spaced along their normal; transfer syntax implicit or explicit VR
@@ -161,9 +171,9 @@ struct index_to_world {
 /// Reads a volume the way the command-line tool does: with a raw layout, read_raw(); else, for
 /// a directory, read_dicom(); for the extensions .nrrd and .nhdr, read_nrrd(); for .nii,
 /// .nii.gz, .hdr and .hdr.gz, read_nifti(); for .mha and .mhd, read_metaimage(); for .vtk,
-/// read_vtk_legacy() (case-insensitive). A single .dcm file is refused (one slice). A
-/// `choice` that names a series is refused for anything but a DICOM directory, one that names
-/// a volume other than 0 for anything but a NIfTI or MetaImage series that has it. A given
+/// read_vtk_legacy(); for .vti, read_vti() (case-insensitive). A single .dcm file is refused (one
+/// slice). A `choice` that names a series is refused for anything but a DICOM directory, one that
+/// names a volume other than 0 for anything but a NIfTI or MetaImage series that has it. A given
 /// `spacing` replaces the one from the header (or the default 1,1,1 for raw files). Throws
 /// progiso::error "FILE: unknown volume format (…)" for any other file, and whatever the chosen
 /// reader throws.

@@ -1,0 +1,78 @@
+// progiso/core/io/detail/vti_reader.hpp — progiso's own reader of VTK's XML image data (.vti),
+// what ParaView and VTK write for a regular grid (simulation output, processed scans), behind
+// read_vti() and volume_input_files().
+//
+// Accepted: <VTKFile type="ImageData"> (version 0.1 to 2.x) with byte_order LittleEndian or
+// BigEndian, header_type UInt32 (the default) or UInt64, and no compressor or
+// vtkZLibDataCompressor; <ImageData> with WholeExtent (2 to 32769 points per axis), Origin,
+// Spacing and Direction (all optional), holding one <Piece> whose Extent is the whole extent;
+// its <PointData> array named by the Scalars attribute, else the first <DataArray> there, of
+// one component and type Int8, UInt8, Int16, UInt16, Int32, UInt32, Float32 or Float64, in
+// any of the writer's data modes: format="ascii" (numbers in the element), "binary" (base64 in
+// the element) or "appended" (at `offset` in <AppendedData>, encoding "raw" or "base64"),
+// each binary block a header (byte count, or block count, sizes and compressed sizes) then the
+// data, compressed or not. Refused with a message: other dataset types, several pieces, cell
+// data only, vectors, 64-bit integers, LZ4 and LZMA compression, and XML the writer never
+// makes (CDATA sections, a document whose elements do not nest).
+//
+// The XML is scanned, never held: a streaming tokenizer reads tags (each at most
+// header_max_line_bytes) through one 64 KiB buffer, skips every element's text, and stops at
+// the underscore that starts the appended data, so a file of gigabytes of appended data costs
+// its header's bytes. Only the chosen array's data is then decoded, from its offset.
+//
+// Bounds: before the samples are allocated, the bytes after the array's start must be able to
+// hold them (raw: the bytes themselves; base64: 4 characters per 3 bytes; ascii: 2 bytes a
+// value; zlib: the declared compressed sizes must lie in the file and inflate to at most
+// gzip_max_ratio × their size). A block header's counts are checked against the file before
+// its table is allocated, and every block must inflate to exactly its declared size.
+//
+// Geometry: VTK places point (i, j, k) of the extent at Origin + Direction · (Spacing ⊙ (i, j,
+// k)), with (i, j, k) counted from 0 at the extent's origin, not from its first index: so the
+// volume's origin is Origin + Spacing ⊙ (x0, y0, z0) when Direction is the identity (the world
+// map holds the general case), and its spacing |Spacing| (zero or non-finite: 1).
+//
+// Thread safety: no global state. Every failure throws progiso::error with one line naming the
+// file.
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <filesystem>
+#include <string>
+#include <vector>
+
+#include <progiso/core/field/volume.hpp>
+#include <progiso/core/io/detail/file_input.hpp>
+#include <progiso/core/io/volume_io.hpp>
+
+namespace progiso::detail {
+
+enum class vti_data_format : std::uint8_t { ascii, binary, appended };
+
+struct vti_header {
+  index3 dims{};  ///< points per axis, each in 2..32769
+  sample_type type = sample_type::u8;
+  std::array<double, 3> spacing{1.0, 1.0, 1.0};
+  std::array<double, 3> origin{0.0, 0.0, 0.0};
+  index_to_world world;         ///< point index → the file's coordinates
+  bool big_endian = false;      ///< byte order of binary data
+  bool uint64_headers = false;  ///< header_type="UInt64"
+  bool zlib = false;            ///< compressor="vtkZLibDataCompressor"
+  vti_data_format format = vti_data_format::ascii;
+  bool base64 = false;            ///< binary data (inline, or appended with encoding base64)
+  std::uint64_t data_offset = 0;  ///< the array's first byte (or character) in the file
+  std::string array;              ///< the array's Name, for messages
+};
+
+/// Parses a .vti file (opened at its start) up to its appended data: its grid, geometry and the
+/// point array read as the volume. Throws progiso::error naming the file for anything outside
+/// the accepted subset above.
+[[nodiscard]] vti_header parse_vti_header(input_file& file);
+
+/// Decodes the chosen array's samples (host byte order), after the capacity checks above.
+[[nodiscard]] std::vector<std::byte> read_vti_samples(const vti_header& header, input_file& file);
+
+/// Whether a file name asks for the .vti reader: .vti (any case).
+[[nodiscard]] bool has_vti_name(const std::filesystem::path& file);
+
+}  // namespace progiso::detail

@@ -1,0 +1,132 @@
+// progiso's VTK readers against VTK's own (built where scripts/install-deps.sh --peers installed
+// VTK; support/vtk_reference.hpp):
+// - legacy .vtk: progiso and vtkStructuredPointsReader read the same generated files (every data
+//   type, binary and ASCII, SCALARS and FIELD arrays, keywords in either case, SPACING and
+//   ASPECT_RATIO) and must agree on the sizes, every sample, the spacing and the origin;
+// - .vti: every file vtkXMLImageDataWriter writes (every data type × ascii, inline binary,
+//   appended raw and appended base64 × no compressor and zlib in small and default blocks ×
+//   UInt32 and UInt64 headers, on an extent that does not start at 0) reads as the samples VTK
+//   was given, with VTK's spacing and the position of VTK's first point as the origin; and every
+//   file progiso's tests write by hand (support/vti_files.hpp, big-endian ones too) reads in
+//   vtkXMLImageDataReader as in progiso.
+#include <progiso/core/io/volume_io.hpp>
+
+#include <gtest/gtest.h>
+
+#include <array>
+#include <cmath>
+#include <cstring>
+#include <filesystem>
+#include <string>
+#include <vector>
+
+#include <progiso/core/field/volume.hpp>
+
+#include "support/io_test_helpers.hpp"
+#include "support/scratch_dir.hpp"
+#include "support/vti_files.hpp"
+#include "support/vtk_legacy_files.hpp"
+#include "support/vtk_reference.hpp"
+
+namespace {
+
+namespace fs = std::filesystem;
+using progiso::test::vtk_vti_options;
+
+/// VTK's reading and progiso's agree on the sizes, samples, spacing and first point.
+void expect_same(const progiso::test::vtk_reference_volume& ref, const progiso::volume& v) {
+  ASSERT_TRUE(ref.ok);
+  for (std::size_t a = 0; a < 3; ++a) {
+    EXPECT_EQ(ref.dims[a], v.dims()[a]);
+    EXPECT_DOUBLE_EQ(std::abs(ref.spacing[a]), v.spacing()[a]);
+    EXPECT_DOUBLE_EQ(ref.origin[a], v.origin()[a]);
+  }
+  EXPECT_EQ(ref.components, 1);
+  EXPECT_EQ(ref.sample_bytes, progiso::sample_size(v.type()));
+  ASSERT_EQ(ref.samples.size(), v.byte_size());
+  EXPECT_EQ(std::memcmp(ref.samples.data(), v.bytes(), v.byte_size()), 0);
+}
+
+TEST(VtkLegacyVsVtk, agree_on_every_type_encoding_attribute_and_keyword_case) {
+  progiso::test::scratch_dir dir("progiso-vtk-legacy-vtk-test-");
+  unsigned seed = 1;
+  for (const auto& t : progiso::test::vtk_types) {
+    for (int variant = 0; variant < 8; ++variant) {
+      progiso::test::vtk_legacy_file f;
+      f.type_name = t.name;
+      f.type = t.type;
+      f.samples = progiso::test::random_samples(t.type, 60, seed);
+      f.ascii = (variant & 1) != 0;
+      f.upper_case = (variant & 2) == 0;
+      f.as_field = (variant & 4) != 0;
+      f.aspect_ratio = variant == 3;
+      f.spacing = "0.5 2 1.25";
+      f.origin = "-3 4.5 100";
+      const std::filesystem::path file = f.write(dir.path(), "v" + std::to_string(seed++));
+      SCOPED_TRACE(file.string());
+      expect_same(progiso::test::read_with_vtk(file.string()), progiso::read_vtk_legacy(file));
+    }
+  }
+}
+
+TEST(VtiVsVtk, reads_every_file_vtks_writer_makes) {
+  progiso::test::scratch_dir dir("progiso-vti-vtk-test-");
+  const std::array<int, 6> extent{3, 9, -2, 2, 5, 8};  // 7 × 5 × 4 points
+  const std::size_t count = 7 * 5 * 4;
+  unsigned seed = 1;
+  int files = 0;
+  for (const auto& t : progiso::test::vti_types) {
+    for (int m = 0; m < 4; ++m) {
+      for (int variant = 0; variant < 6; ++variant) {
+        vtk_vti_options o;
+        o.mode = m == 0   ? vtk_vti_options::data_mode::ascii
+                 : m == 1 ? vtk_vti_options::data_mode::binary
+                          : vtk_vti_options::data_mode::appended;
+        o.encode_appended = m == 3;
+        o.zlib = variant >= 2;
+        o.block_bytes = variant >= 4 ? 32768 : 40;
+        o.uint64_headers = (variant & 1) != 0;
+        if (m == 0 && variant > 0) continue;
+        const std::vector<std::byte> samples = progiso::test::random_samples(t.type, count, seed);
+        const fs::path file = dir / ("w" + std::to_string(seed++) + ".vti");
+        ASSERT_TRUE(progiso::test::write_vti_with_vtk(file.string(), o, t.name, samples, extent,
+                                                      {0.5, 2.0, 1.25}, {-3.0, 4.5, 100.0}));
+        SCOPED_TRACE(file.string());
+        const progiso::volume v = progiso::read_vti(file);
+        EXPECT_EQ(v.type(), t.type);
+        ASSERT_EQ(v.byte_size(), samples.size());
+        EXPECT_EQ(std::memcmp(v.bytes(), samples.data(), samples.size()), 0);
+        expect_same(progiso::test::read_vti_with_vtk(file.string()), v);
+        ++files;
+      }
+    }
+  }
+  EXPECT_EQ(files, 8 * (1 + 3 * 6));
+}
+
+TEST(VtiVsVtk, vtk_reads_the_hand_written_files_as_progiso_does) {
+  progiso::test::scratch_dir dir("progiso-vti-vtk-test-");
+  unsigned seed = 100;
+  for (const auto& t : progiso::test::vti_types) {
+    for (int m = 0; m < 4; ++m) {
+      for (int variant = 0; variant < 8; ++variant) {
+        progiso::test::vti_file f;
+        f.type_name = t.name;
+        f.type = t.type;
+        f.extent = {2, 6, -1, 2, 10, 12};
+        f.samples = progiso::test::random_samples(t.type, f.count(), seed);
+        f.how = static_cast<progiso::test::vti_file::mode>(m);
+        f.zlib = (variant & 1) != 0;
+        f.uint64_headers = (variant & 2) != 0;
+        f.big_endian = (variant & 4) != 0;
+        f.decoy_first = variant != 6;
+        if (m == 0 && variant > 0) continue;
+        const fs::path file = f.write(dir.path(), "h" + std::to_string(seed++));
+        SCOPED_TRACE(file.string());
+        expect_same(progiso::test::read_vti_with_vtk(file.string()), progiso::read_vti(file));
+      }
+    }
+  }
+}
+
+}  // namespace

@@ -1,0 +1,137 @@
+#include "support/vtk_reference.hpp"
+
+#include <cstring>
+
+#include <vtkDataArray.h>
+#include <vtkImageData.h>
+#include <vtkNew.h>
+#include <vtkPointData.h>
+#include <vtkSmartPointer.h>
+#include <vtkStructuredPoints.h>
+#include <vtkStructuredPointsReader.h>
+#include <vtkType.h>
+#include <vtkXMLImageDataReader.h>
+#include <vtkXMLImageDataWriter.h>
+
+namespace progiso::test {
+namespace {
+
+/// What a reader made of an image: its active point scalars (else its first point array), its
+/// dimensions, spacing and the position of its first point; ok false without an array.
+vtk_reference_volume reference_of(vtkImageData* image) {
+  vtk_reference_volume out;
+  if (image == nullptr) return out;
+  vtkDataArray* a = image->GetPointData()->GetScalars();
+  if (a == nullptr && image->GetPointData()->GetNumberOfArrays() > 0) {
+    a = image->GetPointData()->GetArray(0);
+  }
+  if (a == nullptr) return out;
+  int dims[3];
+  image->GetDimensions(dims);
+  double spacing[3];
+  double first[3];
+  image->GetSpacing(spacing);
+  image->GetPoint(0, first);
+  for (int i = 0; i < 3; ++i) {
+    out.dims[static_cast<std::size_t>(i)] = dims[i];
+    out.spacing[static_cast<std::size_t>(i)] = spacing[i];
+    out.origin[static_cast<std::size_t>(i)] = first[i];
+  }
+  out.components = a->GetNumberOfComponents();
+  out.sample_bytes = static_cast<std::size_t>(a->GetDataTypeSize());
+  const std::size_t bytes =
+      static_cast<std::size_t>(a->GetNumberOfTuples() * a->GetNumberOfComponents()) *
+      out.sample_bytes;
+  out.samples.resize(bytes);
+  std::memcpy(out.samples.data(), a->GetVoidPointer(0), bytes);
+  out.ok = true;
+  return out;
+}
+
+int vtk_type_of(const std::string& name) {
+  if (name == "Int8") return VTK_SIGNED_CHAR;
+  if (name == "UInt8") return VTK_UNSIGNED_CHAR;
+  if (name == "Int16") return VTK_SHORT;
+  if (name == "UInt16") return VTK_UNSIGNED_SHORT;
+  if (name == "Int32") return VTK_INT;
+  if (name == "UInt32") return VTK_UNSIGNED_INT;
+  if (name == "Float32") return VTK_FLOAT;
+  return VTK_DOUBLE;
+}
+
+}  // namespace
+
+vtk_reference_volume read_with_vtk(const std::string& file) {
+  vtkNew<vtkStructuredPointsReader> reader;
+  reader->SetFileName(file.c_str());
+  reader->ReadAllScalarsOn();
+  reader->ReadAllFieldsOn();
+  reader->Update();
+  if (reader->GetErrorCode() != 0) return {};
+  return reference_of(reader->GetOutput());
+}
+
+bool write_vti_with_vtk(const std::string& file, const vtk_vti_options& options,
+                        const std::string& type_name, const std::vector<std::byte>& samples,
+                        const std::array<int, 6>& extent, const std::array<double, 3>& spacing,
+                        const std::array<double, 3>& origin) {
+  vtkNew<vtkImageData> image;
+  image->SetExtent(extent[0], extent[1], extent[2], extent[3], extent[4], extent[5]);
+  image->SetSpacing(spacing[0], spacing[1], spacing[2]);
+  image->SetOrigin(origin[0], origin[1], origin[2]);
+  const vtkIdType n = image->GetNumberOfPoints();
+  vtkSmartPointer<vtkDataArray> a =
+      vtkSmartPointer<vtkDataArray>::Take(vtkDataArray::CreateDataArray(vtk_type_of(type_name)));
+  a->SetName("density");
+  a->SetNumberOfTuples(n);
+  if (static_cast<std::size_t>(n) * static_cast<std::size_t>(a->GetDataTypeSize()) !=
+      samples.size()) {
+    return false;
+  }
+  std::memcpy(a->GetVoidPointer(0), samples.data(), samples.size());
+  vtkSmartPointer<vtkDataArray> decoy =
+      vtkSmartPointer<vtkDataArray>::Take(vtkDataArray::CreateDataArray(VTK_FLOAT));
+  decoy->SetName("decoy");
+  decoy->SetNumberOfTuples(n);
+  for (vtkIdType i = 0; i < n; ++i) decoy->SetTuple1(i, -0.25 * static_cast<double>(i));
+  image->GetPointData()->AddArray(decoy);
+  image->GetPointData()->SetScalars(a);
+
+  vtkNew<vtkXMLImageDataWriter> w;
+  w->SetInputData(image);
+  w->SetFileName(file.c_str());
+  switch (options.mode) {
+    case vtk_vti_options::data_mode::ascii:
+      w->SetDataModeToAscii();
+      break;
+    case vtk_vti_options::data_mode::binary:
+      w->SetDataModeToBinary();
+      break;
+    case vtk_vti_options::data_mode::appended:
+      w->SetDataModeToAppended();
+      break;
+  }
+  w->SetEncodeAppendedData(options.encode_appended);
+  if (options.zlib) {
+    w->SetCompressorTypeToZLib();
+  } else {
+    w->SetCompressorTypeToNone();
+  }
+  if (options.uint64_headers) {
+    w->SetHeaderTypeToUInt64();
+  } else {
+    w->SetHeaderTypeToUInt32();
+  }
+  w->SetBlockSize(static_cast<size_t>(options.block_bytes));
+  return w->Write() == 1;
+}
+
+vtk_reference_volume read_vti_with_vtk(const std::string& file) {
+  vtkNew<vtkXMLImageDataReader> reader;
+  reader->SetFileName(file.c_str());
+  reader->Update();
+  if (reader->GetErrorCode() != 0) return {};
+  return reference_of(reader->GetOutput());
+}
+
+}  // namespace progiso::test

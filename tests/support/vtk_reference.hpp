@@ -1,0 +1,51 @@
+// tests/support/vtk_reference.hpp — VTK's own readers and writer behind a plain interface, the
+// references of vtk_vs_vtk_test.cpp: vtkStructuredPointsReader (legacy .vtk), and
+// vtkXMLImageDataWriter and vtkXMLImageDataReader (.vti). VTK 9.1's headers do not compile as
+// C++20, so its side is a C++17 library (vtk_reference.cpp), built where VTK is installed.
+#pragma once
+
+#include <array>
+#include <cstddef>
+#include <string>
+#include <vector>
+
+namespace progiso::test {
+
+struct vtk_reference_volume {
+  bool ok = false;
+  std::array<int, 3> dims{};
+  std::array<double, 3> spacing{};
+  std::array<double, 3> origin{};  ///< the position of the first point
+  int components = 0;
+  std::size_t sample_bytes = 0;
+  std::vector<std::byte> samples;  ///< the point scalars, host byte order
+};
+
+/// Reads `file` with vtkStructuredPointsReader; ok is false when VTK reports an error or finds
+/// no point scalars.
+vtk_reference_volume read_with_vtk(const std::string& file);
+
+/// How VTK's writer is set up: data mode, appended encoding, compressor, header type, block size.
+struct vtk_vti_options {
+  enum class data_mode { ascii, binary, appended } mode = data_mode::appended;
+  bool encode_appended = false;  ///< base64 appended data, else raw
+  bool zlib = false;
+  bool uint64_headers = false;
+  int block_bytes = 32768;
+};
+
+/// Writes a .vti with vtkXMLImageDataWriter: a point array named "density" of `type_name` (a
+/// VTK XML type: Int8 … Float64) holding `samples` (host order) over `extent`, with `spacing` and
+/// `origin`, set as the active scalars after a Float32 array "decoy" of the same size. Returns
+/// whether VTK wrote it.
+bool write_vti_with_vtk(const std::string& file, const vtk_vti_options& options,
+                        const std::string& type_name, const std::vector<std::byte>& samples,
+                        const std::array<int, 6>& extent, const std::array<double, 3>& spacing,
+                        const std::array<double, 3>& origin);
+
+/// Reads `file` with vtkXMLImageDataReader: the active point scalars (else the first point
+/// array), the dimensions, spacing and the position of the first point (dims, spacing, origin);
+/// ok is false when VTK reports an error or finds no point array.
+vtk_reference_volume read_vti_with_vtk(const std::string& file);
+
+}  // namespace progiso::test
