@@ -382,7 +382,7 @@ TEST_F(Cli, nifti_input_gives_the_surface_of_the_same_samples_as_raw) {
   expect_bad_input("extract " + cut.string() + " --iso 100", "cut.nii: NIfTI data ends");
 }
 
-TEST_F(Cli, volume_picks_one_volume_of_a_nifti_or_metaimage_series) {
+TEST_F(Cli, volume_picks_one_volume_of_a_nifti_metaimage_or_nrrd_series) {
   // Three volumes of 9³ bytes (dim[4] = 3), the middle one the cube: --volume 1 gives the raw
   // cube's mesh, plain and gzip; without --volume, or past the last, one line and exit 2.
   const std::string nii = test::nifti1_series(
@@ -426,6 +426,32 @@ TEST_F(Cli, volume_picks_one_volume_of_a_nifti_or_metaimage_series) {
   EXPECT_EQ(slurp(mesh), slurp(want));
   expect_bad_input("extract " + mhd.string() + " --iso 100",
                    "t.mhd: a time series of 3 volumes (DimSize[3] = 3)");
+  // A 4-D NRRD: volumes last (a Slicer sequence, gzip), and first (interleaved, as diffusion
+  // MRI: the three volumes' samples alternate).
+  const std::string three = std::string(729, '\0') + cube_bytes(9) + std::string(729, '\x7f');
+  std::string interleaved;
+  for (std::size_t i = 0; i < 729; ++i) {
+    for (std::size_t k = 0; k < 3; ++k) interleaved += three[k * 729 + i];
+  }
+  const fs::path seq = write_file("t.seq.nrrd",
+                                  "NRRD0005\ntype: uchar\ndimension: 4\nsizes: 9 9 9 3\n"
+                                  "kinds: domain domain domain list\nspacings: 2 1.5 0.5 nan\n"
+                                  "encoding: gzip\n\n" +
+                                      test::gzip(three));
+  const fs::path dwi = write_file("t.dwi.nrrd",
+                                  "NRRD0005\ntype: uchar\ndimension: 4\nsizes: 3 9 9 9\n"
+                                  "kinds: list domain domain domain\nspacings: nan 2 1.5 0.5\n"
+                                  "encoding: raw\n\n" +
+                                      interleaved);
+  for (const fs::path& in : {seq, dwi}) {
+    const fs::path out = dir_ / (in.filename().string() + ".obj");
+    const run_result n =
+        run("extract " + in.string() + " --volume 1 --iso 100 --full -o " + out.string());
+    ASSERT_EQ(n.status, 0) << n.err;
+    EXPECT_EQ(slurp(out), slurp(want)) << in;
+  }
+  expect_bad_input("extract " + dwi.string() + " --iso 100",
+                   "t.dwi.nrrd: a time series of 3 volumes (sizes[0] = 3)");
   // A 3-D input holds volume 0 only.
   const fs::path raw = write_file("one.raw", cube_bytes(9));
   expect_bad_input("extract " + raw.string() + " --dims 9,9,9 --type u8 --iso 100 --volume 1",

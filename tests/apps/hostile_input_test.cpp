@@ -215,7 +215,8 @@ TEST_F(Hostile, declared_sizes_beyond_the_data_fail_before_allocating) {
   }
   // Series whose chosen volume is small but whose declared volumes are not there: a NIfTI of
   // 1000 volumes of 125 MB in 33 KB, plain, and of 2 volumes of 32 GB doubles in 4 MB of gzip;
-  // a MetaImage of 50 volumes of 4 GB in 33 KB. Refused from the sizes, whichever volume.
+  // a MetaImage of 50 volumes of 4 GB in 33 KB; 4-D NRRDs below. Refused from the sizes,
+  // whichever volume.
   const auto series_of = test::nifti1_series;
   const fs::path nii_series = write(
       "series.nii",
@@ -229,7 +230,17 @@ TEST_F(Hostile, declared_sizes_beyond_the_data_fail_before_allocating) {
                                     "NDims = 4\nDimSize = 2000 2000 1000 50\n"
                                     "ElementType = MET_UCHAR\nElementDataFile = LOCAL\n" +
                                         std::string(33000, '\x11'));
-  for (const fs::path& in : {nii_series, nii_gz_series, mha_series}) {
+  // A 4-D NRRD of 50 volumes of 4 GB in 33 KB, volumes last, and interleaved (first) in gzip.
+  const fs::path nrrd_series = write("series.nrrd",
+                                     "NRRD0005\ntype: uchar\ndimension: 4\n"
+                                     "sizes: 2000 2000 1000 50\nencoding: raw\n\n" +
+                                         std::string(33000, '\x11'));
+  const fs::path nrrd_dwi = write("dwi.nrrd",
+                                  "NRRD0005\ntype: short\ndimension: 4\n"
+                                  "sizes: 30 1000 1000 500\nkinds: list domain domain domain\n"
+                                  "endian: little\nencoding: gzip\n\n" +
+                                      gzip(std::string(4 << 20, '\0')));
+  for (const fs::path& in : {nii_series, nii_gz_series, mha_series, nrrd_series, nrrd_dwi}) {
     const auto before = snapshot();
     const bounded_result r =
         run({"extract", in.string(), "--volume", "1", "--iso", "1", "-o", path("o.ply").string()},

@@ -105,17 +105,8 @@ std::optional<sample_type> from_teem_type(int type) {
 /// Reads `file` with Teem and reduces it the way progiso documents: spacing from the space
 /// direction's length or the |spacings| entry (unknown, zero or non-finite → 1), origin from
 /// the finite first three components of the space origin.
-reference_volume teem_read(const fs::path& file) {
+reference_volume teem_reduce(const Nrrd* n) {
   reference_volume r;
-  Nrrd* n = nrrdNew();
-  nrrdStateVerboseIO = 0;
-  if (nrrdLoad(n, file.string().c_str(), nullptr) != 0) {
-    char* err = biffGetDone(NRRD);
-    r.message = err != nullptr ? err : "?";
-    std::free(err);
-    nrrdNuke(n);
-    return r;
-  }
   r.ok = n->dim == 3;
   for (unsigned a = 0; a < 3 && r.ok; ++a) r.dims[a] = static_cast<std::int64_t>(n->axis[a].size);
   r.type = from_teem_type(n->type);
@@ -137,6 +128,44 @@ reference_volume teem_read(const fs::path& file) {
       if (std::isfinite(n->spaceOrigin[a])) r.origin[a] = n->spaceOrigin[a];
     }
   }
+  return r;
+}
+
+/// Loads `file` with Teem; nullptr (and `message` set) when Teem refuses it.
+Nrrd* teem_load(const fs::path& file, std::string& message) {
+  Nrrd* n = nrrdNew();
+  nrrdStateVerboseIO = 0;
+  if (nrrdLoad(n, file.string().c_str(), nullptr) != 0) {
+    char* err = biffGetDone(NRRD);
+    message = err != nullptr ? err : "?";
+    std::free(err);
+    nrrdNuke(n);
+    return nullptr;
+  }
+  return n;
+}
+
+/// Reads `file` with Teem, reduced as above; with `slice` (axis, position), the slice of the
+/// loaded array there (volume k of a 4-D series: its series axis at k).
+reference_volume teem_read(const fs::path& file,
+                           std::optional<std::pair<unsigned, std::size_t>> slice = {}) {
+  reference_volume r;
+  Nrrd* n = teem_load(file, r.message);
+  if (n == nullptr) return r;
+  Nrrd* sliced = nullptr;
+  if (slice) {
+    sliced = nrrdNew();
+    if (nrrdSlice(sliced, n, slice->first, slice->second) != 0) {
+      char* err = biffGetDone(NRRD);
+      r.message = err != nullptr ? err : "?";
+      std::free(err);
+      nrrdNuke(sliced);
+      nrrdNuke(n);
+      return r;
+    }
+  }
+  r = teem_reduce(sliced != nullptr ? sliced : n);
+  if (sliced != nullptr) nrrdNuke(sliced);
   nrrdNuke(n);
   return r;
 }
@@ -623,6 +652,178 @@ TEST(NrrdReader, shared_volumes_written_as_nrrd_read_like_teem) {
 // =============================================================================================
 // Behaviour on valid input beyond the comparison.
 
+// A 4-D series: 3 volumes of 4 × 3 × 2 samples of i16, value 100 k + 7 x + 13 y + 29 z − 50 at
+// (x, y, z) of volume k, laid out with the series axis first (interleaved, as diffusion MRI
+// holds them) or last (volumes one after the other, as Slicer's sequences).
+struct series_case {
+  bool first = false;       // the series axis is axis 0
+  std::string axis_fields;  // kinds / space directions that say which axis it is
+  std::string encoding = "raw";
+  int files = 0;  // 0: attached; 1: one detached file; 3: a LIST of one file per volume
+};
+
+std::string series_bytes(bool first, const std::string& encoding) {
+  std::string raw;
+  std::string text;
+  const auto put = [&](int k, int x, int y, int z) {
+    const auto v = static_cast<std::int16_t>(100 * k + 7 * x + 13 * y + 29 * z - 50);
+    const auto u = static_cast<std::uint16_t>(v);
+    raw += static_cast<char>(u >> 8);  // big-endian
+    raw += static_cast<char>(u & 0xff);
+    text += std::to_string(v) + " ";
+  };
+  if (first) {
+    for (int z = 0; z < 2; ++z)
+      for (int y = 0; y < 3; ++y)
+        for (int x = 0; x < 4; ++x)
+          for (int k = 0; k < 3; ++k) put(k, x, y, z);
+  } else {
+    for (int k = 0; k < 3; ++k)
+      for (int z = 0; z < 2; ++z)
+        for (int y = 0; y < 3; ++y)
+          for (int x = 0; x < 4; ++x) put(k, x, y, z);
+  }
+  if (encoding == "ascii") return text + "\n";
+  if (encoding == "gzip") return progiso::test::gzip(raw);
+  if (encoding == "hex") {
+    std::string hex;
+    static constexpr char digits[] = "0123456789abcdef";
+    for (const char c : raw) {
+      hex += digits[static_cast<unsigned char>(c) >> 4];
+      hex += digits[static_cast<unsigned char>(c) & 15];
+    }
+    return hex + "\n";
+  }
+  return raw;
+}
+
+fs::path write_series(const fs::path& dir, const std::string& stem, const series_case& c) {
+  const std::string sizes = c.first ? "3 4 3 2" : "4 3 2 3";
+  std::string h = "NRRD0005\ntype: short\ndimension: 4\nsizes: " + sizes +
+                  "\nendian: big\nencoding: " + c.encoding + "\n" + c.axis_fields;
+  const std::string data = series_bytes(c.first, c.encoding);
+  if (c.files == 0) {
+    write_file(dir / (stem + ".nrrd"), h + "\n" + data);
+    return dir / (stem + ".nrrd");
+  }
+  if (c.files == 1) {
+    write_file(dir / (stem + ".data"), data);
+    write_file(dir / (stem + ".nhdr"), h + "data file: " + stem + ".data\n");
+    return dir / (stem + ".nhdr");
+  }
+  // One file per volume (the series axis last): the raw data cut in three, each encoded alone.
+  const std::string raw = series_bytes(false, "raw");
+  std::string list = "data file: LIST 3\n";
+  for (int k = 0; k < 3; ++k) {
+    std::string piece = raw.substr(static_cast<std::size_t>(k) * 48, 48);
+    if (c.encoding == "gzip") piece = progiso::test::gzip(piece);
+    const std::string name = stem + "_" + std::to_string(k) + ".data";
+    write_file(dir / name, piece);
+    list += name + "\n";
+  }
+  write_file(dir / (stem + ".nhdr"), h + list);
+  return dir / (stem + ".nhdr");
+}
+
+TEST(NrrdReader, every_volume_of_a_4d_series_reads_as_teems_slice_of_it) {
+  const scratch_dir dir;
+  const std::string space = "space: right-anterior-superior\nspace origin: (1,2,3)\n";
+  const std::vector<series_case> layouts{
+      {false, "kinds: domain domain domain list\n" + space +
+                  "space directions: (0.5,0,0) (0,2,0) (0,0,1.25) none\n"},
+      {false, ""},  // no axis information: the last axis
+      {false, "spacings: 0.5 2 1.25 NaN\n"},
+      {true, "kinds: list space space space\n"},
+      {true, space + "space directions: none (0.5,0,0) (0,2,0) (0,0,1.25)\n"},
+      {true, "kinds: vector domain domain domain\nspacings: nan 0.5 2 1.25\n"}};
+  int files = 0;
+  for (std::size_t l = 0; l < layouts.size(); ++l) {
+    for (const char* encoding : {"raw", "gzip", "ascii", "hex"}) {
+      for (int where : {0, 1, 3}) {
+        series_case c = layouts[l];
+        c.encoding = encoding;
+        c.files = where;
+        if (where == 3 && (c.first || c.encoding == "ascii" || c.encoding == "hex")) continue;
+        const fs::path file =
+            write_series(dir.path(), "s" + std::to_string(l) + encoding + std::to_string(where), c);
+        SCOPED_TRACE(file.filename().string());
+        ++files;
+        for (std::int64_t k = 0; k < 3; ++k) {
+          const reference_volume ref =
+              teem_read(file, std::pair{c.first ? 0u : 3u, static_cast<std::size_t>(k)});
+          ASSERT_TRUE(ref.ok) << ref.message;
+          const progiso::volume v = progiso::read_nrrd(file, {.volume = k});
+          EXPECT_EQ(v.dims(), (index3{4, 3, 2}));
+          EXPECT_EQ(v.type(), sample_type::i16);
+          ASSERT_EQ(v.byte_size(), ref.samples.size());
+          EXPECT_EQ(std::memcmp(v.bytes(), ref.samples.data(), ref.samples.size()), 0);
+          EXPECT_EQ(v.spacing(), ref.spacing);
+          EXPECT_EQ(v.origin(), ref.origin);
+          // The value at (1, 2, 1) of volume k.
+          std::int16_t at = 0;
+          std::memcpy(&at, v.bytes() + 2 * (1 + 4 * (2 + 3 * 1)), 2);
+          EXPECT_EQ(at, 100 * k + 7 + 26 + 29 - 50);
+        }
+      }
+    }
+  }
+  EXPECT_EQ(files, 6 * 4 * 2 + 3 * 2);
+}
+
+TEST(NrrdReader, a_4d_series_needs_a_volume_and_a_series_axis_first_or_last) {
+  const scratch_dir dir;
+  series_case c{false, "space dimension: 3\nspace directions: (1,0,0) (0,1,0) (0,0,1) none\n"};
+  const fs::path file = write_series(dir.path(), "series", c);
+  std::string msg = error_naming(file, [&] { (void)progiso::read_nrrd(file); });
+  EXPECT_TRUE(contains(msg,
+                       "a time series of 3 volumes (sizes[3] = 3): choose one by its "
+                       "index, 0 to 2"))
+      << msg;
+  msg = error_naming(
+      file, [&] { (void)progiso::read_volume(file, std::nullopt, std::nullopt, {.volume = 3}); });
+  EXPECT_TRUE(contains(msg, "volume 3 was chosen, but the input is a time series of 3 volumes"))
+      << msg;
+  c.first = true;
+  c.axis_fields = "kinds: list domain domain domain\n";
+  const fs::path dwi = write_series(dir.path(), "dwi", c);
+  msg = error_naming(dwi, [&] { (void)progiso::read_nrrd(dwi); });
+  EXPECT_TRUE(contains(msg, "(sizes[0] = 3)")) << msg;
+  // The world map skips the series axis.
+  c.first = false;
+  c.axis_fields =
+      "space: left-posterior-superior\nspace directions: (-2,0,0) (0,1.5,0) "
+      "(0,0,0.5) none\nspace origin: (10,20,30)\n";
+  const fs::path oriented = write_series(dir.path(), "oriented", c);
+  const auto world = progiso::read_volume_world(oriented, std::nullopt, {.volume = 1});
+  ASSERT_TRUE(world.has_value());
+  EXPECT_EQ(world->apply({1, 1, 1}), (std::array<double, 3>{8, 21.5, 30.5}));
+  EXPECT_EQ(progiso::volume_input_files(oriented, std::nullopt, {.volume = 2}),
+            std::vector<fs::path>{oriented});
+  // Refused: a series axis in the middle, two of them, directions that do not say, a series
+  // axis with a direction, 2^31 volumes, a pattern of 4-D pieces that does not divide.
+  const auto refused = [&](const std::string& stem, const std::string& header,
+                           const std::string& what) {
+    const fs::path f = dir / (stem + ".nrrd");
+    write_file(f, "NRRD0005\ntype: uchar\ndimension: 4\n" + header + "encoding: raw\n\n" +
+                      std::string(72, '\x01'));
+    const std::string m = error_naming(f, [&] { (void)progiso::read_nrrd(f, {.volume = 0}); });
+    EXPECT_TRUE(contains(m, what)) << stem << ": " << m;
+  };
+  refused("middle", "sizes: 4 3 3 2\nkinds: domain domain list domain\n",
+          "the series axis of a 4-D NRRD array is axis 2");
+  refused("two", "sizes: 3 4 3 2\nkinds: list domain vector domain\n", "2 non-spatial axes");
+  refused("nones",
+          "sizes: 3 4 3 2\nspace dimension: 3\n"
+          "space directions: none (1,0,0) none (0,0,1)\n",
+          "a 4-D array needs 3 and \"none\" for its series axis");
+  refused("direction",
+          "sizes: 3 4 3 2\nkinds: list domain domain domain\nspace dimension: 3\n"
+          "space directions: (1,0,0) (1,0,0) (0,1,0) (0,0,1)\n",
+          "expected \"none\" there");
+  refused("many", "sizes: 4 3 2 2147483648\n", "expected 1 to 2147483647");
+  refused("thin", "sizes: 4 1 2 3\n", "found sizes 4,1,2");
+}
+
 TEST(NrrdReader, ascii_values_may_be_separated_by_commas) {
   const scratch_dir dir;
   const fs::path file = dir / "commas.nrrd";
@@ -874,9 +1075,12 @@ TEST(NrrdReader, dimension_outside_one_to_sixteen_or_garbage_is_rejected) {
                          "from 1 to 16"))
         << msg;
   }
-  write_file(file, "NRRD0004\ntype: uchar\ndimension: 4\nsizes: 2 2 2 2\nencoding: raw\n\n");
+  write_file(file, "NRRD0004\ntype: uchar\ndimension: 5\nsizes: 2 2 2 2 2\nencoding: raw\n\n");
   const std::string msg = error_naming(file, [&] { (void)progiso::read_nrrd(file); });
-  EXPECT_TRUE(contains(msg, "expected a 3-D NRRD array, found dimension 4")) << msg;
+  EXPECT_TRUE(contains(msg,
+                       "expected a 3-D NRRD array (or a 4-D one: a series of volumes), "
+                       "found dimension 5"))
+      << msg;
 }
 
 TEST(NrrdReader, duplicated_unknown_and_malformed_lines_are_rejected_with_their_line) {

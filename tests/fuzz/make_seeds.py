@@ -75,6 +75,15 @@ def nrrd_seeds(out, crops):
         "1 2.5 -3 4e2\n1e-320 6 7 8\n")
     put(out, "nrrd", "hex_u16", "NRRD0004\ntype: ushort\ndimension: 3\nsizes: 2 2 2\nendian: little\n"
         "encoding: hex\n\n0102030405060708090a0b0c0d0e0f10\n")
+    # 4-D series: three volumes last (a Slicer sequence, gzip) and first (interleaved, as DWI).
+    put(out, "nrrd", "series_last_gzip", ("NRRD0005\ntype: uchar\ndimension: 4\nsizes: 4 4 4 3\n"
+        "kinds: domain domain domain list\nspace: RAS\nspace directions: (1,0,0) (0,2,0) (0,0,3) none\n"
+        "encoding: gzip\n\n").encode() + gzip.compress(cube * 3))
+    put(out, "nrrd", "series_first_raw", ("NRRD0005\ntype: short\ndimension: 4\nsizes: 3 4 4 4\n"
+        "kinds: list domain domain domain\nendian: big\nencoding: raw\n\n").encode()
+        + b"".join(struct.pack(">h", v * 3 + k) for v in range(64) for k in range(3)))
+    put(out, "nrrd", "series_default_ascii", "NRRD0005\ntype: float\ndimension: 4\nsizes: 2 2 2 3\n"
+        "encoding: ascii\n\n" + " ".join("%g" % (v * 0.5) for v in range(24)) + "\n")
     put(out, "nrrd", "space_directions",
         "NRRD0005\n# comment\ntype: uint8\ndimension: 3\nspace: right-anterior-superior\nsizes: 4 4 4\n"
         "space directions: (0.5,0,0) (0,-2,0) (0,0,3)\nspace origin: (1.5,-2,30)\nkinds: domain domain domain\n"

@@ -28,6 +28,7 @@ constexpr std::size_t chunk_bytes = 64 * 1024;
 constexpr std::size_t max_ascii_token = 1024;           // bytes of one ascii value
 constexpr unsigned max_dimension = 16;                  // NRRD_DIM_MAX
 constexpr unsigned max_space_dimension = 8;             // NRRD_SPACE_DIM_MAX
+constexpr std::int64_t max_volumes = INT32_MAX;         // as --volume and MetaImage
 constexpr std::int64_t max_pattern_number = INT32_MAX;  // the %d argument is a C int
 
 // =============================================================================================
@@ -377,16 +378,17 @@ class header_parser {
     nrrd_header h;
     h.type = parse_type();
     parse_dimension();
-    h.dims = parse_sizes();
+    parse_sizes();
     h.encoding = parse_encoding();
     parse_byte_order(h);
     parse_skips(h);
     parse_space();
+    h.dims = choose_axes(h);
     h.spacing = parse_spacing();
     h.origin = parse_origin();
     h.world = parse_world(h.origin);
     check_descriptive_fields();
-    h.data_files = parse_data_files(h.dims);
+    h.data_files = parse_data_files();
 
     if (h.data_files.empty() && !lines_.empty_line) {
       throw error(file_.string() + ": NRRD header ends at the end of the file without a " +
@@ -484,23 +486,84 @@ class header_parser {
     dimension_ = *d;
   }
 
-  index3 parse_sizes() const {
+  /// Every axis's size (sizes_), checked for count and syntax.
+  void parse_sizes() {
     const field_value& v = require(field::sizes);
     const std::vector<std::string_view> w = words(v.text);
     if (w.size() != dimension_) {
       fail(field::sizes, "expected " + std::to_string(dimension_) +
                              " sizes (the dimension), found " + detail::quoted(v.text));
     }
-    std::vector<std::uint64_t> sizes;
     for (std::string_view s : w) {
       const auto n = to_integer<std::uint64_t>(s);
       if (!n)
         fail(field::sizes, "cannot parse " + detail::quoted(s) + " as an unsigned 64-bit integer");
-      sizes.push_back(*n);
+      sizes_.push_back(*n);
     }
-    if (dimension_ != 3) {
-      throw error(file_.string() + ": expected a 3-D NRRD array, found dimension " +
-                  std::to_string(dimension_));
+    if (dimension_ != 3 && dimension_ != 4) {
+      throw error(file_.string() + ": expected a 3-D NRRD array (or a 4-D one: a series of " +
+                  "volumes), found dimension " + std::to_string(dimension_));
+    }
+  }
+
+  /// Whether an axis kind is a non-spatial one (a list of values, vector components, colours,
+  /// time points): anything but "domain" and "space" (and the unknown "???" and "none").
+  static bool series_kind(std::string_view kind) {
+    const std::string k = lower(kind);
+    return k != "domain" && k != "space" && k != "???" && k != "none";
+  }
+
+  /// A 4-D array's series axis: the one axis whose kind is not spatial, else the one whose
+  /// space direction is "none", else the last; it must be the first or the last.
+  unsigned series_axis() const {
+    std::vector<unsigned> found;
+    if (const field_value* v = get(field::kinds)) {
+      const std::vector<std::string_view> k = words(v->text);
+      for (unsigned a = 0; a < k.size(); ++a) {
+        if (series_kind(k[a])) found.push_back(a);
+      }
+      if (found.size() > 1) {
+        fail(field::kinds, "names " + std::to_string(found.size()) + " non-spatial axes in " +
+                               detail::quoted(v->text) +
+                               ": a 4-D array must have one (the series of volumes)");
+      }
+    }
+    if (found.empty() && get(field::space_directions) != nullptr) {
+      const std::vector<std::vector<double>> d = parse_vectors(field::space_directions, 4);
+      for (unsigned a = 0; a < 4; ++a) {
+        if (d[a].empty()) found.push_back(a);
+      }
+      if (found.size() != 1) {
+        fail(field::space_directions,
+             "gives " + std::to_string(4 - found.size()) +
+                 " directions: a 4-D array needs 3 and \"none\" for its series axis");
+      }
+    }
+    const unsigned axis = found.empty() ? 3u : found.front();
+    if (axis != 0 && axis != 3) {
+      throw error(file_.string() + ": the series axis of a 4-D NRRD array is axis " +
+                  std::to_string(axis) + " (sizes " + detail::quoted(given(field::sizes).text) +
+                  "): progiso reads a series whose volumes follow each other (the last axis) or " +
+                  "alternate sample by sample (the first)");
+    }
+    return axis;
+  }
+
+  /// The grid's sizes (the spatial axes), and a 4-D array's volumes.
+  index3 choose_axes(nrrd_header& h) {
+    if (dimension_ == 4) {
+      series_axis_ = series_axis();
+      const std::uint64_t n = sizes_[series_axis_];
+      if (n < 1 || n > static_cast<std::uint64_t>(max_volumes)) {
+        throw error(file_.string() + ": the series axis of the NRRD array holds " +
+                    std::to_string(n) + " volumes, expected 1 to " + std::to_string(max_volumes));
+      }
+      h.volumes = static_cast<std::int64_t>(n);
+      h.interleaved = series_axis_ == 0 && n > 1;
+    }
+    std::vector<std::uint64_t> sizes;
+    for (unsigned a = 0; a < dimension_; ++a) {
+      if (a != series_axis_) sizes.push_back(sizes_[a]);
     }
     const std::string listed =
         std::to_string(sizes[0]) + "," + std::to_string(sizes[1]) + "," + std::to_string(sizes[2]);
@@ -519,6 +582,13 @@ class header_parser {
     }
     return {static_cast<std::int64_t>(sizes[0]), static_cast<std::int64_t>(sizes[1]),
             static_cast<std::int64_t>(sizes[2])};
+  }
+
+  /// The three spatial axes' entries of a per-axis list (every axis's).
+  template <class T>
+  std::vector<T> spatial(std::vector<T> all) const {
+    if (dimension_ == 4) all.erase(all.begin() + series_axis_);
+    return all;
   }
 
   nrrd_encoding parse_encoding() const {
@@ -639,10 +709,16 @@ class header_parser {
   std::array<double, 3> parse_spacing() const {
     std::array<double, 3> spacing{1.0, 1.0, 1.0};
     std::vector<double> scalar(3, std::numeric_limits<double>::quiet_NaN());
-    if (get(field::spacings) != nullptr) scalar = parse_numbers(field::spacings, 3);
+    if (get(field::spacings) != nullptr) {
+      scalar = spatial(parse_numbers(field::spacings, dimension_));
+    }
     std::vector<std::vector<double>> directions(3);
     if (get(field::space_directions) != nullptr) {
-      directions = parse_vectors(field::space_directions, 3);
+      directions = spatial(parse_vectors(field::space_directions, dimension_));
+      if (dimension_ == 4 && !parse_vectors(field::space_directions, 4)[series_axis_].empty()) {
+        fail(field::space_directions, "gives the series axis " + std::to_string(series_axis_) +
+                                          " a direction: expected \"none\" there");
+      }
     }
     for (std::size_t a = 0; a < 3; ++a) {
       double s = std::fabs(scalar[a]);
@@ -659,7 +735,8 @@ class header_parser {
   /// The index-to-space map of nrrd_header::world, when the header declares one.
   std::optional<index_to_world> parse_world(const std::array<double, 3>& origin) const {
     if (get(field::space_directions) == nullptr || space_dimension_ != 3) return std::nullopt;
-    const std::vector<std::vector<double>> directions = parse_vectors(field::space_directions, 3);
+    const std::vector<std::vector<double>> directions =
+        spatial(parse_vectors(field::space_directions, dimension_));
     index_to_world w;
     for (std::size_t c = 0; c < 3; ++c) {
       if (directions.size() <= c || directions[c].size() != 3) return std::nullopt;
@@ -752,7 +829,8 @@ class header_parser {
     return p;
   }
 
-  /// The subdimension of a LIST or pattern form: 1..3, default 2 (one slice per file).
+  /// The subdimension of a LIST or pattern form: 1 to the dimension, default one less (a slice
+  /// of the slowest axis per file).
   unsigned parse_subdimension(std::string_view text) const {
     const auto d = to_integer<unsigned>(text);
     if (!d || *d < 1 || *d > dimension_) {
@@ -763,21 +841,24 @@ class header_parser {
   }
 
   /// Checks that `count` files of `subdim`-dimensional pieces make up the array.
-  void check_pieces(std::uint64_t count, unsigned subdim, const index3& dims) const {
-    if (subdim < 3) {
+  void check_pieces(std::uint64_t count, unsigned subdim) const {
+    std::string listed;
+    for (std::uint64_t n : sizes_) listed += (listed.empty() ? "" : ",") + std::to_string(n);
+    if (subdim < dimension_) {
       std::uint64_t pieces = 1;
-      for (unsigned a = subdim; a < 3; ++a) pieces *= static_cast<std::uint64_t>(dims[a]);
+      for (unsigned a = subdim; a < dimension_; ++a) pieces *= sizes_[a];
       if (count != pieces) {
         fail(field::data_file, "names " + std::to_string(count) + " data files, but sizes " +
-                                   dims_text(dims) + " make " + std::to_string(pieces) + " " +
+                                   listed + " make " + std::to_string(pieces) + " " +
                                    std::to_string(subdim) + "-D pieces");
       }
     } else {
-      const auto slices = static_cast<std::uint64_t>(dims[2]);
+      const std::uint64_t slices = sizes_[dimension_ - 1];
       if (count > slices || slices % count != 0) {
-        fail(field::data_file, "names " + std::to_string(count) +
-                                   " data files of 3-D pieces, which do not divide the " +
-                                   std::to_string(slices) + " slices of the slowest axis");
+        fail(field::data_file, "names " + std::to_string(count) + " data files of " +
+                                   std::to_string(dimension_) +
+                                   "-D pieces, which do not divide the " + std::to_string(slices) +
+                                   " slices of the slowest axis");
       }
     }
   }
@@ -790,7 +871,7 @@ class header_parser {
     return p.is_absolute() ? p : file_.parent_path() / p;
   }
 
-  std::vector<fs::path> parse_data_files(const index3& dims) const {
+  std::vector<fs::path> parse_data_files() const {
     const field_value* v = get(field::data_file);
     if (v == nullptr) return {};
     const std::vector<std::string_view> w = words(v->text);
@@ -804,7 +885,7 @@ class header_parser {
       }
       const unsigned subdim = w.size() == 2 ? parse_subdimension(w[1]) : dimension_ - 1;
       if (lines_.list_names.empty()) fail(field::data_file, "LIST is followed by no file names");
-      check_pieces(lines_.list_names.size(), subdim, dims);
+      check_pieces(lines_.list_names.size(), subdim);
       std::size_t bytes = 0;
       for (const std::string& name : lines_.list_names) bytes += dir_bytes + name.size();
       if (bytes > nrrd_max_name_bytes) {
@@ -846,7 +927,7 @@ class header_parser {
                                  std::to_string(nrrd_max_data_files) + " supported");
     }
     const unsigned subdim = w.size() == 5 ? parse_subdimension(w[4]) : dimension_ - 1;
-    check_pieces(count, subdim, dims);
+    check_pieces(count, subdim);
     const std::uint64_t bytes =
         count * (dir_bytes + pattern->prefix.size() + pattern->suffix.size() + 11 + pattern->width);
     if (bytes > nrrd_max_name_bytes) {
@@ -865,6 +946,8 @@ class header_parser {
   header_lines lines_;
   unsigned dimension_ = 0;
   unsigned space_dimension_ = 0;
+  std::vector<std::uint64_t> sizes_;  ///< every axis's
+  unsigned series_axis_ = 4;          ///< a 4-D array's series axis (4: none)
 };
 
 // =============================================================================================
@@ -1244,6 +1327,26 @@ std::vector<std::byte> read_nrrd_samples(const nrrd_header& header, input_file& 
   }
 
   // Pass 2: decode the chosen volume's bytes, [first, first + bytes) of the data, in place.
+  // Interleaved volumes are decoded whole and volume `volume` gathered from them: the file holds
+  // every volume's samples (the capacity checks saw to that), so memory follows the data.
+  if (header.interleaved) {
+    if (plan.total > std::numeric_limits<std::size_t>::max()) {
+      throw error(header_file.path().string() + ": the declared " + std::to_string(plan.total) +
+                  " bytes do not fit in memory");
+    }
+    nrrd_header whole = header;
+    whole.interleaved = false;
+    whole.dims = {header.dims[0] * header.volumes, header.dims[1], header.dims[2]};
+    whole.volumes = 1;
+    const std::vector<std::byte> all = read_nrrd_samples(whole, header_file, 0);
+    std::vector<std::byte> samples(static_cast<std::size_t>(bytes));
+    const auto stride = static_cast<std::size_t>(header.volumes) * item;
+    const std::byte* from = all.data() + static_cast<std::size_t>(volume) * item;
+    for (std::size_t at = 0; at < samples.size(); at += item, from += stride) {
+      std::memcpy(samples.data() + at, from, item);
+    }
+    return samples;
+  }
   std::vector<std::byte> samples(static_cast<std::size_t>(bytes));
   const std::span<std::byte> all(samples);
   const std::uint64_t first = static_cast<std::uint64_t>(volume) * bytes;

@@ -133,9 +133,11 @@ std::int64_t pick_volume(const fs::path& file, std::int64_t volumes, const volum
   return k;
 }
 
-/// Where a text header gives its count of volumes (pick_volume()).
-std::string_view volumes_field(volume_format format) {
-  return format == volume_format::metaimage ? "DimSize[3]" : "sizes";
+/// Where a text header gives its count of volumes (pick_volume()): a MetaImage's fourth DimSize,
+/// a 4-D NRRD's series axis (the first or the last of its sizes).
+std::string_view volumes_field(volume_format format, const detail::nrrd_header& header) {
+  if (format == volume_format::metaimage) return "DimSize[3]";
+  return header.interleaved ? "sizes[0]" : "sizes[3]";
 }
 
 volume read_text_header_volume(const fs::path& file, volume_format format,
@@ -143,7 +145,7 @@ volume read_text_header_volume(const fs::path& file, volume_format format,
                                const volume_choice& choice) {
   detail::input_file in(file, format_kind(format));
   const detail::nrrd_header header = parse_text_header(in, format);
-  const std::int64_t k = pick_volume(file, header.volumes, choice, volumes_field(format));
+  const std::int64_t k = pick_volume(file, header.volumes, choice, volumes_field(format, header));
   std::vector<std::byte> samples = detail::read_nrrd_samples(header, in, k);
   return make_volume(file, header.dims, header.type, std::move(samples),
                      spacing.value_or(header.spacing), header.origin);
@@ -215,8 +217,8 @@ volume read_raw(const std::filesystem::path& file, const raw_layout& layout,
 // ---------------------------------------------------------------------------------------------
 // NRRD and NIfTI files, and dispatch.
 
-volume read_nrrd(const std::filesystem::path& file) {
-  return read_text_header_volume(file, volume_format::nrrd, std::nullopt, {});
+volume read_nrrd(const std::filesystem::path& file, const volume_choice& choice) {
+  return read_text_header_volume(file, volume_format::nrrd, std::nullopt, choice);
 }
 
 volume read_metaimage(const std::filesystem::path& file, const volume_choice& choice) {
@@ -298,7 +300,7 @@ std::optional<index_to_world> read_volume_world(const std::filesystem::path& fil
   }
   detail::input_file in(file, format_kind(format));
   const detail::nrrd_header header = parse_text_header(in, format);
-  (void)pick_volume(file, header.volumes, choice, volumes_field(format));
+  (void)pick_volume(file, header.volumes, choice, volumes_field(format, header));
   return header.world;
 }
 
@@ -333,7 +335,7 @@ std::vector<std::filesystem::path> volume_input_files(const std::filesystem::pat
   }
   detail::input_file in(file, format_kind(format));
   detail::nrrd_header header = parse_text_header(in, format);
-  (void)pick_volume(file, header.volumes, choice, volumes_field(format));
+  (void)pick_volume(file, header.volumes, choice, volumes_field(format, header));
   std::vector<std::filesystem::path> files;
   files.reserve(1 + header.data_files.size());
   files.push_back(file);

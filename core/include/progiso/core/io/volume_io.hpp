@@ -54,7 +54,8 @@ namespace progiso {
 /// for an unchosen directory gives (series ordered by UID); for a NIfTI time series (dim[4] > 1:
 /// fMRI, diffusion, perfusion), `volume` is the index of one of its 3-D volumes, 0-based (the
 /// index FSL, AFNI and nibabel give), and the same for a MetaImage series (NDims 4, the fourth
-/// size > 1). Empty: the input must hold one, which `volume` 0 also names for any input.
+/// size > 1) and a 4-D NRRD (its series axis, see read_nrrd()). Empty: the input must hold one,
+/// which `volume` 0 also names for any input.
 struct volume_choice {
   std::optional<std::string> series = {};
   std::optional<std::int64_t> volume = {};
@@ -76,7 +77,11 @@ struct raw_layout {
                               std::array<double, 3> origin = {0.0, 0.0, 0.0});
 
 /// Reads a NRRD file (.nrrd, or a .nhdr header with its detached data files). The array must
-/// have exactly 3 axes of 2 to 32769 samples each, and one of the sample types u8 i8 u16 i16
+/// have 3 axes of 2 to 32769 samples each, or 4 of which one is a series of volumes (the one
+/// axis whose kind is not domain or space, else the one whose space direction is "none", else
+/// the last; it must be the first, as in diffusion MRI, or the last, as in Slicer's sequences):
+/// `choice.volume` picks one, which must exist, and is required when there are several. The
+/// sample type must be one of u8 i8 u16 i16
 /// u32 i32 f32 f64 (every NRRD spelling of them); the encoding raw, gzip, ascii or hex.
 /// Spacing per axis is the length of the axis' "space directions" vector when present, else
 /// the magnitude of its "spacings" entry; an unknown, zero or non-finite spacing becomes 1.
@@ -85,7 +90,7 @@ struct raw_layout {
 /// a header that does not parse, data that cannot hold the declared size, data that ends
 /// early or is corrupt. See docs/ARCHITECTURE.md "Reading NRRD" for the accepted features and
 /// the bounds.
-[[nodiscard]] volume read_nrrd(const std::filesystem::path& file);
+[[nodiscard]] volume read_nrrd(const std::filesystem::path& file, const volume_choice& choice = {});
 
 /// An affine map from grid indices to scanner (world) coordinates: world = m · (i, j, k, 1).
 struct index_to_world {

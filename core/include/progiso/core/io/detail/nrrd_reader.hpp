@@ -61,6 +61,10 @@ struct nrrd_header {
   /// Volumes of dims each, one after the other in the data (a MetaImage of NDims 4); 1 for a
   /// single volume.
   std::int64_t volumes = 1;
+  /// The volumes' axis is the fastest (a 4-D NRRD whose first axis is the list, as diffusion
+  /// MRI holds one value per gradient direction per voxel): the volumes' samples alternate, and
+  /// volume k is every volumes-th sample from the k-th. Otherwise the volumes follow each other.
+  bool interleaved = false;
   sample_type type = sample_type::u8;
   nrrd_encoding encoding = nrrd_encoding::raw;
   bool big_endian = false;     ///< byte order of raw, gzip and hex data (samples > 1 byte)
