@@ -611,6 +611,16 @@ TEST_F(Cli, vti_input_gives_the_surface_of_the_same_samples_as_raw) {
     f.block_bytes = 100;
     expect_same_mesh(f.write(dir_, "cube" + std::to_string(m)), want);
   }
+  // The same cube as a .pvti of three pieces (sharing a layer of points, as VTK's do).
+  test::vti_file whole;
+  whole.extent = {0, 8, 0, 8, 0, 8};
+  whole.samples = samples;
+  whole.origin = "0 0 0";
+  whole.spacing = "2 1.5 0.5";
+  expect_same_mesh(test::write_pvti(dir_, "cube", whole,
+                                    {{0, 4, 0, 8, 0, 8}, {4, 8, 0, 3, 0, 8}, {4, 8, 3, 8, 0, 8}},
+                                    test::vti_file::mode::appended_raw),
+                   want);
   // --world: Direction swaps x and y (a mirror), after Spacing, plus Origin; the winding of
   // every triangle is reversed.
   test::vti_file turned;

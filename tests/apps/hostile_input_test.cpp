@@ -198,7 +198,19 @@ TEST_F(Hostile, declared_sizes_beyond_the_data_fail_before_allocating) {
     f.pixels.resize(4096);
     f.write(series, "IM" + std::to_string(k));
   }
-  for (const fs::path& in : {raw, gz, nii, nii_gz, mha, mhd, vtk, vti, vti_z, series}) {
+  // And a .pvti of 2000 × 2000 × 1000 points whose one piece holds 8.
+  write("small.vti",
+        "<VTKFile type=\"ImageData\"><ImageData WholeExtent=\"0 1 0 1 0 1\">"
+        "<Piece Extent=\"0 1 0 1 0 1\"><PointData><DataArray type=\"UInt8\" "
+        "Name=\"s\" format=\"ascii\">1 2 3 4 5 6 7 8</DataArray></PointData>"
+        "</Piece></ImageData></VTKFile>\n");
+  const fs::path pvti =
+      write("big.pvti",
+            "<VTKFile type=\"PImageData\"><PImageData WholeExtent=\"0 1999 0 1999 "
+            "0 999\"><PPointData><PDataArray type=\"UInt8\" Name=\"s\"/>"
+            "</PPointData><Piece Extent=\"0 1 0 1 0 1\" Source=\"small.vti\"/>"
+            "</PImageData></VTKFile>\n");
+  for (const fs::path& in : {raw, gz, nii, nii_gz, mha, mhd, vtk, vti, vti_z, pvti, series}) {
     const auto before = snapshot();
     const bounded_result r =
         run({"extract", in.string(), "--iso", "1", "-o", path("o.ply").string()},
@@ -296,6 +308,20 @@ TEST_F(Hostile, devices_and_fifos_are_refused_at_once) {
                              "ElementDataFile = LIST\nd.raw\nz.raw\n");
   expect_refused({"extract", mhd.string(), "--iso", "5", "-o", path("o.ply").string()},
                  "d.raw: expected a regular MetaImage data file, found a FIFO", quick);
+  // A .pvti whose pieces are a FIFO and /dev/zero.
+  ASSERT_EQ(::mkfifo(path("p0.vti").c_str(), 0600), 0);
+  fs::create_symlink("/dev/zero", path("p1.vti"));
+  for (const std::string piece : {"p0.vti", "p1.vti"}) {
+    const fs::path pvti =
+        write("v.pvti",
+              "<VTKFile type=\"PImageData\"><PImageData WholeExtent=\"0 3 0 3 0 3\">"
+              "<PPointData><PDataArray type=\"UInt8\" Name=\"s\"/></PPointData>"
+              "<Piece Extent=\"0 3 0 3 0 3\" Source=\"" +
+                  piece + "\"/></PImageData></VTKFile>\n");
+    expect_refused({"extract", pvti.string(), "--iso", "5", "-o", path("o.ply").string()},
+                   piece + ": expected a regular VTK XML piece file", quick);
+    fs::remove(pvti);
+  }
 }
 
 // ---- 4. Outputs never destroy data and are never left half-made.

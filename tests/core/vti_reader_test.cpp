@@ -35,6 +35,7 @@ namespace fs = std::filesystem;
 using progiso::sample_type;
 using progiso::test::contains;
 using progiso::test::vti_file;
+using progiso::test::write_pvti;
 constexpr auto error_naming = [](const fs::path& file, auto&& f) {
   return progiso::test::error_message_naming(file, f);
 };
@@ -56,6 +57,12 @@ void expect_samples(const fs::path& file, const vti_file& f) {
   const progiso::volume v = progiso::read_vti(file);
   EXPECT_EQ(v.dims(), (progiso::index3{5, 4, 3})) << file;
   EXPECT_EQ(v.type(), f.type) << file;
+  ASSERT_EQ(v.byte_size(), f.samples.size()) << file;
+  EXPECT_EQ(std::memcmp(v.bytes(), f.samples.data(), f.samples.size()), 0) << file;
+}
+
+void expect_samples_in(const fs::path& file, const vti_file& f) {
+  const progiso::volume v = progiso::read_volume(file, std::nullopt, std::nullopt);
   ASSERT_EQ(v.byte_size(), f.samples.size()) << file;
   EXPECT_EQ(std::memcmp(v.bytes(), f.samples.data(), f.samples.size()), 0) << file;
 }
@@ -153,7 +160,7 @@ TEST(VtiReader, refuses_hostile_documents_with_one_line_naming_the_file) {
   expect_error("poly", replaced(good, "\"ImageData\" version", "\"PolyData\" version"),
                "\"PolyData\" is not supported");
   expect_error("pvti", replaced(good, "\"ImageData\" version", "\"PImageData\" version"),
-               "read one of them");
+               "give it the name .pvti");
   expect_error("version",
                replaced(good, "ImageData\" version=\"1.0\"", "ImageData\" version=\"7\""),
                "version");
@@ -227,6 +234,96 @@ TEST(VtiReader, refuses_hostile_documents_with_one_line_naming_the_file) {
   ASSERT_NE(data_at, std::string::npos);
   broken[data_at + 6] = broken[data_at + 6] == 'A' ? 'B' : 'A';
   expect_error("corrupt", broken, "corrupt compressed block");
+}
+
+TEST(VtiReader, a_pvti_assembles_its_pieces_in_every_mode_and_type) {
+  scratch_dir dir;
+  unsigned seed = 300;
+  // VTK's pieces share a layer of points: x 2..4 and 4..6, then y and z cut the rest.
+  const std::vector<std::array<int, 6>> pieces{
+      {2, 4, -1, 2, 10, 12}, {4, 6, -1, 0, 10, 12}, {4, 6, 0, 2, 10, 11}, {4, 6, 0, 2, 11, 12}};
+  for (const auto& t : progiso::test::vti_types) {
+    for (int m = 0; m < 4; ++m) {
+      vti_file whole = file_of(t, seed++);
+      whole.extent = {2, 6, -1, 2, 10, 12};
+      whole.samples = progiso::test::random_samples(t.type, whole.count(), seed);
+      const fs::path file = write_pvti(dir.path(), "p" + std::to_string(seed), whole, pieces,
+                                       static_cast<vti_file::mode>(m));
+      SCOPED_TRACE(file.string());
+      const progiso::volume v = progiso::read_volume(file, std::nullopt, std::nullopt);
+      EXPECT_EQ(v.dims(), (progiso::index3{5, 4, 3}));
+      EXPECT_EQ(v.type(), t.type);
+      ASSERT_EQ(v.byte_size(), whole.samples.size());
+      EXPECT_EQ(std::memcmp(v.bytes(), whole.samples.data(), whole.samples.size()), 0);
+      // The extent's first point, as for a .vti.
+      EXPECT_EQ(v.origin(), (std::array<double, 3>{-2.0, 2.5, 112.5}));
+      const std::vector<fs::path> inputs = progiso::volume_input_files(file, std::nullopt);
+      ASSERT_EQ(inputs.size(), 5u);
+      EXPECT_EQ(inputs[0], file);
+      EXPECT_EQ(inputs[4], dir / ("p" + std::to_string(seed) + "_3.vti"));
+    }
+  }
+  EXPECT_TRUE(progiso::read_volume_world(dir / ("p" + std::to_string(seed) + ".pvti"), std::nullopt)
+                  .has_value());
+}
+
+TEST(VtiReader, a_pvti_refuses_pieces_that_do_not_make_its_grid) {
+  scratch_dir dir;
+  vti_file whole = file_of(progiso::test::vti_types[1], 77);
+  const std::vector<std::array<int, 6>> halves{{0, 2, 0, 3, 0, 2}, {2, 4, 0, 3, 0, 2}};
+  // The message starts with the file at fault: the .pvti, or the piece's (then it names the
+  // .pvti too).
+  const auto refused = [&](const fs::path& file, const std::string& what,
+                           const fs::path& at_fault = {}) {
+    const std::string m = progiso::test::error_message_naming(
+        at_fault.empty() ? file : at_fault,
+        [&] { (void)progiso::read_volume(file, std::nullopt, std::nullopt); });
+    EXPECT_TRUE(contains(m, what)) << file << ": " << m;
+    if (!at_fault.empty()) {
+      EXPECT_TRUE(contains(m, "named by " + file.string())) << m;
+    }
+  };
+  const fs::path good = write_pvti(dir.path(), "good", whole, halves, vti_file::mode::binary);
+  expect_samples_in(good, whole);
+  EXPECT_EQ(progiso::read_pvti(good).dims(), (progiso::index3{5, 4, 3}));
+  // A gap: x = 2 in no piece (the pieces still hold enough bytes between them: a third piece
+  // repeats the first).
+  const fs::path gap =
+      write_pvti(dir.path(), "gap", whole,
+                 {{0, 1, 0, 3, 0, 2}, {3, 4, 0, 3, 0, 2}, {0, 1, 0, 3, 0, 2}, {0, 1, 0, 3, 0, 2}},
+                 vti_file::mode::ascii);
+  refused(gap, "point (2, 0, 0) of the WholeExtent lies in no piece");
+  refused(write_pvti(dir.path(), "few", whole, {{0, 2, 0, 3, 0, 2}}, vti_file::mode::binary),
+          "fewer than the 60 of the WholeExtent");
+  // A piece outside the grid, a piece whose file says another extent, a missing file.
+  refused(write_pvti(dir.path(), "outside", whole, {{0, 2, 0, 3, 0, 2}, {2, 5, 0, 3, 0, 2}},
+                     vti_file::mode::binary),
+          "piece extent 2 5 0 3 0 2 does not lie in the WholeExtent 0 4 0 3 0 2");
+  fs::path shifted = write_pvti(dir.path(), "shifted", whole, halves, vti_file::mode::binary);
+  {
+    std::string t = progiso::test::read_whole_file(shifted);
+    t = replaced(t, "Extent=\"2 4 0 3 0 2\"", "Extent=\"2 4 0 3 0 1\"");
+    progiso::test::write_file(shifted, t);
+  }
+  refused(shifted, "but the .pvti gives the piece the extent 2 4 0 3 0 1", dir / "shifted_1.vti");
+  refused(write_pvti(dir.path(), "missing", whole, halves, vti_file::mode::binary,
+                     "    <Piece Extent=\"0 1 0 1 0 1\" Source=\"nowhere.vti\"/>\n"),
+          "piece 3 of 3 named by", dir / "nowhere.vti");
+  // The array the .pvti names, of another type in a piece.
+  fs::path typed = write_pvti(dir.path(), "typed", whole, halves, vti_file::mode::binary);
+  {
+    std::string t = progiso::test::read_whole_file(typed);
+    t = replaced(t, "<PDataArray type=\"UInt8\"", "<PDataArray type=\"Int16\"");
+    progiso::test::write_file(typed, t);
+  }
+  refused(typed, "but the .pvti declares it i16", dir / "typed_0.vti");
+  // A .vti named .pvti and the other way round.
+  const fs::path single = dir / "single.pvti";
+  fs::copy_file(whole.write(dir.path(), "single"), single);
+  refused(single, "name a single image .vti");
+  const fs::path parallel = dir / "parallel.vti";
+  fs::copy_file(good, parallel);
+  refused(parallel, "give it the name .pvti");
 }
 
 TEST(VtiReader, refuses_declarations_beyond_the_file_without_allocating_them) {

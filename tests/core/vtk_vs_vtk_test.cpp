@@ -129,4 +129,34 @@ TEST(VtiVsVtk, vtk_reads_the_hand_written_files_as_progiso_does) {
   }
 }
 
+TEST(VtiVsVtk, reads_every_pvti_vtks_parallel_writer_makes_as_vtks_reader_does) {
+  progiso::test::scratch_dir dir("progiso-vti-vtk-test-");
+  const std::array<int, 6> extent{-4, 5, 0, 6, 1, 4};  // 10 × 7 × 4 points
+  const std::size_t count = 10 * 7 * 4;
+  unsigned seed = 500;
+  for (const auto& t : progiso::test::vti_types) {
+    for (int m = 0; m < 3; ++m) {
+      for (const int pieces : {1, 3, 5}) {
+        vtk_vti_options o;
+        o.mode = m == 0   ? vtk_vti_options::data_mode::ascii
+                 : m == 1 ? vtk_vti_options::data_mode::binary
+                          : vtk_vti_options::data_mode::appended;
+        o.zlib = pieces != 3;
+        const std::vector<std::byte> samples = progiso::test::random_samples(t.type, count, seed);
+        const fs::path file = dir / ("p" + std::to_string(seed++) + ".pvti");
+        ASSERT_TRUE(progiso::test::write_pvti_with_vtk(file.string(), pieces, o, t.name, samples,
+                                                       extent, {0.5, 2.0, 1.25},
+                                                       {-3.0, 4.5, 100.0}));
+        SCOPED_TRACE(file.string());
+        const progiso::volume v = progiso::read_pvti(file);
+        ASSERT_EQ(v.byte_size(), samples.size());
+        EXPECT_EQ(std::memcmp(v.bytes(), samples.data(), samples.size()), 0);
+        expect_same(progiso::test::read_pvti_with_vtk(file.string()), v);
+        EXPECT_EQ(progiso::volume_input_files(file, std::nullopt).size(),
+                  static_cast<std::size_t>(pieces) + 1);
+      }
+    }
+  }
+}
+
 }  // namespace

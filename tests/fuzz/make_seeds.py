@@ -3,7 +3,7 @@
 
     make_seeds.py OUT_DIR [SHARED_DATA_DIR]
 
-writes OUT_DIR/<harness>/<name> for the harnesses raw, extract, nrrd, nifti, metaimage, vtk, vti, dicom, pgm, png, ply, obj and cli: small
+writes OUT_DIR/<harness>/<name> for the harnesses raw, extract, nrrd, nifti, metaimage, vtk, vti, pvti, dicom, pgm, png, ply, obj and cli: small
 valid files of every kind the readers accept, and the hostile cases of issue 11 (printf field
 widths in data file names, declared sizes far beyond the data, NaN samples, numbers beyond
 their types …). With SHARED_DATA_DIR (../shared/data), it adds crops of the real volumes and
@@ -304,6 +304,17 @@ def vti_seeds(out, crops):
     put(out, "vti", "declared_32769_cubed", big.replace(struct.pack("<Q", 0), struct.pack("<Q", declared), 1))
     for name, (dims, data) in crops.items():
         put(out, "vti", "shared_%s" % name, vti_file(dims, "UInt8", data, "raw", zlib_blocks=4096))
+
+    # .pvti: the pieces p0.vti and p1.vti (the same bytes, after "\0DATA\0": both cover x 0..2).
+    piece = vti_file((3, 4, 4), "UInt8", bytes((x * 7 + y * 13 + z * 29) % 251 for z in range(4) for y in range(4) for x in range(3)), "raw")
+    pvti = ('<?xml version="1.0"?>\n<VTKFile type="PImageData" version="1.0" byte_order="LittleEndian" header_type="UInt32">\n'
+            '<PImageData WholeExtent="%s" Origin="-3 4.5 100" Spacing="0.5 2 1.25">\n'
+            '<PPointData Scalars="s"><PDataArray type="UInt8" Name="s"/></PPointData>\n'
+            '<Piece Extent="0 2 0 3 0 3" Source="p0.vti"/>\n<Piece Extent="0 2 0 3 0 3" Source="p1.vti"/>\n'
+            '</PImageData>\n</VTKFile>\n')
+    put(out, "pvti", "two_pieces", (pvti % "0 2 0 3 0 3").encode() + b"\0DATA\0" + piece)
+    put(out, "pvti", "gap", (pvti % "0 3 0 3 0 3").encode() + b"\0DATA\0" + piece)
+    put(out, "pvti", "declared_2000x2000x1000", (pvti % "0 1999 0 1999 0 999").encode() + b"\0DATA\0" + piece)
 
 
 # ---- dicom: series of slice files "s0 \0NEXT\0 s1 \0NEXT\0 ...".

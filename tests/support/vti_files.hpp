@@ -184,4 +184,54 @@ struct vti_file {
   }
 };
 
+/// Writes `whole` as a .pvti of pieces with the given extents (each a .vti of the samples it
+/// covers, in mode `how`), the pieces' Source names relative; returns the .pvti.
+inline std::filesystem::path write_pvti(const std::filesystem::path& dir, const std::string& stem,
+                                        const vti_file& whole,
+                                        const std::vector<std::array<int, 6>>& pieces,
+                                        vti_file::mode how, const std::string& extra_piece = "") {
+  const auto& w = whole.extent;
+  const std::size_t item = sample_size(whole.type);
+  const auto nx = static_cast<std::size_t>(w[1] - w[0] + 1);
+  const auto ny = static_cast<std::size_t>(w[3] - w[2] + 1);
+  std::string ext;
+  for (int e : w) ext += (ext.empty() ? "" : " ") + std::to_string(e);
+  std::string text =
+      "<?xml version=\"1.0\"?>\n<VTKFile type=\"PImageData\" version=\"1.0\" "
+      "byte_order=\"LittleEndian\" header_type=\"UInt32\">\n"
+      "  <PImageData WholeExtent=\"" +
+      ext + "\" GhostLevel=\"0\" Origin=\"" + whole.origin + "\" Spacing=\"" + whole.spacing +
+      "\">\n"
+      "    <PPointData Scalars=\"density\">\n"
+      "      <PDataArray type=\"Float32\" Name=\"decoy\"/>\n"
+      "      <PDataArray type=\"" +
+      std::string(whole.type_name) + "\" Name=\"density\"/>\n    </PPointData>\n";
+  for (std::size_t k = 0; k < pieces.size(); ++k) {
+    vti_file f = whole;
+    f.extent = pieces[k];
+    f.how = how;
+    f.samples.clear();
+    for (int z = f.extent[4]; z <= f.extent[5]; ++z) {
+      for (int y = f.extent[2]; y <= f.extent[3]; ++y) {
+        for (int x = f.extent[0]; x <= f.extent[1]; ++x) {
+          const std::size_t at =
+              static_cast<std::size_t>(x - w[0]) +
+              nx * (static_cast<std::size_t>(y - w[2]) + ny * static_cast<std::size_t>(z - w[4]));
+          f.samples.insert(f.samples.end(), whole.samples.begin() + static_cast<long>(at * item),
+                           whole.samples.begin() + static_cast<long>((at + 1) * item));
+        }
+      }
+    }
+    const std::string name = stem + "_" + std::to_string(k);
+    f.write(dir, name);
+    std::string pe;
+    for (int e : f.extent) pe += (pe.empty() ? "" : " ") + std::to_string(e);
+    text += "    <Piece Extent=\"" + pe + "\" Source=\"" + name + ".vti\"/>\n";
+  }
+  text += extra_piece + "  </PImageData>\n</VTKFile>\n";
+  const std::filesystem::path file = dir / (stem + ".pvti");
+  write_file(file, text);
+  return file;
+}
+
 }  // namespace progiso::test

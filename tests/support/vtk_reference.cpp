@@ -12,6 +12,8 @@
 #include <vtkType.h>
 #include <vtkXMLImageDataReader.h>
 #include <vtkXMLImageDataWriter.h>
+#include <vtkXMLPImageDataReader.h>
+#include <vtkXMLPImageDataWriter.h>
 
 namespace progiso::test {
 namespace {
@@ -71,11 +73,15 @@ vtk_reference_volume read_with_vtk(const std::string& file) {
   return reference_of(reader->GetOutput());
 }
 
-bool write_vti_with_vtk(const std::string& file, const vtk_vti_options& options,
-                        const std::string& type_name, const std::vector<std::byte>& samples,
-                        const std::array<int, 6>& extent, const std::array<double, 3>& spacing,
-                        const std::array<double, 3>& origin) {
-  vtkNew<vtkImageData> image;
+namespace {
+
+/// The image write_vti_with_vtk() writes; null when the samples do not fit the extent.
+vtkSmartPointer<vtkImageData> image_of(const std::string& type_name,
+                                       const std::vector<std::byte>& samples,
+                                       const std::array<int, 6>& extent,
+                                       const std::array<double, 3>& spacing,
+                                       const std::array<double, 3>& origin) {
+  auto image = vtkSmartPointer<vtkImageData>::New();
   image->SetExtent(extent[0], extent[1], extent[2], extent[3], extent[4], extent[5]);
   image->SetSpacing(spacing[0], spacing[1], spacing[2]);
   image->SetOrigin(origin[0], origin[1], origin[2]);
@@ -86,7 +92,7 @@ bool write_vti_with_vtk(const std::string& file, const vtk_vti_options& options,
   a->SetNumberOfTuples(n);
   if (static_cast<std::size_t>(n) * static_cast<std::size_t>(a->GetDataTypeSize()) !=
       samples.size()) {
-    return false;
+    return nullptr;
   }
   std::memcpy(a->GetVoidPointer(0), samples.data(), samples.size());
   vtkSmartPointer<vtkDataArray> decoy =
@@ -96,10 +102,11 @@ bool write_vti_with_vtk(const std::string& file, const vtk_vti_options& options,
   for (vtkIdType i = 0; i < n; ++i) decoy->SetTuple1(i, -0.25 * static_cast<double>(i));
   image->GetPointData()->AddArray(decoy);
   image->GetPointData()->SetScalars(a);
+  return image;
+}
 
-  vtkNew<vtkXMLImageDataWriter> w;
-  w->SetInputData(image);
-  w->SetFileName(file.c_str());
+/// A writer (serial or parallel) set up as `options` say.
+void set_up(vtkXMLWriter* w, const vtk_vti_options& options) {
   switch (options.mode) {
     case vtk_vti_options::data_mode::ascii:
       w->SetDataModeToAscii();
@@ -123,11 +130,49 @@ bool write_vti_with_vtk(const std::string& file, const vtk_vti_options& options,
     w->SetHeaderTypeToUInt32();
   }
   w->SetBlockSize(static_cast<size_t>(options.block_bytes));
+}
+
+}  // namespace
+
+bool write_vti_with_vtk(const std::string& file, const vtk_vti_options& options,
+                        const std::string& type_name, const std::vector<std::byte>& samples,
+                        const std::array<int, 6>& extent, const std::array<double, 3>& spacing,
+                        const std::array<double, 3>& origin) {
+  const vtkSmartPointer<vtkImageData> image = image_of(type_name, samples, extent, spacing, origin);
+  if (image == nullptr) return false;
+  vtkNew<vtkXMLImageDataWriter> w;
+  w->SetInputData(image);
+  w->SetFileName(file.c_str());
+  set_up(w, options);
+  return w->Write() == 1;
+}
+
+bool write_pvti_with_vtk(const std::string& file, int pieces, const vtk_vti_options& options,
+                         const std::string& type_name, const std::vector<std::byte>& samples,
+                         const std::array<int, 6>& extent, const std::array<double, 3>& spacing,
+                         const std::array<double, 3>& origin) {
+  const vtkSmartPointer<vtkImageData> image = image_of(type_name, samples, extent, spacing, origin);
+  if (image == nullptr) return false;
+  vtkNew<vtkXMLPImageDataWriter> w;
+  w->SetInputData(image);
+  w->SetFileName(file.c_str());
+  w->SetNumberOfPieces(pieces);
+  w->SetStartPiece(0);
+  w->SetEndPiece(pieces - 1);
+  set_up(w, options);
   return w->Write() == 1;
 }
 
 vtk_reference_volume read_vti_with_vtk(const std::string& file) {
   vtkNew<vtkXMLImageDataReader> reader;
+  reader->SetFileName(file.c_str());
+  reader->Update();
+  if (reader->GetErrorCode() != 0) return {};
+  return reference_of(reader->GetOutput());
+}
+
+vtk_reference_volume read_pvti_with_vtk(const std::string& file) {
+  vtkNew<vtkXMLPImageDataReader> reader;
   reader->SetFileName(file.c_str());
   reader->Update();
   if (reader->GetErrorCode() != 0) return {};

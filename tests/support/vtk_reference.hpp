@@ -43,6 +43,16 @@ bool write_vti_with_vtk(const std::string& file, const vtk_vti_options& options,
                         const std::array<int, 6>& extent, const std::array<double, 3>& spacing,
                         const std::array<double, 3>& origin);
 
+/// Writes `file` (.pvti) and its `pieces` piece files with vtkXMLPImageDataWriter, from the same
+/// image write_vti_with_vtk() makes. Returns whether VTK wrote them.
+bool write_pvti_with_vtk(const std::string& file, int pieces, const vtk_vti_options& options,
+                         const std::string& type_name, const std::vector<std::byte>& samples,
+                         const std::array<int, 6>& extent, const std::array<double, 3>& spacing,
+                         const std::array<double, 3>& origin);
+
+/// Reads a .pvti with vtkXMLPImageDataReader, as read_vti_with_vtk() reads a .vti.
+vtk_reference_volume read_pvti_with_vtk(const std::string& file);
+
 /// Reads `file` with vtkXMLImageDataReader: the active point scalars (else the first point
 /// array), the dimensions, spacing and the position of the first point (dims, spacing, origin);
 /// ok is false when VTK reports an error or finds no point array.

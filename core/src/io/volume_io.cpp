@@ -49,7 +49,7 @@ volume make_volume(const fs::path& file, const index3& dims, sample_type type,
   }
 }
 
-enum class volume_format { nrrd, nifti, metaimage, vtk_legacy, vti, dicom };
+enum class volume_format { nrrd, nifti, metaimage, vtk_legacy, vti, pvti, dicom };
 
 /// The format a file name asks for; throws "FILE: unknown volume format (…)" for any other.
 volume_format format_of(const fs::path& file) {
@@ -63,11 +63,13 @@ volume_format format_of(const fs::path& file) {
   if (detail::has_metaimage_name(file)) return volume_format::metaimage;
   if (detail::has_vtk_legacy_name(file)) return volume_format::vtk_legacy;
   if (detail::has_vti_name(file)) return volume_format::vti;
+  if (detail::has_pvti_name(file)) return volume_format::pvti;
   const std::string ext = lower_extension(file);
   if (ext == ".nrrd" || ext == ".nhdr") return volume_format::nrrd;
-  throw error(file.string() +
-              ": unknown volume format (expected .nrrd, .nhdr, .nii, .nii.gz, .hdr, .mha, .mhd, "
-              ".vtk, .vti, a directory of DICOM files, or a raw file with --dims and --type)");
+  throw error(
+      file.string() +
+      ": unknown volume format (expected .nrrd, .nhdr, .nii, .nii.gz, .hdr, .mha, .mhd, "
+      ".vtk, .vti, .pvti, a directory of DICOM files, or a raw file with --dims and --type)");
 }
 
 /// The header of a NRRD, MetaImage or legacy VTK file (each reads its data through
@@ -81,6 +83,7 @@ detail::nrrd_header parse_text_header(detail::input_file& in, volume_format form
     case volume_format::nrrd:
     case volume_format::nifti:
     case volume_format::vti:
+    case volume_format::pvti:
     case volume_format::dicom:
       break;
   }
@@ -94,6 +97,7 @@ std::string_view format_kind(volume_format format) {
     case volume_format::vtk_legacy:
       return "VTK";
     case volume_format::vti:
+    case volume_format::pvti:
       return "VTK XML";
     case volume_format::nrrd:
     case volume_format::nifti:
@@ -168,6 +172,14 @@ volume read_vti_with(const fs::path& file, const std::optional<std::array<double
                      spacing.value_or(header.spacing), header.origin);
 }
 
+volume read_pvti_with(const fs::path& file, const std::optional<std::array<double, 3>>& spacing) {
+  detail::input_file in(file, "VTK XML");
+  const detail::pvti_header header = detail::parse_pvti_header(in);
+  std::vector<std::byte> samples = detail::read_pvti_samples(header, file);
+  return make_volume(file, header.dims, header.type, std::move(samples),
+                     spacing.value_or(header.spacing), header.origin);
+}
+
 volume read_nifti_with(const fs::path& file, const std::optional<std::array<double, 3>>& spacing,
                        const volume_choice& choice) {
   const detail::nifti_header header = detail::read_nifti_header(file);
@@ -235,6 +247,8 @@ volume read_vtk_legacy(const std::filesystem::path& file) {
 
 volume read_vti(const std::filesystem::path& file) { return read_vti_with(file, std::nullopt); }
 
+volume read_pvti(const std::filesystem::path& file) { return read_pvti_with(file, std::nullopt); }
+
 volume read_nifti(const std::filesystem::path& file, const volume_choice& choice) {
   return read_nifti_with(file, std::nullopt, choice);
 }
@@ -256,6 +270,10 @@ volume read_volume(const std::filesystem::path& file, const std::optional<raw_la
   if (format == volume_format::vti) {
     (void)pick_volume(file, 1, choice);
     return read_vti_with(file, spacing);
+  }
+  if (format == volume_format::pvti) {
+    (void)pick_volume(file, 1, choice);
+    return read_pvti_with(file, spacing);
   }
   return read_text_header_volume(file, format, spacing, choice);
 }
@@ -298,6 +316,11 @@ std::optional<index_to_world> read_volume_world(const std::filesystem::path& fil
     detail::input_file in(file, "VTK XML");
     return detail::parse_vti_header(in).world;
   }
+  if (format == volume_format::pvti) {
+    (void)pick_volume(file, 1, choice);
+    detail::input_file in(file, "VTK XML");
+    return detail::parse_pvti_header(in).world;
+  }
   detail::input_file in(file, format_kind(format));
   const detail::nrrd_header header = parse_text_header(in, format);
   (void)pick_volume(file, header.volumes, choice, volumes_field(format, header));
@@ -332,6 +355,14 @@ std::vector<std::filesystem::path> volume_input_files(const std::filesystem::pat
     detail::input_file in(file, "VTK XML");
     (void)detail::parse_vti_header(in);
     return {file};
+  }
+  if (format == volume_format::pvti) {
+    (void)pick_volume(file, 1, choice);
+    detail::input_file in(file, "VTK XML");
+    detail::pvti_header header = detail::parse_pvti_header(in);
+    std::vector<std::filesystem::path> files{file};
+    for (detail::pvti_piece& p : header.pieces) files.push_back(std::move(p.file));
+    return files;
   }
   detail::input_file in(file, format_kind(format));
   detail::nrrd_header header = parse_text_header(in, format);

@@ -110,13 +110,37 @@ struct xml_tag {
 
 class parser {
  public:
-  explicit parser(input_file& in) : in_(in), bytes_(in), file_(in.path()) {}
+  /// `parallel`: a .pvti (PImageData naming its pieces), else a .vti. `array`: the point array
+  /// to read (a .pvti's piece), else the one Scalars names, else the first.
+  parser(input_file& in, bool parallel, std::string_view array = {})
+      : in_(in), bytes_(in), file_(in.path()), parallel_(parallel), want_(array) {}
 
   vti_header run() {
     vti_header h;
     read_document(h);
     finish(h);
     return h;
+  }
+
+  pvti_header run_parallel() {
+    vti_header h;
+    read_document(h);
+    pvti_header p;
+    if (!whole_extent_) fail("no <PImageData> element (expected one inside <VTKFile>)");
+    p.extent = *whole_extent_;
+    p.dims = grid_dims(p.extent, "WholeExtent");
+    if (arrays_.empty()) {
+      fail(
+          "no point data array (expected a <PDataArray> in <PPointData>; progiso reads point "
+          "scalars, not cell data)");
+    }
+    const array_entry& a = chosen_array();
+    p.type = checked_type(a);
+    p.array = a.name;
+    geometry(p.extent, p.spacing, p.origin, p.world);
+    if (sources_.empty()) fail("<PImageData> names no <Piece> (expected pieces with a Source)");
+    p.pieces = std::move(sources_);
+    return p;
   }
 
  private:
@@ -330,8 +354,14 @@ class parser {
         read_vtkfile(*tag, h);
       } else if (open.empty()) {
         fail("a second root element <" + name_text(tag->name) + ">" + at_text(tag->at));
-      } else if (tag->name == "ImageData" && parent == "VTKFile") {
+      } else if (tag->name == data_element() && parent == "VTKFile") {
         read_image_data(*tag);
+      } else if (parallel_ && tag->name == "PPointData" && parent == "PImageData") {
+        if (const std::string* s = tag->attribute("Scalars")) scalars_ = *s;
+      } else if (parallel_ && tag->name == "PDataArray" && parent == "PPointData") {
+        add_array(*tag);
+      } else if (parallel_ && tag->name == "Piece" && parent == "PImageData") {
+        add_source(*tag);
       } else if (tag->name == "Piece" && parent == "ImageData") {
         if (++pieces_ > 1) {
           fail("the image data holds more than one <Piece>" + at_text(tag->at) +
@@ -358,11 +388,15 @@ class parser {
 
   void read_vtkfile(const xml_tag& t, vti_header& h) {
     const std::string* type = t.attribute("type");
-    if (type == nullptr) fail("<VTKFile> has no type (expected type=\"ImageData\")");
-    if (*type != "ImageData") {
-      fail("VTK XML data of type " + detail::quoted(*type) +
-           " is not supported (expected ImageData, a .vti file: a regular grid of samples" +
-           (*type == "PImageData" ? "; a .pvti names its pieces: read one of them" : "") + ")");
+    const std::string expected(data_element());
+    if (type == nullptr) fail("<VTKFile> has no type (expected type=\"" + expected + "\")");
+    if (*type != expected) {
+      fail("VTK XML data of type " + detail::quoted(*type) + " is not supported (expected " +
+           expected +
+           (parallel_ ? ", a .pvti file: a regular grid in pieces"
+                      : ", a .vti file: a regular grid of samples") +
+           (*type == "PImageData" ? "; a .pvti names its pieces: give it the name .pvti" : "") +
+           (*type == "ImageData" ? "; name a single image .vti" : "") + ")");
     }
     if (const std::string* v = t.attribute("version")) {
       const std::optional<double> x = to_real<double>(*v);
@@ -400,7 +434,7 @@ class parser {
 
   void read_image_data(const xml_tag& t) {
     const std::string* e = t.attribute("WholeExtent");
-    if (e == nullptr) fail("<ImageData> has no WholeExtent");
+    if (e == nullptr) fail("<" + std::string(data_element()) + "> has no WholeExtent");
     whole_extent_ = parse_extent(*e, "WholeExtent");
     for (const char* key : {"Origin", "Spacing"}) {
       if (const std::string* v = t.attribute(key)) {
@@ -453,8 +487,8 @@ class parser {
     a.type = *type;
     if (const std::string* c = t.attribute("NumberOfComponents")) a.components = *c;
     const std::string* f = t.attribute("format");
-    if (f == nullptr) fail("<DataArray>" + at_text(t.at) + " has no format");
-    a.format = *f;
+    if (f == nullptr && !parallel_) fail("<DataArray>" + at_text(t.at) + " has no format");
+    if (f != nullptr) a.format = *f;
     if (const std::string* o = t.attribute("offset")) {
       a.offset = to_integer<std::uint64_t>(*o);
       if (!a.offset) fail("<DataArray> offset " + detail::quoted(*o) + ", expected a byte offset");
@@ -488,28 +522,10 @@ class parser {
       fail("the piece's Extent is not the WholeExtent: progiso reads a whole image in one piece");
     }
     const std::array<std::int64_t, 6>& e = *whole_extent_;
-    for (std::size_t a = 0; a < 3; ++a) {
-      const std::int64_t n = e[2 * a + 1] - e[2 * a] + 1;
-      if (n < 2 || n > nrrd_max_axis_size) {
-        fail("WholeExtent gives axis " + std::to_string(a) + " " + std::to_string(n) +
-             " points, expected 2 to " + std::to_string(nrrd_max_axis_size) +
-             (n == 1 ? " (a 2-D image is not a volume)" : ""));
-      }
-      h.dims[a] = n;
-    }
+    h.extent = e;
+    h.dims = grid_dims(e, "WholeExtent");
     const array_entry& a = chosen_array();
-    const auto s = std::find_if(types.begin(), types.end(),
-                                [&](const type_spelling& x) { return x.name == a.type; });
-    if (s == types.end()) {
-      fail("point array " + detail::quoted(a.name) + " has type " + detail::quoted(a.type) +
-           ", not supported (expected Int8, UInt8, Int16, UInt16, Int32, UInt32, Float32 or "
-           "Float64)");
-    }
-    h.type = s->type;
-    if (a.components != "1") {
-      fail("point array " + detail::quoted(a.name) + " has " + detail::quoted(a.components) +
-           " components: expected 1 (a scalar volume)");
-    }
+    h.type = checked_type(a);
     h.array = a.name;
     if (a.format == "ascii") {
       h.format = vti_data_format::ascii;
@@ -535,23 +551,87 @@ class parser {
       fail("point array " + detail::quoted(a.name) + " has format " + detail::quoted(a.format) +
            " (expected ascii, binary or appended)");
     }
-    // Point (i, j, k) of the extent lies at Origin + Direction · (Spacing ⊙ (x0 + i, …)).
-    // A zero spacing is taken as 1, as the legacy reader takes it.
+    geometry(e, h.spacing, h.origin, h.world);
+  }
+
+  [[nodiscard]] std::string_view data_element() const noexcept {
+    return parallel_ ? "PImageData" : "ImageData";
+  }
+
+  /// Points per axis of an extent: 2 to 32769 each.
+  index3 grid_dims(const std::array<std::int64_t, 6>& e, std::string_view key) const {
+    index3 d{};
+    for (std::size_t a = 0; a < 3; ++a) {
+      const std::int64_t n = e[2 * a + 1] - e[2 * a] + 1;
+      if (n < 2 || n > nrrd_max_axis_size) {
+        fail(std::string(key) + " gives axis " + std::to_string(a) + " " + std::to_string(n) +
+             " points, expected 2 to " + std::to_string(nrrd_max_axis_size) +
+             (n == 1 ? " (a 2-D image is not a volume)" : ""));
+      }
+      d[a] = n;
+    }
+    return d;
+  }
+
+  /// The sample type of a scalar array of a type progiso has.
+  sample_type checked_type(const array_entry& a) const {
+    const auto s = std::find_if(types.begin(), types.end(),
+                                [&](const type_spelling& x) { return x.name == a.type; });
+    if (s == types.end()) {
+      fail("point array " + detail::quoted(a.name) + " has type " + detail::quoted(a.type) +
+           ", not supported (expected Int8, UInt8, Int16, UInt16, Int32, UInt32, Float32 or "
+           "Float64)");
+    }
+    if (a.components != "1") {
+      fail("point array " + detail::quoted(a.name) + " has " + detail::quoted(a.components) +
+           " components: expected 1 (a scalar volume)");
+    }
+    return s->type;
+  }
+
+  /// Point (i, j, k) of the extent lies at Origin + Direction · (Spacing ⊙ (x0 + i, …)). A zero
+  /// spacing is taken as 1, as the legacy reader takes it.
+  void geometry(const std::array<std::int64_t, 6>& e, std::array<double, 3>& spacing,
+                std::array<double, 3>& origin, index_to_world& world) const {
     std::array<double, 3> step{};
     for (std::size_t c = 0; c < 3; ++c) step[c] = spacing_[c] != 0.0 ? spacing_[c] : 1.0;
     for (std::size_t r = 0; r < 3; ++r) {
       double t = origin_[r];
       for (std::size_t c = 0; c < 3; ++c) {
-        h.world.m[r][c] = direction_[3 * r + c] * step[c];
-        t += h.world.m[r][c] * static_cast<double>(e[2 * c]);
+        world.m[r][c] = direction_[3 * r + c] * step[c];
+        t += world.m[r][c] * static_cast<double>(e[2 * c]);
       }
-      h.world.m[r][3] = t;
-      h.spacing[r] = std::abs(step[r]);
-      h.origin[r] = origin_[r] + step[r] * static_cast<double>(e[2 * r]);
+      world.m[r][3] = t;
+      spacing[r] = std::abs(step[r]);
+      origin[r] = origin_[r] + step[r] * static_cast<double>(e[2 * r]);
     }
   }
 
+  /// A .pvti's <Piece Extent=… Source=…>: the file resolved against the .pvti's directory.
+  void add_source(const xml_tag& t) {
+    const std::string* e = t.attribute("Extent");
+    const std::string* src = t.attribute("Source");
+    if (e == nullptr || src == nullptr) {
+      fail("<Piece>" + at_text(t.at) + " needs an Extent and a Source (the piece's .vti file)");
+    }
+    if (sources_.size() == vti_max_pieces) {
+      fail("names more than " + std::to_string(vti_max_pieces) + " pieces");
+    }
+    if (src->empty() || *src == "-") {
+      fail("<Piece>" + at_text(t.at) + " has Source " + detail::quoted(*src) +
+           ", expected a file name");
+    }
+    const fs::path p{*src};
+    sources_.push_back({parse_extent(*e, "Extent"), p.is_absolute() ? p : file_.parent_path() / p});
+  }
+
   const array_entry& chosen_array() const {
+    if (!want_.empty()) {
+      for (const array_entry& a : arrays_) {
+        if (a.name == want_) return a;
+      }
+      fail("holds no point array named " + detail::quoted(want_) + " (the array its .pvti reads)");
+    }
     if (arrays_.empty()) {
       fail(
           "no point data array (expected a <DataArray> in <PointData>; progiso reads point "
@@ -578,6 +658,9 @@ class parser {
   std::vector<array_entry> arrays_;
   std::optional<std::uint64_t> appended_at_;
   bool appended_base64_ = false;
+  bool parallel_ = false;
+  std::string want_;
+  std::vector<pvti_piece> sources_;
 };
 
 // ---- Data. ----------------------------------------------------------------------------------
@@ -837,7 +920,127 @@ class data_reader {
 
 }  // namespace
 
-vti_header parse_vti_header(input_file& file) { return parser(file).run(); }
+vti_header parse_vti_header(input_file& file, std::string_view array) {
+  return parser(file, false, array).run();
+}
+
+pvti_header parse_pvti_header(input_file& file) { return parser(file, true).run_parallel(); }
+
+namespace {
+
+/// Whether the bytes after a piece's array start can hold its samples, by the encoding's bound
+/// (raw: the bytes; base64: 3 bytes a 4 characters; ascii: 2 bytes a value; zlib: deflate's
+/// ratio), without reading them.
+bool can_hold(const vti_header& h, std::uint64_t file_size, std::uint64_t bytes) {
+  const std::uint64_t left = file_size - std::min(file_size, h.data_offset);
+  if (h.format == vti_data_format::ascii) return left / 2 + 1 >= bytes / sample_size(h.type);
+  const std::uint64_t raw = h.base64 ? left / 4 * 3 + 3 : left;
+  return h.zlib ? gzip_can_hold(raw, bytes) : raw >= bytes;
+}
+
+/// Runs `f`, adding the piece's place in the .pvti to any error it throws.
+template <class F>
+auto in_piece(const fs::path& pvti, std::size_t k, std::size_t n, F&& f) {
+  try {
+    return f();
+  } catch (const error& e) {
+    throw error(std::string(e.what()) + " (piece " + std::to_string(k + 1) + " of " +
+                std::to_string(n) + " named by " + pvti.string() + ")");
+  }
+}
+
+std::string extent_text(const std::array<std::int64_t, 6>& e) {
+  std::string out;
+  for (std::int64_t v : e) out += (out.empty() ? "" : " ") + std::to_string(v);
+  return out;
+}
+
+}  // namespace
+
+std::vector<std::byte> read_pvti_samples(const pvti_header& h, const fs::path& pvti) {
+  const std::size_t item = sample_size(h.type);
+  const std::size_t n = h.pieces.size();
+  std::uint64_t points = 1;
+  for (std::int64_t d : h.dims) points *= static_cast<std::uint64_t>(d);
+  const std::uint64_t bytes = points * item;  // ≤ 32769³ × 8 < 2^48
+  // Pass 1: every piece's header, its place and its data's capacity.
+  std::uint64_t present = 0;
+  for (std::size_t k = 0; k < n; ++k) {
+    const pvti_piece& piece = h.pieces[k];
+    in_piece(pvti, k, n, [&] {
+      const auto& e = piece.extent;
+      for (std::size_t a = 0; a < 3; ++a) {
+        if (e[2 * a] < h.extent[2 * a] || e[2 * a + 1] > h.extent[2 * a + 1] ||
+            e[2 * a] > e[2 * a + 1]) {
+          throw error(pvti.string() + ": piece extent " + extent_text(e) +
+                      " does not lie in the WholeExtent " + extent_text(h.extent));
+        }
+      }
+      input_file in(piece.file, "VTK XML piece");
+      const vti_header p = parse_vti_header(in, h.array);
+      if (p.extent != e) {
+        throw error(piece.file.string() + ": WholeExtent " + extent_text(p.extent) +
+                    ", but the .pvti gives the piece the extent " + extent_text(e));
+      }
+      if (p.type != h.type) {
+        throw error(piece.file.string() + ": point array " + detail::quoted(h.array) + " is " +
+                    std::string(to_string(p.type)) + ", but the .pvti declares it " +
+                    std::string(to_string(h.type)));
+      }
+      std::uint64_t piece_bytes = item;
+      for (std::int64_t d : p.dims) piece_bytes *= static_cast<std::uint64_t>(d);
+      if (!can_hold(p, in.size(), piece_bytes)) {
+        throw error(piece.file.string() + ": the data after point array " +
+                    detail::quoted(h.array) + " cannot hold its " + std::to_string(piece_bytes) +
+                    " bytes");
+      }
+      present += piece_bytes;
+    });
+  }
+  if (present < bytes) {
+    throw error(pvti.string() + ": its " + std::to_string(n) + " pieces hold " +
+                std::to_string(present) + " bytes, fewer than the " + std::to_string(bytes) +
+                " of the WholeExtent " + extent_text(h.extent) + ": points are missing");
+  }
+  // Pass 2: each piece decoded and copied row by row; a bit per point says it came.
+  std::vector<std::byte> out(static_cast<std::size_t>(bytes));
+  std::vector<std::uint64_t> seen(static_cast<std::size_t>((points + 63) / 64), 0);
+  const auto nx = static_cast<std::uint64_t>(h.dims[0]);
+  const auto ny = static_cast<std::uint64_t>(h.dims[1]);
+  for (std::size_t k = 0; k < n; ++k) {
+    const pvti_piece& piece = h.pieces[k];
+    in_piece(pvti, k, n, [&] {
+      input_file in(piece.file, "VTK XML piece");
+      const vti_header p = parse_vti_header(in, h.array);
+      const std::vector<std::byte> samples = read_vti_samples(p, in);
+      const auto px = static_cast<std::uint64_t>(p.dims[0]);
+      const auto x0 = static_cast<std::uint64_t>(p.extent[0] - h.extent[0]);
+      std::size_t from = 0;
+      for (std::int64_t z = p.extent[4]; z <= p.extent[5]; ++z) {
+        for (std::int64_t y = p.extent[2]; y <= p.extent[3]; ++y) {
+          const std::uint64_t at = x0 + nx * (static_cast<std::uint64_t>(y - h.extent[2]) +
+                                              ny * static_cast<std::uint64_t>(z - h.extent[4]));
+          std::memcpy(out.data() + at * item, samples.data() + from, px * item);
+          from += px * item;
+          for (std::uint64_t i = at; i < at + px; ++i) seen[i / 64] |= std::uint64_t{1} << (i % 64);
+        }
+      }
+    });
+  }
+  for (std::size_t w = 0; w < seen.size(); ++w) {
+    const std::uint64_t want = w + 1 < seen.size() || points % 64 == 0
+                                   ? ~std::uint64_t{0}
+                                   : (std::uint64_t{1} << (points % 64)) - 1;
+    if (seen[w] == want) continue;
+    const std::uint64_t i = w * 64 + static_cast<std::uint64_t>(std::countr_one(seen[w]));
+    throw error(pvti.string() + ": point (" +
+                std::to_string(static_cast<std::int64_t>(i % nx) + h.extent[0]) + ", " +
+                std::to_string(static_cast<std::int64_t>(i / nx % ny) + h.extent[2]) + ", " +
+                std::to_string(static_cast<std::int64_t>(i / nx / ny) + h.extent[4]) +
+                ") of the WholeExtent lies in no piece");
+  }
+  return out;
+}
 
 std::vector<std::byte> read_vti_samples(const vti_header& header, input_file& file) {
   if (header.format == vti_data_format::ascii) {
@@ -855,5 +1058,7 @@ std::vector<std::byte> read_vti_samples(const vti_header& header, input_file& fi
 }
 
 bool has_vti_name(const std::filesystem::path& file) { return lower_extension(file) == ".vti"; }
+
+bool has_pvti_name(const std::filesystem::path& file) { return lower_extension(file) == ".pvti"; }
 
 }  // namespace progiso::detail

@@ -161,6 +161,13 @@ struct index_to_world {
 /// image data".
 [[nodiscard]] volume read_vti(const std::filesystem::path& file);
 
+/// Reads a VTK XML parallel image (.pvti, as ParaView and parallel simulation codes save a grid
+/// in pieces): the whole extent assembled from the pieces' .vti files it names (each read as
+/// read_vti() reads a file, the array the .pvti's PPointData Scalars names, else its first), the
+/// geometry from its PImageData. Every point must come from a piece. Throws progiso::error
+/// naming the file at fault; see docs/ARCHITECTURE.md "Reading VTK XML image data".
+[[nodiscard]] volume read_pvti(const std::filesystem::path& file);
+
 /// Reads the DICOM series in `directory`: every DICOM Part 10 file there with pixel data is a
 /// slice (other files are skipped); one series, at least 2 slices of one size, orientation and
 /// pixel spacing, evenly spaced along their normal; transfer syntax implicit or explicit VR
@@ -176,12 +183,12 @@ struct index_to_world {
 /// Reads a volume the way the command-line tool does: with a raw layout, read_raw(); else, for
 /// a directory, read_dicom(); for the extensions .nrrd and .nhdr, read_nrrd(); for .nii,
 /// .nii.gz, .hdr and .hdr.gz, read_nifti(); for .mha and .mhd, read_metaimage(); for .vtk,
-/// read_vtk_legacy(); for .vti, read_vti() (case-insensitive). A single .dcm file is refused (one
-/// slice). A `choice` that names a series is refused for anything but a DICOM directory, one that
-/// names a volume other than 0 for anything but a NIfTI or MetaImage series that has it. A given
-/// `spacing` replaces the one from the header (or the default 1,1,1 for raw files). Throws
-/// progiso::error "FILE: unknown volume format (…)" for any other file, and whatever the chosen
-/// reader throws.
+/// read_vtk_legacy(); for .vti, read_vti(); for .pvti, read_pvti() (case-insensitive). A single
+/// .dcm file is refused (one slice). A `choice` that names a series is refused for anything but a
+/// DICOM directory, one that names a volume other than 0 for anything but a NIfTI or MetaImage
+/// series that has it. A given `spacing` replaces the one from the header (or the default 1,1,1 for
+/// raw files). Throws progiso::error "FILE: unknown volume format (…)" for any other file, and
+/// whatever the chosen reader throws.
 [[nodiscard]] volume read_volume(const std::filesystem::path& file,
                                  const std::optional<raw_layout>& raw,
                                  std::optional<std::array<double, 3>> spacing,
@@ -190,9 +197,9 @@ struct index_to_world {
 /// The files read_volume(file, raw, …) would read: `file` itself, then, for a NRRD header,
 /// every detached data file in order (patterns expanded, paths resolved against the header's
 /// directory), for a MetaImage header the data files it names (none for LOCAL data), for a
-/// NIfTI header and data pair its .img (or .img.gz), and for a DICOM directory every slice file
-/// in order. Parses only the header;
-/// the data files need not exist. Throws progiso::error like read_volume() for an unknown format
+/// NIfTI header and data pair its .img (or .img.gz), for a .pvti its pieces' files, and for a
+/// DICOM directory every slice file in order. Parses only the header; the data files need not
+/// exist. Throws progiso::error like read_volume() for an unknown format
 /// and for header errors.
 [[nodiscard]] std::vector<std::filesystem::path> volume_input_files(
     const std::filesystem::path& file, const std::optional<raw_layout>& raw,

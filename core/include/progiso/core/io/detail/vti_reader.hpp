@@ -39,6 +39,7 @@
 #include <cstdint>
 #include <filesystem>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include <progiso/core/field/volume.hpp>
@@ -49,8 +50,12 @@ namespace progiso::detail {
 
 enum class vti_data_format : std::uint8_t { ascii, binary, appended };
 
+/// A .pvti names at most this many pieces.
+inline constexpr std::size_t vti_max_pieces = std::size_t{1} << 20;
+
 struct vti_header {
-  index3 dims{};  ///< points per axis, each in 2..32769
+  std::array<std::int64_t, 6> extent{};  ///< WholeExtent: x0 x1 y0 y1 z0 z1
+  index3 dims{};                         ///< points per axis, each in 2..32769
   sample_type type = sample_type::u8;
   std::array<double, 3> spacing{1.0, 1.0, 1.0};
   std::array<double, 3> origin{0.0, 0.0, 0.0};
@@ -64,15 +69,49 @@ struct vti_header {
   std::string array;              ///< the array's Name, for messages
 };
 
+/// One piece a .pvti names: its extent (inside the whole one) and its .vti file, resolved
+/// against the .pvti's directory.
+struct pvti_piece {
+  std::array<std::int64_t, 6> extent{};
+  std::filesystem::path file;
+};
+
+/// A parallel image (.pvti): the whole grid, its geometry and point array, and its pieces.
+struct pvti_header {
+  std::array<std::int64_t, 6> extent{};
+  index3 dims{};
+  sample_type type = sample_type::u8;
+  std::array<double, 3> spacing{1.0, 1.0, 1.0};
+  std::array<double, 3> origin{0.0, 0.0, 0.0};
+  index_to_world world;
+  std::string array;
+  std::vector<pvti_piece> pieces;
+};
+
 /// Parses a .vti file (opened at its start) up to its appended data: its grid, geometry and the
-/// point array read as the volume. Throws progiso::error naming the file for anything outside
-/// the accepted subset above.
-[[nodiscard]] vti_header parse_vti_header(input_file& file);
+/// point array read as the volume (`array` when given, else the one Scalars names, else the
+/// first). Throws progiso::error naming the file for anything outside the accepted subset above.
+[[nodiscard]] vti_header parse_vti_header(input_file& file, std::string_view array = {});
 
 /// Decodes the chosen array's samples (host byte order), after the capacity checks above.
 [[nodiscard]] std::vector<std::byte> read_vti_samples(const vti_header& header, input_file& file);
 
+/// Parses a .pvti (VTK's parallel image data: <PImageData> with its WholeExtent, Origin, Spacing
+/// and Direction, <PPointData> naming the arrays, one <Piece Extent Source> per piece file).
+[[nodiscard]] pvti_header parse_pvti_header(input_file& file);
+
+/// The whole grid's samples from the pieces: each piece's .vti read (the array by name, of the
+/// same type, its WholeExtent the extent the .pvti gives, inside the whole one) and copied to its
+/// place; points two pieces share (VTK's pieces overlap by one layer) take the later piece's
+/// value. Before the grid is allocated, every piece's data must be able to hold its samples
+/// and the pieces together at least the grid's; afterwards every point must have come from a
+/// piece. Errors in a piece name the piece's file and the .pvti.
+[[nodiscard]] std::vector<std::byte> read_pvti_samples(const pvti_header& header,
+                                                       const std::filesystem::path& pvti);
+
 /// Whether a file name asks for the .vti reader: .vti (any case).
 [[nodiscard]] bool has_vti_name(const std::filesystem::path& file);
+/// Whether a file name asks for the .pvti reader: .pvti (any case).
+[[nodiscard]] bool has_pvti_name(const std::filesystem::path& file);
 
 }  // namespace progiso::detail
