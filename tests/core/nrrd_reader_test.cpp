@@ -822,6 +822,7 @@ TEST(NrrdReader, a_4d_series_needs_a_volume_and_a_series_axis_first_or_last) {
           "expected \"none\" there");
   refused("many", "sizes: 4 3 2 2147483648\n", "expected 1 to 2147483647");
   refused("thin", "sizes: 4 1 2 3\n", "found sizes 4,1,2");
+  refused("kindscount", "sizes: 3 4 3 2\nkinds: list domain domain\n", "expected 4 words");
 }
 
 TEST(NrrdReader, ascii_values_may_be_separated_by_commas) {

@@ -187,6 +187,10 @@ TEST(VtiReader, refuses_hostile_documents_with_one_line_naming_the_file) {
   expect_error("cdata", replaced(good, "<CellData>", "<CellData><![CDATA[x]]>"), "CDATA");
   expect_error("ends", good.substr(0, good.find("<Piece") + 10), "ends inside the XML tag");
   expect_error("attr", replaced(good, "<Piece Extent=", "<Piece Extent "), "malformed attribute");
+  std::string many;
+  for (int k = 0; k < 300; ++k) many += " a" + std::to_string(k) + "=\"\"";
+  expect_error("attributes", replaced(good, "<CellData>", "<CellData" + many + ">"),
+               "has more than 256 attributes");
   expect_error("noarrays",
                replaced(replaced(good, "<DataArray type=\"Float32\"", "<Foo type=\"Float32\""),
                         "<DataArray type=\"UInt8\"", "<Foo type=\"UInt8\""),

@@ -214,6 +214,11 @@ inline std::filesystem::path write_pvti(const std::filesystem::path& dir, const 
     for (int z = f.extent[4]; z <= f.extent[5]; ++z) {
       for (int y = f.extent[2]; y <= f.extent[3]; ++y) {
         for (int x = f.extent[0]; x <= f.extent[1]; ++x) {
+          // A piece reaching past the whole grid (a hostile .pvti) holds zeros there.
+          if (x < w[0] || x > w[1] || y < w[2] || y > w[3] || z < w[4] || z > w[5]) {
+            f.samples.insert(f.samples.end(), item, std::byte{0});
+            continue;
+          }
           const std::size_t at =
               static_cast<std::size_t>(x - w[0]) +
               nx * (static_cast<std::size_t>(y - w[2]) + ny * static_cast<std::size_t>(z - w[4]));

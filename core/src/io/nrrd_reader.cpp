@@ -517,7 +517,8 @@ class header_parser {
   /// space direction is "none", else the last; it must be the first or the last.
   unsigned series_axis() const {
     std::vector<unsigned> found;
-    if (const field_value* v = get(field::kinds)) {
+    // A kinds field of the wrong length is refused later, by the descriptive fields' check.
+    if (const field_value* v = get(field::kinds); v != nullptr && words(v->text).size() == 4) {
       const std::vector<std::string_view> k = words(v->text);
       for (unsigned a = 0; a < k.size(); ++a) {
         if (series_kind(k[a])) found.push_back(a);

@@ -27,7 +27,8 @@ namespace {
 namespace fs = std::filesystem;
 
 constexpr std::size_t buffer_bytes = std::size_t{64} << 10;
-constexpr std::size_t max_depth = 32;  // the writer nests 6 deep
+constexpr std::size_t max_depth = 32;        // the writer nests 6 deep
+constexpr std::size_t max_attributes = 256;  // its tags have at most a dozen (each is searched)
 
 struct type_spelling {
   std::string_view name;
@@ -268,6 +269,10 @@ class parser {
       if (i == t.size())
         fail("attribute " + detail::quoted(key) + " of <" + name_text(tag.name) +
              "> is not closed");
+      if (tag.attributes.size() == max_attributes) {
+        fail("the XML tag <" + name_text(tag.name) + ">" + at_text(at) + " has more than " +
+             std::to_string(max_attributes) + " attributes");
+      }
       if (tag.attribute(key) != nullptr) {
         fail("attribute " + detail::quoted(key) + " is given twice in <" + name_text(tag.name) +
              ">" + at_text(at));
