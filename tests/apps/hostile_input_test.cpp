@@ -377,6 +377,22 @@ TEST_F(Hostile, outputs_naming_an_input_or_each_other_are_refused) {
   expect_refused({"extract", mhd.string(), "--iso", "50", "-o", path("slice_2.ply").string()},
                  "input");
   EXPECT_EQ(test::read_whole_file(path("slice_2.raw")), cube.substr(0, 36));
+  // And a .pvti's piece, through a link named like a mesh.
+  const std::string piece =
+      "<VTKFile type=\"ImageData\"><ImageData WholeExtent=\"0 1 0 1 0 1\">"
+      "<Piece Extent=\"0 1 0 1 0 1\"><PointData><DataArray type=\"UInt8\" "
+      "Name=\"s\" format=\"ascii\">1 2 3 4 5 6 7 200</DataArray>"
+      "</PointData></Piece></ImageData></VTKFile>\n";
+  write("piece.vti", piece);
+  const fs::path pvti = write("v.pvti",
+                              "<VTKFile type=\"PImageData\"><PImageData WholeExtent=\"0 1 0 1 0 "
+                              "1\"><PPointData><PDataArray type=\"UInt8\" Name=\"s\"/>"
+                              "</PPointData><Piece Extent=\"0 1 0 1 0 1\" Source=\"piece.vti\"/>"
+                              "</PImageData></VTKFile>\n");
+  fs::create_symlink(path("piece.vti"), path("piece.ply"));
+  expect_refused({"extract", pvti.string(), "--iso", "50", "-o", path("piece.ply").string()},
+                 "input");
+  EXPECT_EQ(test::read_whole_file(path("piece.vti")), piece);
   // contour: -o through a link to the image, --frames on -o, --stats-json on the image.
   const fs::path img = write("img.pgm", pgm(40, 30));
   fs::create_symlink(img, path("img.svg"));
