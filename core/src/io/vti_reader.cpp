@@ -999,7 +999,8 @@ std::vector<std::byte> read_pvti_samples(const pvti_header& h, const fs::path& p
                     detail::quoted(h.array) + " cannot hold its " + std::to_string(piece_bytes) +
                     " bytes");
       }
-      present += piece_bytes;
+      // Saturating: 2^20 pieces of up to 2^48 bytes each could pass 2^64.
+      present += std::min(piece_bytes, std::numeric_limits<std::uint64_t>::max() - present);
     });
   }
   if (present < bytes) {
