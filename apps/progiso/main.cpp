@@ -184,18 +184,22 @@ int run(const std::vector<std::string>& args) {
   std::optional<progiso::raw_layout> raw;
   if (a.dims) raw = progiso::raw_layout{*a.dims, *a.type, a.big_endian};
 
+  // The input's headers are parsed once, here; its files, orientation and data come from them.
+  std::optional<progiso::volume_source> source;
+  if (!a.demo) source.emplace(*a.input, raw, progiso::volume_choice{a.series, a.volume});
+
   // ---- Outputs: checked against the inputs and each other, then created (as temporaries)
   // before anything is read or computed.
   {
     std::vector<fs::path> inputs;
-    if (!a.demo) inputs = progiso::volume_input_files(*a.input, raw, {a.series, a.volume});
+    if (source) inputs = source->files();
     std::vector<named_output> outputs{{"-o", *a.output}};
     if (a.stats_json) outputs.push_back({"--stats-json", *a.stats_json});
     refuse_clashing_outputs(inputs, outputs);
   }
   std::optional<progiso::index_to_world> world;
   if (a.world) {
-    world = progiso::read_volume_world(*a.input, raw, {a.series, a.volume});
+    if (source) world = source->world();
     if (!world) {
       throw error(*a.input +
                   ": --world: the file declares no orientation (expected a NIfTI sform or qform, "
@@ -213,8 +217,7 @@ int run(const std::vector<std::string>& args) {
     data = std::make_shared<const progiso::volume>(progiso::make_demo_volume());
     iso = a.iso.value_or(progiso::demo_isovalue);
   } else {
-    data = std::make_shared<const progiso::volume>(
-        progiso::read_volume(*a.input, raw, a.spacing, {a.series, a.volume}));
+    data = std::make_shared<const progiso::volume>(source->read(a.spacing));
     iso = *a.iso;
   }
   // The field refined: the data, or its smoothed field (samples computed on demand).

@@ -516,17 +516,8 @@ TEST_F(Cli, dicom_directory_gives_the_surface_of_the_same_samples_as_raw) {
   const fs::path series = dir_ / "series";
   fs::create_directory(series);
   for (int k = 0; k < 9; ++k) {
-    test::dicom_slice_file f;
-    f.rows = 9;
-    f.columns = 9;
-    f.bits_allocated = 8;
-    f.bits_stored = 8;
-    f.pixel_representation = 0;
-    f.slope = "1";
-    f.intercept = "0";
+    test::dicom_slice_file f = test::plain_slice(k, 9, 9, 8, 0.5);
     f.pixel_spacing = {2.0, 1.5};
-    f.position = {0.0, 0.0, 0.5 * k};
-    f.instance = k + 1;
     const auto* p = reinterpret_cast<const std::byte*>(bytes.data()) + 81 * k;
     f.pixels.assign(p, p + 81);
     f.write(series, "IM" + std::to_string(100 - k));

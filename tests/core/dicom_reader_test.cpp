@@ -44,6 +44,7 @@ namespace fs = std::filesystem;
 using progiso::sample_type;
 using progiso::test::contains;
 using progiso::test::dicom_slice_file;
+using progiso::test::plain_slice;
 constexpr auto error_naming = [](const fs::path& file, auto&& f) {
   return progiso::test::error_message_naming(file, f);
 };
@@ -420,15 +421,8 @@ TEST(DicomReader, picks_one_of_several_series_by_number_or_uid) {
   write_series(dir.path(), a, 11);  // series "1.2.826.0.1.3680043.2.1125.1", 4 slices
   // A second series of 3 slices, 8-bit, another UID ordered after the first.
   for (int k = 0; k < 3; ++k) {
-    dicom_slice_file f;
+    dicom_slice_file f = plain_slice(k, 4, 5, 8, 2.0);
     f.series_uid = "1.2.826.0.1.3680043.2.1125.2";
-    f.instance = k + 1;
-    f.position = {0.0, 0.0, 2.0 * k};
-    f.bits_allocated = 8;
-    f.bits_stored = 8;
-    f.pixel_representation = 0;
-    f.slope = "1";
-    f.intercept = "0";
     f.pixels.assign(20, static_cast<std::byte>(k));
     f.write(dir.path(), "B" + std::to_string(k));
   }

@@ -212,4 +212,20 @@ struct dicom_slice_file {
   }
 };
 
+/// Slice k of a plain stack: `bits`-bit unsigned samples (all bits stored, no rescale), `rows` ×
+/// `columns` pixels, positions `step` apart along z, instance k + 1; pixels left to the caller.
+inline dicom_slice_file plain_slice(int k, int rows, int columns, int bits, double step) {
+  dicom_slice_file f;
+  f.rows = rows;
+  f.columns = columns;
+  f.bits_allocated = bits;
+  f.bits_stored = bits;
+  f.pixel_representation = 0;
+  f.slope = "1";
+  f.intercept = "0";
+  f.position = {0.0, 0.0, step * k};
+  f.instance = k + 1;
+  return f;
+}
+
 }  // namespace progiso::test

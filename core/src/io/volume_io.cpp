@@ -5,6 +5,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <limits>
+#include <memory>
 #include <optional>
 #include <string>
 #include <utility>
@@ -144,52 +145,181 @@ std::string_view volumes_field(volume_format format, const detail::nrrd_header& 
   return header.interleaved ? "sizes[0]" : "sizes[3]";
 }
 
-volume read_text_header_volume(const fs::path& file, volume_format format,
-                               const std::optional<std::array<double, 3>>& spacing,
-                               const volume_choice& choice) {
-  detail::input_file in(file, format_kind(format));
-  const detail::nrrd_header header = parse_text_header(in, format);
-  const std::int64_t k = pick_volume(file, header.volumes, choice, volumes_field(format, header));
-  std::vector<std::byte> samples = detail::read_nrrd_samples(header, in, k);
-  return make_volume(file, header.dims, header.type, std::move(samples),
-                     spacing.value_or(header.spacing), header.origin);
-}
+using spacing_override = std::optional<std::array<double, 3>>;
 
-volume read_dicom_with(const fs::path& directory,
-                       const std::optional<std::array<double, 3>>& spacing,
-                       const volume_choice& choice) {
-  const detail::dicom_series series = detail::read_dicom_series(directory, choice.series);
-  std::vector<std::byte> samples = detail::read_dicom_samples(series);
-  return make_volume(directory, series.dims, series.volume_type(), std::move(samples),
-                     spacing.value_or(series.spacing), series.origin);
-}
+// ---------------------------------------------------------------------------------------------
+// Opened inputs: one kind per format, each parsing its header(s) once, on construction.
 
-volume read_vti_with(const fs::path& file, const std::optional<std::array<double, 3>>& spacing) {
-  detail::input_file in(file, "VTK XML");
-  const detail::vti_header header = detail::parse_vti_header(in);
-  std::vector<std::byte> samples = detail::read_vti_samples(header, in);
-  return make_volume(file, header.dims, header.type, std::move(samples),
-                     spacing.value_or(header.spacing), header.origin);
-}
+}  // namespace
 
-volume read_pvti_with(const fs::path& file, const std::optional<std::array<double, 3>>& spacing) {
-  detail::input_file in(file, "VTK XML");
-  const detail::pvti_header header = detail::parse_pvti_header(in);
-  std::vector<std::byte> samples = detail::read_pvti_samples(header, file);
-  return make_volume(file, header.dims, header.type, std::move(samples),
-                     spacing.value_or(header.spacing), header.origin);
-}
+/// What every opened input knows after its headers: the files a read opens and the map the
+/// file declares. read() decodes the samples.
+struct detail::volume_source_state {
+  std::vector<fs::path> files;
+  std::optional<index_to_world> world;
 
-volume read_nifti_with(const fs::path& file, const std::optional<std::array<double, 3>>& spacing,
-                       const volume_choice& choice) {
-  const detail::nifti_header header = detail::read_nifti_header(file);
-  const std::int64_t k = pick_volume(file, header.volumes, choice);
-  std::vector<std::byte> samples = detail::read_nifti_samples(header, file, k);
-  return make_volume(header.data_file ? *header.data_file : file, header.dims, header.volume_type(),
-                     std::move(samples), spacing.value_or(header.spacing), header.origin);
+  volume_source_state() = default;
+  volume_source_state(const volume_source_state&) = delete;
+  volume_source_state& operator=(const volume_source_state&) = delete;
+  virtual ~volume_source_state() = default;
+  virtual volume read(const spacing_override& spacing) = 0;
+};
+
+namespace {
+
+using source_state = detail::volume_source_state;
+
+struct raw_source final : source_state {
+  fs::path file;
+  raw_layout layout;
+  raw_source(const fs::path& f, const raw_layout& l) : file(f), layout(l) { files = {f}; }
+  volume read(const spacing_override& spacing) override {
+    return read_raw(file, layout, spacing.value_or(std::array<double, 3>{1.0, 1.0, 1.0}));
+  }
+};
+
+/// NRRD, MetaImage and legacy VTK: a text header, then data through read_nrrd_samples. The
+/// header's file stays open for attached data.
+struct text_source final : source_state {
+  fs::path file;
+  detail::input_file in;
+  detail::nrrd_header header;
+  std::int64_t volume_index = 0;
+  text_source(const fs::path& f, volume_format format, const volume_choice& choice)
+      : file(f), in(f, format_kind(format)), header(parse_text_header(in, format)) {
+    volume_index = pick_volume(f, header.volumes, choice, volumes_field(format, header));
+    world = header.world;
+    files.reserve(1 + header.data_files.size());
+    files.push_back(f);
+    files.insert(files.end(), header.data_files.begin(), header.data_files.end());
+  }
+  volume read(const spacing_override& spacing) override {
+    std::vector<std::byte> samples = detail::read_nrrd_samples(header, in, volume_index);
+    return make_volume(file, header.dims, header.type, std::move(samples),
+                       spacing.value_or(header.spacing), header.origin);
+  }
+};
+
+struct nifti_source final : source_state {
+  fs::path file;
+  detail::nifti_header header;
+  std::int64_t volume_index = 0;
+  nifti_source(const fs::path& f, const volume_choice& choice)
+      : file(f), header(detail::read_nifti_header(f)) {
+    volume_index = pick_volume(f, header.volumes, choice);
+    world = header.world;
+    files = {f};
+    if (header.data_file) files.push_back(*header.data_file);
+  }
+  volume read(const spacing_override& spacing) override {
+    std::vector<std::byte> samples = detail::read_nifti_samples(header, file, volume_index);
+    return make_volume(header.data_file ? *header.data_file : file, header.dims,
+                       header.volume_type(), std::move(samples), spacing.value_or(header.spacing),
+                       header.origin);
+  }
+};
+
+struct dicom_source final : source_state {
+  fs::path directory;
+  detail::dicom_series series;
+  dicom_source(const fs::path& d, const volume_choice& choice)
+      : directory(d), series(detail::read_dicom_series(d, choice.series)) {
+    world = series.world;
+    files.reserve(1 + series.slices.size());
+    files.push_back(d);
+    for (const detail::dicom_slice& s : series.slices) files.push_back(s.file);
+  }
+  volume read(const spacing_override& spacing) override {
+    std::vector<std::byte> samples = detail::read_dicom_samples(series);
+    return make_volume(directory, series.dims, series.volume_type(), std::move(samples),
+                       spacing.value_or(series.spacing), series.origin);
+  }
+};
+
+/// A .vti: its header parsed up to the appended data; the file stays open for the samples.
+struct vti_source final : source_state {
+  fs::path file;
+  detail::input_file in;
+  detail::vti_header header;
+  explicit vti_source(const fs::path& f)
+      : file(f), in(f, "VTK XML"), header(detail::parse_vti_header(in)) {
+    world = header.world;
+    files = {f};
+  }
+  volume read(const spacing_override& spacing) override {
+    std::vector<std::byte> samples = detail::read_vti_samples(header, in);
+    return make_volume(file, header.dims, header.type, std::move(samples),
+                       spacing.value_or(header.spacing), header.origin);
+  }
+};
+
+struct pvti_source final : source_state {
+  fs::path file;
+  detail::pvti_header header;
+  explicit pvti_source(const fs::path& f) : file(f) {
+    detail::input_file in(f, "VTK XML");
+    header = detail::parse_pvti_header(in);
+    world = header.world;
+    files.reserve(1 + header.pieces.size());
+    files.push_back(f);
+    for (const detail::pvti_piece& p : header.pieces) files.push_back(p.file);
+  }
+  volume read(const spacing_override& spacing) override {
+    std::vector<std::byte> samples = detail::read_pvti_samples(header, file);
+    return make_volume(file, header.dims, header.type, std::move(samples),
+                       spacing.value_or(header.spacing), header.origin);
+  }
+};
+
+std::unique_ptr<source_state> open_source(const fs::path& file,
+                                          const std::optional<raw_layout>& raw,
+                                          const volume_choice& choice) {
+  if (raw) {
+    check_choice(file, false, choice);
+    (void)pick_volume(file, 1, choice);
+    return std::make_unique<raw_source>(file, *raw);
+  }
+  const volume_format format = format_of(file);
+  check_choice(file, format == volume_format::dicom, choice);
+  switch (format) {
+    case volume_format::nifti:
+      return std::make_unique<nifti_source>(file, choice);
+    case volume_format::dicom:
+      (void)pick_volume(file, 1, choice);
+      return std::make_unique<dicom_source>(file, choice);
+    case volume_format::vti:
+      (void)pick_volume(file, 1, choice);
+      return std::make_unique<vti_source>(file);
+    case volume_format::pvti:
+      (void)pick_volume(file, 1, choice);
+      return std::make_unique<pvti_source>(file);
+    case volume_format::nrrd:
+    case volume_format::metaimage:
+    case volume_format::vtk_legacy:
+      break;
+  }
+  return std::make_unique<text_source>(file, format, choice);
 }
 
 }  // namespace
+
+volume_source::volume_source(const std::filesystem::path& file,
+                             const std::optional<raw_layout>& raw, const volume_choice& choice)
+    : state_(open_source(file, raw, choice)) {}
+
+volume_source::volume_source(volume_source&&) noexcept = default;
+volume_source& volume_source::operator=(volume_source&&) noexcept = default;
+volume_source::~volume_source() = default;
+
+const std::vector<std::filesystem::path>& volume_source::files() const noexcept {
+  return state_->files;
+}
+
+const std::optional<index_to_world>& volume_source::world() const noexcept { return state_->world; }
+
+volume volume_source::read(std::optional<std::array<double, 3>> spacing) {
+  return state_->read(spacing);
+}
 
 // ---------------------------------------------------------------------------------------------
 // Raw files.
@@ -230,52 +360,33 @@ volume read_raw(const std::filesystem::path& file, const raw_layout& layout,
 // NRRD and NIfTI files, and dispatch.
 
 volume read_nrrd(const std::filesystem::path& file, const volume_choice& choice) {
-  return read_text_header_volume(file, volume_format::nrrd, std::nullopt, choice);
+  return text_source(file, volume_format::nrrd, choice).read(std::nullopt);
 }
 
 volume read_metaimage(const std::filesystem::path& file, const volume_choice& choice) {
-  return read_text_header_volume(file, volume_format::metaimage, std::nullopt, choice);
+  return text_source(file, volume_format::metaimage, choice).read(std::nullopt);
 }
 
 volume read_dicom(const std::filesystem::path& directory, const volume_choice& choice) {
-  return read_dicom_with(directory, std::nullopt, choice);
+  (void)pick_volume(directory, 1, choice);
+  return dicom_source(directory, choice).read(std::nullopt);
 }
 
 volume read_vtk_legacy(const std::filesystem::path& file) {
-  return read_text_header_volume(file, volume_format::vtk_legacy, std::nullopt, {});
+  return text_source(file, volume_format::vtk_legacy, {}).read(std::nullopt);
 }
 
-volume read_vti(const std::filesystem::path& file) { return read_vti_with(file, std::nullopt); }
+volume read_vti(const std::filesystem::path& file) { return vti_source(file).read(std::nullopt); }
 
-volume read_pvti(const std::filesystem::path& file) { return read_pvti_with(file, std::nullopt); }
+volume read_pvti(const std::filesystem::path& file) { return pvti_source(file).read(std::nullopt); }
 
 volume read_nifti(const std::filesystem::path& file, const volume_choice& choice) {
-  return read_nifti_with(file, std::nullopt, choice);
+  return nifti_source(file, choice).read(std::nullopt);
 }
 
 volume read_volume(const std::filesystem::path& file, const std::optional<raw_layout>& raw,
                    std::optional<std::array<double, 3>> spacing, const volume_choice& choice) {
-  if (raw) {
-    check_choice(file, false, choice);
-    (void)pick_volume(file, 1, choice);
-    return read_raw(file, *raw, spacing.value_or(std::array<double, 3>{1.0, 1.0, 1.0}));
-  }
-  const volume_format format = format_of(file);
-  check_choice(file, format == volume_format::dicom, choice);
-  if (format == volume_format::nifti) return read_nifti_with(file, spacing, choice);
-  if (format == volume_format::dicom) {
-    (void)pick_volume(file, 1, choice);
-    return read_dicom_with(file, spacing, choice);
-  }
-  if (format == volume_format::vti) {
-    (void)pick_volume(file, 1, choice);
-    return read_vti_with(file, spacing);
-  }
-  if (format == volume_format::pvti) {
-    (void)pick_volume(file, 1, choice);
-    return read_pvti_with(file, spacing);
-  }
-  return read_text_header_volume(file, format, spacing, choice);
+  return volume_source(file, raw, choice).read(spacing);
 }
 
 double index_to_world::determinant() const noexcept {
@@ -295,83 +406,14 @@ std::array<double, 3> index_to_world::apply(const std::array<double, 3>& index) 
 std::optional<index_to_world> read_volume_world(const std::filesystem::path& file,
                                                 const std::optional<raw_layout>& raw,
                                                 const volume_choice& choice) {
-  if (raw) {
-    check_choice(file, false, choice);
-    (void)pick_volume(file, 1, choice);
-    return std::nullopt;
-  }
-  const volume_format format = format_of(file);
-  check_choice(file, format == volume_format::dicom, choice);
-  if (format == volume_format::nifti) {
-    const detail::nifti_header header = detail::read_nifti_header(file);
-    (void)pick_volume(file, header.volumes, choice);
-    return header.world;
-  }
-  if (format == volume_format::dicom) {
-    (void)pick_volume(file, 1, choice);
-    return detail::read_dicom_series(file, choice.series).world;
-  }
-  if (format == volume_format::vti) {
-    (void)pick_volume(file, 1, choice);
-    detail::input_file in(file, "VTK XML");
-    return detail::parse_vti_header(in).world;
-  }
-  if (format == volume_format::pvti) {
-    (void)pick_volume(file, 1, choice);
-    detail::input_file in(file, "VTK XML");
-    return detail::parse_pvti_header(in).world;
-  }
-  detail::input_file in(file, format_kind(format));
-  const detail::nrrd_header header = parse_text_header(in, format);
-  (void)pick_volume(file, header.volumes, choice, volumes_field(format, header));
-  return header.world;
+  return volume_source(file, raw, choice).world();
 }
 
 std::vector<std::filesystem::path> volume_input_files(const std::filesystem::path& file,
                                                       const std::optional<raw_layout>& raw,
                                                       const volume_choice& choice) {
-  if (raw) {
-    check_choice(file, false, choice);
-    (void)pick_volume(file, 1, choice);
-    return {file};
-  }
-  const volume_format format = format_of(file);
-  check_choice(file, format == volume_format::dicom, choice);
-  if (format == volume_format::nifti) {
-    const detail::nifti_header header = detail::read_nifti_header(file);
-    (void)pick_volume(file, header.volumes, choice);
-    if (header.data_file) return {file, *header.data_file};
-    return {file};
-  }
-  if (format == volume_format::dicom) {
-    (void)pick_volume(file, 1, choice);
-    detail::dicom_series series = detail::read_dicom_series(file, choice.series);
-    std::vector<std::filesystem::path> files{file};
-    for (detail::dicom_slice& d : series.slices) files.push_back(std::move(d.file));
-    return files;
-  }
-  if (format == volume_format::vti) {
-    (void)pick_volume(file, 1, choice);
-    detail::input_file in(file, "VTK XML");
-    (void)detail::parse_vti_header(in);
-    return {file};
-  }
-  if (format == volume_format::pvti) {
-    (void)pick_volume(file, 1, choice);
-    detail::input_file in(file, "VTK XML");
-    detail::pvti_header header = detail::parse_pvti_header(in);
-    std::vector<std::filesystem::path> files{file};
-    for (detail::pvti_piece& p : header.pieces) files.push_back(std::move(p.file));
-    return files;
-  }
-  detail::input_file in(file, format_kind(format));
-  detail::nrrd_header header = parse_text_header(in, format);
-  (void)pick_volume(file, header.volumes, choice, volumes_field(format, header));
-  std::vector<std::filesystem::path> files;
-  files.reserve(1 + header.data_files.size());
-  files.push_back(file);
-  for (std::filesystem::path& p : header.data_files) files.push_back(std::move(p));
-  return files;
+  volume_source source(file, raw, choice);
+  return source.files();
 }
 
 }  // namespace progiso

@@ -1,7 +1,7 @@
 // progiso/core/io/volume_io.hpp — reading volumes from headerless raw files, NRRD, NIfTI,
-// MetaImage, legacy VTK and DICOM series.
+// MetaImage, legacy VTK, VTK XML image data and DICOM series.
 //
-// Six sources are supported. A headerless raw file holds nothing but the samples, x varying
+// Seven kinds of input are supported. A headerless raw file holds nothing but the samples, x varying
 // fastest, then y, then z; its layout (dims, sample type, byte order) comes from the caller,
 // usually the command line's --dims and --type, and the file size must match it exactly.
 // NRRD files (.nrrd with attached data, .nhdr with detached data files) describe themselves;
@@ -17,10 +17,12 @@
 // detail/vtk_legacy_reader.hpp: ASCII or big-endian binary point scalars. A directory holding
 // one DICOM series (a file per slice, as CT and MRI scanners write them) is read by
 // detail/dicom_reader.hpp: uncompressed pixel data, slices ordered along their normal, rescaled
-// to the units the files give (Hounsfield units for CT).
+// to the units the files give (Hounsfield units for CT). VTK XML image data (.vti, and .pvti
+// with its pieces), ParaView's format for a regular grid, is read by detail/vti_reader.hpp.
 // read_volume() picks the reader the way the command-line tool does: an explicit raw layout
 // wins, otherwise the file extension decides. volume_input_files() names the files a read
-// would open, from the header alone.
+// would open, from the header alone, and read_volume_world() gives the orientation the header
+// declares; a volume_source answers all three from one parse of the header.
 //
 // Every reader returns a volume whose samples are in host byte order. Every file is opened
 // through detail::input_file, so only regular files are read (never a FIFO, a directory or a
@@ -39,6 +41,7 @@
 
 #include <array>
 #include <filesystem>
+#include <memory>
 #include <optional>
 #include <string>
 #include <vector>
@@ -193,6 +196,38 @@ struct index_to_world {
                                  const std::optional<raw_layout>& raw,
                                  std::optional<std::array<double, 3>> spacing,
                                  const volume_choice& choice = {});
+
+namespace detail {
+struct volume_source_state;
+}  // namespace detail
+
+/// An input opened the way read_volume() opens it, its header (or a DICOM directory's headers,
+/// a .pvti's piece list) parsed once: the files a read opens, the orientation the file declares,
+/// then the samples. The command-line tool checks its outputs against files() and reads world()
+/// before read(), without parsing anything twice. Construction throws what read_volume() throws
+/// for an unknown format, a refused choice or a header error; read() what the format's reader
+/// throws for its data. A text header's or .vti's file stays open from construction to read().
+/// Move-only.
+class volume_source {
+ public:
+  volume_source(const std::filesystem::path& file, const std::optional<raw_layout>& raw,
+                const volume_choice& choice = {});
+  volume_source(volume_source&&) noexcept;
+  volume_source& operator=(volume_source&&) noexcept;
+  volume_source(const volume_source&) = delete;
+  volume_source& operator=(const volume_source&) = delete;
+  ~volume_source();
+
+  /// What volume_input_files() returns.
+  [[nodiscard]] const std::vector<std::filesystem::path>& files() const noexcept;
+  /// What read_volume_world() returns.
+  [[nodiscard]] const std::optional<index_to_world>& world() const noexcept;
+  /// The volume, as read_volume() returns it (a given `spacing` replaces the header's).
+  [[nodiscard]] volume read(std::optional<std::array<double, 3>> spacing = std::nullopt);
+
+ private:
+  std::unique_ptr<detail::volume_source_state> state_;
+};
 
 /// The files read_volume(file, raw, …) would read: `file` itself, then, for a NRRD header,
 /// every detached data file in order (patterns expanded, paths resolved against the header's
