@@ -558,6 +558,39 @@ TEST_F(Cli, dicom_directory_gives_the_surface_of_the_same_samples_as_raw) {
       "one.dcm: one DICOM file is one slice");
 }
 
+TEST_F(Cli, enhanced_dicom_file_gives_the_surface_of_the_same_samples_as_raw) {
+  // An enhanced CT file: the 9 slices of 9 × 9 bytes as frames in shuffled order, each placed by
+  // its per-frame Plane Position; given as the file (.dcm or no extension) or its directory.
+  const std::string bytes = cube_bytes(9);
+  const fs::path want = raw_cube_mesh("1.5,2,0.5");
+  test::dicom_slice_file f = test::plain_slice(0, 9, 9, 8, 0.5);
+  f.pixel_spacing = {2.0, 1.5};
+  for (const int k : {4, 0, 8, 2, 6, 1, 3, 7, 5}) {
+    f.frame_positions.push_back({0.0, 0.0, 0.5 * k});
+    const auto* p = reinterpret_cast<const std::byte*>(bytes.data()) + 81 * k;
+    f.pixels.insert(f.pixels.end(), p, p + 81);
+  }
+  const fs::path series = dir_ / "enhanced";
+  fs::create_directory(series);
+  const fs::path file = f.write(series, "ct.dcm");
+  expect_same_mesh(file, want);
+  expect_same_mesh(series, want);
+  fs::copy_file(file, dir_ / "1.2.826.0.1.3680043.2.1125.1.1");
+  expect_same_mesh(dir_ / "1.2.826.0.1.3680043.2.1125.1.1", want);
+  // An output through a link to the file is refused and the file kept.
+  const std::string before = test::read_whole_file(file);
+  fs::create_symlink(file, dir_ / "ct.ply");
+  const run_result clash =
+      run("extract " + file.string() + " --iso 100 -o " + (dir_ / "ct.ply").string());
+  EXPECT_EQ(clash.status, 2);
+  EXPECT_NE(clash.err.find("names the input file"), std::string::npos) << clash.err;
+  EXPECT_EQ(test::read_whole_file(file), before);
+  // A multi-frame file that does not place its frames is refused, naming it.
+  f.number_of_frames = "10";
+  expect_bad_input("extract " + f.write(dir_, "short.dcm").string() + " --iso 100",
+                   "short.dcm: a multi-frame image of 10 frames with 9 items");
+}
+
 /// The vertices and faces (0-based) of an OBJ file progiso wrote.
 struct obj_mesh {
   std::vector<std::array<double, 3>> vertices;

@@ -198,6 +198,16 @@ TEST_F(Hostile, declared_sizes_beyond_the_data_fail_before_allocating) {
     f.pixels.resize(4096);
     f.write(series, "IM" + std::to_string(k));
   }
+  // And an enhanced DICOM file of 32769 frames of 65535 × 65535 pixels of 32 bits (563 TB),
+  // each placed, with 4 KB of pixel data.
+  test::dicom_slice_file frames;
+  frames.rows = 65535;
+  frames.columns = 65535;
+  frames.bits_allocated = 32;
+  frames.bits_stored = 32;
+  for (int k = 0; k < 32769; ++k) frames.frame_positions.push_back({0.0, 0.0, 1.0 * k});
+  frames.pixels.resize(4096);
+  const fs::path enhanced = frames.write(path(""), "frames.dcm");
   // And a .pvti of 2000 × 2000 × 1000 points whose one piece holds 8.
   write("small.vti",
         "<VTKFile type=\"ImageData\"><ImageData WholeExtent=\"0 1 0 1 0 1\">"
@@ -210,7 +220,8 @@ TEST_F(Hostile, declared_sizes_beyond_the_data_fail_before_allocating) {
             "0 999\"><PPointData><PDataArray type=\"UInt8\" Name=\"s\"/>"
             "</PPointData><Piece Extent=\"0 1 0 1 0 1\" Source=\"small.vti\"/>"
             "</PImageData></VTKFile>\n");
-  for (const fs::path& in : {raw, gz, nii, nii_gz, mha, mhd, vtk, vti, vti_z, pvti, series}) {
+  for (const fs::path& in :
+       {raw, gz, nii, nii_gz, mha, mhd, vtk, vti, vti_z, pvti, series, enhanced}) {
     const auto before = snapshot();
     const bounded_result r =
         run({"extract", in.string(), "--iso", "1", "-o", path("o.ply").string()},

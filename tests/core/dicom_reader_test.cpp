@@ -155,32 +155,7 @@ dcmtk_slice read_with_dcmtk(const fs::path& file) {
   return s;
 }
 
-double sample_at(const progiso::volume& v, std::size_t i) {
-  const std::byte* p = v.bytes() + i * progiso::sample_size(v.type());
-  const auto load = [p](auto x) {
-    std::memcpy(&x, p, sizeof x);
-    return static_cast<double>(x);
-  };
-  switch (v.type()) {
-    case sample_type::u8:
-      return load(std::uint8_t{});
-    case sample_type::i8:
-      return load(std::int8_t{});
-    case sample_type::u16:
-      return load(std::uint16_t{});
-    case sample_type::i16:
-      return load(std::int16_t{});
-    case sample_type::u32:
-      return load(std::uint32_t{});
-    case sample_type::i32:
-      return load(std::int32_t{});
-    case sample_type::f32:
-      return load(float{});
-    case sample_type::f64:
-      return load(double{});
-  }
-  return 0.0;
-}
+using progiso::test::stored_sample;
 
 /// The series in `dir` read by progiso equals DCMTK's slices ordered along the normal.
 void expect_agreement(const fs::path& dir, const std::vector<fs::path>& files) {
@@ -203,7 +178,8 @@ void expect_agreement(const fs::path& dir, const std::vector<fs::path>& files) {
   const std::size_t frame = 20;
   for (std::size_t k = 0; k < ref.size(); ++k) {
     for (std::size_t i = 0; i < frame; ++i) {
-      ASSERT_EQ(sample_at(v, k * frame + i), ref[k].values[i]) << "slice " << k << " sample " << i;
+      ASSERT_EQ(stored_sample(v, k * frame + i), ref[k].values[i])
+          << "slice " << k << " sample " << i;
     }
   }
   const double step =
@@ -440,7 +416,7 @@ TEST(DicomReader, picks_one_of_several_series_by_number_or_uid) {
     EXPECT_EQ(second.dims()[2], 3) << choice;
     EXPECT_EQ(second.type(), sample_type::u8) << choice;
     EXPECT_EQ(second.spacing()[2], 2.0) << choice;
-    EXPECT_EQ(sample_at(second, 2 * 20), 2.0) << choice;  // the third slice's pixels
+    EXPECT_EQ(stored_sample(second, 2 * 20), 2.0) << choice;  // the third slice's pixels
     EXPECT_EQ(progiso::volume_input_files(dir.path(), std::nullopt, {choice}).size(), 4u);
   }
   const std::string unknown =

@@ -571,8 +571,8 @@ TEST(VolumeIo, read_volume_rejects_an_unknown_format) {
   EXPECT_EQ(msg,
             (dir / "v.xyz").string() +
                 ": unknown volume format (expected .nrrd, .nhdr, .nii, .nii.gz, .hdr, .mha, "
-                ".mhd, .vtk, .vti, .pvti, a directory of DICOM files, or a raw file with --dims "
-                "and --type)");
+                ".mhd, .vtk, .vti, .pvti, a directory of DICOM files or an enhanced DICOM file, or "
+                "a raw file with --dims and --type)");
 }
 
 TEST(VolumeIo, read_volume_rejects_an_invalid_spacing_with_the_file_name) {

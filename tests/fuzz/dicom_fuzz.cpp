@@ -1,8 +1,9 @@
 // Fuzz harness: DICOM series (a directory of slice files).
 //
 // Input layout: the input is cut at every separator "\0NEXT\0" into the files s0, s1, … (at most
-// 8) of a fresh directory, which is read as a series. Both the reader and volume_input_files()
-// (the command's input list) are run.
+// 8) of a fresh directory, which is read as a series; then s0 alone, as a single input file is
+// (recognised by its preamble, having no extension: an enhanced multi-frame image). Both the
+// reader and volume_input_files() (the command's input list) are run.
 #include <cstdint>
 #include <filesystem>
 #include <string>
@@ -28,5 +29,6 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
     start = cut + separator.size();
   }
   progiso::fuzz::read_volume_file(dir);
+  progiso::fuzz::read_volume_file(dir / "s0");
   return 0;
 }

@@ -322,7 +322,8 @@ def vti_seeds(out, crops):
 NEXT = b"\0NEXT\0"
 
 
-def dicom_slice(ts, k, rows=4, cols=5, bits=16, signed=1, seq=True, pixels=None):
+def dicom_slice(ts, k, rows=4, cols=5, bits=16, signed=1, seq=True, pixels=None, frames=0):
+    """A slice file; with frames > 0 an enhanced image of that many frames (functional groups)."""
     explicit = ts != "1.2.840.10008.1.2"
     big = ts == "1.2.840.10008.1.2.2"
     e16 = ">H" if big else "<H"
@@ -358,13 +359,39 @@ def dicom_slice(ts, k, rows=4, cols=5, bits=16, signed=1, seq=True, pixels=None)
         items += struct.pack(e16, 0xfffe) + struct.pack(e16, 0xe00d) + struct.pack(e32, 0)
         d += struct.pack(e16, 8) + struct.pack(e16, 0x1140) + ((b"SQ\0\0") if explicit else b"") + struct.pack(e32, 0xffffffff)
         d += items + struct.pack(e16, 0xfffe) + struct.pack(e16, 0xe0dd) + struct.pack(e32, 0)
+    def sq(g, e, items, undefined):
+        out = struct.pack(e16, g) + struct.pack(e16, e) + (b"SQ\0\0" if explicit else b"")
+        out += struct.pack(e32, 0xffffffff if undefined else len(items)) + items
+        return out + (struct.pack(e16, 0xfffe) + struct.pack(e16, 0xe0dd) + struct.pack(e32, 0) if undefined else b"")
+
+    def it(content, undefined):
+        out = struct.pack(e16, 0xfffe) + struct.pack(e16, 0xe000)
+        out += struct.pack(e32, 0xffffffff if undefined else len(content)) + content
+        return out + (struct.pack(e16, 0xfffe) + struct.pack(e16, 0xe00d) + struct.pack(e32, 0) if undefined else b"")
+
     d += el(0x20, 0xe, "UI", "1.2.826.0.1.3680043.2.1125.1") + el(0x20, 0x13, "IS", str(k + 1))
-    d += el(0x20, 0x32, "DS", "-120.5\\33\\%g" % (7 + 1.25 * k)) + el(0x20, 0x37, "DS", "1\\0\\0\\0\\1\\0")
-    d += el(0x28, 2, "US", us(1)) + el(0x28, 4, "CS", "MONOCHROME2") + el(0x28, 0x10, "US", us(rows))
-    d += el(0x28, 0x11, "US", us(cols)) + el(0x28, 0x30, "DS", "0.5\\0.75") + el(0x28, 0x100, "US", us(bits))
+    if not frames:
+        d += el(0x20, 0x32, "DS", "-120.5\\33\\%g" % (7 + 1.25 * k)) + el(0x20, 0x37, "DS", "1\\0\\0\\0\\1\\0")
+    d += el(0x28, 2, "US", us(1)) + el(0x28, 4, "CS", "MONOCHROME2")
+    if frames:
+        d += el(0x28, 8, "IS", str(frames))
+    d += el(0x28, 0x10, "US", us(rows))
+    d += el(0x28, 0x11, "US", us(cols)) + (b"" if frames else el(0x28, 0x30, "DS", "0.5\\0.75"))
+    d += el(0x28, 0x100, "US", us(bits))
     d += el(0x28, 0x101, "US", us(bits if bits == 8 else 12)) + el(0x28, 0x103, "US", us(signed))
-    d += el(0x28, 0x1052, "DS", "-1024") + el(0x28, 0x1053, "DS", "1")
-    n = rows * cols
+    if not frames:
+        d += el(0x28, 0x1052, "DS", "-1024") + el(0x28, 0x1053, "DS", "1")
+    else:
+        shared = sq(0x28, 0x9110, it(el(0x28, 0x30, "DS", "0.5\\0.75"), True), True)
+        shared += sq(0x20, 0x9116, it(el(0x20, 0x37, "DS", "1\\0\\0\\0\\1\\0"), True), True)
+        shared += sq(0x28, 0x9145, it(el(0x28, 0x1052, "DS", "-1024") + el(0x28, 0x1053, "DS", "2"), False), False)
+        d += sq(0x5200, 0x9229, it(shared, True), True)
+        per = b""
+        for f in range(frames):
+            place = el(0x20, 0x32, "DS", "-120.5\\33\\%g" % (7 + 1.25 * ((f * 3) % frames)))
+            per += it(sq(0x20, 0x9113, it(place, False), False), f % 2 == 0)
+        d += sq(0x5200, 0x9230, per, False)
+    n = rows * cols * max(frames, 1)
     if pixels is None:
         fmt = (">" if big else "<") + ("B" if bits == 8 else "h" if bits == 16 else "i") * n
         pixels = struct.pack(fmt, *[(i * 37 + k * 11) % 100 for i in range(n)])
@@ -381,6 +408,11 @@ def dicom_seeds(out):
     put(out, "dicom", "jpeg", NEXT.join(dicom_slice("1.2.840.10008.1.2.4.50", k) for k in range(2)))
     put(out, "dicom", "truncated", NEXT.join(dicom_slice("1.2.840.10008.1.2.1", k)[:200] for k in range(2)))
     put(out, "dicom", "short_pixels", NEXT.join(dicom_slice("1.2.840.10008.1.2.1", k, pixels=b"\1\2") for k in range(2)))
+    for name, ts in (("implicit", "1.2.840.10008.1.2"), ("explicit", "1.2.840.10008.1.2.1"),
+                     ("big", "1.2.840.10008.1.2.2")):
+        put(out, "dicom", "enhanced_" + name, dicom_slice(ts, 0, frames=5))
+    put(out, "dicom", "enhanced_concatenation", NEXT.join(dicom_slice("1.2.840.10008.1.2.1", k, frames=3) for k in range(2)))
+    put(out, "dicom", "enhanced_short_pixels", dicom_slice("1.2.840.10008.1.2.1", 0, frames=4, pixels=b"\1\2"))
     put(out, "dicom", "declared_huge", NEXT.join(dicom_slice("1.2.840.10008.1.2.1", k, rows=65535, cols=65535,
                                                                 pixels=b"\0" * 64) for k in range(2)))
 

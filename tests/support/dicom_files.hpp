@@ -39,6 +39,11 @@ struct dicom_slice_file {
   bool with_sequences = true;     ///< nested sequences of undefined and defined length to skip
   std::vector<std::byte> pixels;  ///< rows × columns samples of bits_allocated, host order
   std::string extra_meta;         ///< more bytes at the end of the file meta (tests)
+  /// Non-empty: an enhanced multi-frame image of one frame per position (pixels holds them in
+  /// this order), placed by PerFrameFunctionalGroupsSequence; orientation, pixel spacing and the
+  /// rescale go to SharedFunctionalGroupsSequence instead of the top level.
+  std::vector<std::array<double, 3>> frame_positions;
+  std::string number_of_frames;  ///< written instead of the positions' count when set
 
   [[nodiscard]] bool explicit_vr() const { return transfer_syntax != dicom_implicit_le; }
   [[nodiscard]] bool big() const { return transfer_syntax == dicom_explicit_be; }
@@ -95,21 +100,61 @@ struct dicom_slice_file {
       item(defined, inner, false);
       sequence(d, 0x0008, 0x1150 + 1, defined, false);
     }
+    const bool enhanced = !frame_positions.empty();
     element(d, 0x0020, 0x000e, "UI", series_uid);
     element(d, 0x0020, 0x0013, "IS", std::to_string(instance));
-    element(d, 0x0020, 0x0032, "DS", ds(position.data(), 3));
-    element(d, 0x0020, 0x0037, "DS", ds(orientation.data(), 6));
+    if (!enhanced) {
+      element(d, 0x0020, 0x0032, "DS", ds(position.data(), 3));
+      element(d, 0x0020, 0x0037, "DS", ds(orientation.data(), 6));
+    }
     element(d, 0x0028, 0x0002, "US", us(samples));
     element(d, 0x0028, 0x0004, "CS", photometric);
+    if (enhanced) {
+      element(d, 0x0028, 0x0008, "IS",
+              number_of_frames.empty() ? std::to_string(frame_positions.size()) : number_of_frames);
+    }
     element(d, 0x0028, 0x0010, "US", us(rows));
     element(d, 0x0028, 0x0011, "US", us(columns));
-    element(d, 0x0028, 0x0030, "DS", ds(pixel_spacing.data(), 2));
+    if (!enhanced) element(d, 0x0028, 0x0030, "DS", ds(pixel_spacing.data(), 2));
     element(d, 0x0028, 0x0100, "US", us(bits_allocated));
     element(d, 0x0028, 0x0101, "US", us(bits_stored));
     element(d, 0x0028, 0x0102, "US", us(bits_stored - 1));
     element(d, 0x0028, 0x0103, "US", us(pixel_representation));
-    element(d, 0x0028, 0x1052, "DS", intercept);
-    element(d, 0x0028, 0x1053, "DS", slope);
+    if (!enhanced) {
+      element(d, 0x0028, 0x1052, "DS", intercept);
+      element(d, 0x0028, 0x1053, "DS", slope);
+    } else {
+      // Shared groups (items of undefined length): Pixel Measures, Plane Orientation, Pixel
+      // Value Transformation; per frame (defined length): Frame Content, Plane Position.
+      const auto group = [&](std::uint16_t g, std::uint16_t e, const std::string& content,
+                             bool undefined) {
+        std::string items;
+        item(items, content, undefined);
+        std::string out;
+        sequence(out, g, e, items, undefined);
+        return out;
+      };
+      std::string measures, plane, transform;
+      element(measures, 0x0028, 0x0030, "DS", ds(pixel_spacing.data(), 2));
+      element(plane, 0x0020, 0x0037, "DS", ds(orientation.data(), 6));
+      element(transform, 0x0028, 0x1052, "DS", intercept);
+      element(transform, 0x0028, 0x1053, "DS", slope);
+      const std::string shared = group(0x0028, 0x9110, measures, true) +
+                                 group(0x0020, 0x9116, plane, true) +
+                                 group(0x0028, 0x9145, transform, true);
+      std::string shared_items;
+      item(shared_items, shared, true);
+      sequence(d, 0x5200, 0x9229, shared_items, true);
+      std::string frames;
+      for (std::size_t k = 0; k < frame_positions.size(); ++k) {
+        std::string content, place;
+        element(content, 0x0020, 0x9057, "UL", std::string(4, '\0'));
+        element(place, 0x0020, 0x0032, "DS", ds(frame_positions[k].data(), 3));
+        item(frames, group(0x0020, 0x9111, content, false) + group(0x0020, 0x9113, place, false),
+             false);
+      }
+      sequence(d, 0x5200, 0x9230, frames, false);
+    }
     std::string px(reinterpret_cast<const char*>(pixels.data()), pixels.size());
     const std::size_t item_bytes = static_cast<std::size_t>(bits_allocated / 8);
     if (big() && item_bytes > 1) {

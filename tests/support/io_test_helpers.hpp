@@ -107,6 +107,35 @@ inline std::string nifti1_series(std::string file, std::int16_t volumes) {
   return file;
 }
 
+/// Sample i of `v` as a double, loaded by the test from the volume's bytes (not through
+/// volume::at(), so that a reader test checks the bytes independently of the library).
+inline double stored_sample(const volume& v, std::size_t i) {
+  const std::byte* p = v.bytes() + i * sample_size(v.type());
+  const auto load = [p](auto x) {
+    std::memcpy(&x, p, sizeof x);
+    return static_cast<double>(x);
+  };
+  switch (v.type()) {
+    case sample_type::u8:
+      return load(std::uint8_t{});
+    case sample_type::i8:
+      return load(std::int8_t{});
+    case sample_type::u16:
+      return load(std::uint16_t{});
+    case sample_type::i16:
+      return load(std::int16_t{});
+    case sample_type::u32:
+      return load(std::uint32_t{});
+    case sample_type::i32:
+      return load(std::int32_t{});
+    case sample_type::f32:
+      return load(float{});
+    case sample_type::f64:
+      return load(double{});
+  }
+  return 0.0;
+}
+
 inline bool contains(const std::string& haystack, const std::string& needle) {
   return haystack.find(needle) != std::string::npos;
 }

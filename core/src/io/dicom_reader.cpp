@@ -28,6 +28,9 @@ constexpr std::uint32_t undefined_length = 0xffffffffu;
 constexpr std::size_t max_value_bytes = 1024;  // of an element progiso reads
 constexpr int max_depth = 16;                  // of nested sequences
 constexpr std::size_t max_directory_entries = 1u << 20;
+// Per-frame functional groups kept over a directory's enhanced images (each about 150 bytes):
+// four series of the most frames one volume may have.
+constexpr std::size_t max_frame_groups = 4 * dicom_max_slices;
 
 constexpr std::uint32_t tag(std::uint16_t group, std::uint16_t element) noexcept {
   return (std::uint32_t{group} << 16) | element;
@@ -50,6 +53,12 @@ constexpr std::uint32_t slope_tag = tag(0x0028, 0x1053);
 constexpr std::uint32_t float_pixel_tag = tag(0x7fe0, 0x0008);
 constexpr std::uint32_t double_pixel_tag = tag(0x7fe0, 0x0009);
 constexpr std::uint32_t pixel_data_tag = tag(0x7fe0, 0x0010);
+constexpr std::uint32_t shared_groups_tag = tag(0x5200, 0x9229);
+constexpr std::uint32_t per_frame_groups_tag = tag(0x5200, 0x9230);
+constexpr std::uint32_t pixel_measures_tag = tag(0x0028, 0x9110);
+constexpr std::uint32_t plane_position_tag = tag(0x0020, 0x9113);
+constexpr std::uint32_t plane_orientation_tag = tag(0x0020, 0x9116);
+constexpr std::uint32_t value_transformation_tag = tag(0x0028, 0x9145);
 constexpr std::uint32_t item_tag = tag(0xfffe, 0xe000);
 constexpr std::uint32_t item_end_tag = tag(0xfffe, 0xe00d);
 constexpr std::uint32_t sequence_end_tag = tag(0xfffe, 0xe0dd);
@@ -96,22 +105,44 @@ bool long_vr(std::string_view vr) noexcept {
   return std::find(vrs.begin(), vrs.end(), vr) != vrs.end();
 }
 
+/// Where a frame lies and how its values scale: the dataset's own elements, or those of an
+/// enhanced image's functional groups (shared by every frame, or one frame's).
+struct frame_fields {
+  std::optional<std::array<double, 3>> position;
+  std::optional<std::array<double, 6>> orientation;
+  std::optional<std::array<double, 2>> pixel_spacing;
+  std::optional<double> slope;
+  std::optional<double> intercept;
+
+  /// Each field of `over` where it has one, else this one's.
+  [[nodiscard]] frame_fields under(const frame_fields& over) const {
+    return {over.position ? over.position : position,
+            over.orientation ? over.orientation : orientation,
+            over.pixel_spacing ? over.pixel_spacing : pixel_spacing,
+            over.slope ? over.slope : slope, over.intercept ? over.intercept : intercept};
+  }
+};
+
 /// What one file's header says.
 struct file_header {
   bool image = false;  ///< holds pixel data
   bool big_endian = false;
   std::string series;
-  std::optional<std::array<double, 3>> position;
-  std::optional<std::array<double, 6>> orientation;
-  std::optional<std::array<double, 2>> pixel_spacing;
+  frame_fields own;                     ///< the dataset's top-level elements
+  frame_fields shared;                  ///< SharedFunctionalGroupsSequence
+  std::vector<frame_fields> per_frame;  ///< PerFrameFunctionalGroupsSequence, one per item
   std::uint32_t rows = 0, columns = 0, bits_allocated = 0, bits_stored = 0;
   std::uint32_t pixel_representation = 0, samples = 1;
   std::int64_t frames = 1;
   std::string photometric = "MONOCHROME2";
-  double slope = 1.0;
-  double intercept = 0.0;
   std::uint64_t pixel_offset = 0;
   std::uint64_t pixel_length = 0;
+
+  /// Frame k's fields: its own functional groups, else the shared ones, else the dataset's.
+  [[nodiscard]] frame_fields frame(std::size_t k) const {
+    frame_fields f = own.under(shared);
+    return k < per_frame.size() ? f.under(per_frame[k]) : f;
+  }
 };
 
 /// Reads the elements of one DICOM Part 10 file up to its pixel data.
@@ -284,43 +315,29 @@ class file_parser {
       if (t == float_pixel_tag || t == double_pixel_tag) {
         fail("holds floating-point pixel data " + tag_text(t) + ": not supported");
       }
+      if (t == shared_groups_tag || t == per_frame_groups_tag) {
+        functional_groups(e, t == per_frame_groups_tag, h);
+        continue;
+      }
       if (e.length == undefined_length) {
         // A sequence (SQ; UN of undefined length is an implicit VR little endian sequence).
         skip_sequence(syntax_.explicit_vr && e.vr != "UN", e.vr == "UN" ? false : big, 1);
         continue;
       }
+      if (frame_value(e, h.own)) continue;
       switch (t) {
         case series_uid_tag:
           h.series = std::string(trim_value(read_value(e)));
           break;
-        case position_tag: {
-          const std::string v = read_value(e);
-          h.position = numbers<3>(e, trim_value(v));
-          break;
-        }
-        case orientation_tag: {
-          const std::string v = read_value(e);
-          h.orientation = numbers<6>(e, trim_value(v));
-          break;
-        }
-        case pixel_spacing_tag: {
-          const std::string v = read_value(e);
-          h.pixel_spacing = numbers<2>(e, trim_value(v));
-          break;
-        }
         case frames_tag: {
           const std::string v = read_value(e);
-          h.frames = static_cast<std::int64_t>(numbers<1>(e, trim_value(v))[0]);
-          break;
-        }
-        case intercept_tag: {
-          const std::string v = read_value(e);
-          h.intercept = numbers<1>(e, trim_value(v))[0];
-          break;
-        }
-        case slope_tag: {
-          const std::string v = read_value(e);
-          h.slope = numbers<1>(e, trim_value(v))[0];
+          const double frames = numbers<1>(e, trim_value(v))[0];
+          if (!(frames >= 1 && frames <= static_cast<double>(dicom_max_slices)) ||
+              frames != std::floor(frames)) {
+            fail("has NumberOfFrames (0028,0008) " + detail::quoted(trim_value(v)) +
+                 ", expected 1 to " + std::to_string(dicom_max_slices));
+          }
+          h.frames = static_cast<std::int64_t>(frames);
           break;
         }
         case photometric_tag:
@@ -349,6 +366,124 @@ class file_parser {
           break;
       }
     }
+  }
+
+  /// Reads `e` into `f` when it is one of the fields that place or scale a frame (at the top
+  /// level or in a functional group); false, with nothing read, for any other element.
+  bool frame_value(const element& e, frame_fields& f) {
+    if (e.length == undefined_length) return false;
+    switch (e.tag) {
+      case position_tag:
+        f.position = numbers<3>(e, trim_value(read_value(e)));
+        return true;
+      case orientation_tag:
+        f.orientation = numbers<6>(e, trim_value(read_value(e)));
+        return true;
+      case pixel_spacing_tag:
+        f.pixel_spacing = numbers<2>(e, trim_value(read_value(e)));
+        return true;
+      case intercept_tag:
+        f.intercept = numbers<1>(e, trim_value(read_value(e)))[0];
+        return true;
+      case slope_tag:
+        f.slope = numbers<1>(e, trim_value(read_value(e)))[0];
+        return true;
+      default:
+        return false;
+    }
+  }
+
+  /// Skips an element's value: a sequence of undefined length item by item, anything else by
+  /// its length.
+  void skip_value(const element& e, bool explicit_vr, bool big, int depth) {
+    if (e.length == undefined_length) {
+      skip_sequence(explicit_vr && e.vr != "UN", e.vr == "UN" ? false : big, depth);
+    } else {
+      skip(e.length);
+    }
+  }
+
+  /// The end of a value of `length` bytes starting here; fails when it runs past the file.
+  std::uint64_t end_of(std::uint32_t length, const char* what) {
+    if (length > in_.size() - pos_) {
+      fail("holds " + std::string(what) + " of " + std::to_string(length) + " bytes at byte " +
+           std::to_string(pos_) + ", past its end (" + std::to_string(in_.size()) + " bytes)");
+    }
+    return pos_ + length;
+  }
+
+  /// Calls f(length, explicit_vr, big) at each item of the sequence `e` (of defined or undefined
+  /// length), after the item's tag and length; f consumes the item.
+  template <class F>
+  void for_each_item(const element& e, bool explicit_vr, bool big, int depth, F&& f) {
+    if (depth > max_depth) fail("nests sequences more than " + std::to_string(max_depth) + " deep");
+    // A UN sequence holds implicit VR little endian.
+    const bool ex = explicit_vr && e.vr != "UN";
+    const bool bg = e.vr == "UN" ? false : big;
+    const bool undefined = e.length == undefined_length;
+    const std::uint64_t end = undefined ? 0 : end_of(e.length, "a sequence");
+    while (undefined || pos_ < end) {
+      const std::uint32_t t = read_tag(bg);
+      const std::uint32_t length = read_u32(bg);
+      if (undefined && t == sequence_end_tag) return;
+      if (t != item_tag) {
+        fail("holds " + tag_text(t) + " inside a sequence at byte " + std::to_string(pos_ - 8) +
+             " (expected an item or the sequence's end)");
+      }
+      f(length, ex, bg);
+      if (!undefined && pos_ > end) fail("holds an item that runs past its sequence's end");
+    }
+  }
+
+  /// Calls f(element) for each element of an item of `length` bytes (or up to its end tag), f
+  /// consuming the element's value.
+  template <class F>
+  void for_each_element(std::uint32_t length, bool explicit_vr, bool big, F&& f) {
+    const bool undefined = length == undefined_length;
+    const std::uint64_t end = undefined ? 0 : end_of(length, "an item");
+    while (undefined || pos_ < end) {
+      const std::uint32_t t = read_tag(big);
+      const element e = read_header(t, explicit_vr, big);
+      if (undefined && t == item_end_tag) return;
+      if ((t >> 16) == 0xfffe) {
+        fail("holds " + tag_text(t) + " inside an item at byte " + std::to_string(pos_ - 8));
+      }
+      f(e);
+      if (!undefined && pos_ > end) fail("holds an element that runs past its item's end");
+    }
+  }
+
+  /// An enhanced image's SharedFunctionalGroupsSequence (5200,9229) or
+  /// PerFrameFunctionalGroupsSequence (5200,9230): from each item, the frame's fields in the
+  /// functional groups that hold them (Pixel Measures, Plane Position, Plane Orientation, Pixel
+  /// Value Transformation); every other group skipped.
+  void functional_groups(const element& seq, bool per_frame, file_header& h) {
+    for_each_item(seq, syntax_.explicit_vr, syntax_.big_endian, 1,
+                  [&](std::uint32_t length, bool ex, bool big) {
+                    frame_fields fields;
+                    for_each_element(length, ex, big, [&](const element& group) {
+                      if (group.tag != pixel_measures_tag && group.tag != plane_position_tag &&
+                          group.tag != plane_orientation_tag &&
+                          group.tag != value_transformation_tag) {
+                        skip_value(group, ex, big, 2);
+                        return;
+                      }
+                      for_each_item(group, ex, big, 2, [&](std::uint32_t n, bool ex2, bool big2) {
+                        for_each_element(n, ex2, big2, [&](const element& v) {
+                          if (!frame_value(v, fields)) skip_value(v, ex2, big2, 3);
+                        });
+                      });
+                    });
+                    if (!per_frame) {
+                      h.shared = h.shared.under(fields);
+                      return;
+                    }
+                    if (h.per_frame.size() == dicom_max_slices) {
+                      fail("holds more than " + std::to_string(dicom_max_slices) +
+                           " items in PerFrameFunctionalGroupsSequence (5200,9230)");
+                    }
+                    h.per_frame.push_back(fields);
+                  });
   }
 
   /// Skips the items of a sequence of undefined length, up to its delimiter.
@@ -417,40 +552,60 @@ std::int64_t stored_value(U raw, unsigned bits_stored, bool is_signed) noexcept 
 
 }  // namespace
 
-dicom_series read_dicom_series(const fs::path& directory,
-                               const std::optional<std::string>& chosen) {
-  const std::string dir_name = directory.string();
+dicom_series read_dicom_series(const fs::path& input, const std::optional<std::string>& chosen) {
+  const std::string dir_name = input.string();
   std::error_code ec;
+  const bool one_file = !fs::is_directory(input, ec);
   std::vector<fs::path> names;
-  for (fs::directory_iterator it(directory, ec), end; !ec && it != end; it.increment(ec)) {
-    if (names.size() == max_directory_entries) {
-      throw error(dir_name + ": holds more than " + std::to_string(max_directory_entries) +
-                  " entries, expected one DICOM series");
+  if (one_file) {
+    names.push_back(input);
+  } else {
+    for (fs::directory_iterator it(input, ec), end; !ec && it != end; it.increment(ec)) {
+      if (names.size() == max_directory_entries) {
+        throw error(dir_name + ": holds more than " + std::to_string(max_directory_entries) +
+                    " entries, expected one DICOM series");
+      }
+      std::error_code type_ec;
+      if (it->is_regular_file(type_ec)) names.push_back(it->path());
     }
-    std::error_code type_ec;
-    if (it->is_regular_file(type_ec)) names.push_back(it->path());
+    if (ec) throw error(dir_name + ": cannot list the directory (" + ec.message() + ")");
+    std::sort(names.begin(), names.end());
   }
-  if (ec) throw error(dir_name + ": cannot list the directory (" + ec.message() + ")");
-  std::sort(names.begin(), names.end());
 
   struct found {
     fs::path file;
     file_header header;
   };
-  std::map<std::string, std::vector<found>> series;
+  struct series_files {
+    std::vector<found> files;
+    std::size_t frames = 0;
+  };
+  std::map<std::string, series_files> series;
+  std::size_t per_frame_items = 0;  // enhanced images' per-frame groups, over every file
   for (const fs::path& file : names) {
     input_file in(file, "DICOM");
     std::optional<file_header> h = file_parser(in).run();
-    if (!h || !h->image) continue;
-    std::vector<found>& list = series[h->series];
-    if (list.size() == dicom_max_slices) {
-      throw error(dir_name + ": holds more than " + std::to_string(dicom_max_slices) +
-                  " DICOM images of one series");
+    if (one_file && !h) {
+      throw error(dir_name + ": not a DICOM Part 10 file (no \"DICM\" at byte 128)");
     }
-    list.push_back({file, std::move(*h)});
+    if (!h || !h->image) continue;
+    per_frame_items += h->per_frame.size();
+    if (per_frame_items > max_frame_groups) {
+      throw error(dir_name + ": holds more than " + std::to_string(max_frame_groups) +
+                  " per-frame functional groups in its enhanced DICOM images");
+    }
+    series_files& list = series[h->series];
+    list.frames += static_cast<std::size_t>(h->frames);
+    if (list.frames > dicom_max_slices) {
+      throw error(dir_name + ": holds more than " + std::to_string(dicom_max_slices) +
+                  " DICOM images (frames) of one series");
+    }
+    list.files.push_back({file, std::move(*h)});
   }
   if (series.empty()) {
-    throw error(dir_name + ": holds no DICOM image (expected DICOM Part 10 files with pixel data)");
+    throw error(dir_name + (one_file ? ": DICOM file holds no pixel data"
+                                     : ": holds no DICOM image (expected DICOM Part 10 files "
+                                       "with pixel data)"));
   }
   // The series: the only one, or the one chosen by UID or by number in UID order.
   const auto listing = [&] {
@@ -463,7 +618,7 @@ dicom_series read_dicom_series(const fs::path& directory,
       }
       if (!list.empty()) list += ", ";
       list += std::to_string(number) + ": " + detail::quoted(uid, 64) + " (" +
-              std::to_string(files.size()) + " images)";
+              std::to_string(files.frames) + " images)";
     }
     return list;
   };
@@ -482,132 +637,164 @@ dicom_series read_dicom_series(const fs::path& directory,
     throw error(dir_name + ": holds " + std::to_string(series.size()) + " DICOM series (" +
                 listing() + "), expected one: choose one by its number or UID");
   }
-  std::vector<found>& files = picked->second;
+  std::vector<found>& files = picked->second.files;
   const file_header& first = files.front().header;
   const std::string first_name = files.front().file.string();
-  const auto refuse = [](const fs::path& f, const std::string& what) {
-    throw error(f.string() + ": " + what);
+  const auto refuse = [](const std::string& name, const std::string& what) {
+    throw error(name + ": " + what);
   };
-  if (files.size() < 2) {
-    refuse(files.front().file, "the only DICOM image in " + dir_name +
-                                   ": a 2-D image, expected a series of at least 2 slices");
+  if (picked->second.frames < 2) {
+    if (one_file) {
+      refuse(dir_name,
+             "one DICOM file is one slice: give the directory of its series instead (a file "
+             "alone must be an enhanced multi-frame image)");
+    }
+    refuse(first_name, "the only DICOM image in " + dir_name +
+                           ": a 2-D image, expected a series of at least 2 slices");
   }
-  // What every slice must share.
+  // What every file must share.
   for (const found& f : files) {
     const file_header& h = f.header;
-    if (h.frames != 1) {
-      refuse(f.file, "a multi-frame image (" + std::to_string(h.frames) +
-                         " frames): not supported, expected one slice per file");
+    const std::string name = f.file.string();
+    if (h.frames > 1 && h.per_frame.size() != static_cast<std::size_t>(h.frames)) {
+      refuse(name, "a multi-frame image of " + std::to_string(h.frames) + " frames with " +
+                       std::to_string(h.per_frame.size()) +
+                       " items in PerFrameFunctionalGroupsSequence (5200,9230): expected an "
+                       "enhanced image that places each of its frames");
     }
     if (h.samples != 1) {
-      refuse(f.file, "has " + std::to_string(h.samples) + " samples per pixel (" + h.photometric +
-                         "): expected 1 (MONOCHROME1 or MONOCHROME2)");
+      refuse(name, "has " + std::to_string(h.samples) + " samples per pixel (" + h.photometric +
+                       "): expected 1 (MONOCHROME1 or MONOCHROME2)");
     }
     if (h.bits_allocated != 8 && h.bits_allocated != 16 && h.bits_allocated != 32) {
-      refuse(f.file, "allocates " + std::to_string(h.bits_allocated) +
-                         " bits per pixel, expected 8, 16 or 32");
+      refuse(name, "allocates " + std::to_string(h.bits_allocated) +
+                       " bits per pixel, expected 8, 16 or 32");
     }
     if (h.bits_stored == 0 || h.bits_stored > h.bits_allocated) {
-      refuse(f.file, "stores " + std::to_string(h.bits_stored) + " bits in " +
-                         std::to_string(h.bits_allocated) + ", expected 1 to " +
-                         std::to_string(h.bits_allocated));
+      refuse(name, "stores " + std::to_string(h.bits_stored) + " bits in " +
+                       std::to_string(h.bits_allocated) + ", expected 1 to " +
+                       std::to_string(h.bits_allocated));
     }
     if (h.pixel_representation > 1) {
-      refuse(f.file, "has pixel representation " + std::to_string(h.pixel_representation) +
-                         ", expected 0 (unsigned) or 1 (signed)");
+      refuse(name, "has pixel representation " + std::to_string(h.pixel_representation) +
+                       ", expected 0 (unsigned) or 1 (signed)");
     }
     if (h.rows < 2 || h.columns < 2) {
-      refuse(f.file, "has " + std::to_string(h.rows) + " rows and " + std::to_string(h.columns) +
-                         " columns, expected at least 2 of each");
+      refuse(name, "has " + std::to_string(h.rows) + " rows and " + std::to_string(h.columns) +
+                       " columns, expected at least 2 of each");
     }
-    if (!h.position || !h.orientation) {
-      refuse(f.file,
-             "has no ImagePositionPatient (0020,0032) or ImageOrientationPatient "
-             "(0020,0037): the slices cannot be placed");
-    }
-    if (!h.pixel_spacing || (*h.pixel_spacing)[0] <= 0.0 || (*h.pixel_spacing)[1] <= 0.0) {
-      refuse(f.file, "has no positive PixelSpacing (0028,0030)");
-    }
-    if (h.slope == 0.0) refuse(f.file, "has RescaleSlope 0");
     const bool same = h.rows == first.rows && h.columns == first.columns &&
                       h.bits_allocated == first.bits_allocated &&
                       h.bits_stored == first.bits_stored &&
                       h.pixel_representation == first.pixel_representation;
     if (!same) {
-      refuse(f.file, "differs from " + first_name + " in its rows, columns or bits (" +
-                         std::to_string(h.columns) + "x" + std::to_string(h.rows) + ", " +
-                         std::to_string(h.bits_allocated) + " bits, against " +
-                         std::to_string(first.columns) + "x" + std::to_string(first.rows) + ", " +
-                         std::to_string(first.bits_allocated) + ")");
+      refuse(name, "differs from " + first_name + " in its rows, columns or bits (" +
+                       std::to_string(h.columns) + "x" + std::to_string(h.rows) + ", " +
+                       std::to_string(h.bits_allocated) + " bits, against " +
+                       std::to_string(first.columns) + "x" + std::to_string(first.rows) + ", " +
+                       std::to_string(first.bits_allocated) + ")");
     }
+    const std::uint64_t frame = std::uint64_t{h.rows} * h.columns * (h.bits_allocated / 8);
+    const std::uint64_t need = frame * static_cast<std::uint64_t>(h.frames);
+    if (h.pixel_length < need) {
+      refuse(name, "holds " + std::to_string(h.pixel_length) + " bytes of pixel data, expected " +
+                       std::to_string(need) + " (" +
+                       (h.frames > 1 ? std::to_string(h.frames) + " frames of " : std::string()) +
+                       std::to_string(h.columns) + "x" + std::to_string(h.rows) + " of " +
+                       std::to_string(h.bits_allocated) + " bits)");
+    }
+  }
+  // Every frame: placed, and placed like the first.
+  struct placed {
+    dicom_slice slice;
+    frame_fields fields;
+  };
+  std::vector<placed> frames;
+  frames.reserve(picked->second.frames);
+  for (const found& f : files) {
+    const file_header& h = f.header;
+    const std::uint64_t frame_bytes = std::uint64_t{h.rows} * h.columns * (h.bits_allocated / 8);
+    for (std::int64_t k = 0; k < h.frames; ++k) {
+      placed p;
+      p.fields = h.frame(static_cast<std::size_t>(k));
+      p.slice.file = f.file;
+      p.slice.frame = h.frames > 1 ? k : -1;
+      p.slice.pixel_offset = h.pixel_offset + static_cast<std::uint64_t>(k) * frame_bytes;
+      p.slice.big_endian = h.big_endian;
+      frames.push_back(std::move(p));
+    }
+  }
+  const frame_fields& lead = frames.front().fields;
+  const std::string lead_name = frames.front().slice.name();
+  for (placed& p : frames) {
+    const frame_fields& g = p.fields;
+    const std::string name = p.slice.name();
+    if (!g.position || !g.orientation) {
+      refuse(name,
+             "has no ImagePositionPatient (0020,0032) or ImageOrientationPatient "
+             "(0020,0037): the slices cannot be placed");
+    }
+    if (!g.pixel_spacing || (*g.pixel_spacing)[0] <= 0.0 || (*g.pixel_spacing)[1] <= 0.0) {
+      refuse(name, "has no positive PixelSpacing (0028,0030)");
+    }
+    if (g.slope.value_or(1.0) == 0.0) refuse(name, "has RescaleSlope 0");
     for (std::size_t i = 0; i < 6; ++i) {
-      if (std::abs((*h.orientation)[i] - (*first.orientation)[i]) > 1e-4) {
-        refuse(f.file, "has another ImageOrientationPatient than " + first_name);
+      if (std::abs((*g.orientation)[i] - (*lead.orientation)[i]) > 1e-4) {
+        refuse(name, "has another ImageOrientationPatient than " + lead_name);
       }
     }
     for (std::size_t i = 0; i < 2; ++i) {
-      if (std::abs((*h.pixel_spacing)[i] - (*first.pixel_spacing)[i]) >
-          1e-6 * (*first.pixel_spacing)[i]) {
-        refuse(f.file, "has another PixelSpacing than " + first_name);
+      if (std::abs((*g.pixel_spacing)[i] - (*lead.pixel_spacing)[i]) >
+          1e-6 * (*lead.pixel_spacing)[i]) {
+        refuse(name, "has another PixelSpacing than " + lead_name);
       }
     }
-    const std::uint64_t frame = std::uint64_t{h.rows} * h.columns * (h.bits_allocated / 8);
-    if (h.pixel_length < frame) {
-      refuse(f.file, "holds " + std::to_string(h.pixel_length) + " bytes of pixel data, expected " +
-                         std::to_string(frame) + " (" + std::to_string(h.columns) + "x" +
-                         std::to_string(h.rows) + " of " + std::to_string(h.bits_allocated) +
-                         " bits)");
-    }
+    p.slice.position = *g.position;
+    p.slice.slope = g.slope.value_or(1.0);
+    p.slice.intercept = g.intercept.value_or(0.0);
   }
   // Directions: DICOM gives the row direction (along a row: x), then the column direction.
-  const std::array<double, 6>& o = *first.orientation;
+  const std::array<double, 6>& o = *lead.orientation;
   const std::array<double, 3> row{o[0], o[1], o[2]};
   const std::array<double, 3> col{o[3], o[4], o[5]};
   std::array<double, 3> normal{row[1] * col[2] - row[2] * col[1], row[2] * col[0] - row[0] * col[2],
                                row[0] * col[1] - row[1] * col[0]};
   const double n = std::sqrt(dot(normal, normal));
   if (!(n > 0.5))
-    refuse(files.front().file, "has ImageOrientationPatient without two independent directions");
+    refuse(lead_name, "has ImageOrientationPatient without two independent directions");
   for (double& v : normal) v /= n;
 
   dicom_series s;
-  s.slices.reserve(files.size());
-  for (const found& f : files) {
-    dicom_slice d;
-    d.file = f.file;
-    d.pixel_offset = f.header.pixel_offset;
-    d.big_endian = f.header.big_endian;
-    d.position = *f.header.position;
-    d.slope = f.header.slope;
-    d.intercept = f.header.intercept;
-    d.along = dot(d.position, normal);
-    s.scaled = s.scaled || d.slope != 1.0 || d.intercept != 0.0;
-    s.slices.push_back(std::move(d));
+  s.slices.reserve(frames.size());
+  for (placed& p : frames) {
+    p.slice.along = dot(p.slice.position, normal);
+    s.scaled = s.scaled || p.slice.slope != 1.0 || p.slice.intercept != 0.0;
+    s.slices.push_back(std::move(p.slice));
   }
   std::stable_sort(s.slices.begin(), s.slices.end(),
                    [](const dicom_slice& a, const dicom_slice& b) { return a.along < b.along; });
   const double step =
       (s.slices.back().along - s.slices.front().along) / static_cast<double>(s.slices.size() - 1);
-  const std::array<double, 2>& ps = *first.pixel_spacing;
+  const std::array<double, 2>& ps = *lead.pixel_spacing;
   if (!(step > 1e-6)) {
-    refuse(s.slices.back().file, "lies at the same position as " + s.slices.front().file.string() +
-                                     ": expected slices at distinct positions along the normal");
+    refuse(s.slices.back().name(), "lies at the same position as " + s.slices.front().name() +
+                                       ": expected slices at distinct positions along the normal");
   }
   for (std::size_t k = 1; k < s.slices.size(); ++k) {
     const double gap = s.slices[k].along - s.slices[k - 1].along;
     if (std::abs(gap - step) > std::max(1e-3, 0.01 * step)) {
-      refuse(s.slices[k].file, "lies " + std::to_string(gap) + " mm after " +
-                                   s.slices[k - 1].file.string() +
-                                   ", where the series' slices are " + std::to_string(step) +
-                                   " mm apart on average: expected evenly spaced slices (a "
-                                   "missing or duplicated slice?)");
+      refuse(s.slices[k].name(), "lies " + std::to_string(gap) + " mm after " +
+                                     s.slices[k - 1].name() + ", where the series' slices are " +
+                                     std::to_string(step) +
+                                     " mm apart on average: expected evenly spaced slices (a "
+                                     "missing or duplicated slice?)");
     }
     // In-plane drift along the stack: a tilted gantry (positions off the normal).
     for (std::size_t i = 0; i < 3; ++i) {
       const double expected =
           s.slices[0].position[i] + normal[i] * (s.slices[k].along - s.slices[0].along);
       if (std::abs(s.slices[k].position[i] - expected) > 0.1 * std::min(ps[0], ps[1])) {
-        refuse(s.slices[k].file,
+        refuse(s.slices[k].name(),
                "is offset in-plane from the slice normal (a tilted gantry?): "
                "expected positions along the normal of ImageOrientationPatient");
       }
@@ -640,18 +827,22 @@ std::vector<std::byte> read_dicom_samples(const dicom_series& s) {
   const bool is_signed =
       s.stored == sample_type::i8 || s.stored == sample_type::i16 || s.stored == sample_type::i32;
   const bool host_big = std::endian::native == std::endian::big;
+  std::optional<input_file> in;  // the last slice's file: an enhanced image's frames share one
   for (std::size_t k = 0; k < s.slices.size(); ++k) {
     const dicom_slice& d = s.slices[k];
-    input_file in(d.file, "DICOM");
-    if (in.size() < d.pixel_offset || in.size() - d.pixel_offset < frame_bytes) {
-      throw error(d.file.string() + ": DICOM file ends inside its pixel data (" +
-                  std::to_string(in.size()) + " bytes, the frame needs " +
+    if (!in || in->path() != d.file) {
+      in.reset();
+      in.emplace(d.file, "DICOM");
+    }
+    if (in->size() < d.pixel_offset || in->size() - d.pixel_offset < frame_bytes) {
+      throw error(d.name() + ": DICOM file ends inside its pixel data (" +
+                  std::to_string(in->size()) + " bytes, the frame needs " +
                   std::to_string(frame_bytes) + " from byte " + std::to_string(d.pixel_offset) +
                   ")");
     }
-    in.seek(d.pixel_offset);
-    if (in.read(frame.data(), frame.size()) != frame.size()) {
-      throw error(d.file.string() + ": DICOM file ends inside its pixel data");
+    in->seek(d.pixel_offset);
+    if (in->read(frame.data(), frame.size()) != frame.size()) {
+      throw error(d.name() + ": DICOM file ends inside its pixel data");
     }
     if (item > 1 && d.big_endian != host_big) swap_sample_bytes(frame, item);
     std::byte* dst = out.data() + k * frame_count * out_item;
@@ -689,6 +880,19 @@ std::vector<std::byte> read_dicom_samples(const dicom_series& s) {
     }
   }
   return out;
+}
+
+bool has_dicom_preamble(const fs::path& file) {
+  std::error_code ec;
+  if (!fs::is_regular_file(file, ec)) return false;
+  try {
+    input_file in(file, "DICOM");
+    std::array<char, 132> head{};
+    return in.read(head.data(), head.size()) == head.size() &&
+           std::string_view(head.data() + 128, 4) == "DICM";
+  } catch (const error&) {
+    return false;
+  }
 }
 
 }  // namespace progiso::detail

@@ -7,6 +7,7 @@
 #include <limits>
 #include <memory>
 #include <optional>
+#include <set>
 #include <string>
 #include <utility>
 #include <vector>
@@ -56,10 +57,8 @@ enum class volume_format { nrrd, nifti, metaimage, vtk_legacy, vti, pvti, dicom 
 volume_format format_of(const fs::path& file) {
   std::error_code ec;
   if (fs::is_directory(file, ec)) return volume_format::dicom;
-  if (lower_extension(file) == ".dcm") {
-    throw error(file.string() +
-                ": one DICOM file is one slice: give the directory of its series instead");
-  }
+  // One DICOM file: an enhanced multi-frame image (one slice alone is refused by the reader).
+  if (lower_extension(file) == ".dcm") return volume_format::dicom;
   if (detail::has_nifti_name(file)) return volume_format::nifti;
   if (detail::has_metaimage_name(file)) return volume_format::metaimage;
   if (detail::has_vtk_legacy_name(file)) return volume_format::vtk_legacy;
@@ -67,10 +66,13 @@ volume_format format_of(const fs::path& file) {
   if (detail::has_pvti_name(file)) return volume_format::pvti;
   const std::string ext = lower_extension(file);
   if (ext == ".nrrd" || ext == ".nhdr") return volume_format::nrrd;
+  // Scanners and PACS name DICOM files without an extension (IM0001, a UID).
+  if (detail::has_dicom_preamble(file)) return volume_format::dicom;
   throw error(
       file.string() +
       ": unknown volume format (expected .nrrd, .nhdr, .nii, .nii.gz, .hdr, .mha, .mhd, "
-      ".vtk, .vti, .pvti, a directory of DICOM files, or a raw file with --dims and --type)");
+      ".vtk, .vti, .pvti, a directory of DICOM files or an enhanced DICOM file, or a raw file "
+      "with --dims and --type)");
 }
 
 /// The header of a NRRD, MetaImage or legacy VTK file (each reads its data through
@@ -225,9 +227,13 @@ struct dicom_source final : source_state {
   dicom_source(const fs::path& d, const volume_choice& choice)
       : directory(d), series(detail::read_dicom_series(d, choice.series)) {
     world = series.world;
-    files.reserve(1 + series.slices.size());
+    // The directory (or the one file), then each file once: an enhanced image's frames share
+    // theirs.
     files.push_back(d);
-    for (const detail::dicom_slice& s : series.slices) files.push_back(s.file);
+    std::set<fs::path> listed{d};
+    for (const detail::dicom_slice& s : series.slices) {
+      if (listed.insert(s.file).second) files.push_back(s.file);
+    }
   }
   volume read(const spacing_override& spacing) override {
     std::vector<std::byte> samples = detail::read_dicom_samples(series);

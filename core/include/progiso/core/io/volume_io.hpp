@@ -1,9 +1,9 @@
 // progiso/core/io/volume_io.hpp — reading volumes from headerless raw files, NRRD, NIfTI,
 // MetaImage, legacy VTK, VTK XML image data and DICOM series.
 //
-// Seven kinds of input are supported. A headerless raw file holds nothing but the samples, x varying
-// fastest, then y, then z; its layout (dims, sample type, byte order) comes from the caller,
-// usually the command line's --dims and --type, and the file size must match it exactly.
+// Seven kinds of input are supported. A headerless raw file holds nothing but the samples, x
+// varying fastest, then y, then z; its layout (dims, sample type, byte order) comes from the
+// caller, usually the command line's --dims and --type, and the file size must match it exactly.
 // NRRD files (.nrrd with attached data, .nhdr with detached data files) describe themselves;
 // progiso reads them with its own bounded parser (detail/nrrd_reader.hpp): raw, gzip, ascii
 // and hex encodings, either byte order, one data file, a LIST of them or a %d pattern. NIfTI-1
@@ -17,7 +17,8 @@
 // detail/vtk_legacy_reader.hpp: ASCII or big-endian binary point scalars. A directory holding
 // one DICOM series (a file per slice, as CT and MRI scanners write them) is read by
 // detail/dicom_reader.hpp: uncompressed pixel data, slices ordered along their normal, rescaled
-// to the units the files give (Hounsfield units for CT). VTK XML image data (.vti, and .pvti
+// to the units the files give (Hounsfield units for CT); so are enhanced multi-frame DICOM files
+// (Enhanced CT and MR), whose one file holds every frame. VTK XML image data (.vti, and .pvti
 // with its pieces), ParaView's format for a regular grid, is read by detail/vti_reader.hpp.
 // read_volume() picks the reader the way the command-line tool does: an explicit raw layout
 // wins, otherwise the file extension decides. volume_input_files() names the files a read
@@ -171,27 +172,30 @@ struct index_to_world {
 /// naming the file at fault; see docs/ARCHITECTURE.md "Reading VTK XML image data".
 [[nodiscard]] volume read_pvti(const std::filesystem::path& file);
 
-/// Reads the DICOM series in `directory`: every DICOM Part 10 file there with pixel data is a
-/// slice (other files are skipped); one series, at least 2 slices of one size, orientation and
-/// pixel spacing, evenly spaced along their normal; transfer syntax implicit or explicit VR
-/// little endian or explicit VR big endian; 8, 16 or 32 bits, signed or not, one sample per
-/// pixel. Spacing is (column spacing, row spacing, slice step), the origin the first slice's
-/// ImagePositionPatient; samples with a RescaleSlope or RescaleIntercept other than 1 and 0
-/// become f32 in the rescaled units. Throws progiso::error naming the directory or the file
-/// at fault; see detail/dicom_reader.hpp and docs/ARCHITECTURE.md "Reading DICOM".
-/// `choice.series` picks one of several series (see volume_choice).
+/// Reads the DICOM series in `directory` (or in one enhanced multi-frame file): every DICOM
+/// Part 10 file there with pixel data gives its frames as slices (other files are skipped), a
+/// classic file one, an enhanced file (Enhanced CT, MR) each frame its per-frame functional
+/// groups place; one series, at least 2 slices of one size, orientation and pixel spacing,
+/// evenly spaced along their normal; transfer syntax implicit or explicit VR little endian or
+/// explicit VR big endian; 8, 16 or 32 bits, signed or not, one sample per pixel. Spacing is
+/// (column spacing, row spacing, slice step), the origin the first slice's ImagePositionPatient;
+/// samples with a RescaleSlope or RescaleIntercept other than 1 and 0 become f32 in the rescaled
+/// units. Throws progiso::error naming the directory or the file (and frame) at fault; see
+/// detail/dicom_reader.hpp and docs/ARCHITECTURE.md "Reading DICOM". `choice.series` picks one
+/// of several series (see volume_choice).
 [[nodiscard]] volume read_dicom(const std::filesystem::path& directory,
                                 const volume_choice& choice = {});
 
 /// Reads a volume the way the command-line tool does: with a raw layout, read_raw(); else, for
-/// a directory, read_dicom(); for the extensions .nrrd and .nhdr, read_nrrd(); for .nii,
-/// .nii.gz, .hdr and .hdr.gz, read_nifti(); for .mha and .mhd, read_metaimage(); for .vtk,
-/// read_vtk_legacy(); for .vti, read_vti(); for .pvti, read_pvti() (case-insensitive). A single
-/// .dcm file is refused (one slice). A `choice` that names a series is refused for anything but a
-/// DICOM directory, one that names a volume other than 0 for anything but a NIfTI or MetaImage
-/// series that has it. A given `spacing` replaces the one from the header (or the default 1,1,1 for
-/// raw files). Throws progiso::error "FILE: unknown volume format (…)" for any other file, and
-/// whatever the chosen reader throws.
+/// a directory or a .dcm file, read_dicom(); for the extensions .nrrd and .nhdr, read_nrrd(); for
+/// .nii, .nii.gz, .hdr and .hdr.gz, read_nifti(); for .mha and .mhd, read_metaimage(); for .vtk,
+/// read_vtk_legacy(); for .vti, read_vti(); for .pvti, read_pvti() (case-insensitive); any other
+/// file that starts as DICOM Part 10 does ("DICM" at byte 128), read_dicom(). A single DICOM
+/// file must be a multi-frame image (one slice alone is refused). A `choice` that names a series
+/// is refused for anything but DICOM, one that names a volume other than 0 for anything but a
+/// NIfTI, MetaImage or NRRD series that has it. A given `spacing` replaces the one from the
+/// header (or the default 1,1,1 for raw files). Throws progiso::error "FILE: unknown volume format
+/// (…)" for any other file, and whatever the chosen reader throws.
 [[nodiscard]] volume read_volume(const std::filesystem::path& file,
                                  const std::optional<raw_layout>& raw,
                                  std::optional<std::array<double, 3>> spacing,

@@ -1,34 +1,44 @@
-// progiso/core/io/detail/dicom_reader.hpp — progiso's own reader of DICOM series (the format CT
-// and MRI scanners write: one file per slice, a directory per series), behind read_dicom() and
-// volume_input_files().
+// progiso/core/io/detail/dicom_reader.hpp — progiso's own reader of DICOM images (the format CT
+// and MRI scanners write), behind read_dicom() and volume_input_files(): a series of one file per
+// slice in a directory, or enhanced multi-frame images (Enhanced CT and MR, what current scanners
+// export) that hold many frames in one file.
 //
-// Input: a directory. Every regular file in it that is a DICOM Part 10 file (128 bytes, then
-// "DICM") holding one frame of pixel data is a slice; other files (DICOMDIR, reports, non-DICOM
-// files) are skipped. All slices must belong to one series (SeriesInstanceUID; where the
-// directory holds several, the caller names one) and agree on
-// Rows, Columns, BitsAllocated, PixelRepresentation, PixelSpacing and ImageOrientationPatient;
-// they are ordered by their ImagePositionPatient along the slice normal (row × column
-// direction) and must be evenly spaced (a gap or a tilt is refused, naming the slices).
+// Input: a directory, or one file. Every regular file in a directory that is a DICOM Part 10 file
+// (128 bytes, then "DICM") holding pixel data is read; other files (DICOMDIR, reports, non-DICOM
+// files) are skipped. Each frame is a slice: a classic file holds one, an enhanced file
+// NumberOfFrames (up to 32769), each placed by its item of PerFrameFunctionalGroupsSequence
+// (5200,9230) — Plane Position, and where given there Plane Orientation, Pixel Measures and Pixel
+// Value Transformation — falling back to SharedFunctionalGroupsSequence (5200,9229), then to the
+// dataset's own elements. A multi-frame file without one per-frame item per frame is refused
+// (nothing places its frames). All slices must belong to one series (SeriesInstanceUID; where
+// the directory holds several, the caller names one; an enhanced series may span several files)
+// and agree on Rows, Columns, BitsAllocated, PixelRepresentation, PixelSpacing and
+// ImageOrientationPatient; they are ordered by their ImagePositionPatient along the slice normal
+// (row × column direction) and must be evenly spaced (a gap, a duplicate — two stacks or time
+// points at one position — or a tilt is refused, naming the file and frame). One file alone must
+// hold at least two frames.
 //
 // Accepted: transfer syntaxes implicit VR little endian, explicit VR little endian and explicit
 // VR big endian (uncompressed pixel data); SamplesPerPixel 1 (MONOCHROME1 or MONOCHROME2);
 // BitsAllocated 8, 16 or 32, signed or unsigned, BitsStored ≤ BitsAllocated (the bits above
 // are masked off, and signed values sign-extended from BitsStored); RescaleSlope and
-// RescaleIntercept applied per slice when not 1 and 0 (the samples become f32, in the units they
+// RescaleIntercept applied per frame when not 1 and 0 (the samples become f32, in the units they
 // give: Hounsfield units for CT). Refused by name: compressed transfer syntaxes (JPEG, JPEG-LS,
-// JPEG 2000, RLE, deflate), colour, multi-frame files, float pixel data.
+// JPEG 2000, RLE, deflate), colour, multi-frame files that do not place their frames, float
+// pixel data.
 //
 // Geometry: spacing (PixelSpacing's column spacing, its row spacing, the slices' step); origin
 // the first slice's ImagePositionPatient; the index-to-patient map (LPS, as DICOM gives it): the
 // row direction × column spacing, the column direction × row spacing, the normal × step, plus the
 // first position (dicom_series::world).
 //
-// Bounds: sequences are skipped by their lengths or their delimiters, at most 16 deep; a value
-// progiso reads is at most 1 KiB; a directory holds at most 32769 slices (the axis limit);
-// memory follows the data: each file must hold its frame before the volume is allocated.
+// Bounds: sequences are walked by their lengths or their delimiters, at most 16 deep; a value
+// progiso reads is at most 1 KiB; a series holds at most 32769 slices (the axis limit), a
+// directory at most 4 × 32769 per-frame groups; memory follows the data: each file must hold its
+// frames before the volume is allocated.
 //
 // Thread safety: no global state. Every failure throws progiso::error with one line naming the
-// file (or the directory) that failed.
+// file (and the frame, in a multi-frame file) or the directory that failed.
 #pragma once
 
 #include <array>
@@ -48,12 +58,19 @@ inline constexpr std::size_t dicom_max_slices = (std::size_t{1} << 15) + 1;
 /// One slice of a series: where its frame lies and how to read it.
 struct dicom_slice {
   std::filesystem::path file;
+  std::int64_t frame = -1;  ///< its frame (0-based) in a multi-frame file; −1 for one frame
   std::uint64_t pixel_offset = 0;
   bool big_endian = false;
   std::array<double, 3> position{};
   double slope = 1.0;
   double intercept = 0.0;
   double along = 0.0;  ///< position · normal, the sort key
+
+  /// The slice in messages: its file, and for a frame of a multi-frame file "(frame K)",
+  /// 1-based as DICOM counts frames.
+  [[nodiscard]] std::string name() const {
+    return frame < 0 ? file.string() : file.string() + " (frame " + std::to_string(frame + 1) + ")";
+  }
 };
 
 /// A checked series, its slices in order.
@@ -76,11 +93,15 @@ struct dicom_series {
 /// `series` names (its UID, or its number in UID order) among several. Throws progiso::error
 /// naming the directory or the file at fault; for several series and no choice, or a choice that
 /// names none of them, the message lists them by number, UID and image count.
-[[nodiscard]] dicom_series read_dicom_series(const std::filesystem::path& directory,
+[[nodiscard]] dicom_series read_dicom_series(const std::filesystem::path& input,
                                              const std::optional<std::string>& series = {});
 
 /// Reads the frames of `series` into one array (x fastest, slices in order), host byte order,
 /// masked and sign-extended to BitsStored, rescaled when the series says so.
 [[nodiscard]] std::vector<std::byte> read_dicom_samples(const dicom_series& series);
+
+/// Whether `file` is a regular file that starts as DICOM Part 10 does (128 bytes, then "DICM"):
+/// how an input without a known extension is recognised. False when it cannot be read.
+[[nodiscard]] bool has_dicom_preamble(const std::filesystem::path& file);
 
 }  // namespace progiso::detail

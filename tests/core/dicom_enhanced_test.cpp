@@ -1,0 +1,405 @@
+// Enhanced (multi-frame) DICOM images — Enhanced CT and MR, what current scanners export: one
+// file holds every frame, each placed by its functional groups (PerFrameFunctionalGroupsSequence,
+// SharedFunctionalGroupsSequence). Read through read_dicom(), read_volume(),
+// read_volume_world() and volume_input_files(), from the file alone or from its directory.
+//
+// Differential: the files are written by DCMTK's dcmdata (Debian's libdcmtk-dev, a test-only
+// dependency), an encoder independent of progiso's parser, in the three uncompressed transfer
+// syntaxes with sequences and items of explicit and of undefined length; the volume must hold
+// the frames the test made, ordered along the normal, masked, sign-extended and rescaled by the
+// shared or per-frame Pixel Value Transformation.
+//
+// Hostile: multi-frame files that do not place their frames, frame counts that disagree, two
+// frames at one position, short pixel data, bad NumberOfFrames, frames without a position. Each
+// fails with one line naming the file and the frame.
+#include <progiso/core/io/volume_io.hpp>
+
+#include <gtest/gtest.h>
+
+#include <dcmtk/config/osconfig.h>
+#include <dcmtk/dcmdata/dctk.h>
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <cstdint>
+#include <cstdio>
+#include <cstring>
+#include <filesystem>
+#include <functional>
+#include <numeric>
+#include <random>
+#include <string>
+#include <vector>
+
+#include <progiso/core/base/error.hpp>
+#include <progiso/core/field/volume.hpp>
+
+#include "support/dicom_files.hpp"
+#include "support/io_test_helpers.hpp"
+#include "support/scratch_dir.hpp"
+
+namespace {
+
+namespace fs = std::filesystem;
+using progiso::sample_type;
+using progiso::test::contains;
+
+std::string decimals(const double* v, int n) {
+  std::string s;
+  for (int i = 0; i < n; ++i) {
+    char buf[32];
+    std::snprintf(buf, sizeof buf, "%.10g", v[i]);
+    if (i > 0) s += '\\';
+    s += buf;
+  }
+  return s;
+}
+
+/// An enhanced image as the test makes it: frames in file order, each with its place along the
+/// stack (`slot`) and its stored values.
+struct enhanced_image {
+  E_TransferSyntax syntax = EXS_LittleEndianExplicit;
+  E_EncodingType lengths = EET_UndefinedLength;
+  int bits_allocated = 16;
+  int bits_stored = 12;
+  bool is_signed = true;
+  enum class rescale { none, shared, per_frame } scaling = rescale::shared;
+  int rows = 4;
+  int columns = 5;
+  int frames = 7;
+  std::array<double, 6> orientation{1, 0, 0, 0, 1, 0};
+  std::array<double, 3> first{-120.5, 33.0, 7.0};
+  std::array<double, 2> pixel_spacing{0.75, 0.5};  // row spacing, column spacing
+  double step = 0.8;
+  std::string series_uid = "1.2.826.0.1.3680043.2.1125.7";
+  std::vector<int> slot;                     // frame f lies at first + slot[f] · step · normal
+  std::vector<std::uint32_t> values;         // frames × rows × columns raw words
+  bool per_frame_groups = true;              // write PerFrameFunctionalGroupsSequence
+  int per_frame_items = -1;                  // items written (−1: one per frame)
+  std::string number_of_frames;              // written instead of `frames` when set
+  std::size_t pixel_bytes_cut = 0;           // bytes left off the pixel data
+  int frame_without_position = -1;           // a frame whose groups lack Plane Position
+  std::function<int(int)> position_of_slot;  // a slot's place, when not the slot itself
+
+  [[nodiscard]] std::array<double, 3> normal() const {
+    const auto& o = orientation;
+    return {o[1] * o[5] - o[2] * o[4], o[2] * o[3] - o[0] * o[5], o[0] * o[4] - o[1] * o[3]};
+  }
+  [[nodiscard]] std::array<double, 3> position(int f) const {
+    const int place = position_of_slot ? position_of_slot(slot[static_cast<std::size_t>(f)])
+                                       : slot[static_cast<std::size_t>(f)];
+    const std::array<double, 3> n = normal();
+    return {first[0] + n[0] * step * place, first[1] + n[1] * step * place,
+            first[2] + n[2] * step * place};
+  }
+  [[nodiscard]] double slope(int f) const {
+    return scaling == rescale::per_frame ? 0.5 + 0.25 * f : scaling == rescale::shared ? 2.0 : 1.0;
+  }
+  [[nodiscard]] double intercept(int f) const {
+    return scaling == rescale::per_frame ? -100.0 + 3.0 * f
+           : scaling == rescale::shared  ? -1024.0
+                                         : 0.0;
+  }
+
+  /// Random values (bits above BitsStored set too: they must be masked) and shuffled slots.
+  void fill(unsigned seed) {
+    std::mt19937 rng(seed);
+    slot.resize(static_cast<std::size_t>(frames));
+    std::iota(slot.begin(), slot.end(), 0);
+    std::shuffle(slot.begin(), slot.end(), rng);
+    values.resize(static_cast<std::size_t>(frames * rows * columns));
+    const std::uint32_t mask =
+        bits_allocated == 32 ? ~std::uint32_t{0} : (std::uint32_t{1} << bits_allocated) - 1;
+    for (std::uint32_t& v : values) v = static_cast<std::uint32_t>(rng()) & mask;
+  }
+
+  /// The value progiso must give for raw word `raw` of frame f.
+  [[nodiscard]] double expected(std::uint32_t raw, int f) const {
+    const std::uint64_t mask = (std::uint64_t{1} << bits_stored) - 1;
+    const std::uint64_t v = raw & mask;
+    std::int64_t x = static_cast<std::int64_t>(v);
+    if (is_signed && ((v >> (bits_stored - 1)) & 1u) != 0) {
+      x -= static_cast<std::int64_t>(std::uint64_t{1} << bits_stored);
+    }
+    if (scaling == rescale::none) return static_cast<double>(x);
+    return static_cast<double>(
+        static_cast<float>(slope(f) * static_cast<double>(x) + intercept(f)));
+  }
+
+  /// Writes the file with DCMTK.
+  fs::path write(const fs::path& file) const {
+    DcmFileFormat ff;
+    DcmDataset* d = ff.getDataset();
+    const auto ok = [&](OFCondition c) { EXPECT_TRUE(c.good()) << c.text(); };
+    ok(d->putAndInsertString(DCM_SOPClassUID, UID_EnhancedCTImageStorage));
+    ok(d->putAndInsertString(DCM_SOPInstanceUID, (series_uid + ".1").c_str()));
+    ok(d->putAndInsertString(DCM_Modality, "CT"));
+    ok(d->putAndInsertString(DCM_SeriesInstanceUID, series_uid.c_str()));
+    ok(d->putAndInsertUint16(DCM_SamplesPerPixel, 1));
+    ok(d->putAndInsertString(DCM_PhotometricInterpretation, "MONOCHROME2"));
+    ok(d->putAndInsertString(DCM_NumberOfFrames, number_of_frames.empty()
+                                                     ? std::to_string(frames).c_str()
+                                                     : number_of_frames.c_str()));
+    ok(d->putAndInsertUint16(DCM_Rows, static_cast<Uint16>(rows)));
+    ok(d->putAndInsertUint16(DCM_Columns, static_cast<Uint16>(columns)));
+    ok(d->putAndInsertUint16(DCM_BitsAllocated, static_cast<Uint16>(bits_allocated)));
+    ok(d->putAndInsertUint16(DCM_BitsStored, static_cast<Uint16>(bits_stored)));
+    ok(d->putAndInsertUint16(DCM_HighBit, static_cast<Uint16>(bits_stored - 1)));
+    ok(d->putAndInsertUint16(DCM_PixelRepresentation, is_signed ? 1 : 0));
+    // Shared groups: pixel measures, orientation, and the rescale when it is shared.
+    DcmItem* shared = nullptr;
+    ok(d->findOrCreateSequenceItem(DCM_SharedFunctionalGroupsSequence, shared, 0));
+    DcmItem* g = nullptr;
+    ok(shared->findOrCreateSequenceItem(DCM_PixelMeasuresSequence, g, 0));
+    ok(g->putAndInsertString(DCM_PixelSpacing, decimals(pixel_spacing.data(), 2).c_str()));
+    ok(g->putAndInsertString(DCM_SliceThickness, "0.8"));
+    ok(shared->findOrCreateSequenceItem(DCM_PlaneOrientationSequence, g, 0));
+    ok(g->putAndInsertString(DCM_ImageOrientationPatient, decimals(orientation.data(), 6).c_str()));
+    if (scaling == rescale::shared) {
+      ok(shared->findOrCreateSequenceItem(DCM_PixelValueTransformationSequence, g, 0));
+      ok(g->putAndInsertString(DCM_RescaleIntercept, "-1024"));
+      ok(g->putAndInsertString(DCM_RescaleSlope, "2"));
+      ok(g->putAndInsertString(DCM_RescaleType, "HU"));
+    }
+    // Per frame: a Frame Content group (skipped), the position, and the rescale per frame.
+    const int items = per_frame_items >= 0 ? per_frame_items : frames;
+    for (int f = 0; per_frame_groups && f < items; ++f) {
+      DcmItem* item = nullptr;
+      ok(d->findOrCreateSequenceItem(DCM_PerFrameFunctionalGroupsSequence, item, -2));
+      ok(item->findOrCreateSequenceItem(DCM_FrameContentSequence, g, 0));
+      ok(g->putAndInsertUint32(DCM_InStackPositionNumber,
+                               static_cast<Uint32>(slot[static_cast<std::size_t>(f)] + 1)));
+      ok(g->putAndInsertString(DCM_StackID, "1"));
+      if (f != frame_without_position) {
+        ok(item->findOrCreateSequenceItem(DCM_PlanePositionSequence, g, 0));
+        const std::array<double, 3> p = position(f);
+        ok(g->putAndInsertString(DCM_ImagePositionPatient, decimals(p.data(), 3).c_str()));
+      }
+      if (scaling == rescale::per_frame) {
+        ok(item->findOrCreateSequenceItem(DCM_PixelValueTransformationSequence, g, 0));
+        const double b = intercept(f);
+        const double m = slope(f);
+        ok(g->putAndInsertString(DCM_RescaleIntercept, decimals(&b, 1).c_str()));
+        ok(g->putAndInsertString(DCM_RescaleSlope, decimals(&m, 1).c_str()));
+      }
+    }
+    // Pixel data: OB for 8 bits, OW for 16.
+    if (bits_allocated == 8) {
+      std::vector<Uint8> px(values.begin(), values.end());
+      px.resize(px.size() - pixel_bytes_cut);
+      ok(d->putAndInsertUint8Array(DCM_PixelData, px.data(),
+                                   static_cast<unsigned long>(px.size())));
+    } else {
+      std::vector<Uint16> px(values.begin(), values.end());
+      px.resize(px.size() - pixel_bytes_cut / 2);
+      ok(d->putAndInsertUint16Array(DCM_PixelData, px.data(),
+                                    static_cast<unsigned long>(px.size())));
+    }
+    ok(ff.saveFile(file.c_str(), syntax, lengths));
+    return file;
+  }
+};
+
+using progiso::test::stored_sample;
+
+/// `input` (the file or its directory) read by progiso holds `img`'s frames in slot order.
+void expect_frames(const fs::path& input, const enhanced_image& img) {
+  const progiso::volume v = progiso::read_volume(input, std::nullopt, std::nullopt);
+  ASSERT_EQ(v.dims(), (progiso::index3{img.columns, img.rows, img.frames}));
+  const bool scaled = img.scaling != enhanced_image::rescale::none;
+  EXPECT_EQ(v.type(), scaled ? sample_type::f32
+                      : img.bits_allocated == 8
+                          ? (img.is_signed ? sample_type::i8 : sample_type::u8)
+                          : (img.is_signed ? sample_type::i16 : sample_type::u16));
+  const auto frame = static_cast<std::size_t>(img.rows * img.columns);
+  for (int f = 0; f < img.frames; ++f) {
+    const auto at = static_cast<std::size_t>(img.slot[static_cast<std::size_t>(f)]) * frame;
+    for (std::size_t i = 0; i < frame; ++i) {
+      ASSERT_EQ(stored_sample(v, at + i),
+                img.expected(img.values[static_cast<std::size_t>(f) * frame + i], f))
+          << "frame " << f << " sample " << i;
+    }
+  }
+  EXPECT_NEAR(v.spacing()[0], img.pixel_spacing[1], 1e-12);
+  EXPECT_NEAR(v.spacing()[1], img.pixel_spacing[0], 1e-12);
+  EXPECT_NEAR(v.spacing()[2], img.step, 1e-6);
+  const int lowest =
+      static_cast<int>(std::find(img.slot.begin(), img.slot.end(), 0) - img.slot.begin());
+  const std::array<double, 3> origin = img.position(lowest);
+  for (std::size_t i = 0; i < 3; ++i) EXPECT_NEAR(v.origin()[i], origin[i], 1e-9);
+  // The patient map puts every frame's first pixel on its position.
+  const auto world = progiso::read_volume_world(input, std::nullopt);
+  ASSERT_TRUE(world.has_value());
+  for (int f = 0; f < img.frames; ++f) {
+    const std::array<double, 3> p =
+        world->apply({0.0, 0.0, static_cast<double>(img.slot[static_cast<std::size_t>(f)])});
+    const std::array<double, 3> want = img.position(f);
+    for (std::size_t i = 0; i < 3; ++i) EXPECT_NEAR(p[i], want[i], 1e-6);
+  }
+}
+
+std::string message_of(const fs::path& input) {
+  try {
+    (void)progiso::read_volume(input, std::nullopt, std::nullopt);
+  } catch (const progiso::error& e) {
+    const std::string m = e.what();
+    EXPECT_EQ(m.find('\n'), std::string::npos) << m;
+    return m;
+  }
+  return "no error";
+}
+
+TEST(DicomEnhanced, reads_every_frame_dcmtk_writes_in_every_syntax_length_encoding_and_rescale) {
+  const progiso::test::scratch_dir dir("progiso-dicom-enhanced-test-");
+  unsigned seed = 1;
+  int files = 0;
+  for (const E_TransferSyntax syntax :
+       {EXS_LittleEndianImplicit, EXS_LittleEndianExplicit, EXS_BigEndianExplicit}) {
+    for (const E_EncodingType lengths : {EET_UndefinedLength, EET_ExplicitLength}) {
+      struct depth {
+        int allocated, stored;
+        bool is_signed;
+      };
+      for (const depth b :
+           {depth{8, 8, false}, depth{8, 6, true}, depth{16, 12, true}, depth{16, 16, false}}) {
+        for (const auto scaling : {enhanced_image::rescale::none, enhanced_image::rescale::shared,
+                                   enhanced_image::rescale::per_frame}) {
+          enhanced_image img;
+          img.syntax = syntax;
+          img.lengths = lengths;
+          img.bits_allocated = b.allocated;
+          img.bits_stored = b.stored;
+          img.is_signed = b.is_signed;
+          img.scaling = scaling;
+          img.fill(seed++);
+          const fs::path sub = dir.path() / ("s" + std::to_string(files++));
+          fs::create_directory(sub);
+          const fs::path file = img.write(sub / "enhanced.dcm");
+          SCOPED_TRACE(file.string());
+          expect_frames(file, img);
+          expect_frames(sub, img);  // its directory: the same volume
+          // One file for every frame: listed once.
+          EXPECT_EQ(progiso::volume_input_files(file, std::nullopt), (std::vector<fs::path>{file}));
+          EXPECT_EQ(progiso::volume_input_files(sub, std::nullopt),
+                    (std::vector<fs::path>{sub, file}));
+        }
+      }
+    }
+  }
+  EXPECT_EQ(files, 72);
+}
+
+TEST(DicomEnhanced, an_oblique_stack_and_a_file_without_extension_are_read_and_placed) {
+  const progiso::test::scratch_dir dir("progiso-dicom-enhanced-test-");
+  enhanced_image img;
+  const double c = std::cos(0.4);
+  const double s = std::sin(0.4);
+  img.orientation = {c, 0.0, s, 0.0, 1.0, 0.0};  // rotated about y
+  img.frames = 11;
+  img.step = 2.5;
+  img.fill(99);
+  // Scanners and archives name files by number or UID, without an extension.
+  const fs::path file = img.write(dir.path() / "1.2.826.0.1.3680043.2.1125.7.1");
+  expect_frames(file, img);
+}
+
+TEST(DicomEnhanced, frames_split_over_two_files_of_one_series_make_one_volume) {
+  // A concatenation: one series' frames in two files, each placing its own; beside them a
+  // classic single-frame series, picked by number against the enhanced one.
+  const progiso::test::scratch_dir dir("progiso-dicom-enhanced-test-");
+  enhanced_image all;
+  all.frames = 10;
+  all.fill(5);
+  enhanced_image low = all;
+  enhanced_image high = all;
+  low.frames = 4;
+  high.frames = 6;
+  const auto frame = static_cast<std::size_t>(all.rows * all.columns);
+  // low holds the frames that lie in slots 0-3, high the others, each in `all`'s order.
+  low.slot.clear();
+  low.values.clear();
+  high.slot.clear();
+  high.values.clear();
+  for (int f = 0; f < all.frames; ++f) {
+    enhanced_image& part = all.slot[static_cast<std::size_t>(f)] < 4 ? low : high;
+    part.slot.push_back(all.slot[static_cast<std::size_t>(f)]);
+    const auto from =
+        all.values.begin() + static_cast<std::ptrdiff_t>(static_cast<std::size_t>(f) * frame);
+    part.values.insert(part.values.end(), from, from + static_cast<std::ptrdiff_t>(frame));
+  }
+  const fs::path a = high.write(dir.path() / "A.dcm");
+  const fs::path b = low.write(dir.path() / "B.dcm");
+  const progiso::volume v = progiso::read_volume(dir.path(), std::nullopt, std::nullopt);
+  ASSERT_EQ(v.dims(), (progiso::index3{5, 4, 10}));
+  for (const enhanced_image* part : {&low, &high}) {
+    for (std::size_t f = 0; f < part->slot.size(); ++f) {
+      const auto at = static_cast<std::size_t>(part->slot[f]) * frame;
+      for (std::size_t i = 0; i < frame; ++i) {
+        // The rescale is shared: the same for every frame.
+        ASSERT_EQ(stored_sample(v, at + i), part->expected(part->values[f * frame + i], 0));
+      }
+    }
+  }
+  // Files in slice order, each once: B holds the lowest slot.
+  EXPECT_EQ(progiso::volume_input_files(dir.path(), std::nullopt),
+            (std::vector<fs::path>{dir.path(), b, a}));
+  // A classic series beside it: the directory lists both by frames, and --series picks either.
+  for (int k = 0; k < 3; ++k) {
+    progiso::test::dicom_slice_file f = progiso::test::plain_slice(k, 4, 5, 8, 1.0);
+    f.series_uid = "1.2.826.0.1.3680043.2.1125.9";
+    f.pixels.assign(20, static_cast<std::byte>(k));
+    f.write(dir.path(), "C" + std::to_string(k));
+  }
+  const std::string listing = message_of(dir.path());
+  EXPECT_TRUE(contains(listing,
+                       "1: \"1.2.826.0.1.3680043.2.1125.7\" (10 images), 2: "
+                       "\"1.2.826.0.1.3680043.2.1125.9\" (3 images)"))
+      << listing;
+  EXPECT_EQ(progiso::read_dicom(dir.path(), {std::string("1"), std::nullopt}).dims()[2], 10);
+  EXPECT_EQ(progiso::read_dicom(dir.path(), {std::string("2"), std::nullopt}).dims()[2], 3);
+}
+
+TEST(DicomEnhanced, refuses_frames_it_cannot_place_with_one_line_naming_file_and_frame) {
+  const progiso::test::scratch_dir dir("progiso-dicom-enhanced-test-");
+  int n = 0;
+  const auto refused = [&](const std::function<void(enhanced_image&)>& change,
+                           const std::string& what) {
+    enhanced_image img;
+    img.fill(static_cast<unsigned>(100 + n));
+    change(img);
+    const fs::path file = img.write(dir.path() / ("bad" + std::to_string(n++) + ".dcm"));
+    const std::string m = message_of(file);
+    EXPECT_TRUE(contains(m, file.string() + ": ") || contains(m, file.string() + " (frame")) << m;
+    EXPECT_TRUE(contains(m, what)) << m;
+  };
+  // A legacy multi-frame file: nothing places its frames.
+  refused([](enhanced_image& i) { i.per_frame_groups = false; },
+          "a multi-frame image of 7 frames with 0 items in PerFrameFunctionalGroupsSequence");
+  refused([](enhanced_image& i) { i.per_frame_items = 6; }, "7 frames with 6 items");
+  refused([](enhanced_image& i) { i.per_frame_items = 8; }, "7 frames with 8 items");
+  // Two stacks (or two times) at the same positions.
+  refused([](enhanced_image& i) { i.position_of_slot = [](int s) { return s / 2; }; },
+          "evenly spaced");
+  refused([](enhanced_image& i) { i.frame_without_position = 3; },
+          "(frame 4): has no ImagePositionPatient");
+  refused([](enhanced_image& i) { i.pixel_bytes_cut = 2; },
+          "bytes of pixel data, expected 280 (7 frames of 5x4 of 16 bits)");
+  refused([](enhanced_image& i) { i.number_of_frames = "0"; }, "has NumberOfFrames (0028,0008)");
+  refused([](enhanced_image& i) { i.number_of_frames = "32770"; }, "expected 1 to 32769");
+  refused([](enhanced_image& i) { i.number_of_frames = "2.5"; }, "\"2.5\"");
+  // One frame alone is one slice.
+  refused(
+      [](enhanced_image& i) {
+        i.frames = 1;
+        i.slot = {0};
+        i.values.resize(20);
+      },
+      "one DICOM file is one slice");
+  // A .dcm file that is not DICOM.
+  progiso::test::write_file(dir.path() / "text.dcm", std::string(200, 'x'));
+  EXPECT_TRUE(contains(message_of(dir.path() / "text.dcm"), "not a DICOM Part 10 file"));
+  EXPECT_EQ(n, 10);
+}
+
+}  // namespace
