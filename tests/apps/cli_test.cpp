@@ -591,6 +591,24 @@ TEST_F(Cli, enhanced_dicom_file_gives_the_surface_of_the_same_samples_as_raw) {
                    "short.dcm: a multi-frame image of 10 frames with 9 items");
 }
 
+TEST_F(Cli, rt_dose_grid_gives_the_surface_of_the_same_samples_as_raw) {
+  // An RT dose grid: one file of 9 frames of 9 × 9 bytes, placed by GridFrameOffsetVector from
+  // ImagePositionPatient, DoseGridScaling 1 (so the samples stay the raw file's bytes).
+  const std::string bytes = cube_bytes(9);
+  const fs::path want = raw_cube_mesh("1.5,2,0.5");
+  test::dicom_slice_file f = test::plain_slice(0, 9, 9, 8, 0.5);
+  f.pixel_spacing = {2.0, 1.5};
+  for (int k = 0; k < 9; ++k) f.grid_offsets.push_back(0.5 * k);
+  f.pixels.assign(reinterpret_cast<const std::byte*>(bytes.data()),
+                  reinterpret_cast<const std::byte*>(bytes.data()) + bytes.size());
+  expect_same_mesh(f.write(dir_, "RD.dose.dcm"), want);
+  // Offsets that disagree with the frames are refused, naming the file.
+  f.grid_offsets.pop_back();
+  f.number_of_frames = "9";
+  expect_bad_input("extract " + f.write(dir_, "RD.bad.dcm").string() + " --iso 100",
+                   "RD.bad.dcm: an RT dose grid of 9 frames with 8 offsets");
+}
+
 /// The vertices and faces (0-based) of an OBJ file progiso wrote.
 struct obj_mesh {
   std::vector<std::array<double, 3>> vertices;

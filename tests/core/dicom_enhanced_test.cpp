@@ -1,7 +1,9 @@
-// Enhanced (multi-frame) DICOM images — Enhanced CT and MR, what current scanners export: one
-// file holds every frame, each placed by its functional groups (PerFrameFunctionalGroupsSequence,
-// SharedFunctionalGroupsSequence). Read through read_dicom(), read_volume(),
-// read_volume_world() and volume_input_files(), from the file alone or from its directory.
+// Multi-frame DICOM images: enhanced images — Enhanced CT and MR, what current scanners export:
+// one file holds every frame, each placed by its functional groups
+// (PerFrameFunctionalGroupsSequence, SharedFunctionalGroupsSequence) — and RT dose grids, whose
+// frames GridFrameOffsetVector places and DoseGridScaling scales to dose (isodose surfaces).
+// Read through read_dicom(), read_volume(), read_volume_world() and volume_input_files(), from
+// the file alone or from its directory.
 //
 // Differential: the files are written by DCMTK's dcmdata (Debian's libdcmtk-dev, a test-only
 // dependency), an encoder independent of progiso's parser, in the three uncompressed transfer
@@ -400,6 +402,182 @@ TEST(DicomEnhanced, refuses_frames_it_cannot_place_with_one_line_naming_file_and
   progiso::test::write_file(dir.path() / "text.dcm", std::string(200, 'x'));
   EXPECT_TRUE(contains(message_of(dir.path() / "text.dcm"), "not a DICOM Part 10 file"));
   EXPECT_EQ(n, 10);
+}
+
+/// An RT dose grid as a treatment planning system writes it: one multi-frame file whose frames
+/// GridFrameOffsetVector places from ImagePositionPatient, its values in units of
+/// DoseGridScaling.
+struct rt_dose {
+  E_TransferSyntax syntax = EXS_LittleEndianImplicit;
+  E_EncodingType lengths = EET_ExplicitLength;
+  int bits = 32;
+  int rows = 4;
+  int columns = 5;
+  int frames = 6;
+  std::array<double, 6> orientation{1, 0, 0, 0, 1, 0};
+  std::array<double, 3> first{-50.0, 20.0, 100.0};
+  double step = 2.5;
+  bool absolute = false;    // offsets as z coordinates (axial grids), else relative to the first
+  bool descending = false;  // frames written from the highest position down
+  std::string scaling = "1.5E-4";
+  std::string offsets;  // written instead of the computed ones when set
+  std::vector<std::uint32_t> values;
+
+  void fill(unsigned seed) {
+    std::mt19937 rng(seed);
+    values.resize(static_cast<std::size_t>(frames * rows * columns));
+    for (std::uint32_t& v : values) {
+      v = static_cast<std::uint32_t>(rng()) & (bits == 32 ? 0xffffffu : 0xffffu);
+    }
+  }
+  [[nodiscard]] int slot(int f) const { return descending ? frames - 1 - f : f; }
+  [[nodiscard]] std::array<double, 3> position(int f) const {
+    const auto& o = orientation;
+    const std::array<double, 3> n{o[1] * o[5] - o[2] * o[4], o[2] * o[3] - o[0] * o[5],
+                                  o[0] * o[4] - o[1] * o[3]};
+    const double d = step * slot(f);
+    return {first[0] + n[0] * d, first[1] + n[1] * d, first[2] + n[2] * d};
+  }
+
+  fs::path write(const fs::path& file) const {
+    DcmFileFormat ff;
+    DcmDataset* d = ff.getDataset();
+    const auto ok = [&](OFCondition c) { EXPECT_TRUE(c.good()) << c.text(); };
+    ok(d->putAndInsertString(DCM_SOPClassUID, UID_RTDoseStorage));
+    ok(d->putAndInsertString(DCM_SOPInstanceUID, "1.2.826.0.1.3680043.2.1125.8.1"));
+    ok(d->putAndInsertString(DCM_Modality, "RTDOSE"));
+    ok(d->putAndInsertString(DCM_SeriesInstanceUID, "1.2.826.0.1.3680043.2.1125.8"));
+    // The grid's first frame lies at ImagePositionPatient: the lowest, or with descending
+    // offsets the highest.
+    const std::array<double, 3> p0 = position(0);
+    ok(d->putAndInsertString(DCM_ImagePositionPatient, decimals(p0.data(), 3).c_str()));
+    ok(d->putAndInsertString(DCM_ImageOrientationPatient, decimals(orientation.data(), 6).c_str()));
+    ok(d->putAndInsertUint16(DCM_SamplesPerPixel, 1));
+    ok(d->putAndInsertString(DCM_PhotometricInterpretation, "MONOCHROME2"));
+    ok(d->putAndInsertString(DCM_NumberOfFrames, std::to_string(frames).c_str()));
+    ok(d->putAndInsertTagKey(DCM_FrameIncrementPointer, DCM_GridFrameOffsetVector));
+    ok(d->putAndInsertUint16(DCM_Rows, static_cast<Uint16>(rows)));
+    ok(d->putAndInsertUint16(DCM_Columns, static_cast<Uint16>(columns)));
+    ok(d->putAndInsertString(DCM_PixelSpacing, "2.5\\3"));
+    ok(d->putAndInsertUint16(DCM_BitsAllocated, static_cast<Uint16>(bits)));
+    ok(d->putAndInsertUint16(DCM_BitsStored, static_cast<Uint16>(bits)));
+    ok(d->putAndInsertUint16(DCM_HighBit, static_cast<Uint16>(bits - 1)));
+    ok(d->putAndInsertUint16(DCM_PixelRepresentation, 0));
+    ok(d->putAndInsertString(DCM_DoseUnits, "GY"));
+    ok(d->putAndInsertString(DCM_DoseType, "PHYSICAL"));
+    ok(d->putAndInsertString(DCM_DoseSummationType, "PLAN"));
+    std::vector<double> off;
+    for (int f = 0; f < frames; ++f) {
+      const double rel = (descending ? -step : step) * f;
+      off.push_back(absolute ? p0[2] + rel : rel);
+    }
+    ok(d->putAndInsertString(DCM_GridFrameOffsetVector,
+                             (offsets.empty() ? decimals(off.data(), frames) : offsets).c_str()));
+    ok(d->putAndInsertString(DCM_DoseGridScaling, scaling.c_str()));
+    if (bits == 16) {
+      std::vector<Uint16> px(values.begin(), values.end());
+      ok(d->putAndInsertUint16Array(DCM_PixelData, px.data(),
+                                    static_cast<unsigned long>(px.size())));
+    } else {
+      // 32-bit samples as OW words, low word first (little-endian syntaxes).
+      std::vector<Uint16> px;
+      for (const std::uint32_t v : values) {
+        px.push_back(static_cast<Uint16>(v & 0xffff));
+        px.push_back(static_cast<Uint16>(v >> 16));
+      }
+      ok(d->putAndInsertUint16Array(DCM_PixelData, px.data(),
+                                    static_cast<unsigned long>(px.size())));
+    }
+    ok(ff.saveFile(file.c_str(), syntax, lengths));
+    return file;
+  }
+};
+
+void expect_dose(const fs::path& file, const rt_dose& dose) {
+  const progiso::volume v = progiso::read_volume(file, std::nullopt, std::nullopt);
+  ASSERT_EQ(v.dims(), (progiso::index3{dose.columns, dose.rows, dose.frames}));
+  ASSERT_EQ(v.type(), sample_type::f32);  // doses: stored values × DoseGridScaling
+  const double scale = std::stod(dose.scaling);
+  const auto frame = static_cast<std::size_t>(dose.rows * dose.columns);
+  for (int f = 0; f < dose.frames; ++f) {
+    const auto at = static_cast<std::size_t>(dose.slot(f)) * frame;
+    for (std::size_t i = 0; i < frame; ++i) {
+      const auto raw = dose.values[static_cast<std::size_t>(f) * frame + i];
+      ASSERT_EQ(stored_sample(v, at + i),
+                static_cast<double>(static_cast<float>(scale * static_cast<double>(raw))))
+          << "frame " << f << " sample " << i;
+    }
+  }
+  EXPECT_NEAR(v.spacing()[0], 3.0, 1e-12);
+  EXPECT_NEAR(v.spacing()[1], 2.5, 1e-12);
+  EXPECT_NEAR(v.spacing()[2], dose.step, 1e-6);
+  const auto world = progiso::read_volume_world(file, std::nullopt);
+  ASSERT_TRUE(world.has_value());
+  for (int f = 0; f < dose.frames; ++f) {
+    const std::array<double, 3> p = world->apply({0.0, 0.0, static_cast<double>(dose.slot(f))});
+    const std::array<double, 3> want = dose.position(f);
+    for (std::size_t i = 0; i < 3; ++i) EXPECT_NEAR(p[i], want[i], 1e-6) << f;
+  }
+}
+
+TEST(DicomRtDose, places_every_frame_by_its_grid_offset_and_scales_it_to_dose) {
+  const progiso::test::scratch_dir dir("progiso-dicom-rtdose-test-");
+  unsigned seed = 1;
+  int files = 0;
+  for (const E_TransferSyntax syntax :
+       {EXS_LittleEndianImplicit, EXS_LittleEndianExplicit, EXS_BigEndianExplicit}) {
+    for (const int bits : {16, 32}) {
+      if (bits == 32 && syntax == EXS_BigEndianExplicit) continue;  // OW swaps 16-bit words
+      for (const bool absolute : {false, true}) {
+        for (const bool descending : {false, true}) {
+          rt_dose dose;
+          dose.syntax = syntax;
+          dose.bits = bits;
+          dose.absolute = absolute;
+          dose.descending = descending;
+          dose.fill(seed++);
+          const fs::path file = dose.write(dir.path() / ("dose" + std::to_string(files++)));
+          SCOPED_TRACE(file.string());
+          expect_dose(file, dose);
+        }
+      }
+    }
+  }
+  EXPECT_EQ(files, 20);
+  // An oblique grid with relative offsets.
+  rt_dose oblique;
+  const double c = std::cos(0.5);
+  const double s = std::sin(0.5);
+  oblique.orientation = {c, 0.0, -s, 0.0, 1.0, 0.0};
+  oblique.fill(77);
+  expect_dose(oblique.write(dir.path() / "oblique.dcm"), oblique);
+}
+
+TEST(DicomRtDose, refuses_grids_its_offsets_do_not_place) {
+  const progiso::test::scratch_dir dir("progiso-dicom-rtdose-test-");
+  int n = 0;
+  const auto refused = [&](const std::function<void(rt_dose&)>& change, const std::string& what) {
+    rt_dose dose;
+    dose.fill(static_cast<unsigned>(200 + n));
+    change(dose);
+    const fs::path file = dose.write(dir.path() / ("bad" + std::to_string(n++) + ".dcm"));
+    const std::string m = message_of(file);
+    EXPECT_TRUE(contains(m, file.string())) << m;
+    EXPECT_TRUE(contains(m, what)) << m;
+  };
+  refused([](rt_dose& d) { d.offsets = "0\\2.5\\5"; }, "6 frames with 3 offsets");
+  refused([](rt_dose& d) { d.offsets = "0\\2.5\\5\\7.5\\12.5\\15"; }, "evenly spaced");
+  refused([](rt_dose& d) { d.offsets = "3\\5.5\\8\\10.5\\13\\15.5"; },
+          "neither 0 (relative offsets) nor, on an axial grid, ImagePositionPatient's z");
+  refused(
+      [](rt_dose& d) {
+        d.orientation = {1.0, 0.0, 0.0, 0.0, 0.0, -1.0};  // coronal: no absolute z offsets
+        d.absolute = true;
+      },
+      "neither 0");
+  refused([](rt_dose& d) { d.offsets = "0\\x\\5\\7.5\\10\\12.5"; }, "finite numbers");
+  refused([](rt_dose& d) { d.scaling = "0"; }, "has DoseGridScaling 0");
+  EXPECT_EQ(n, 6);
 }
 
 }  // namespace

@@ -322,8 +322,9 @@ def vti_seeds(out, crops):
 NEXT = b"\0NEXT\0"
 
 
-def dicom_slice(ts, k, rows=4, cols=5, bits=16, signed=1, seq=True, pixels=None, frames=0):
-    """A slice file; with frames > 0 an enhanced image of that many frames (functional groups)."""
+def dicom_slice(ts, k, rows=4, cols=5, bits=16, signed=1, seq=True, pixels=None, frames=0, grid=None):
+    """A slice file; with frames > 0 an enhanced image of that many frames (functional groups);
+    with grid (offsets) an RT dose grid of one frame per offset."""
     explicit = ts != "1.2.840.10008.1.2"
     big = ts == "1.2.840.10008.1.2.2"
     e16 = ">H" if big else "<H"
@@ -375,6 +376,8 @@ def dicom_slice(ts, k, rows=4, cols=5, bits=16, signed=1, seq=True, pixels=None,
     d += el(0x28, 2, "US", us(1)) + el(0x28, 4, "CS", "MONOCHROME2")
     if frames:
         d += el(0x28, 8, "IS", str(frames))
+    elif grid:
+        d += el(0x28, 8, "IS", str(len(grid)))
     d += el(0x28, 0x10, "US", us(rows))
     d += el(0x28, 0x11, "US", us(cols)) + (b"" if frames else el(0x28, 0x30, "DS", "0.5\\0.75"))
     d += el(0x28, 0x100, "US", us(bits))
@@ -391,7 +394,9 @@ def dicom_slice(ts, k, rows=4, cols=5, bits=16, signed=1, seq=True, pixels=None,
             place = el(0x20, 0x32, "DS", "-120.5\\33\\%g" % (7 + 1.25 * ((f * 3) % frames)))
             per += it(sq(0x20, 0x9113, it(place, False), False), f % 2 == 0)
         d += sq(0x5200, 0x9230, per, False)
-    n = rows * cols * max(frames, 1)
+    if grid:
+        d += el(0x3004, 0xc, "DS", "\\".join("%g" % g for g in grid)) + el(0x3004, 0xe, "DS", "0.001")
+    n = rows * cols * max(frames, len(grid) if grid else 1)
     if pixels is None:
         fmt = (">" if big else "<") + ("B" if bits == 8 else "h" if bits == 16 else "i") * n
         pixels = struct.pack(fmt, *[(i * 37 + k * 11) % 100 for i in range(n)])
@@ -412,6 +417,8 @@ def dicom_seeds(out):
                      ("big", "1.2.840.10008.1.2.2")):
         put(out, "dicom", "enhanced_" + name, dicom_slice(ts, 0, frames=5))
     put(out, "dicom", "enhanced_concatenation", NEXT.join(dicom_slice("1.2.840.10008.1.2.1", k, frames=3) for k in range(2)))
+    put(out, "dicom", "rtdose", dicom_slice("1.2.840.10008.1.2", 0, bits=32, signed=0, grid=[0, 2.5, 5, 7.5]))
+    put(out, "dicom", "rtdose_absolute", dicom_slice("1.2.840.10008.1.2.1", 0, grid=[7, 9.5, 12, 14.5, 17]))
     put(out, "dicom", "enhanced_short_pixels", dicom_slice("1.2.840.10008.1.2.1", 0, frames=4, pixels=b"\1\2"))
     put(out, "dicom", "declared_huge", NEXT.join(dicom_slice("1.2.840.10008.1.2.1", k, rows=65535, cols=65535,
                                                                 pixels=b"\0" * 64) for k in range(2)))

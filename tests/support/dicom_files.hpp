@@ -43,7 +43,11 @@ struct dicom_slice_file {
   /// this order), placed by PerFrameFunctionalGroupsSequence; orientation, pixel spacing and the
   /// rescale go to SharedFunctionalGroupsSequence instead of the top level.
   std::vector<std::array<double, 3>> frame_positions;
-  std::string number_of_frames;  ///< written instead of the positions' count when set
+  std::string number_of_frames;  ///< written instead of the frames' count when set
+  /// Non-empty: an RT dose grid of one frame per offset (GridFrameOffsetVector, relative to
+  /// `position` along the normal when the first is 0), scaled by `dose_scaling`.
+  std::vector<double> grid_offsets;
+  std::string dose_scaling = "1";
 
   [[nodiscard]] bool explicit_vr() const { return transfer_syntax != dicom_implicit_le; }
   [[nodiscard]] bool big() const { return transfer_syntax == dicom_explicit_be; }
@@ -112,6 +116,9 @@ struct dicom_slice_file {
     if (enhanced) {
       element(d, 0x0028, 0x0008, "IS",
               number_of_frames.empty() ? std::to_string(frame_positions.size()) : number_of_frames);
+    } else if (!grid_offsets.empty()) {
+      element(d, 0x0028, 0x0008, "IS",
+              number_of_frames.empty() ? std::to_string(grid_offsets.size()) : number_of_frames);
     }
     element(d, 0x0028, 0x0010, "US", us(rows));
     element(d, 0x0028, 0x0011, "US", us(columns));
@@ -154,6 +161,11 @@ struct dicom_slice_file {
              false);
       }
       sequence(d, 0x5200, 0x9230, frames, false);
+    }
+    if (!grid_offsets.empty()) {
+      element(d, 0x3004, 0x000c, "DS",
+              ds(grid_offsets.data(), static_cast<int>(grid_offsets.size())));
+      element(d, 0x3004, 0x000e, "DS", dose_scaling);
     }
     std::string px(reinterpret_cast<const char*>(pixels.data()), pixels.size());
     const std::size_t item_bytes = static_cast<std::size_t>(bits_allocated / 8);

@@ -26,10 +26,12 @@ namespace fs = std::filesystem;
 
 constexpr std::uint32_t undefined_length = 0xffffffffu;
 constexpr std::size_t max_value_bytes = 1024;  // of an element progiso reads
-constexpr int max_depth = 16;                  // of nested sequences
+// GridFrameOffsetVector: one decimal string (at most 16 characters and a backslash) per frame.
+constexpr std::size_t max_offsets_bytes = 17 * dicom_max_slices;
+constexpr int max_depth = 16;  // of nested sequences
 constexpr std::size_t max_directory_entries = 1u << 20;
-// Per-frame functional groups kept over a directory's enhanced images (each about 150 bytes):
-// four series of the most frames one volume may have.
+// Per-frame functional groups (each about 150 bytes) and RT dose offsets kept over a directory's
+// multi-frame images: four series of the most frames one volume may have.
 constexpr std::size_t max_frame_groups = 4 * dicom_max_slices;
 
 constexpr std::uint32_t tag(std::uint16_t group, std::uint16_t element) noexcept {
@@ -59,6 +61,8 @@ constexpr std::uint32_t pixel_measures_tag = tag(0x0028, 0x9110);
 constexpr std::uint32_t plane_position_tag = tag(0x0020, 0x9113);
 constexpr std::uint32_t plane_orientation_tag = tag(0x0020, 0x9116);
 constexpr std::uint32_t value_transformation_tag = tag(0x0028, 0x9145);
+constexpr std::uint32_t grid_offsets_tag = tag(0x3004, 0x000c);
+constexpr std::uint32_t dose_scaling_tag = tag(0x3004, 0x000e);
 constexpr std::uint32_t item_tag = tag(0xfffe, 0xe000);
 constexpr std::uint32_t item_end_tag = tag(0xfffe, 0xe00d);
 constexpr std::uint32_t sequence_end_tag = tag(0xfffe, 0xe0dd);
@@ -137,6 +141,8 @@ struct file_header {
   std::string photometric = "MONOCHROME2";
   std::uint64_t pixel_offset = 0;
   std::uint64_t pixel_length = 0;
+  std::vector<double> grid_offsets;    ///< an RT dose's GridFrameOffsetVector (3004,000C)
+  std::optional<double> dose_scaling;  ///< an RT dose's DoseGridScaling (3004,000E)
 
   /// Frame k's fields: its own functional groups, else the shared ones, else the dataset's.
   [[nodiscard]] frame_fields frame(std::size_t k) const {
@@ -250,10 +256,10 @@ class file_parser {
     }
     return e;
   }
-  std::string read_value(const element& e) {
-    if (e.length > max_value_bytes) {
+  std::string read_value(const element& e, std::size_t limit = max_value_bytes) {
+    if (e.length > limit) {
       fail("element " + tag_text(e.tag) + " holds " + std::to_string(e.length) +
-           " bytes, expected at most " + std::to_string(max_value_bytes));
+           " bytes, expected at most " + std::to_string(limit));
     }
     std::string v(e.length, '\0');
     read(v.data(), v.size());
@@ -284,6 +290,22 @@ class file_parser {
     if (k != N) {
       fail("element " + tag_text(e.tag) + " holds " + detail::quoted(v) + ", expected " +
            std::to_string(N) + " numbers");
+    }
+    return out;
+  }
+  /// Backslash-separated decimal strings, as many as there are (at most dicom_max_slices).
+  std::vector<double> number_list(const element& e, std::string_view v) const {
+    std::vector<double> out;
+    std::size_t start = 0;
+    for (std::size_t i = 0; i <= v.size(); ++i) {
+      if (i < v.size() && v[i] != '\\') continue;
+      const auto x = to_real<double>(trim_value(v.substr(start, i - start)));
+      if (!x || !std::isfinite(*x) || out.size() == dicom_max_slices) {
+        fail("element " + tag_text(e.tag) + " holds " + detail::quoted(v) + ", expected 1 to " +
+             std::to_string(dicom_max_slices) + " finite numbers");
+      }
+      out.push_back(*x);
+      start = i + 1;
     }
     return out;
   }
@@ -338,6 +360,14 @@ class file_parser {
                  ", expected 1 to " + std::to_string(dicom_max_slices));
           }
           h.frames = static_cast<std::int64_t>(frames);
+          break;
+        }
+        case grid_offsets_tag:
+          h.grid_offsets = number_list(e, trim_value(read_value(e, max_offsets_bytes)));
+          break;
+        case dose_scaling_tag: {
+          const std::string v = read_value(e);
+          h.dose_scaling = numbers<1>(e, trim_value(v))[0];
           break;
         }
         case photometric_tag:
@@ -589,10 +619,11 @@ dicom_series read_dicom_series(const fs::path& input, const std::optional<std::s
       throw error(dir_name + ": not a DICOM Part 10 file (no \"DICM\" at byte 128)");
     }
     if (!h || !h->image) continue;
-    per_frame_items += h->per_frame.size();
+    per_frame_items += h->per_frame.size() + h->grid_offsets.size();
     if (per_frame_items > max_frame_groups) {
       throw error(dir_name + ": holds more than " + std::to_string(max_frame_groups) +
-                  " per-frame functional groups in its enhanced DICOM images");
+                  " frames placed one by one (per-frame functional groups, RT dose offsets) in "
+                  "its multi-frame DICOM images");
     }
     series_files& list = series[h->series];
     list.frames += static_cast<std::size_t>(h->frames);
@@ -656,11 +687,19 @@ dicom_series read_dicom_series(const fs::path& input, const std::optional<std::s
   for (const found& f : files) {
     const file_header& h = f.header;
     const std::string name = f.file.string();
-    if (h.frames > 1 && h.per_frame.size() != static_cast<std::size_t>(h.frames)) {
+    const auto frames = static_cast<std::size_t>(h.frames);
+    if (h.frames > 1 && h.per_frame.empty() && !h.grid_offsets.empty() &&
+        h.grid_offsets.size() != frames) {
+      refuse(name, "an RT dose grid of " + std::to_string(h.frames) + " frames with " +
+                       std::to_string(h.grid_offsets.size()) +
+                       " offsets in GridFrameOffsetVector (3004,000C): expected one per frame");
+    }
+    if (h.frames > 1 && h.per_frame.size() != frames && h.grid_offsets.empty()) {
       refuse(name, "a multi-frame image of " + std::to_string(h.frames) + " frames with " +
                        std::to_string(h.per_frame.size()) +
                        " items in PerFrameFunctionalGroupsSequence (5200,9230): expected an "
-                       "enhanced image that places each of its frames");
+                       "enhanced image that places each of its frames, or an RT dose grid "
+                       "(GridFrameOffsetVector)");
     }
     if (h.samples != 1) {
       refuse(name, "has " + std::to_string(h.samples) + " samples per pixel (" + h.photometric +
@@ -708,6 +747,7 @@ dicom_series read_dicom_series(const fs::path& input, const std::optional<std::s
   struct placed {
     dicom_slice slice;
     frame_fields fields;
+    double dose_scaling = 1.0;
   };
   std::vector<placed> frames;
   frames.reserve(picked->second.frames);
@@ -721,8 +761,50 @@ dicom_series read_dicom_series(const fs::path& input, const std::optional<std::s
       p.slice.frame = h.frames > 1 ? k : -1;
       p.slice.pixel_offset = h.pixel_offset + static_cast<std::uint64_t>(k) * frame_bytes;
       p.slice.big_endian = h.big_endian;
+      p.dose_scaling = h.dose_scaling.value_or(1.0);
       frames.push_back(std::move(p));
     }
+  }
+  // An RT dose grid's frames: ImagePositionPatient moved along the normal by each offset of
+  // GridFrameOffsetVector, relative when the first offset is 0, else (axial grids only) z
+  // coordinates starting at ImagePositionPatient's; DoseGridScaling gives the dose.
+  std::size_t at = 0;
+  for (const found& f : files) {
+    const file_header& h = f.header;
+    const std::size_t count = static_cast<std::size_t>(h.frames);
+    if (!h.per_frame.empty() || h.grid_offsets.empty()) {
+      at += count;
+      continue;
+    }
+    const frame_fields& g = frames[at].fields;
+    if (!g.position || !g.orientation) {
+      refuse(f.file.string(),
+             "an RT dose grid without ImagePositionPatient (0020,0032) or "
+             "ImageOrientationPatient (0020,0037): its frames cannot be placed");
+    }
+    const std::array<double, 6>& o = *g.orientation;
+    const std::array<double, 3> n{o[1] * o[5] - o[2] * o[4], o[2] * o[3] - o[0] * o[5],
+                                  o[0] * o[4] - o[1] * o[3]};
+    const double first_offset = h.grid_offsets.front();
+    const bool axial = std::abs(n[0]) < 1e-6 && std::abs(n[1]) < 1e-6 && n[2] > 1.0 - 1e-6;
+    double base = 0.0;
+    if (first_offset != 0.0) {
+      if (!axial || std::abs(first_offset - (*g.position)[2]) > 1e-3) {
+        refuse(f.file.string(),
+               "an RT dose grid whose first GridFrameOffsetVector (3004,000C) "
+               "offset " +
+                   std::to_string(first_offset) +
+                   " is neither 0 (relative offsets) nor, on an axial grid, "
+                   "ImagePositionPatient's z (absolute ones)");
+      }
+      base = first_offset;
+    }
+    for (std::size_t k = 0; k < count; ++k) {
+      std::array<double, 3> p = *g.position;
+      for (std::size_t i = 0; i < 3; ++i) p[i] += n[i] * (h.grid_offsets[k] - base);
+      frames[at + k].fields.position = p;
+    }
+    at += count;
   }
   const frame_fields& lead = frames.front().fields;
   const std::string lead_name = frames.front().slice.name();
@@ -738,6 +820,7 @@ dicom_series read_dicom_series(const fs::path& input, const std::optional<std::s
       refuse(name, "has no positive PixelSpacing (0028,0030)");
     }
     if (g.slope.value_or(1.0) == 0.0) refuse(name, "has RescaleSlope 0");
+    if (p.dose_scaling == 0.0) refuse(name, "has DoseGridScaling 0");
     for (std::size_t i = 0; i < 6; ++i) {
       if (std::abs((*g.orientation)[i] - (*lead.orientation)[i]) > 1e-4) {
         refuse(name, "has another ImageOrientationPatient than " + lead_name);
@@ -750,7 +833,7 @@ dicom_series read_dicom_series(const fs::path& input, const std::optional<std::s
       }
     }
     p.slice.position = *g.position;
-    p.slice.slope = g.slope.value_or(1.0);
+    p.slice.slope = g.slope.value_or(1.0) * p.dose_scaling;
     p.slice.intercept = g.intercept.value_or(0.0);
   }
   // Directions: DICOM gives the row direction (along a row: x), then the column direction.

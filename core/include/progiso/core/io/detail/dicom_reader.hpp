@@ -1,7 +1,7 @@
 // progiso/core/io/detail/dicom_reader.hpp — progiso's own reader of DICOM images (the format CT
 // and MRI scanners write), behind read_dicom() and volume_input_files(): a series of one file per
-// slice in a directory, or enhanced multi-frame images (Enhanced CT and MR, what current scanners
-// export) that hold many frames in one file.
+// slice in a directory, or multi-frame images that hold many frames in one file: enhanced images
+// (Enhanced CT and MR, what current scanners export) and RT dose grids.
 //
 // Input: a directory, or one file. Every regular file in a directory that is a DICOM Part 10 file
 // (128 bytes, then "DICM") holding pixel data is read; other files (DICOMDIR, reports, non-DICOM
@@ -9,7 +9,11 @@
 // NumberOfFrames (up to 32769), each placed by its item of PerFrameFunctionalGroupsSequence
 // (5200,9230) — Plane Position, and where given there Plane Orientation, Pixel Measures and Pixel
 // Value Transformation — falling back to SharedFunctionalGroupsSequence (5200,9229), then to the
-// dataset's own elements. A multi-frame file without one per-frame item per frame is refused
+// dataset's own elements. An RT dose grid (a treatment plan's dose: isodose surfaces) places its
+// frames by GridFrameOffsetVector (3004,000C) from ImagePositionPatient — offsets along the normal
+// when the first is 0, else, on an axial grid, z coordinates starting at ImagePositionPatient's —
+// and its values are the stored ones × DoseGridScaling (3004,000E) (× RescaleSlope, plus
+// RescaleIntercept, where a file gives those too). Any other multi-frame file is refused
 // (nothing places its frames). All slices must belong to one series (SeriesInstanceUID; where
 // the directory holds several, the caller names one; an enhanced series may span several files)
 // and agree on Rows, Columns, BitsAllocated, PixelRepresentation, PixelSpacing and
@@ -33,9 +37,10 @@
 // first position (dicom_series::world).
 //
 // Bounds: sequences are walked by their lengths or their delimiters, at most 16 deep; a value
-// progiso reads is at most 1 KiB; a series holds at most 32769 slices (the axis limit), a
-// directory at most 4 × 32769 per-frame groups; memory follows the data: each file must hold its
-// frames before the volume is allocated.
+// progiso reads is at most 1 KiB (GridFrameOffsetVector 17 bytes a frame); a series holds at
+// most 32769 slices (the axis limit), a directory at most 4 × 32769 per-frame groups and dose
+// offsets; memory follows the data: each file must hold its frames before the volume is
+// allocated.
 //
 // Thread safety: no global state. Every failure throws progiso::error with one line naming the
 // file (and the frame, in a multi-frame file) or the directory that failed.
