@@ -585,6 +585,32 @@ TEST_F(Cli, enhanced_dicom_file_gives_the_surface_of_the_same_samples_as_raw) {
   EXPECT_EQ(clash.status, 2);
   EXPECT_NE(clash.err.find("names the input file"), std::string::npos) << clash.err;
   EXPECT_EQ(test::read_whole_file(file), before);
+  // Two time points in one file (the cube second, a blank volume first): --volume 1 picks the
+  // cube, no --volume is refused with the count, --volume 2 names the range.
+  test::dicom_slice_file cine = f;
+  cine.frame_positions.clear();
+  cine.pixels.clear();
+  for (int time = 0; time < 2; ++time) {
+    for (const int k : {3, 8, 0, 5, 1, 7, 2, 6, 4}) {
+      cine.frame_positions.push_back({0.0, 0.0, 0.5 * k});
+      const auto* p = reinterpret_cast<const std::byte*>(bytes.data()) + 81 * k;
+      if (time == 1) {
+        cine.pixels.insert(cine.pixels.end(), p, p + 81);
+      } else {
+        cine.pixels.insert(cine.pixels.end(), 81, std::byte{0});
+      }
+    }
+  }
+  const fs::path cine_file = cine.write(dir_, "cine.dcm");
+  const fs::path picked = dir_ / "cine.obj";
+  const run_result one =
+      run("extract " + cine_file.string() + " --volume 1 --iso 100 --full -o " + picked.string());
+  ASSERT_EQ(one.status, 0) << one.err;
+  EXPECT_EQ(slurp(picked), slurp(want));
+  expect_bad_input("extract " + cine_file.string() + " --iso 100",
+                   "a time series of 2 volumes (2 frames at each of 9 positions)");
+  expect_bad_input("extract " + cine_file.string() + " --volume 2 --iso 100",
+                   "volume 2 was chosen, but the input is a time series of 2 volumes (0 to 1)");
   // A multi-frame file that does not place its frames is refused, naming it.
   f.number_of_frames = "10";
   expect_bad_input("extract " + f.write(dir_, "short.dcm").string() + " --iso 100",

@@ -83,6 +83,7 @@ struct enhanced_image {
   std::size_t pixel_bytes_cut = 0;           // bytes left off the pixel data
   int frame_without_position = -1;           // a frame whose groups lack Plane Position
   std::function<int(int)> position_of_slot;  // a slot's place, when not the slot itself
+  std::vector<Uint32> temporal;              // each frame's TemporalPositionIndex, when not empty
 
   [[nodiscard]] std::array<double, 3> normal() const {
     const auto& o = orientation;
@@ -173,6 +174,9 @@ struct enhanced_image {
       ok(g->putAndInsertUint32(DCM_InStackPositionNumber,
                                static_cast<Uint32>(slot[static_cast<std::size_t>(f)] + 1)));
       ok(g->putAndInsertString(DCM_StackID, "1"));
+      if (!temporal.empty()) {
+        ok(g->putAndInsertUint32(DCM_TemporalPositionIndex, temporal[static_cast<std::size_t>(f)]));
+      }
       if (f != frame_without_position) {
         ok(item->findOrCreateSequenceItem(DCM_PlanePositionSequence, g, 0));
         const std::array<double, 3> p = position(f);
@@ -402,6 +406,82 @@ TEST(DicomEnhanced, refuses_frames_it_cannot_place_with_one_line_naming_file_and
   progiso::test::write_file(dir.path() / "text.dcm", std::string(200, 'x'));
   EXPECT_TRUE(contains(message_of(dir.path() / "text.dcm"), "not a DICOM Part 10 file"));
   EXPECT_EQ(n, 10);
+}
+
+TEST(DicomEnhanced, a_series_of_time_points_reads_the_volume_chosen_by_its_temporal_index) {
+  // A 4-D file (a cine MR, a 4-D CT): 5 positions × 3 time points, frames shuffled, each
+  // frame's Frame Content giving its TemporalPositionIndex (1-based). Volume K holds, at each
+  // position, the frame of time point K + 1.
+  const progiso::test::scratch_dir dir("progiso-dicom-enhanced-test-");
+  enhanced_image img;
+  img.frames = 15;
+  img.fill(21);
+  std::vector<int> place(15);
+  for (int f = 0; f < 15; ++f) {
+    place[static_cast<std::size_t>(f)] = img.slot[static_cast<std::size_t>(f)] % 5;
+    img.temporal.push_back(static_cast<Uint32>(img.slot[static_cast<std::size_t>(f)] / 5 + 1));
+  }
+  img.slot = place;
+  const fs::path file = img.write(dir.path() / "cine.dcm");
+  const std::string unchosen = message_of(file);
+  EXPECT_TRUE(contains(unchosen, file.string() +
+                                     ": a time series of 3 volumes (3 frames at each of 5 "
+                                     "positions): choose one by its index, 0 to 2"))
+      << unchosen;
+  const auto frame = static_cast<std::size_t>(img.rows * img.columns);
+  for (std::int64_t k = 0; k < 3; ++k) {
+    SCOPED_TRACE(k);
+    const progiso::volume v = progiso::read_dicom(file, {std::nullopt, k});
+    ASSERT_EQ(v.dims(), (progiso::index3{5, 4, 5}));
+    for (int f = 0; f < 15; ++f) {
+      if (img.temporal[static_cast<std::size_t>(f)] != static_cast<Uint32>(k + 1)) continue;
+      const auto at = static_cast<std::size_t>(place[static_cast<std::size_t>(f)]) * frame;
+      for (std::size_t i = 0; i < frame; ++i) {
+        ASSERT_EQ(stored_sample(v, at + i),
+                  img.expected(img.values[static_cast<std::size_t>(f) * frame + i], f));
+      }
+    }
+    EXPECT_NEAR(v.spacing()[2], img.step, 1e-6);
+    // The world map and the input files follow the chosen volume too.
+    EXPECT_TRUE(progiso::read_volume_world(file, std::nullopt, {std::nullopt, k}).has_value());
+    EXPECT_EQ(progiso::volume_input_files(file, std::nullopt, {std::nullopt, k}),
+              (std::vector<fs::path>{file}));
+  }
+  EXPECT_TRUE(contains(
+      progiso::test::error_message_naming(file,
+                                          [&] {
+                                            (void)progiso::read_dicom(file, {std::nullopt, 3});
+                                          }),
+      "volume 3 was chosen, but the input is a time series of 3 volumes (0 to "
+      "2)"));
+}
+
+TEST(DicomEnhanced, a_classic_series_of_time_points_orders_them_by_instance_number) {
+  // Two time points of 4 slices in one classic series (a 4-D CT exported as one series): the
+  // second's instance numbers follow the first's; file names shuffled.
+  const progiso::test::scratch_dir dir("progiso-dicom-enhanced-test-");
+  const std::array<int, 8> names{5, 2, 7, 0, 3, 6, 1, 4};
+  for (int i = 0; i < 8; ++i) {
+    const int time = i / 4;
+    const int k = i % 4;
+    progiso::test::dicom_slice_file f = progiso::test::plain_slice(k, 4, 5, 8, 2.0);
+    f.instance = i + 1;
+    f.pixels.assign(20, static_cast<std::byte>(10 * time + k));
+    f.write(dir.path(), "IM" + std::to_string(names[static_cast<std::size_t>(i)]));
+  }
+  EXPECT_TRUE(contains(message_of(dir.path()),
+                       "a time series of 2 volumes (2 frames at each of "
+                       "4 positions)"));
+  for (std::int64_t time = 0; time < 2; ++time) {
+    const progiso::volume v = progiso::read_dicom(dir.path(), {std::nullopt, time});
+    ASSERT_EQ(v.dims(), (progiso::index3{5, 4, 4}));
+    for (std::size_t k = 0; k < 4; ++k) {
+      EXPECT_EQ(stored_sample(v, 20 * k), static_cast<double>(10 * time) + static_cast<double>(k));
+    }
+    // Only the chosen time point's files are read.
+    EXPECT_EQ(progiso::volume_input_files(dir.path(), std::nullopt, {std::nullopt, time}).size(),
+              5U);
+  }
 }
 
 /// An RT dose grid as a treatment planning system writes it: one multi-frame file whose frames

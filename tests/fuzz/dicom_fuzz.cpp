@@ -2,10 +2,12 @@
 //
 // Input layout: the input is cut at every separator "\0NEXT\0" into the files s0, s1, … (at most
 // 8) of a fresh directory, which is read as a series; then s0 alone, as a single input file is
-// (recognised by its preamble, having no extension: an enhanced multi-frame image). Both the
-// reader and volume_input_files() (the command's input list) are run.
+// (recognised by its preamble, having no extension: an enhanced multi-frame image). The series
+// is read again as volume 1 (a series of time points). Both the reader and volume_input_files()
+// (the command's input list) are run.
 #include <cstdint>
 #include <filesystem>
+#include <optional>
 #include <string>
 #include <string_view>
 #include <system_error>
@@ -29,6 +31,7 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
     start = cut + separator.size();
   }
   progiso::fuzz::read_volume_file(dir);
+  progiso::fuzz::read_volume_file(dir, {std::nullopt, 1});
   progiso::fuzz::read_volume_file(dir / "s0");
   return 0;
 }

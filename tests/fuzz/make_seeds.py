@@ -419,6 +419,7 @@ def dicom_seeds(out):
     put(out, "dicom", "enhanced_concatenation", NEXT.join(dicom_slice("1.2.840.10008.1.2.1", k, frames=3) for k in range(2)))
     put(out, "dicom", "rtdose", dicom_slice("1.2.840.10008.1.2", 0, bits=32, signed=0, grid=[0, 2.5, 5, 7.5]))
     put(out, "dicom", "rtdose_absolute", dicom_slice("1.2.840.10008.1.2.1", 0, grid=[7, 9.5, 12, 14.5, 17]))
+    put(out, "dicom", "enhanced_time_points", dicom_slice("1.2.840.10008.1.2.1", 0, frames=6))
     put(out, "dicom", "enhanced_short_pixels", dicom_slice("1.2.840.10008.1.2.1", 0, frames=4, pixels=b"\1\2"))
     put(out, "dicom", "declared_huge", NEXT.join(dicom_slice("1.2.840.10008.1.2.1", k, rows=65535, cols=65535,
                                                                 pixels=b"\0" * 64) for k in range(2)))

@@ -39,6 +39,7 @@ constexpr std::uint32_t tag(std::uint16_t group, std::uint16_t element) noexcept
 }
 constexpr std::uint32_t transfer_syntax_tag = tag(0x0002, 0x0010);
 constexpr std::uint32_t series_uid_tag = tag(0x0020, 0x000e);
+constexpr std::uint32_t instance_tag = tag(0x0020, 0x0013);
 constexpr std::uint32_t position_tag = tag(0x0020, 0x0032);
 constexpr std::uint32_t orientation_tag = tag(0x0020, 0x0037);
 constexpr std::uint32_t samples_tag = tag(0x0028, 0x0002);
@@ -59,6 +60,8 @@ constexpr std::uint32_t shared_groups_tag = tag(0x5200, 0x9229);
 constexpr std::uint32_t per_frame_groups_tag = tag(0x5200, 0x9230);
 constexpr std::uint32_t pixel_measures_tag = tag(0x0028, 0x9110);
 constexpr std::uint32_t plane_position_tag = tag(0x0020, 0x9113);
+constexpr std::uint32_t frame_content_tag = tag(0x0020, 0x9111);
+constexpr std::uint32_t temporal_index_tag = tag(0x0020, 0x9128);
 constexpr std::uint32_t plane_orientation_tag = tag(0x0020, 0x9116);
 constexpr std::uint32_t value_transformation_tag = tag(0x0028, 0x9145);
 constexpr std::uint32_t grid_offsets_tag = tag(0x3004, 0x000c);
@@ -117,13 +120,16 @@ struct frame_fields {
   std::optional<std::array<double, 2>> pixel_spacing;
   std::optional<double> slope;
   std::optional<double> intercept;
+  std::optional<std::uint32_t> temporal;  ///< Frame Content's TemporalPositionIndex
 
   /// Each field of `over` where it has one, else this one's.
   [[nodiscard]] frame_fields under(const frame_fields& over) const {
     return {over.position ? over.position : position,
             over.orientation ? over.orientation : orientation,
             over.pixel_spacing ? over.pixel_spacing : pixel_spacing,
-            over.slope ? over.slope : slope, over.intercept ? over.intercept : intercept};
+            over.slope ? over.slope : slope,
+            over.intercept ? over.intercept : intercept,
+            over.temporal ? over.temporal : temporal};
   }
 };
 
@@ -132,6 +138,7 @@ struct file_header {
   bool image = false;  ///< holds pixel data
   bool big_endian = false;
   std::string series;
+  std::optional<double> instance;       ///< InstanceNumber (0020,0013)
   frame_fields own;                     ///< the dataset's top-level elements
   frame_fields shared;                  ///< SharedFunctionalGroupsSequence
   std::vector<frame_fields> per_frame;  ///< PerFrameFunctionalGroupsSequence, one per item
@@ -309,6 +316,17 @@ class file_parser {
     }
     return out;
   }
+  std::uint32_t unsigned_long(const element& e, std::string_view v) const {
+    if (v.size() != 4)
+      fail("element " + tag_text(e.tag) + " has " + std::to_string(v.size()) +
+           " bytes, expected 4 (UL)");
+    std::uint32_t out = 0;
+    for (std::size_t i = 0; i < 4; ++i) {
+      const auto b = static_cast<unsigned char>(v[syntax_.big_endian ? i : 3 - i]);
+      out = (out << 8) | b;
+    }
+    return out;
+  }
   std::uint32_t unsigned_short(const element& e, std::string_view v) const {
     if (v.size() != 2)
       fail("element " + tag_text(e.tag) + " has " + std::to_string(v.size()) +
@@ -351,6 +369,13 @@ class file_parser {
         case series_uid_tag:
           h.series = std::string(trim_value(read_value(e)));
           break;
+        case instance_tag: {
+          // Only an order among frames at one position: an empty or odd value is no order.
+          const std::string v = read_value(e);
+          const auto x = to_real<double>(trim_value(v));
+          if (x && std::isfinite(*x)) h.instance = *x;
+          break;
+        }
         case frames_tag: {
           const std::string v = read_value(e);
           const double frames = numbers<1>(e, trim_value(v))[0];
@@ -418,6 +443,12 @@ class file_parser {
       case slope_tag:
         f.slope = numbers<1>(e, trim_value(read_value(e)))[0];
         return true;
+      case temporal_index_tag: {
+        // Only an order among frames at one position: a value of another size is no order.
+        const std::string v = read_value(e);
+        if (v.size() == 4) f.temporal = unsigned_long(e, v);
+        return true;
+      }
       default:
         return false;
     }
@@ -494,7 +525,7 @@ class file_parser {
                     for_each_element(length, ex, big, [&](const element& group) {
                       if (group.tag != pixel_measures_tag && group.tag != plane_position_tag &&
                           group.tag != plane_orientation_tag &&
-                          group.tag != value_transformation_tag) {
+                          group.tag != value_transformation_tag && group.tag != frame_content_tag) {
                         skip_value(group, ex, big, 2);
                         return;
                       }
@@ -582,7 +613,8 @@ std::int64_t stored_value(U raw, unsigned bits_stored, bool is_signed) noexcept 
 
 }  // namespace
 
-dicom_series read_dicom_series(const fs::path& input, const std::optional<std::string>& chosen) {
+dicom_series read_dicom_series(const fs::path& input, const std::optional<std::string>& chosen,
+                               const std::optional<std::int64_t>& volume) {
   const std::string dir_name = input.string();
   std::error_code ec;
   const bool one_file = !fs::is_directory(input, ec);
@@ -748,15 +780,22 @@ dicom_series read_dicom_series(const fs::path& input, const std::optional<std::s
     dicom_slice slice;
     frame_fields fields;
     double dose_scaling = 1.0;
+    // The order among frames at one position (time points, echoes, stacks): TemporalPositionIndex,
+    // else InstanceNumber, then the file (in name order) and the frame.
+    std::array<double, 3> order{};
   };
   std::vector<placed> frames;
   frames.reserve(picked->second.frames);
-  for (const found& f : files) {
+  for (std::size_t file_index = 0; file_index < files.size(); ++file_index) {
+    const found& f = files[file_index];
     const file_header& h = f.header;
     const std::uint64_t frame_bytes = std::uint64_t{h.rows} * h.columns * (h.bits_allocated / 8);
     for (std::int64_t k = 0; k < h.frames; ++k) {
       placed p;
       p.fields = h.frame(static_cast<std::size_t>(k));
+      p.order = {
+          p.fields.temporal ? static_cast<double>(*p.fields.temporal) : h.instance.value_or(0.0),
+          static_cast<double>(file_index), static_cast<double>(k)};
       p.slice.file = f.file;
       p.slice.frame = h.frames > 1 ? k : -1;
       p.slice.pixel_offset = h.pixel_offset + static_cast<std::uint64_t>(k) * frame_bytes;
@@ -847,15 +886,51 @@ dicom_series read_dicom_series(const fs::path& input, const std::optional<std::s
     refuse(lead_name, "has ImageOrientationPatient without two independent directions");
   for (double& v : normal) v /= n;
 
-  dicom_series s;
-  s.slices.reserve(frames.size());
-  for (placed& p : frames) {
-    p.slice.along = dot(p.slice.position, normal);
-    s.scaled = s.scaled || p.slice.slope != 1.0 || p.slice.intercept != 0.0;
-    s.slices.push_back(std::move(p.slice));
+  for (placed& p : frames) p.slice.along = dot(p.slice.position, normal);
+  std::sort(frames.begin(), frames.end(), [](const placed& a, const placed& b) {
+    return a.slice.along != b.slice.along ? a.slice.along < b.slice.along : a.order < b.order;
+  });
+  // Several volumes in one series — time points of a 4-D CT or a cine MR, echoes, diffusion
+  // directions — hold the same number of frames at every position: volume K is the K-th at each
+  // (in the order above). Positions that hold different numbers are left to the spacing checks
+  // below (a duplicated or missing slice).
+  std::vector<std::size_t> starts;  // where each position's frames start
+  for (std::size_t k = 0; k < frames.size(); ++k) {
+    if (k == 0 || frames[k].slice.along - frames[starts.back()].slice.along > 1e-3) {
+      starts.push_back(k);
+    }
   }
-  std::stable_sort(s.slices.begin(), s.slices.end(),
-                   [](const dicom_slice& a, const dicom_slice& b) { return a.along < b.along; });
+  const std::size_t per_position = frames.size() / starts.size();
+  bool uniform = per_position * starts.size() == frames.size();
+  for (std::size_t g = 0; uniform && g < starts.size(); ++g) {
+    const std::size_t end = g + 1 < starts.size() ? starts[g + 1] : frames.size();
+    uniform = end - starts[g] == per_position;
+  }
+  const std::size_t volumes = uniform ? per_position : 1;
+  const std::string last = std::to_string(volumes - 1);
+  if (volume && (*volume < 0 || static_cast<std::uint64_t>(*volume) >= volumes)) {
+    throw error(dir_name + ": volume " + std::to_string(*volume) + " was chosen, but the input " +
+                (volumes == 1 ? std::string("holds one volume (0)")
+                              : "is a time series of " + std::to_string(volumes) +
+                                    " volumes (0 to " + last + ")"));
+  }
+  if (volumes > 1 && !volume) {
+    throw error(dir_name + ": a time series of " + std::to_string(volumes) + " volumes (" +
+                std::to_string(volumes) + " frames at each of " + std::to_string(starts.size()) +
+                " positions): choose one by its index, 0 to " + last);
+  }
+  dicom_series s;
+  s.slices.reserve(frames.size() / volumes);
+  for (std::size_t k = 0; k < frames.size(); ++k) {
+    if (volumes > 1 && (k % volumes) != static_cast<std::size_t>(*volume)) continue;
+    s.scaled = s.scaled || frames[k].slice.slope != 1.0 || frames[k].slice.intercept != 0.0;
+    s.slices.push_back(std::move(frames[k].slice));
+  }
+  if (s.slices.size() < 2) {
+    refuse(s.slices.front().name(),
+           "the only slice of its volume: a 2-D image, expected a "
+           "series of at least 2 slices");
+  }
   const double step =
       (s.slices.back().along - s.slices.front().along) / static_cast<double>(s.slices.size() - 1);
   const std::array<double, 2>& ps = *lead.pixel_spacing;

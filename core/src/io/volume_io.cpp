@@ -225,7 +225,7 @@ struct dicom_source final : source_state {
   fs::path directory;
   detail::dicom_series series;
   dicom_source(const fs::path& d, const volume_choice& choice)
-      : directory(d), series(detail::read_dicom_series(d, choice.series)) {
+      : directory(d), series(detail::read_dicom_series(d, choice.series, choice.volume)) {
     world = series.world;
     // The directory (or the one file), then each file once: an enhanced image's frames share
     // theirs.
@@ -291,7 +291,6 @@ std::unique_ptr<source_state> open_source(const fs::path& file,
     case volume_format::nifti:
       return std::make_unique<nifti_source>(file, choice);
     case volume_format::dicom:
-      (void)pick_volume(file, 1, choice);
       return std::make_unique<dicom_source>(file, choice);
     case volume_format::vti:
       (void)pick_volume(file, 1, choice);
@@ -374,7 +373,6 @@ volume read_metaimage(const std::filesystem::path& file, const volume_choice& ch
 }
 
 volume read_dicom(const std::filesystem::path& directory, const volume_choice& choice) {
-  (void)pick_volume(directory, 1, choice);
   return dicom_source(directory, choice).read(std::nullopt);
 }
 

@@ -58,8 +58,9 @@ namespace progiso {
 /// for an unchosen directory gives (series ordered by UID); for a NIfTI time series (dim[4] > 1:
 /// fMRI, diffusion, perfusion), `volume` is the index of one of its 3-D volumes, 0-based (the
 /// index FSL, AFNI and nibabel give), and the same for a MetaImage series (NDims 4, the fourth
-/// size > 1) and a 4-D NRRD (its series axis, see read_nrrd()). Empty: the input must hold one,
-/// which `volume` 0 also names for any input.
+/// size > 1), a 4-D NRRD (its series axis, see read_nrrd()) and a DICOM series that holds as
+/// many frames at every position (time points of a 4-D CT or cine MR, echoes: see read_dicom()).
+/// Empty: the input must hold one, which `volume` 0 also names for any input.
 struct volume_choice {
   std::optional<std::string> series = {};
   std::optional<std::int64_t> volume = {};
@@ -182,7 +183,9 @@ struct index_to_world {
 /// samples with a RescaleSlope or RescaleIntercept other than 1 and 0 become f32 in the rescaled
 /// units. Throws progiso::error naming the directory or the file (and frame) at fault; see
 /// detail/dicom_reader.hpp and docs/ARCHITECTURE.md "Reading DICOM". `choice.series` picks one
-/// of several series (see volume_choice).
+/// of several series; `choice.volume` one of several volumes of a series that holds the same
+/// number of frames at every position (frames at a position ordered by TemporalPositionIndex,
+/// else InstanceNumber, then file and frame), required when there are several.
 [[nodiscard]] volume read_dicom(const std::filesystem::path& directory,
                                 const volume_choice& choice = {});
 

@@ -18,9 +18,11 @@
 // the directory holds several, the caller names one; an enhanced series may span several files)
 // and agree on Rows, Columns, BitsAllocated, PixelRepresentation, PixelSpacing and
 // ImageOrientationPatient; they are ordered by their ImagePositionPatient along the slice normal
-// (row × column direction) and must be evenly spaced (a gap, a duplicate — two stacks or time
-// points at one position — or a tilt is refused, naming the file and frame). One file alone must
-// hold at least two frames.
+// (row × column direction) and must be evenly spaced (a gap, a duplicate or a tilt is refused,
+// naming the file and frame). A series with the same number of frames at every position holds
+// that many volumes (time points, echoes), one chosen by index: frames at a position ordered by
+// TemporalPositionIndex, else InstanceNumber, then file and frame. One file alone must hold at
+// least two frames.
 //
 // Accepted: transfer syntaxes implicit VR little endian, explicit VR little endian and explicit
 // VR big endian (uncompressed pixel data); SamplesPerPixel 1 (MONOCHROME1 or MONOCHROME2);
@@ -94,12 +96,17 @@ struct dicom_series {
   }
 };
 
-/// Reads and checks the headers of every file in `directory`: the one series there, or the one
-/// `series` names (its UID, or its number in UID order) among several. Throws progiso::error
-/// naming the directory or the file at fault; for several series and no choice, or a choice that
-/// names none of them, the message lists them by number, UID and image count.
+/// Reads and checks the headers of every file in `input` (a directory, or one file): the one
+/// series there, or the one `series` names (its UID, or its number in UID order) among several;
+/// of a series holding several volumes (the same number of frames at every position: time
+/// points, echoes), the one `volume` names (0-based, frames at a position ordered by
+/// TemporalPositionIndex, else InstanceNumber, then file and frame). Throws progiso::error
+/// naming the input or the file at fault; for several series and no choice, or a choice that
+/// names none of them, the message lists them by number, UID and image count; for several
+/// volumes and no choice, it gives their count.
 [[nodiscard]] dicom_series read_dicom_series(const std::filesystem::path& input,
-                                             const std::optional<std::string>& series = {});
+                                             const std::optional<std::string>& series = {},
+                                             const std::optional<std::int64_t>& volume = {});
 
 /// Reads the frames of `series` into one array (x fastest, slices in order), host byte order,
 /// masked and sign-extended to BitsStored, rescaled when the series says so.
