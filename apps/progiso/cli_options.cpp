@@ -13,7 +13,7 @@ namespace progiso::cli {
 
 const char* const usage_text =
     "usage:\n"
-    "  progiso extract INPUT -o OUT.ply|OUT.obj --iso W\n"
+    "  progiso extract INPUT -o OUT.ply|OUT.obj|OUT.stl --iso W\n"
     "          [--dims NX,NY,NZ --type u8|i8|u16|i16|u32|i32|f32|f64 [--big-endian]]\n"
     "          [--spacing SX,SY,SZ | --world] [--series N|UID] [--volume K]\n"
     "          [--full | --error E | --max-triangles K | --time-ms T]\n"
@@ -324,7 +324,7 @@ extract_arguments parse_extract(const std::vector<std::string>& args) {
   if (modes > 1) throw error("choose at most one of --full, --error, --max-triangles, --time-ms");
   if (a.demo && a.input) throw error("--demo takes no INPUT");
   if (!a.demo && !a.input) throw error("missing INPUT (or --demo)");
-  if (!a.output) throw error("missing -o OUT.ply|OUT.obj");
+  if (!a.output) throw error("missing -o OUT.ply|OUT.obj|OUT.stl");
   if (!a.demo && !a.iso) throw error("missing --iso W");
   if (a.dims.has_value() != a.type.has_value()) {
     throw error("--dims and --type must be given together for a raw volume");
@@ -343,8 +343,8 @@ extract_arguments parse_extract(const std::vector<std::string>& args) {
     throw error("--world and --spacing: the orientation the file declares sets the spacing");
   }
   const std::string ext = detail::lower_extension(*a.output);
-  if (ext != ".ply" && ext != ".obj") {
-    throw error(*a.output + ": unknown mesh format (expected a .ply or .obj file name)");
+  if (ext != ".ply" && ext != ".obj" && ext != ".stl") {
+    throw error(*a.output + ": unknown mesh format (expected a .ply, .obj or .stl file name)");
   }
   if (a.stats_json && a.stats_json->empty()) {
     throw error("--stats-json: expected a file name, found an empty one");

@@ -1,6 +1,6 @@
 // progiso — command-line front end: progressive isosurface extraction from volumes.
 //
-//   progiso extract INPUT -o OUT.ply|OUT.obj --iso W
+//   progiso extract INPUT -o OUT.ply|OUT.obj|OUT.stl --iso W
 //           [--dims NX,NY,NZ --type u8|i8|u16|i16|u32|i32|f32|f64 [--big-endian]]
 //           [--spacing SX,SY,SZ] [--full | --error E | --max-triangles K | --time-ms T]
 //           [--stats-json FILE] [--threads N]
@@ -132,11 +132,13 @@ class progress_bar {
   std::chrono::steady_clock::time_point start_;
 };
 
-/// Refuses a PLY output whose float coordinates could not hold the volume's extent (in the
-/// scanner coordinates of `world` when given: the box's corners mapped).
-void check_ply_range(const fs::path& output, const progiso::volume& vol,
-                     const std::optional<progiso::index_to_world>& world) {
-  if (progiso::detail::lower_extension(output) != ".ply") return;
+/// Refuses a PLY or STL output whose float coordinates could not hold the volume's extent (in
+/// the scanner coordinates of `world` when given: the box's corners mapped).
+void check_float_range(const fs::path& output, const progiso::volume& vol,
+                       const std::optional<progiso::index_to_world>& world) {
+  const std::string ext = progiso::detail::lower_extension(output);
+  if (ext != ".ply" && ext != ".stl") return;
+  const std::string format = ext == ".ply" ? "PLY" : "STL";
   constexpr double float_max = static_cast<double>(std::numeric_limits<float>::max());
   std::array<double, 3> far{};
   for (int corner = 0; corner < 8; ++corner) {
@@ -155,7 +157,8 @@ void check_ply_range(const fs::path& output, const progiso::volume& vol,
   for (std::size_t a = 0; a < 3; ++a) {
     if (!(far[a] <= float_max)) {
       throw error(output.string() + ": coordinates up to " + std::to_string(far[a]) +
-                  " are beyond the float range of PLY (write .obj for double coordinates)");
+                  " are beyond the float range of " + format +
+                  " (write .obj for double coordinates)");
     }
   }
 }
@@ -230,7 +233,7 @@ int run(const std::vector<std::string>& args) {
     }
     vol = std::make_shared<const progiso::volume>(progiso::smooth(data, a.smooth));
   }
-  check_ply_range(*a.output, *data, world);
+  check_float_range(*a.output, *data, world);
   std::cerr << "progiso: " << input;
   if (a.volume) std::cerr << " volume " << *a.volume;
   std::cerr << ", " << data->dims()[0] << "x" << data->dims()[1] << "x" << data->dims()[2] << " "

@@ -5,6 +5,7 @@
 
 #include <sys/wait.h>
 
+#include <algorithm>
 #include <array>
 #include <cmath>
 #include <cstdio>
@@ -235,9 +236,9 @@ TEST_F(Cli, bad_inputs_exit_2_with_one_clear_line_and_no_output) {
                                         std::string(4, '\1'));
   expect_bad_input("extract " + two_d.string() + " --iso 1", "flat.nrrd");
   const run_result r =
-      run("extract " + g + " --dims 8,8,8 --type u8 --iso 1 -o " + (dir_ / "out.stl").string());
+      run("extract " + g + " --dims 8,8,8 --type u8 --iso 1 -o " + (dir_ / "out.off").string());
   EXPECT_EQ(r.status, 2);
-  EXPECT_NE(r.err.find(".ply or .obj"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find(".ply, .obj or .stl"), std::string::npos) << r.err;
 }
 
 TEST_F(Cli, full_output_is_identical_for_every_thread_count) {
@@ -633,6 +634,58 @@ TEST_F(Cli, rt_dose_grid_gives_the_surface_of_the_same_samples_as_raw) {
   f.number_of_frames = "9";
   expect_bad_input("extract " + f.write(dir_, "RD.bad.dcm").string() + " --iso 100",
                    "RD.bad.dcm: an RT dose grid of 9 frames with 8 offsets");
+}
+
+TEST_F(Cli, stl_output_holds_the_ply_triangles_with_normals_out_of_the_solid) {
+  // A ball of high values (bone in CT), 24³ u8: the STL's facets are the PLY's triangles, corner
+  // for corner, and every facet's normal points out of the ball (away from its centre).
+  const int n = 24;
+  std::string bytes(static_cast<std::size_t>(n * n * n), '\0');
+  for (int z = 0; z < n; ++z) {
+    for (int y = 0; y < n; ++y) {
+      for (int x = 0; x < n; ++x) {
+        const double r =
+            std::sqrt((x - 11.5) * (x - 11.5) + (y - 11.5) * (y - 11.5) + (z - 11.5) * (z - 11.5));
+        bytes[static_cast<std::size_t>(x + n * (y + n * z))] =
+            static_cast<char>(static_cast<unsigned char>(std::clamp(250.0 - 20.0 * r, 0.0, 250.0)));
+      }
+    }
+  }
+  const fs::path in = write_file("ball.raw", bytes);
+  const fs::path ply = dir_ / "ball.ply";
+  const fs::path stl = dir_ / "ball.stl";
+  for (const fs::path& out : {ply, stl}) {
+    const run_result r = run("extract " + in.string() +
+                             " --dims 24,24,24 --type u8 --spacing 0.5,0.5,0.5 --iso 100 --full "
+                             "-o " +
+                             out.string());
+    ASSERT_EQ(r.status, 0) << r.err;
+  }
+  const triangle_mesh m = read_ply(ply);
+  const std::string s = slurp(stl);
+  ASSERT_GT(m.triangles.size(), 100u);
+  ASSERT_EQ(s.size(), 84 + 50 * m.triangles.size());
+  const auto f32 = [&s](std::size_t at) {
+    float v = 0.0f;
+    std::memcpy(&v, s.data() + at, sizeof v);
+    return v;
+  };
+  const double centre = 11.5 * 0.5;
+  for (std::size_t t = 0; t < m.triangles.size(); ++t) {
+    const std::size_t at = 84 + 50 * t;
+    std::array<double, 3> mid{};
+    for (std::size_t k = 0; k < 3; ++k) {
+      for (std::size_t a = 0; a < 3; ++a) {
+        const double c = m.vertices[m.triangles[t][k]][a];
+        ASSERT_EQ(f32(at + 12 + 12 * k + 4 * a), static_cast<float>(c));
+        mid[a] += c / 3.0;
+      }
+    }
+    double out = 0.0;
+    for (std::size_t a = 0; a < 3; ++a)
+      out += static_cast<double>(f32(at + 4 * a)) * (mid[a] - centre);
+    EXPECT_GT(out, 0.0) << "facet " << t << " faces into the solid";
+  }
 }
 
 /// The vertices and faces (0-based) of an OBJ file progiso wrote.

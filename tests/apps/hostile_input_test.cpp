@@ -564,8 +564,11 @@ TEST_F(Hostile, numbers_out_of_range_give_a_clear_error_or_the_honest_result) {
   expect_refused(with({"--max-triangles", "18446744073709551616", "-o", path("x.ply").string()}),
                  "--max-triangles");
   expect_refused(with({"--time-ms", "1e400", "-o", path("x.ply").string()}), "--time-ms");
-  // Coordinates: beyond PLY's float range refused; as doubles in OBJ, finite and honest.
+  // Coordinates: beyond PLY's and STL's float range refused; as doubles in OBJ, finite and
+  // honest.
   expect_refused(with({"--spacing", "1e40,1,1", "-o", path("x.ply").string()}), "float range");
+  expect_refused(with({"--spacing", "1e40,1,1", "-o", path("x.stl").string()}),
+                 "float range of STL");
   const bounded_result o = run(with({"--spacing", "1e40,1,1", "-o", path("far.obj").string()}));
   ASSERT_EQ(o.status, 0) << o.err;
   std::ifstream obj(path("far.obj"));

@@ -1,10 +1,13 @@
-// progiso/core/io/mesh_io.hpp — writing triangle meshes as PLY or OBJ, and reading progiso's PLY.
+// progiso/core/io/mesh_io.hpp — writing triangle meshes as PLY, OBJ or STL, and reading
+// progiso's PLY.
 //
 // write_ply() writes binary little-endian PLY 1.0 (vertex positions as float, faces as
 // `list uchar int`), the compact choice for large surfaces and the one every mesh viewer reads.
 // write_obj() writes Wavefront OBJ text with positions printed in the shortest form that reads
-// back to the same double, for diffing and for tools without PLY. write_mesh() picks one by
-// the file extension. read_ply() reads back exactly the PLY layout write_ply() produces; it is
+// back to the same double, for diffing and for tools without PLY. write_stl() writes binary STL,
+// the format of 3-D printing and CAD (a CT's bone printed, an implant planned): one facet per
+// triangle with its unit normal, vertices not shared. write_mesh() picks one by the file
+// extension. read_ply() reads back exactly the PLY layout write_ply() produces; it is
 // meant for tests and tooling, not as a general PLY reader.
 //
 // Writes are all-or-nothing: the mesh goes to a uniquely named temporary file next to the
@@ -39,8 +42,18 @@ void write_ply(const std::filesystem::path& file, const triangle_mesh& mesh);
 /// progiso::error naming the file when it cannot be written; the target is then left as it was.
 void write_obj(const std::filesystem::path& file, const triangle_mesh& mesh);
 
-/// Writes `mesh` as PLY or OBJ according to the extension of `file` (.ply or .obj, any case).
-/// Throws progiso::error for any other extension, and whatever the chosen writer throws.
+/// Writes `mesh` as binary STL: an 80-byte header that does not start with "solid" (readers
+/// take those for ASCII STL), the triangle count, then per triangle its unit normal (the
+/// right-hand normal of its winding, which points out of the region f > isovalue: out of the
+/// solid, as STL wants for bone in CT; zero for a degenerate triangle), its three corners as
+/// float and a zero attribute count. Precondition as write_ply(). Throws progiso::error naming
+/// the file when it cannot be written, for more than 2^32 − 1 triangles, or for a coordinate
+/// beyond the float range; the target is then left as it was.
+void write_stl(const std::filesystem::path& file, const triangle_mesh& mesh);
+
+/// Writes `mesh` as PLY, OBJ or STL according to the extension of `file` (.ply, .obj or .stl,
+/// any case). Throws progiso::error for any other extension, and whatever the chosen writer
+/// throws.
 void write_mesh(const std::filesystem::path& file, const triangle_mesh& mesh);
 
 /// Reads a binary little-endian PLY file with the layout write_ply() writes (a float x/y/z
