@@ -142,37 +142,43 @@ void set_up(vtkXMLWriter* w, const vtk_vti_options& options) {
   w->SetBlockSize(static_cast<size_t>(options.block_bytes));
 }
 
+/// The image of the samples written by a new `Writer` as `options` say, after `configure(w)`.
+template <class Writer, class Configure>
+bool write_with(const std::string& file, const vtk_vti_options& options,
+                const std::string& type_name, const std::vector<std::byte>& samples,
+                const std::array<int, 6>& extent, const std::array<double, 3>& spacing,
+                const std::array<double, 3>& origin, Configure&& configure) {
+  sequential_vtk();
+  const vtkSmartPointer<vtkImageData> image = image_of(type_name, samples, extent, spacing, origin);
+  if (image == nullptr) return false;
+  vtkNew<Writer> w;
+  w->SetInputData(image);
+  w->SetFileName(file.c_str());
+  configure(w.GetPointer());
+  set_up(w, options);
+  return w->Write() == 1;
+}
+
 }  // namespace
 
 bool write_vti_with_vtk(const std::string& file, const vtk_vti_options& options,
                         const std::string& type_name, const std::vector<std::byte>& samples,
                         const std::array<int, 6>& extent, const std::array<double, 3>& spacing,
                         const std::array<double, 3>& origin) {
-  sequential_vtk();
-  const vtkSmartPointer<vtkImageData> image = image_of(type_name, samples, extent, spacing, origin);
-  if (image == nullptr) return false;
-  vtkNew<vtkXMLImageDataWriter> w;
-  w->SetInputData(image);
-  w->SetFileName(file.c_str());
-  set_up(w, options);
-  return w->Write() == 1;
+  return write_with<vtkXMLImageDataWriter>(file, options, type_name, samples, extent, spacing,
+                                           origin, [](vtkXMLImageDataWriter*) {});
 }
 
 bool write_pvti_with_vtk(const std::string& file, int pieces, const vtk_vti_options& options,
                          const std::string& type_name, const std::vector<std::byte>& samples,
                          const std::array<int, 6>& extent, const std::array<double, 3>& spacing,
                          const std::array<double, 3>& origin) {
-  sequential_vtk();
-  const vtkSmartPointer<vtkImageData> image = image_of(type_name, samples, extent, spacing, origin);
-  if (image == nullptr) return false;
-  vtkNew<vtkXMLPImageDataWriter> w;
-  w->SetInputData(image);
-  w->SetFileName(file.c_str());
-  w->SetNumberOfPieces(pieces);
-  w->SetStartPiece(0);
-  w->SetEndPiece(pieces - 1);
-  set_up(w, options);
-  return w->Write() == 1;
+  return write_with<vtkXMLPImageDataWriter>(file, options, type_name, samples, extent, spacing,
+                                            origin, [pieces](vtkXMLPImageDataWriter* w) {
+                                              w->SetNumberOfPieces(pieces);
+                                              w->SetStartPiece(0);
+                                              w->SetEndPiece(pieces - 1);
+                                            });
 }
 
 vtk_reference_volume read_vti_with_vtk(const std::string& file) {
