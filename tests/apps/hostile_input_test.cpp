@@ -208,6 +208,14 @@ TEST_F(Hostile, declared_sizes_beyond_the_data_fail_before_allocating) {
   for (int k = 0; k < 32769; ++k) frames.frame_positions.push_back({0.0, 0.0, 1.0 * k});
   frames.pixels.resize(4096);
   const fs::path enhanced = frames.write(path(""), "frames.dcm");
+  // And the same frames as lossless JPEG (16 bits) in one fragment of 4 KB: JPEG codes each
+  // sample in at least a bit, so 4 KB holds 32 768 samples, not 141 T.
+  frames.transfer_syntax = test::dicom_jpeg_lossless;
+  frames.bits_allocated = 16;
+  frames.bits_stored = 16;
+  frames.pixels.clear();
+  frames.fragments = {std::string(4096, '\x55')};
+  const fs::path jpeg = frames.write(path(""), "frames_jpeg.dcm");
   // And a .pvti of 2000 × 2000 × 1000 points whose one piece holds 8.
   write("small.vti",
         "<VTKFile type=\"ImageData\"><ImageData WholeExtent=\"0 1 0 1 0 1\">"
@@ -221,7 +229,7 @@ TEST_F(Hostile, declared_sizes_beyond_the_data_fail_before_allocating) {
             "</PPointData><Piece Extent=\"0 1 0 1 0 1\" Source=\"small.vti\"/>"
             "</PImageData></VTKFile>\n");
   for (const fs::path& in :
-       {raw, gz, nii, nii_gz, mha, mhd, vtk, vti, vti_z, pvti, series, enhanced}) {
+       {raw, gz, nii, nii_gz, mha, mhd, vtk, vti, vti_z, pvti, series, enhanced, jpeg}) {
     const auto before = snapshot();
     const bounded_result r =
         run({"extract", in.string(), "--iso", "1", "-o", path("o.ply").string()},

@@ -11,15 +11,21 @@
 // the frames the test made, ordered along the normal, masked, sign-extended and rescaled by the
 // shared or per-frame Pixel Value Transformation.
 //
+// Lossless JPEG (the compression of most archives' CT and MR): files DCMTK's dcmjpeg encodes, with
+// every predictor, 8, 12 and 16 bits, one fragment per frame or many, decode to the samples given.
+//
 // Hostile: multi-frame files that do not place their frames, frame counts that disagree, two
-// frames at one position, short pixel data, bad NumberOfFrames, frames without a position. Each
-// fails with one line naming the file and the frame.
+// frames at one position, short pixel data, bad NumberOfFrames, frames without a position, JPEG
+// streams of another process, size or table than they should. Each fails with one line naming
+// the file and the frame.
 #include <progiso/core/io/volume_io.hpp>
 
 #include <gtest/gtest.h>
 
 #include <dcmtk/config/osconfig.h>
 #include <dcmtk/dcmdata/dctk.h>
+#include <dcmtk/dcmjpeg/djencode.h>
+#include <dcmtk/dcmjpeg/djrplol.h>
 
 #include <algorithm>
 #include <array>
@@ -61,7 +67,9 @@ std::string decimals(const double* v, int n) {
 /// An enhanced image as the test makes it: frames in file order, each with its place along the
 /// stack (`slot`) and its stored values.
 struct enhanced_image {
-  E_TransferSyntax syntax = EXS_LittleEndianExplicit;
+  E_TransferSyntax syntax = EXS_LittleEndianExplicit;  // EXS_JPEGProcess14(SV1): compressed
+  int predictor = 1;                                   // of the lossless JPEG
+  int point_transform = 0;
   E_EncodingType lengths = EET_UndefinedLength;
   int bits_allocated = 16;
   int bits_stored = 12;
@@ -167,7 +175,8 @@ struct enhanced_image {
     }
     // Per frame: a Frame Content group (skipped), the position, and the rescale per frame.
     const int items = per_frame_items >= 0 ? per_frame_items : frames;
-    for (int f = 0; per_frame_groups && f < items; ++f) {
+    for (int item_index = 0; per_frame_groups && item_index < items; ++item_index) {
+      const int f = item_index % frames;  // an item past the frames repeats an earlier one
       DcmItem* item = nullptr;
       ok(d->findOrCreateSequenceItem(DCM_PerFrameFunctionalGroupsSequence, item, -2));
       ok(item->findOrCreateSequenceItem(DCM_FrameContentSequence, g, 0));
@@ -201,6 +210,11 @@ struct enhanced_image {
       px.resize(px.size() - pixel_bytes_cut / 2);
       ok(d->putAndInsertUint16Array(DCM_PixelData, px.data(),
                                     static_cast<unsigned long>(px.size())));
+    }
+    if (syntax == EXS_JPEGProcess14 || syntax == EXS_JPEGProcess14SV1) {
+      const DJ_RPLossless lossless(predictor, point_transform);
+      ok(d->chooseRepresentation(syntax, &lossless));
+      EXPECT_TRUE(d->canWriteXfer(syntax));
     }
     ok(ff.saveFile(file.c_str(), syntax, lengths));
     return file;
@@ -658,6 +672,130 @@ TEST(DicomRtDose, refuses_grids_its_offsets_do_not_place) {
   refused([](rt_dose& d) { d.offsets = "0\\x\\5\\7.5\\10\\12.5"; }, "finite numbers");
   refused([](rt_dose& d) { d.scaling = "0"; }, "has DoseGridScaling 0");
   EXPECT_EQ(n, 6);
+}
+
+// ---- Lossless JPEG (most archives' compressed CT and MR).
+
+/// DCMTK's JPEG encoders, registered for the tests of this file: each frame in fragments of at
+/// most `fragment` bytes (0: one per frame).
+void register_jpeg(Uint32 fragment) {
+  DJEncoderRegistration::cleanup();
+  DJEncoderRegistration::registerCodecs(ECC_lossyYCbCr, EUC_never, OFFalse, 0, 0, fragment);
+}
+
+TEST(DicomJpeg, decodes_every_predictor_depth_and_fragmenting_dcmtk_encodes) {
+  const progiso::test::scratch_dir dir("progiso-dicom-jpeg-test-");
+  unsigned seed = 300;
+  int files = 0;
+  for (const Uint32 fragment : {Uint32{0}, Uint32{64}}) {
+    register_jpeg(fragment);
+    for (const E_TransferSyntax syntax : {EXS_JPEGProcess14SV1, EXS_JPEGProcess14}) {
+      for (int predictor = 1; predictor <= 7; ++predictor) {
+        if (syntax == EXS_JPEGProcess14SV1 && predictor > 1) break;
+        struct depth {
+          int allocated, stored;
+          bool is_signed;
+        };
+        for (const depth b : {depth{8, 8, false}, depth{16, 12, true}, depth{16, 16, false}}) {
+          for (const auto scaling :
+               {enhanced_image::rescale::none, enhanced_image::rescale::per_frame}) {
+            enhanced_image img;
+            img.syntax = syntax;
+            img.predictor = predictor;
+            img.bits_allocated = b.allocated;
+            img.bits_stored = b.stored;
+            img.is_signed = b.is_signed;
+            img.scaling = scaling;
+            img.rows = 12;
+            img.columns = 9;
+            img.fill(seed++);
+            // The bits above BitsStored: zero, as JPEG of BitsStored precision holds them.
+            for (std::uint32_t& v : img.values) v &= (std::uint32_t{1} << b.stored) - 1;
+            const fs::path file = img.write(dir.path() / ("j" + std::to_string(files++) + ".dcm"));
+            SCOPED_TRACE(file.string() + " predictor " + std::to_string(predictor));
+            expect_frames(file, img);
+          }
+        }
+      }
+    }
+  }
+  EXPECT_EQ(files, 2 * (1 + 7) * 3 * 2);
+  DJEncoderRegistration::cleanup();
+}
+
+TEST(DicomJpeg, a_classic_series_of_jpeg_slices_reads_as_its_uncompressed_self) {
+  // The same 9 slices, uncompressed and compressed by DCMTK (one file per slice): one volume.
+  const progiso::test::scratch_dir dir("progiso-dicom-jpeg-test-");
+  register_jpeg(0);
+  const fs::path plain = dir.path() / "plain";
+  const fs::path packed = dir.path() / "packed";
+  fs::create_directory(plain);
+  fs::create_directory(packed);
+  std::mt19937 rng(8);
+  for (int k = 0; k < 9; ++k) {
+    progiso::test::dicom_slice_file f = progiso::test::plain_slice(k, 7, 6, 16, 1.5);
+    f.bits_stored = 12;
+    f.slope = "1";
+    f.intercept = "-1024";
+    std::vector<std::uint16_t> px(42);
+    for (std::uint16_t& v : px) v = static_cast<std::uint16_t>(rng() & 0xfff);
+    f.pixels.resize(84);
+    std::memcpy(f.pixels.data(), px.data(), 84);
+    const fs::path file = f.write(plain, "IM" + std::to_string(k));
+    DcmFileFormat ff;
+    ASSERT_TRUE(ff.loadFile(file.c_str()).good());
+    const DJ_RPLossless lossless(1, 0);
+    ASSERT_TRUE(ff.getDataset()->chooseRepresentation(EXS_JPEGProcess14SV1, &lossless).good());
+    ASSERT_TRUE(
+        ff.saveFile((packed / ("IM" + std::to_string(k))).c_str(), EXS_JPEGProcess14SV1).good());
+  }
+  const progiso::volume a = progiso::read_dicom(plain);
+  const progiso::volume b = progiso::read_dicom(packed);
+  EXPECT_EQ(a.dims(), b.dims());
+  EXPECT_EQ(a.type(), b.type());
+  ASSERT_EQ(a.byte_size(), b.byte_size());
+  EXPECT_EQ(std::memcmp(a.bytes(), b.bytes(), a.byte_size()), 0);
+  DJEncoderRegistration::cleanup();
+}
+
+TEST(DicomJpeg, refuses_streams_it_cannot_decode_with_one_line_naming_file_and_frame) {
+  const progiso::test::scratch_dir dir("progiso-dicom-jpeg-test-");
+  register_jpeg(0);
+  enhanced_image img;
+  img.syntax = EXS_JPEGProcess14SV1;
+  img.fill(9);
+  const fs::path good = img.write(dir.path() / "good.dcm");
+  const std::string bytes = progiso::test::read_whole_file(good);
+  const std::size_t sof = bytes.find("\xff\xc3");
+  const std::size_t sos = bytes.find("\xff\xda");
+  const std::size_t dht = bytes.find("\xff\xc4");
+  ASSERT_NE(sof, std::string::npos);
+  ASSERT_NE(sos, std::string::npos);
+  ASSERT_NE(dht, std::string::npos);
+  int n = 0;
+  const auto refused = [&](std::string changed, const std::string& what) {
+    const fs::path file = dir.path() / ("bad" + std::to_string(n++) + ".dcm");
+    progiso::test::write_file(file, changed);
+    const std::string m = message_of(file);
+    EXPECT_TRUE(contains(m, file.string())) << m;
+    EXPECT_TRUE(contains(m, what)) << m;
+  };
+  std::string baseline = bytes;
+  baseline[sof + 1] = '\xc0';  // SOF0: baseline, lossy
+  refused(baseline, "uses the JPEG process of marker FF C0");
+  std::string wider = bytes;
+  wider[sof + 8] = static_cast<char>(wider[sof + 8] + 1);  // one more sample per line
+  refused(wider, "holds an image of 6x4 samples, expected 5x4");
+  std::string no_table = bytes;
+  no_table[sos + 6] = '\x30';  // the scan names Huffman table 3
+  refused(no_table, "uses Huffman table 3, which it does not define");
+  std::string predictor = bytes;
+  predictor[sos + 7] = '\x00';  // predictor 0 (hierarchical only)
+  refused(predictor, "uses predictor 0");
+  // A scan cut short: the file ends inside the pixel data's last item.
+  refused(bytes.substr(0, sos + 20), "past the file's end");
+  EXPECT_EQ(n, 5);
+  DJEncoderRegistration::cleanup();
 }
 
 }  // namespace

@@ -3,7 +3,7 @@
 
     make_seeds.py OUT_DIR [SHARED_DATA_DIR]
 
-writes OUT_DIR/<harness>/<name> for the harnesses raw, extract, nrrd, nifti, metaimage, vtk, vti, pvti, dicom, pgm, png, ply, obj and cli: small
+writes OUT_DIR/<harness>/<name> for the harnesses raw, extract, nrrd, nifti, metaimage, vtk, vti, pvti, dicom, jpeg, pgm, png, ply, obj and cli: small
 valid files of every kind the readers accept, and the hostile cases of issue 11 (printf field
 widths in data file names, declared sizes far beyond the data, NaN samples, numbers beyond
 their types …). With SHARED_DATA_DIR (../shared/data), it adds crops of the real volumes and
@@ -317,6 +317,80 @@ def vti_seeds(out, crops):
     put(out, "pvti", "declared_2000x2000x1000", (pvti % "0 1999 0 1999 0 999").encode() + b"\0DATA\0" + piece)
 
 
+# ---- jpeg: lossless JPEG streams (process 14), as the dicom harness's encapsulated frames hold.
+
+# One Huffman table for every stream: categories 0-5 in 3 bits, 6-8 in 4, 9 in 5, then one code
+# each of 6 to 12 bits (so that codes longer than the decoder's 9-bit lookup occur).
+JPEG_COUNTS = [0, 0, 6, 3, 1, 1, 1, 1, 1, 1, 1, 1, 0, 0, 0, 0]
+
+
+def jpeg_codes():
+    codes, code, sym = {}, 0, 0
+    for length, count in enumerate(JPEG_COUNTS, start=1):
+        for _ in range(count):
+            codes[sym] = (code, length)
+            code += 1
+            sym += 1
+        code <<= 1
+    return codes
+
+
+def jpeg_lossless(rows, cols, samples, precision=12, predictor=1, pt=0):
+    """A lossless JPEG stream of `samples` (row by row) with the given predictor (1-7)."""
+    codes = jpeg_codes()
+    bits = precision - pt
+    vals = [v >> pt for v in samples]
+    out, acc, n = bytearray(), 0, 0
+
+    def put_bits(v, k):
+        nonlocal acc, n
+        for i in range(k - 1, -1, -1):
+            acc = (acc << 1) | ((v >> i) & 1)
+            n += 1
+            if n == 8:
+                out.append(acc)
+                if acc == 0xFF:
+                    out.append(0)
+                acc, n = 0, 0
+
+    for y in range(rows):
+        for x in range(cols):
+            i = y * cols + x
+            if y == 0:
+                p = (1 << (bits - 1)) if x == 0 else vals[i - 1]
+            elif x == 0:
+                p = vals[i - cols]
+            else:
+                ra, rb, rc = vals[i - 1], vals[i - cols], vals[i - cols - 1]
+                p = [ra, rb, rc, ra + rb - rc, ra + ((rb - rc) >> 1), rb + ((ra - rc) >> 1),
+                     (ra + rb) >> 1][predictor - 1]
+            d = (vals[i] - p) & 0xFFFF
+            if d >= 0x8000:
+                d -= 0x10000
+            ssss = abs(d).bit_length()
+            code, length = codes[ssss]
+            put_bits(code, length)
+            if 0 < ssss < 16:
+                put_bits(d if d > 0 else d + (1 << ssss) - 1, ssss)
+    while n:
+        put_bits(1, 1)  # pad the last byte with ones
+    dht = bytes([0x00]) + bytes(JPEG_COUNTS) + bytes(range(17))
+    sof = bytes([precision]) + struct.pack(">HH", rows, cols) + bytes([1, 1, 0x11, 0])
+    sos = bytes([1, 1, 0x00, predictor, 0, pt])
+    seg = lambda m, body: b"\xff" + bytes([m]) + struct.pack(">H", len(body) + 2) + body
+    return b"\xff\xd8" + seg(0xC4, dht) + seg(0xC3, sof) + seg(0xDA, sos) + bytes(out) + b"\xff\xd9"
+
+
+def jpeg_seeds(out):
+    for predictor in range(1, 8):
+        samples = [(x * 37 + y * 101 + (x * y) % 13) % 4096 for y in range(6) for x in range(7)]
+        put(out, "jpeg", "p%d_12bit" % predictor,
+            bytes([5, 6, 1]) + jpeg_lossless(6, 7, samples, 12, predictor))
+    samples = [(i * 7919) % 65536 for i in range(8 * 8)]  # large differences: long codes
+    put(out, "jpeg", "16bit_wide", bytes([7, 7, 1]) + jpeg_lossless(8, 8, samples, 16, 4))
+    put(out, "jpeg", "8bit_pt2", bytes([3, 4, 0]) + jpeg_lossless(4, 5, [i * 9 % 256 for i in range(20)], 8, 1, 2))
+
+
 # ---- dicom: series of slice files "s0 \0NEXT\0 s1 \0NEXT\0 ...".
 
 NEXT = b"\0NEXT\0"
@@ -324,7 +398,8 @@ NEXT = b"\0NEXT\0"
 
 def dicom_slice(ts, k, rows=4, cols=5, bits=16, signed=1, seq=True, pixels=None, frames=0, grid=None):
     """A slice file; with frames > 0 an enhanced image of that many frames (functional groups);
-    with grid (offsets) an RT dose grid of one frame per offset."""
+    with grid (offsets) an RT dose grid of one frame per offset; with the lossless JPEG transfer
+    syntax (1.2.840.10008.1.2.4.70), its frames encapsulated, one fragment each."""
     explicit = ts != "1.2.840.10008.1.2"
     big = ts == "1.2.840.10008.1.2.2"
     e16 = ">H" if big else "<H"
@@ -385,8 +460,8 @@ def dicom_slice(ts, k, rows=4, cols=5, bits=16, signed=1, seq=True, pixels=None,
     if not frames:
         d += el(0x28, 0x1052, "DS", "-1024") + el(0x28, 0x1053, "DS", "1")
     else:
-        shared = sq(0x28, 0x9110, it(el(0x28, 0x30, "DS", "0.5\\0.75"), True), True)
-        shared += sq(0x20, 0x9116, it(el(0x20, 0x37, "DS", "1\\0\\0\\0\\1\\0"), True), True)
+        shared = sq(0x20, 0x9116, it(el(0x20, 0x37, "DS", "1\\0\\0\\0\\1\\0"), True), True)
+        shared += sq(0x28, 0x9110, it(el(0x28, 0x30, "DS", "0.5\\0.75"), True), True)
         shared += sq(0x28, 0x9145, it(el(0x28, 0x1052, "DS", "-1024") + el(0x28, 0x1053, "DS", "2"), False), False)
         d += sq(0x5200, 0x9229, it(shared, True), True)
         per = b""
@@ -397,6 +472,16 @@ def dicom_slice(ts, k, rows=4, cols=5, bits=16, signed=1, seq=True, pixels=None,
     if grid:
         d += el(0x3004, 0xc, "DS", "\\".join("%g" % g for g in grid)) + el(0x3004, 0xe, "DS", "0.001")
     n = rows * cols * max(frames, len(grid) if grid else 1)
+    if ts == "1.2.840.10008.1.2.4.70":
+        stored = bits if bits == 8 else 12
+        item = lambda b: struct.pack("<HHI", 0xFFFE, 0xE000, len(b)) + b
+        frags = item(b"")  # an empty basic offset table
+        for f in range(max(frames, 1)):
+            vals = [((i * 37 + (k + f) * 11) % 100) % (1 << stored) for i in range(rows * cols)]
+            stream = jpeg_lossless(rows, cols, vals, stored, 1)
+            frags += item(stream + (b"\0" if len(stream) % 2 else b""))
+        d += struct.pack("<HH", 0x7FE0, 0x10) + b"OB\0\0" + struct.pack("<I", 0xFFFFFFFF)
+        return head + d + frags + struct.pack("<HHI", 0xFFFE, 0xE0DD, 0)
     if pixels is None:
         fmt = (">" if big else "<") + ("B" if bits == 8 else "h" if bits == 16 else "i") * n
         pixels = struct.pack(fmt, *[(i * 37 + k * 11) % 100 for i in range(n)])
@@ -420,6 +505,8 @@ def dicom_seeds(out):
     put(out, "dicom", "rtdose", dicom_slice("1.2.840.10008.1.2", 0, bits=32, signed=0, grid=[0, 2.5, 5, 7.5]))
     put(out, "dicom", "rtdose_absolute", dicom_slice("1.2.840.10008.1.2.1", 0, grid=[7, 9.5, 12, 14.5, 17]))
     put(out, "dicom", "enhanced_time_points", dicom_slice("1.2.840.10008.1.2.1", 0, frames=6))
+    put(out, "dicom", "jpeg_series", NEXT.join(dicom_slice("1.2.840.10008.1.2.4.70", k) for k in range(3)))
+    put(out, "dicom", "jpeg_enhanced", dicom_slice("1.2.840.10008.1.2.4.70", 0, bits=8, signed=0, frames=4))
     put(out, "dicom", "enhanced_short_pixels", dicom_slice("1.2.840.10008.1.2.1", 0, frames=4, pixels=b"\1\2"))
     put(out, "dicom", "declared_huge", NEXT.join(dicom_slice("1.2.840.10008.1.2.1", k, rows=65535, cols=65535,
                                                                 pixels=b"\0" * 64) for k in range(2)))
@@ -562,6 +649,7 @@ def main():
     metaimage_seeds(out, crops)
     vtk_seeds(out, crops)
     vti_seeds(out, crops)
+    jpeg_seeds(out)
     dicom_seeds(out)
     image_seeds(out, images)
     mesh_seeds(out)

@@ -18,6 +18,7 @@ namespace progiso::test {
 inline constexpr const char* dicom_implicit_le = "1.2.840.10008.1.2";
 inline constexpr const char* dicom_explicit_le = "1.2.840.10008.1.2.1";
 inline constexpr const char* dicom_explicit_be = "1.2.840.10008.1.2.2";
+inline constexpr const char* dicom_jpeg_lossless = "1.2.840.10008.1.2.4.70";
 
 /// One slice file: its header fields and its stored pixel values (host order).
 struct dicom_slice_file {
@@ -48,6 +49,9 @@ struct dicom_slice_file {
   /// `position` along the normal when the first is 0), scaled by `dose_scaling`.
   std::vector<double> grid_offsets;
   std::string dose_scaling = "1";
+  /// Non-empty: encapsulated pixel data of these fragments (with transfer_syntax
+  /// dicom_jpeg_lossless), instead of `pixels`.
+  std::vector<std::string> fragments;
 
   [[nodiscard]] bool explicit_vr() const { return transfer_syntax != dicom_implicit_le; }
   [[nodiscard]] bool big() const { return transfer_syntax == dicom_explicit_be; }
@@ -131,7 +135,7 @@ struct dicom_slice_file {
       element(d, 0x0028, 0x1052, "DS", intercept);
       element(d, 0x0028, 0x1053, "DS", slope);
     } else {
-      // Shared groups (items of undefined length): Pixel Measures, Plane Orientation, Pixel
+      // Shared groups (items of undefined length): Plane Orientation, Pixel Measures, Pixel
       // Value Transformation; per frame (defined length): Frame Content, Plane Position.
       const auto group = [&](std::uint16_t g, std::uint16_t e, const std::string& content,
                              bool undefined) {
@@ -146,8 +150,8 @@ struct dicom_slice_file {
       element(plane, 0x0020, 0x0037, "DS", ds(orientation.data(), 6));
       element(transform, 0x0028, 0x1052, "DS", intercept);
       element(transform, 0x0028, 0x1053, "DS", slope);
-      const std::string shared = group(0x0028, 0x9110, measures, true) +
-                                 group(0x0020, 0x9116, plane, true) +
+      const std::string shared = group(0x0020, 0x9116, plane, true) +
+                                 group(0x0028, 0x9110, measures, true) +
                                  group(0x0028, 0x9145, transform, true);
       std::string shared_items;
       item(shared_items, shared, true);
@@ -175,7 +179,20 @@ struct dicom_slice_file {
                      px.begin() + static_cast<std::ptrdiff_t>(i + item_bytes));
       }
     }
-    element(d, 0x7fe0, 0x0010, bits_allocated == 8 ? "OB" : "OW", px);
+    if (!fragments.empty()) {
+      // Encapsulated: undefined length, an empty offsets table, the fragments, the delimiter.
+      put16(d, 0x7fe0, false);
+      put16(d, 0x0010, false);
+      d += std::string("OB") + std::string(2, '\0');
+      put32(d, 0xffffffffu, false);
+      item(d, "", false);
+      for (const std::string& f : fragments) item(d, f, false);
+      put16(d, 0xfffe, false);
+      put16(d, 0xe0dd, false);
+      put32(d, 0, false);
+    } else {
+      element(d, 0x7fe0, 0x0010, bits_allocated == 8 ? "OB" : "OW", px);
+    }
     return std::string(128, '\0') + "DICM" + group_length + meta + d;
   }
 

@@ -17,6 +17,7 @@
 #include <progiso/core/base/error.hpp>
 #include <progiso/core/io/detail/file_input.hpp>
 #include <progiso/core/io/detail/header_text.hpp>
+#include <progiso/core/io/detail/jpeg_lossless.hpp>
 #include <progiso/core/io/detail/nrrd_reader.hpp>
 
 namespace progiso::detail {
@@ -84,11 +85,16 @@ std::string tag_text(std::uint32_t t) {
 struct syntax {
   bool explicit_vr = true;
   bool big_endian = false;
+  bool jpeg_lossless = false;  ///< encapsulated pixel data, lossless JPEG (process 14)
 };
 std::optional<syntax> syntax_of(std::string_view uid, std::string& refused) {
-  if (uid == "1.2.840.10008.1.2") return syntax{false, false};
-  if (uid == "1.2.840.10008.1.2.1") return syntax{true, false};
-  if (uid == "1.2.840.10008.1.2.2") return syntax{true, true};
+  if (uid == "1.2.840.10008.1.2") return syntax{false, false, false};
+  if (uid == "1.2.840.10008.1.2.1") return syntax{true, false, false};
+  if (uid == "1.2.840.10008.1.2.2") return syntax{true, true, false};
+  // JPEG Lossless, Non-Hierarchical (Process 14), and its First-Order Prediction subset.
+  if (uid == "1.2.840.10008.1.2.4.57" || uid == "1.2.840.10008.1.2.4.70") {
+    return syntax{true, false, true};
+  }
   if (uid == "1.2.840.10008.1.2.1.99") {
     refused = "deflated explicit VR little endian";
   } else if (uid == "1.2.840.10008.1.2.5") {
@@ -148,6 +154,7 @@ struct file_header {
   std::string photometric = "MONOCHROME2";
   std::uint64_t pixel_offset = 0;
   std::uint64_t pixel_length = 0;
+  bool encapsulated = false;           ///< lossless JPEG fragments from pixel_offset
   std::vector<double> grid_offsets;    ///< an RT dose's GridFrameOffsetVector (3004,000C)
   std::optional<double> dose_scaling;  ///< an RT dose's DoseGridScaling (3004,000E)
 
@@ -345,11 +352,17 @@ class file_parser {
              std::to_string(pos_ - 4));
       const element e = read_header(t, syntax_.explicit_vr, big);
       if (t == pixel_data_tag) {
-        if (e.length == undefined_length)
-          fail("holds encapsulated (compressed) pixel data: not supported");
+        if ((e.length == undefined_length) != syntax_.jpeg_lossless) {
+          fail(syntax_.jpeg_lossless
+                   ? "holds native pixel data in a JPEG transfer syntax"
+                   : "holds encapsulated (compressed) pixel data in an uncompressed transfer "
+                     "syntax");
+        }
         h.image = true;
+        h.encapsulated = syntax_.jpeg_lossless;
         h.pixel_offset = pos_;
-        h.pixel_length = e.length;
+        // Encapsulated: the fragments run to the file's end at most.
+        h.pixel_length = h.encapsulated ? in_.size() - pos_ : e.length;
         return;
       }
       if (t == float_pixel_tag || t == double_pixel_tag) {
@@ -767,7 +780,21 @@ dicom_series read_dicom_series(const fs::path& input, const std::optional<std::s
     }
     const std::uint64_t frame = std::uint64_t{h.rows} * h.columns * (h.bits_allocated / 8);
     const std::uint64_t need = frame * static_cast<std::uint64_t>(h.frames);
-    if (h.pixel_length < need) {
+    if (h.encapsulated) {
+      // Lossless JPEG codes every sample in at least one bit: the fragments bound the frames.
+      const std::uint64_t samples =
+          std::uint64_t{h.rows} * h.columns * static_cast<std::uint64_t>(h.frames);
+      if (h.bits_allocated > 16) {
+        refuse(name, "holds lossless JPEG of " + std::to_string(h.bits_allocated) +
+                         "-bit pixels, expected 8 or 16 (JPEG holds at most 16 bits)");
+      }
+      if (h.pixel_length < samples / 8) {
+        refuse(name, "holds " + std::to_string(h.pixel_length) +
+                         " bytes of lossless JPEG data, too few for " + std::to_string(h.frames) +
+                         " frames of " + std::to_string(h.columns) + "x" + std::to_string(h.rows) +
+                         " (at least a bit a sample)");
+      }
+    } else if (h.pixel_length < need) {
       refuse(name, "holds " + std::to_string(h.pixel_length) + " bytes of pixel data, expected " +
                        std::to_string(need) + " (" +
                        (h.frames > 1 ? std::to_string(h.frames) + " frames of " : std::string()) +
@@ -798,8 +825,11 @@ dicom_series read_dicom_series(const fs::path& input, const std::optional<std::s
           static_cast<double>(file_index), static_cast<double>(k)};
       p.slice.file = f.file;
       p.slice.frame = h.frames > 1 ? k : -1;
-      p.slice.pixel_offset = h.pixel_offset + static_cast<std::uint64_t>(k) * frame_bytes;
+      p.slice.pixel_offset = h.encapsulated
+                                 ? h.pixel_offset
+                                 : h.pixel_offset + static_cast<std::uint64_t>(k) * frame_bytes;
       p.slice.big_endian = h.big_endian;
+      p.slice.jpeg = h.encapsulated;
       p.dose_scaling = h.dose_scaling.value_or(1.0);
       frames.push_back(std::move(p));
     }
@@ -974,67 +1004,161 @@ dicom_series read_dicom_series(const fs::path& input, const std::optional<std::s
   return s;
 }
 
+namespace {
+
+/// Writes frame `raw` (BitsAllocated-wide stored values, host order) into `dst` as the volume
+/// holds it: masked to BitsStored, sign-extended, and rescaled when the series is.
+void convert_frame(const dicom_series& s, const dicom_slice& d, const std::vector<std::byte>& raw,
+                   std::byte* dst) {
+  const std::size_t count = raw.size() / sample_size(s.stored);
+  const bool is_signed =
+      s.stored == sample_type::i8 || s.stored == sample_type::i16 || s.stored == sample_type::i32;
+  const auto convert = [&]<class U>(U) {
+    for (std::size_t i = 0; i < count; ++i) {
+      U word;
+      std::memcpy(&word, raw.data() + i * sizeof word, sizeof word);
+      const std::int64_t v = stored_value(word, s.bits_stored, is_signed);
+      if (s.scaled) {
+        const auto f = static_cast<float>(d.slope * static_cast<double>(v) + d.intercept);
+        std::memcpy(dst + i * sizeof f, &f, sizeof f);
+      } else if (is_signed) {
+        // The stored type holds every masked, sign-extended value.
+        using S = std::make_signed_t<U>;
+        const auto x = static_cast<S>(v);
+        std::memcpy(dst + i * sizeof x, &x, sizeof x);
+      } else {
+        const auto x = static_cast<U>(v);
+        std::memcpy(dst + i * sizeof x, &x, sizeof x);
+      }
+    }
+  };
+  switch (sample_size(s.stored)) {
+    case 1:
+      convert(std::uint8_t{});
+      break;
+    case 2:
+      convert(std::uint16_t{});
+      break;
+    default:
+      convert(std::uint32_t{});
+      break;
+  }
+}
+
+/// The fragments of a file's encapsulated pixel data, joined, with where each starts; the first
+/// item (the basic offset table) left out. Items are read up to the sequence delimiter, each
+/// within the file.
+struct fragments {
+  std::vector<std::uint8_t> bytes;
+  std::vector<std::size_t> starts;
+};
+fragments read_fragments(input_file& in, std::uint64_t at, const std::string& name) {
+  fragments f;
+  const auto fail = [&](const std::string& what) {
+    throw error(name + ": DICOM file's encapsulated pixel data " + what);
+  };
+  bool offsets_table = true;
+  for (;;) {
+    if (in.size() < at || in.size() - at < 8) fail("ends before its sequence delimiter");
+    std::array<unsigned char, 8> head{};
+    in.seek(at);
+    if (in.read(head.data(), head.size()) != head.size()) fail("ends inside an item");
+    const std::uint32_t group = head[0] | (std::uint32_t{head[1]} << 8);
+    const std::uint32_t element = head[2] | (std::uint32_t{head[3]} << 8);
+    const std::uint32_t length = head[4] | (std::uint32_t{head[5]} << 8) |
+                                 (std::uint32_t{head[6]} << 16) | (std::uint32_t{head[7]} << 24);
+    at += 8;
+    if (group == 0xfffe && element == 0xe0dd) return f;
+    if (group != 0xfffe || element != 0xe000 || length == undefined_length) {
+      fail("holds " + tag_text((group << 16) | element) + " where an item belongs");
+    }
+    if (in.size() - at < length) fail("holds an item past the file's end");
+    if (!offsets_table) {
+      f.starts.push_back(f.bytes.size());
+      const std::size_t old = f.bytes.size();
+      f.bytes.resize(old + length);
+      if (in.read(f.bytes.data() + old, length) != length) fail("ends inside an item");
+    }
+    offsets_table = false;
+    at += length;
+  }
+}
+
+}  // namespace
+
 std::vector<std::byte> read_dicom_samples(const dicom_series& s) {
   const std::size_t item = sample_size(s.stored);
   const auto frame_count = static_cast<std::size_t>(s.dims[0] * s.dims[1]);
   const std::size_t frame_bytes = frame_count * item;
-  const sample_type out_type = s.volume_type();
-  const std::size_t out_item = sample_size(out_type);
+  const std::size_t out_item = sample_size(s.volume_type());
   std::vector<std::byte> out(frame_count * s.slices.size() * out_item);
   std::vector<std::byte> frame(frame_bytes);
-  const bool is_signed =
-      s.stored == sample_type::i8 || s.stored == sample_type::i16 || s.stored == sample_type::i32;
   const bool host_big = std::endian::native == std::endian::big;
   std::optional<input_file> in;  // the last slice's file: an enhanced image's frames share one
+  const auto open = [&](const fs::path& file) -> input_file& {
+    if (!in || in->path() != file) {
+      in.reset();
+      in.emplace(file, "DICOM");
+    }
+    return *in;
+  };
+  // Slices of lossless JPEG files, by file: (frame, slice) pairs, decoded after the others.
+  std::map<fs::path, std::vector<std::pair<std::int64_t, std::size_t>>> jpeg;
   for (std::size_t k = 0; k < s.slices.size(); ++k) {
     const dicom_slice& d = s.slices[k];
-    if (!in || in->path() != d.file) {
-      in.reset();
-      in.emplace(d.file, "DICOM");
+    if (d.jpeg) {
+      jpeg[d.file].emplace_back(std::max<std::int64_t>(d.frame, 0), k);
+      continue;
     }
-    if (in->size() < d.pixel_offset || in->size() - d.pixel_offset < frame_bytes) {
+    input_file& f = open(d.file);
+    if (f.size() < d.pixel_offset || f.size() - d.pixel_offset < frame_bytes) {
       throw error(d.name() + ": DICOM file ends inside its pixel data (" +
-                  std::to_string(in->size()) + " bytes, the frame needs " +
+                  std::to_string(f.size()) + " bytes, the frame needs " +
                   std::to_string(frame_bytes) + " from byte " + std::to_string(d.pixel_offset) +
                   ")");
     }
-    in->seek(d.pixel_offset);
-    if (in->read(frame.data(), frame.size()) != frame.size()) {
+    f.seek(d.pixel_offset);
+    if (f.read(frame.data(), frame.size()) != frame.size()) {
       throw error(d.name() + ": DICOM file ends inside its pixel data");
     }
     if (item > 1 && d.big_endian != host_big) swap_sample_bytes(frame, item);
-    std::byte* dst = out.data() + k * frame_count * out_item;
-    const auto convert = [&]<class U>(U) {
-      for (std::size_t i = 0; i < frame_count; ++i) {
-        U raw;
-        std::memcpy(&raw, frame.data() + i * sizeof raw, sizeof raw);
-        const std::int64_t v = stored_value(raw, s.bits_stored, is_signed);
-        if (s.scaled) {
-          const auto f = static_cast<float>(d.slope * static_cast<double>(v) + d.intercept);
-          std::memcpy(dst + i * sizeof f, &f, sizeof f);
-        } else {
-          // The stored type holds every masked, sign-extended value.
-          if (is_signed) {
-            using S = std::make_signed_t<U>;
-            const auto x = static_cast<S>(v);
-            std::memcpy(dst + i * sizeof x, &x, sizeof x);
+    convert_frame(s, d, frame, out.data() + k * frame_count * out_item);
+  }
+  // Each JPEG file's frames in order: frame f starts at the first fragment at or after the end
+  // of frame f − 1 (a fragment never holds two frames), so no offsets table is needed.
+  std::vector<std::uint16_t> decoded(frame_count);
+  const auto rows = static_cast<std::uint32_t>(s.dims[1]);
+  const auto columns = static_cast<std::uint32_t>(s.dims[0]);
+  for (auto& [file, wanted] : jpeg) {
+    std::sort(wanted.begin(), wanted.end());
+    const std::string name = file.string();
+    const fragments data =
+        read_fragments(open(file), s.slices[wanted.front().second].pixel_offset, name);
+    std::size_t end = 0;   // of the last frame decoded
+    std::size_t next = 0;  // the next wanted entry
+    for (std::int64_t f = 0; next < wanted.size(); ++f) {
+      const auto start = std::lower_bound(data.starts.begin(), data.starts.end(), end);
+      if (start == data.starts.end()) {
+        throw error(name + ": DICOM file's encapsulated pixel data holds " + std::to_string(f) +
+                    " frames, fewer than its NumberOfFrames");
+      }
+      try {
+        end = decode_lossless_jpeg(data.bytes, *start, rows, columns,
+                                   static_cast<unsigned>(item * 8), decoded);
+      } catch (const error& e) {
+        throw error(name + " (frame " + std::to_string(f + 1) + "): " + e.what());
+      }
+      while (next < wanted.size() && wanted[next].first == f) {
+        const std::size_t k = wanted[next++].second;
+        for (std::size_t i = 0; i < frame_count; ++i) {
+          if (item == 1) {
+            frame[i] = static_cast<std::byte>(decoded[i]);
           } else {
-            const auto x = static_cast<U>(v);
-            std::memcpy(dst + i * sizeof x, &x, sizeof x);
+            std::memcpy(frame.data() + 2 * i, &decoded[i], 2);
           }
         }
+        convert_frame(s, s.slices[k], frame, out.data() + k * frame_count * out_item);
       }
-    };
-    switch (item) {
-      case 1:
-        convert(std::uint8_t{});
-        break;
-      case 2:
-        convert(std::uint16_t{});
-        break;
-      default:
-        convert(std::uint32_t{});
-        break;
     }
   }
   return out;
