@@ -11,8 +11,9 @@
 // another order than the slices.
 //
 // Hostile: several series, one slice, uneven and duplicate positions, tilted stacks, slices
-// that differ, compressed syntaxes, multi-frame and colour files, short pixel data, truncated
-// files, sequences nested without end. Each fails with one line naming the file or directory.
+// that differ, compressed syntaxes (lossy JPEG, JPEG 2000, RLE), colour files, short pixel data,
+// truncated files, sequences nested without end. Each fails with one line naming the file or
+// directory.
 #include <progiso/core/io/volume_io.hpp>
 
 #include <gtest/gtest.h>
