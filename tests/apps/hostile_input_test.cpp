@@ -216,6 +216,9 @@ TEST_F(Hostile, declared_sizes_beyond_the_data_fail_before_allocating) {
   frames.pixels.clear();
   frames.fragments = {std::string(4096, '\x55')};
   const fs::path jpeg = frames.write(path(""), "frames_jpeg.dcm");
+  // And as RLE, whose longest run (two bytes) makes 128.
+  frames.transfer_syntax = "1.2.840.10008.1.2.5";
+  const fs::path rle = frames.write(path(""), "frames_rle.dcm");
   // And a .pvti of 2000 × 2000 × 1000 points whose one piece holds 8.
   write("small.vti",
         "<VTKFile type=\"ImageData\"><ImageData WholeExtent=\"0 1 0 1 0 1\">"
@@ -229,7 +232,7 @@ TEST_F(Hostile, declared_sizes_beyond_the_data_fail_before_allocating) {
             "</PPointData><Piece Extent=\"0 1 0 1 0 1\" Source=\"small.vti\"/>"
             "</PImageData></VTKFile>\n");
   for (const fs::path& in :
-       {raw, gz, nii, nii_gz, mha, mhd, vtk, vti, vti_z, pvti, series, enhanced, jpeg}) {
+       {raw, gz, nii, nii_gz, mha, mhd, vtk, vti, vti_z, pvti, series, enhanced, jpeg, rle}) {
     const auto before = snapshot();
     const bounded_result r =
         run({"extract", in.string(), "--iso", "1", "-o", path("o.ply").string()},

@@ -23,6 +23,7 @@
 #include <gtest/gtest.h>
 
 #include <dcmtk/config/osconfig.h>
+#include <dcmtk/dcmdata/dcrleerg.h>
 #include <dcmtk/dcmdata/dctk.h>
 #include <dcmtk/dcmjpeg/djencode.h>
 #include <dcmtk/dcmjpeg/djrplol.h>
@@ -214,6 +215,9 @@ struct enhanced_image {
     if (syntax == EXS_JPEGProcess14 || syntax == EXS_JPEGProcess14SV1) {
       const DJ_RPLossless lossless(predictor, point_transform);
       ok(d->chooseRepresentation(syntax, &lossless));
+      EXPECT_TRUE(d->canWriteXfer(syntax));
+    } else if (syntax == EXS_RLELossless) {
+      ok(d->chooseRepresentation(syntax, nullptr));
       EXPECT_TRUE(d->canWriteXfer(syntax));
     }
     ok(ff.saveFile(file.c_str(), syntax, lengths));
@@ -796,6 +800,63 @@ TEST(DicomJpeg, refuses_streams_it_cannot_decode_with_one_line_naming_file_and_f
   refused(bytes.substr(0, sos + 20), "past the file's end");
   EXPECT_EQ(n, 5);
   DJEncoderRegistration::cleanup();
+}
+
+// ---- RLE Lossless.
+
+TEST(DicomRle, decodes_every_depth_and_frame_dcmtk_encodes) {
+  const progiso::test::scratch_dir dir("progiso-dicom-rle-test-");
+  DcmRLEEncoderRegistration::registerCodecs();
+  unsigned seed = 500;
+  int files = 0;
+  struct depth {
+    int allocated, stored;
+    bool is_signed;
+  };
+  for (const depth b :
+       {depth{8, 8, false}, depth{8, 6, true}, depth{16, 12, true}, depth{16, 16, false}}) {
+    for (const auto scaling : {enhanced_image::rescale::none, enhanced_image::rescale::shared}) {
+      for (const bool runs : {false, true}) {
+        enhanced_image img;
+        img.syntax = EXS_RLELossless;
+        img.bits_allocated = b.allocated;
+        img.bits_stored = b.stored;
+        img.is_signed = b.is_signed;
+        img.scaling = scaling;
+        img.rows = 11;
+        img.columns = 300;  // rows longer than a run (128)
+        img.fill(seed++);
+        // Runs: long stretches of one value (repeat runs), else noise (literal runs).
+        if (runs) {
+          for (std::size_t i = 0; i < img.values.size(); ++i) img.values[i] = img.values[i / 200];
+        }
+        const fs::path file = img.write(dir.path() / ("r" + std::to_string(files++) + ".dcm"));
+        SCOPED_TRACE(file.string());
+        expect_frames(file, img);
+      }
+    }
+  }
+  EXPECT_EQ(files, 16);
+  // A frame header that counts other segments than the samples' bytes, and an offset outside
+  // the fragment: refused naming file and frame.
+  enhanced_image img;
+  img.syntax = EXS_RLELossless;
+  img.fill(7);
+  const std::string bytes = progiso::test::read_whole_file(img.write(dir.path() / "good.dcm"));
+  // The first fragment (after the empty offsets table's item) starts with its segment count, 2.
+  const std::size_t header = bytes.find(std::string("\x02\0\0\0\x40\0\0\0", 8));
+  ASSERT_NE(header, std::string::npos);
+  std::string three = bytes;
+  three[header] = '\x03';
+  progiso::test::write_file(dir.path() / "three.dcm", three);
+  const std::string m3 = message_of(dir.path() / "three.dcm");
+  EXPECT_TRUE(contains(m3, "three.dcm (frame 1): RLE frame has 3 segments, expected 2")) << m3;
+  std::string far = bytes;
+  far[header + 9] = '\x7f';  // the second segment's offset beyond the fragment
+  progiso::test::write_file(dir.path() / "far.dcm", far);
+  const std::string mf = message_of(dir.path() / "far.dcm");
+  EXPECT_TRUE(contains(mf, "far.dcm (frame 1): RLE frame has segment")) << mf;
+  DcmRLEEncoderRegistration::cleanup();
 }
 
 }  // namespace

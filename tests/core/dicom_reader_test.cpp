@@ -11,9 +11,9 @@
 // another order than the slices.
 //
 // Hostile: several series, one slice, uneven and duplicate positions, tilted stacks, slices
-// that differ, compressed syntaxes (lossy JPEG, JPEG 2000, RLE), colour files, short pixel data,
-// truncated files, sequences nested without end. Each fails with one line naming the file or
-// directory.
+// that differ, compressed syntaxes (lossy JPEG, JPEG 2000; RLE holding native pixel data),
+// colour files, short pixel data, truncated files, sequences nested without end. Each fails with
+// one line naming the file or directory.
 #include <progiso/core/io/volume_io.hpp>
 
 #include <gtest/gtest.h>
@@ -326,7 +326,8 @@ TEST(DicomReader, refuses_series_it_cannot_place_with_one_line_naming_the_file) 
       "j2k", [](dicom_slice_file& f) { f.transfer_syntax = "1.2.840.10008.1.2.4.90"; },
       "JPEG 2000");
   one_bad(
-      "rle", [](dicom_slice_file& f) { f.transfer_syntax = "1.2.840.10008.1.2.5"; }, "RLE");
+      "rle", [](dicom_slice_file& f) { f.transfer_syntax = "1.2.840.10008.1.2.5"; },
+      "native pixel data in a compressed transfer syntax");
   one_bad(
       "rgb",
       [](dicom_slice_file& f) {

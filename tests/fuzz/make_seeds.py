@@ -398,8 +398,9 @@ NEXT = b"\0NEXT\0"
 
 def dicom_slice(ts, k, rows=4, cols=5, bits=16, signed=1, seq=True, pixels=None, frames=0, grid=None):
     """A slice file; with frames > 0 an enhanced image of that many frames (functional groups);
-    with grid (offsets) an RT dose grid of one frame per offset; with the lossless JPEG transfer
-    syntax (1.2.840.10008.1.2.4.70), its frames encapsulated, one fragment each."""
+    with grid (offsets) an RT dose grid of one frame per offset; with the lossless JPEG
+    (1.2.840.10008.1.2.4.70) or RLE (1.2.840.10008.1.2.5) transfer syntax, its frames
+    encapsulated, one fragment each."""
     explicit = ts != "1.2.840.10008.1.2"
     big = ts == "1.2.840.10008.1.2.2"
     e16 = ">H" if big else "<H"
@@ -472,6 +473,34 @@ def dicom_slice(ts, k, rows=4, cols=5, bits=16, signed=1, seq=True, pixels=None,
     if grid:
         d += el(0x3004, 0xc, "DS", "\\".join("%g" % g for g in grid)) + el(0x3004, 0xe, "DS", "0.001")
     n = rows * cols * max(frames, len(grid) if grid else 1)
+    if ts == "1.2.840.10008.1.2.5":
+        # RLE: per frame one fragment, a header of 16 words, one PackBits segment per byte,
+        # most significant first: repeat runs of the high bytes, literal runs of the low.
+        width = 1 if bits == 8 else 2
+        item = lambda b: struct.pack("<HHI", 0xFFFE, 0xE000, len(b)) + b
+        frags = item(b"")
+        for f in range(max(frames, 1)):
+            vals = [((i * 37 + (k + f) * 11) % 100) for i in range(rows * cols)]
+            segs = []
+            for byte in range(width - 1, -1, -1):
+                lane = bytes((v >> (8 * byte)) & 0xFF for v in vals)
+                seg = bytearray()
+                for at in range(0, len(lane), 128):
+                    chunk = lane[at:at + 128]
+                    if len(set(chunk)) == 1 and len(chunk) > 1:
+                        seg += bytes([(257 - len(chunk)) & 0xFF, chunk[0]])
+                    else:
+                        seg += bytes([len(chunk) - 1]) + chunk
+                segs.append(bytes(seg))
+            offs, at = [], 64
+            for seg in segs:
+                offs.append(at)
+                at += len(seg)
+            rle_head = struct.pack("<16I", len(segs), *(offs + [0] * (15 - len(offs))))
+            body = rle_head + b"".join(segs)
+            frags += item(body + (b"\0" if len(body) % 2 else b""))
+        d += struct.pack("<HH", 0x7FE0, 0x10) + b"OB\0\0" + struct.pack("<I", 0xFFFFFFFF)
+        return head + d + frags + struct.pack("<HHI", 0xFFFE, 0xE0DD, 0)
     if ts == "1.2.840.10008.1.2.4.70":
         stored = bits if bits == 8 else 12
         item = lambda b: struct.pack("<HHI", 0xFFFE, 0xE000, len(b)) + b
@@ -505,6 +534,8 @@ def dicom_seeds(out):
     put(out, "dicom", "rtdose", dicom_slice("1.2.840.10008.1.2", 0, bits=32, signed=0, grid=[0, 2.5, 5, 7.5]))
     put(out, "dicom", "rtdose_absolute", dicom_slice("1.2.840.10008.1.2.1", 0, grid=[7, 9.5, 12, 14.5, 17]))
     put(out, "dicom", "enhanced_time_points", dicom_slice("1.2.840.10008.1.2.1", 0, frames=6))
+    put(out, "dicom", "rle_series", NEXT.join(dicom_slice("1.2.840.10008.1.2.5", k) for k in range(3)))
+    put(out, "dicom", "rle_enhanced", dicom_slice("1.2.840.10008.1.2.5", 0, bits=8, signed=0, frames=4))
     put(out, "dicom", "jpeg_series", NEXT.join(dicom_slice("1.2.840.10008.1.2.4.70", k) for k in range(3)))
     put(out, "dicom", "jpeg_enhanced", dicom_slice("1.2.840.10008.1.2.4.70", 0, bits=8, signed=0, frames=4))
     put(out, "dicom", "enhanced_short_pixels", dicom_slice("1.2.840.10008.1.2.1", 0, frames=4, pixels=b"\1\2"))

@@ -15,6 +15,7 @@
 #include <vector>
 
 #include <progiso/core/base/error.hpp>
+#include <progiso/core/io/detail/dicom_rle.hpp>
 #include <progiso/core/io/detail/file_input.hpp>
 #include <progiso/core/io/detail/header_text.hpp>
 #include <progiso/core/io/detail/jpeg_lossless.hpp>
@@ -85,20 +86,19 @@ std::string tag_text(std::uint32_t t) {
 struct syntax {
   bool explicit_vr = true;
   bool big_endian = false;
-  bool jpeg_lossless = false;  ///< encapsulated pixel data, lossless JPEG (process 14)
+  dicom_codec codec = dicom_codec::native;  ///< how the pixel data is stored
 };
 std::optional<syntax> syntax_of(std::string_view uid, std::string& refused) {
-  if (uid == "1.2.840.10008.1.2") return syntax{false, false, false};
-  if (uid == "1.2.840.10008.1.2.1") return syntax{true, false, false};
-  if (uid == "1.2.840.10008.1.2.2") return syntax{true, true, false};
+  if (uid == "1.2.840.10008.1.2") return syntax{false, false, dicom_codec::native};
+  if (uid == "1.2.840.10008.1.2.1") return syntax{true, false, dicom_codec::native};
+  if (uid == "1.2.840.10008.1.2.2") return syntax{true, true, dicom_codec::native};
   // JPEG Lossless, Non-Hierarchical (Process 14), and its First-Order Prediction subset.
   if (uid == "1.2.840.10008.1.2.4.57" || uid == "1.2.840.10008.1.2.4.70") {
-    return syntax{true, false, true};
+    return syntax{true, false, dicom_codec::jpeg_lossless};
   }
+  if (uid == "1.2.840.10008.1.2.5") return syntax{true, false, dicom_codec::rle};
   if (uid == "1.2.840.10008.1.2.1.99") {
     refused = "deflated explicit VR little endian";
-  } else if (uid == "1.2.840.10008.1.2.5") {
-    refused = "RLE lossless";
   } else if (uid.rfind("1.2.840.10008.1.2.4.8", 0) == 0) {
     refused = "JPEG-LS";
   } else if (uid.rfind("1.2.840.10008.1.2.4.9", 0) == 0) {
@@ -154,9 +154,9 @@ struct file_header {
   std::string photometric = "MONOCHROME2";
   std::uint64_t pixel_offset = 0;
   std::uint64_t pixel_length = 0;
-  bool encapsulated = false;           ///< lossless JPEG fragments from pixel_offset
-  std::vector<double> grid_offsets;    ///< an RT dose's GridFrameOffsetVector (3004,000C)
-  std::optional<double> dose_scaling;  ///< an RT dose's DoseGridScaling (3004,000E)
+  dicom_codec codec = dicom_codec::native;  ///< encapsulated: fragments from pixel_offset
+  std::vector<double> grid_offsets;         ///< an RT dose's GridFrameOffsetVector (3004,000C)
+  std::optional<double> dose_scaling;       ///< an RT dose's DoseGridScaling (3004,000E)
 
   /// Frame k's fields: its own functional groups, else the shared ones, else the dataset's.
   [[nodiscard]] frame_fields frame(std::size_t k) const {
@@ -352,17 +352,17 @@ class file_parser {
              std::to_string(pos_ - 4));
       const element e = read_header(t, syntax_.explicit_vr, big);
       if (t == pixel_data_tag) {
-        if ((e.length == undefined_length) != syntax_.jpeg_lossless) {
-          fail(syntax_.jpeg_lossless
-                   ? "holds native pixel data in a JPEG transfer syntax"
-                   : "holds encapsulated (compressed) pixel data in an uncompressed transfer "
-                     "syntax");
+        const bool encapsulated = syntax_.codec != dicom_codec::native;
+        if ((e.length == undefined_length) != encapsulated) {
+          fail(encapsulated ? "holds native pixel data in a compressed transfer syntax"
+                            : "holds encapsulated (compressed) pixel data in an uncompressed "
+                              "transfer syntax");
         }
         h.image = true;
-        h.encapsulated = syntax_.jpeg_lossless;
+        h.codec = syntax_.codec;
         h.pixel_offset = pos_;
         // Encapsulated: the fragments run to the file's end at most.
-        h.pixel_length = h.encapsulated ? in_.size() - pos_ : e.length;
+        h.pixel_length = encapsulated ? in_.size() - pos_ : e.length;
         return;
       }
       if (t == float_pixel_tag || t == double_pixel_tag) {
@@ -780,7 +780,7 @@ dicom_series read_dicom_series(const fs::path& input, const std::optional<std::s
     }
     const std::uint64_t frame = std::uint64_t{h.rows} * h.columns * (h.bits_allocated / 8);
     const std::uint64_t need = frame * static_cast<std::uint64_t>(h.frames);
-    if (h.encapsulated) {
+    if (h.codec == dicom_codec::jpeg_lossless) {
       // Lossless JPEG codes every sample in at least one bit: the fragments bound the frames.
       const std::uint64_t samples =
           std::uint64_t{h.rows} * h.columns * static_cast<std::uint64_t>(h.frames);
@@ -793,6 +793,14 @@ dicom_series read_dicom_series(const fs::path& input, const std::optional<std::s
                          " bytes of lossless JPEG data, too few for " + std::to_string(h.frames) +
                          " frames of " + std::to_string(h.columns) + "x" + std::to_string(h.rows) +
                          " (at least a bit a sample)");
+      }
+    } else if (h.codec == dicom_codec::rle) {
+      // RLE's longest run, two bytes, makes 128: the fragments bound the frames.
+      if (h.pixel_length < need / 64) {
+        refuse(name, "holds " + std::to_string(h.pixel_length) +
+                         " bytes of RLE data, too few for " + std::to_string(h.frames) +
+                         " frames of " + std::to_string(h.columns) + "x" + std::to_string(h.rows) +
+                         " (at most 64 bytes from each)");
       }
     } else if (h.pixel_length < need) {
       refuse(name, "holds " + std::to_string(h.pixel_length) + " bytes of pixel data, expected " +
@@ -825,11 +833,11 @@ dicom_series read_dicom_series(const fs::path& input, const std::optional<std::s
           static_cast<double>(file_index), static_cast<double>(k)};
       p.slice.file = f.file;
       p.slice.frame = h.frames > 1 ? k : -1;
-      p.slice.pixel_offset = h.encapsulated
+      p.slice.pixel_offset = h.codec != dicom_codec::native
                                  ? h.pixel_offset
                                  : h.pixel_offset + static_cast<std::uint64_t>(k) * frame_bytes;
       p.slice.big_endian = h.big_endian;
-      p.slice.jpeg = h.encapsulated;
+      p.slice.codec = h.codec;
       p.dose_scaling = h.dose_scaling.value_or(1.0);
       frames.push_back(std::move(p));
     }
@@ -1102,12 +1110,12 @@ std::vector<std::byte> read_dicom_samples(const dicom_series& s) {
     }
     return *in;
   };
-  // Slices of lossless JPEG files, by file: (frame, slice) pairs, decoded after the others.
-  std::map<fs::path, std::vector<std::pair<std::int64_t, std::size_t>>> jpeg;
+  // Slices of compressed files, by file: (frame, slice) pairs, decoded after the others.
+  std::map<fs::path, std::vector<std::pair<std::int64_t, std::size_t>>> packed;
   for (std::size_t k = 0; k < s.slices.size(); ++k) {
     const dicom_slice& d = s.slices[k];
-    if (d.jpeg) {
-      jpeg[d.file].emplace_back(std::max<std::int64_t>(d.frame, 0), k);
+    if (d.codec != dicom_codec::native) {
+      packed[d.file].emplace_back(std::max<std::int64_t>(d.frame, 0), k);
       continue;
     }
     input_file& f = open(d.file);
@@ -1124,37 +1132,48 @@ std::vector<std::byte> read_dicom_samples(const dicom_series& s) {
     if (item > 1 && d.big_endian != host_big) swap_sample_bytes(frame, item);
     convert_frame(s, d, frame, out.data() + k * frame_count * out_item);
   }
-  // Each JPEG file's frames in order: frame f starts at the first fragment at or after the end
-  // of frame f − 1 (a fragment never holds two frames), so no offsets table is needed.
+  // Each compressed file's frames in order. JPEG: frame f starts at the first fragment at or
+  // after the end of frame f − 1 (a fragment never holds two frames), so no offsets table is
+  // needed. RLE: frame f is fragment f.
   std::vector<std::uint16_t> decoded(frame_count);
   const auto rows = static_cast<std::uint32_t>(s.dims[1]);
   const auto columns = static_cast<std::uint32_t>(s.dims[0]);
-  for (auto& [file, wanted] : jpeg) {
+  for (auto& [file, wanted] : packed) {
     std::sort(wanted.begin(), wanted.end());
     const std::string name = file.string();
-    const fragments data =
-        read_fragments(open(file), s.slices[wanted.front().second].pixel_offset, name);
+    const dicom_slice& first = s.slices[wanted.front().second];
+    const fragments data = read_fragments(open(file), first.pixel_offset, name);
+    const bool rle = first.codec == dicom_codec::rle;
     std::size_t end = 0;   // of the last frame decoded
     std::size_t next = 0;  // the next wanted entry
     for (std::int64_t f = 0; next < wanted.size(); ++f) {
-      const auto start = std::lower_bound(data.starts.begin(), data.starts.end(), end);
+      const auto count = static_cast<std::int64_t>(data.starts.size());
+      const auto start = rle ? data.starts.begin() + std::min(f, count)
+                             : std::lower_bound(data.starts.begin(), data.starts.end(), end);
       if (start == data.starts.end()) {
         throw error(name + ": DICOM file's encapsulated pixel data holds " + std::to_string(f) +
                     " frames, fewer than its NumberOfFrames");
       }
       try {
-        end = decode_lossless_jpeg(data.bytes, *start, rows, columns,
-                                   static_cast<unsigned>(item * 8), decoded);
+        if (rle) {
+          const std::size_t stop = start + 1 == data.starts.end() ? data.bytes.size() : start[1];
+          decode_dicom_rle(std::span(data.bytes).subspan(*start, stop - *start), item, frame);
+        } else {
+          end = decode_lossless_jpeg(data.bytes, *start, rows, columns,
+                                     static_cast<unsigned>(item * 8), decoded);
+        }
       } catch (const error& e) {
         throw error(name + " (frame " + std::to_string(f + 1) + "): " + e.what());
       }
       while (next < wanted.size() && wanted[next].first == f) {
         const std::size_t k = wanted[next++].second;
-        for (std::size_t i = 0; i < frame_count; ++i) {
-          if (item == 1) {
-            frame[i] = static_cast<std::byte>(decoded[i]);
-          } else {
-            std::memcpy(frame.data() + 2 * i, &decoded[i], 2);
+        if (!rle) {
+          for (std::size_t i = 0; i < frame_count; ++i) {
+            if (item == 1) {
+              frame[i] = static_cast<std::byte>(decoded[i]);
+            } else {
+              std::memcpy(frame.data() + 2 * i, &decoded[i], 2);
+            }
           }
         }
         convert_frame(s, s.slices[k], frame, out.data() + k * frame_count * out_item);

@@ -27,12 +27,13 @@
 // Accepted: transfer syntaxes implicit VR little endian, explicit VR little endian and explicit
 // VR big endian (uncompressed pixel data), and lossless JPEG (1.2.840.10008.1.2.4.70 and .57,
 // the compression of most archives' CT and MR: 8 or 16 bits allocated, each frame in one or more
-// fragments, decoded by detail/jpeg_lossless.hpp); SamplesPerPixel 1 (MONOCHROME1 or MONOCHROME2);
+// fragments, decoded by detail/jpeg_lossless.hpp) and RLE Lossless (1.2.840.10008.1.2.5: a
+// fragment per frame, detail/dicom_rle.hpp); SamplesPerPixel 1 (MONOCHROME1 or MONOCHROME2);
 // BitsAllocated 8, 16 or 32, signed or unsigned, BitsStored ≤ BitsAllocated (the bits above
 // are masked off, and signed values sign-extended from BitsStored); RescaleSlope and
 // RescaleIntercept applied per frame when not 1 and 0 (the samples become f32, in the units they
 // give: Hounsfield units for CT). Refused by name: the other compressed transfer syntaxes (lossy
-// JPEG, JPEG-LS, JPEG 2000, RLE, deflate), colour, multi-frame files that do not place their
+// JPEG, JPEG-LS, JPEG 2000, deflate), colour, multi-frame files that do not place their
 // frames, float pixel data.
 //
 // Geometry: spacing (PixelSpacing's column spacing, its row spacing, the slices' step); origin
@@ -44,8 +45,8 @@
 // progiso reads is at most 1 KiB (GridFrameOffsetVector 17 bytes a frame); a series holds at
 // most 32769 slices (the axis limit), a directory at most 4 × 32769 per-frame groups and dose
 // offsets; memory follows the data: each file must hold its frames before the volume is
-// allocated (lossless JPEG codes each sample in at least one bit, so its fragments bound the
-// frames they can hold).
+// allocated (lossless JPEG codes each sample in at least one bit, an RLE run of two bytes makes
+// at most 128, so the fragments bound the frames they can hold).
 //
 // Thread safety: no global state. Every failure throws progiso::error with one line naming the
 // file (and the frame, in a multi-frame file) or the directory that failed.
@@ -65,13 +66,16 @@ namespace progiso::detail {
 
 inline constexpr std::size_t dicom_max_slices = (std::size_t{1} << 15) + 1;
 
+/// How a file's pixel data is stored: native, or encapsulated (fragments) in a compression.
+enum class dicom_codec : std::uint8_t { native, jpeg_lossless, rle };
+
 /// One slice of a series: where its frame lies and how to read it.
 struct dicom_slice {
   std::filesystem::path file;
   std::int64_t frame = -1;  ///< its frame (0-based) in a multi-frame file; −1 for one frame
   std::uint64_t pixel_offset = 0;  ///< the frame's bytes, or (jpeg) the file's first fragment item
   bool big_endian = false;
-  bool jpeg = false;  ///< encapsulated lossless JPEG: frame `frame` of the file's fragments
+  dicom_codec codec = dicom_codec::native;  ///< encapsulated: frame `frame` of the fragments
   std::array<double, 3> position{};
   double slope = 1.0;
   double intercept = 0.0;
