@@ -374,7 +374,7 @@ class file_parser {
       }
       if (e.length == undefined_length) {
         // A sequence (SQ; UN of undefined length is an implicit VR little endian sequence).
-        skip_sequence(syntax_.explicit_vr && e.vr != "UN", e.vr == "UN" ? false : big, 1);
+        skip_value(e, syntax_.explicit_vr, big, 1);
         continue;
       }
       if (frame_value(e, h.own)) continue;
@@ -467,14 +467,21 @@ class file_parser {
     }
   }
 
-  /// Skips an element's value: a sequence of undefined length item by item, anything else by
-  /// its length.
+  /// Skips an element's value: by its length, or a sequence of undefined length item by item
+  /// (an item of undefined length element by element), at most max_depth deep.
   void skip_value(const element& e, bool explicit_vr, bool big, int depth) {
-    if (e.length == undefined_length) {
-      skip_sequence(explicit_vr && e.vr != "UN", e.vr == "UN" ? false : big, depth);
-    } else {
+    if (e.length != undefined_length) {
       skip(e.length);
+      return;
     }
+    for_each_item(e, explicit_vr, big, depth, [&](std::uint32_t length, bool ex, bool bg) {
+      if (length != undefined_length) {
+        skip(length);
+        return;
+      }
+      for_each_element(length, ex, bg,
+                       [&](const element& inner) { skip_value(inner, ex, bg, depth + 1); });
+    });
   }
 
   /// The end of a value of `length` bytes starting here; fails when it runs past the file.
@@ -558,38 +565,6 @@ class file_parser {
                     }
                     h.per_frame.push_back(fields);
                   });
-  }
-
-  /// Skips the items of a sequence of undefined length, up to its delimiter.
-  void skip_sequence(bool explicit_vr, bool big, int depth) {
-    if (depth > max_depth) fail("nests sequences more than " + std::to_string(max_depth) + " deep");
-    for (;;) {
-      const std::uint32_t t = read_tag(big);
-      const std::uint32_t length = read_u32(big);
-      if (t == sequence_end_tag) return;
-      if (t != item_tag) {
-        fail("holds " + tag_text(t) + " inside a sequence at byte " + std::to_string(pos_ - 8) +
-             " (expected an item or the sequence's end)");
-      }
-      if (length != undefined_length) {
-        skip(length);
-        continue;
-      }
-      // An item of undefined length: its elements up to the item's end.
-      for (;;) {
-        const std::uint32_t et = read_tag(big);
-        const element e = read_header(et, explicit_vr, big);
-        if (et == item_end_tag) break;
-        if ((et >> 16) == 0xfffe) {
-          fail("holds " + tag_text(et) + " inside an item at byte " + std::to_string(pos_ - 8));
-        }
-        if (e.length == undefined_length) {
-          skip_sequence(explicit_vr && e.vr != "UN", e.vr == "UN" ? false : big, depth + 1);
-        } else {
-          skip(e.length);
-        }
-      }
-    }
   }
 
   input_file& in_;
