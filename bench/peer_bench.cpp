@@ -6,7 +6,8 @@
 // progiso's pipeline — range data, refinement and extraction of the finest cut into an indexed
 // mesh (extract_isosurface_parallel, as the command runs it), or the contour polylines in 2D.
 // vtkSMPTools runs on the same thread count as progiso. BM_deadline_quality measures what a
-// deadline buys (see there), BM_peer_scaling the pipeline's speed-up from one thread (see there).
+// deadline buys (see there), BM_peer_scaling the pipeline's speed-up from one thread (see there),
+// BM_peer_normals both sides with vertex normals (see there).
 //
 // Each benchmark runs both sides in alternating pairs (the order flips every pair) and reports
 // medians: fe_ms, progiso_ms with its phases (range_ms, refine_ms, extract_ms; first_ms, the root
@@ -114,12 +115,13 @@ std::vector<input>& images() {
   return all;
 }
 
-/// Flying Edges on progiso's own samples (read in place).
-std::unique_ptr<flying_edges> peer(const volume& v, double isovalue) {
+/// Flying Edges on progiso's own samples (read in place), with vertex normals when asked.
+std::unique_ptr<flying_edges> peer(const volume& v, double isovalue, bool normals = false) {
   const int dims[3] = {static_cast<int>(v.dims()[0]), static_cast<int>(v.dims()[1]),
                        static_cast<int>(v.dims()[2])};
   return std::make_unique<flying_edges>(dims, v.spacing().data(), v.origin().data(),
-                                        static_cast<vtk_sample>(v.type()), v.bytes(), isovalue);
+                                        static_cast<vtk_sample>(v.type()), v.bytes(), isovalue,
+                                        normals);
 }
 
 struct pair_stats {
@@ -213,6 +215,30 @@ void BM_peer_volume(benchmark::State& state) {
     return ms;
   });
   report(state, s, "triangles");
+}
+
+// ---- Shading: the same with vertex normals on both sides (vtkFlyingEdges3D's ComputeNormals;
+// progiso's extract_options::normals, gradient normals of the finest cut's vertices, computed
+// after the pipeline on the same threads). `normals_ms` is progiso's normal pass alone; the
+// ratio is of the whole runs, normals included.
+void BM_peer_normals(benchmark::State& state) {
+  auto [in, vol, threads, plain_fe] = volume_setup(state);
+  const std::unique_ptr<flying_edges> fe = peer(vol, in.isovalue, true);
+  extract_options options;  // full
+  options.normals = true;
+  pair_stats s;
+  std::vector<double> normals;
+  run_pairs(state, *fe, s, [&] {
+    const auto t0 = clock_type::now();
+    const extract_result r = extract_isosurface_parallel(vol, in.isovalue, options, threads);
+    const double ms = ms_since(t0);
+    normals.push_back(r.normals_seconds * 1e3);
+    s.mine_cells = static_cast<double>(r.mesh.triangles.size());
+    benchmark::DoNotOptimize(r.mesh.normals.data());
+    return ms;
+  });
+  report(state, s, "triangles");
+  state.counters["normals_ms"] = median(normals);
 }
 
 // ---- Scaling: the pipeline on one thread and on `threads` (arg 1), alternated in one benchmark
@@ -353,6 +379,16 @@ void register_all() {
   for (std::size_t i = 0; i < volumes().size(); ++i) {
     for (const unsigned t : thread_counts(cores)) {
       benchmark::RegisterBenchmark(("BM_peer_volume/" + volumes()[i].name).c_str(), BM_peer_volume)
+          ->Args({static_cast<std::int64_t>(i), static_cast<std::int64_t>(t)})
+          ->Iterations(volumes()[i].pairs)
+          ->UseManualTime()
+          ->Unit(benchmark::kMillisecond);
+    }
+  }
+  for (std::size_t i = 0; i < volumes().size(); ++i) {
+    for (const unsigned t : thread_counts(cores)) {
+      benchmark::RegisterBenchmark(("BM_peer_normals/" + volumes()[i].name).c_str(),
+                                   BM_peer_normals)
           ->Args({static_cast<std::int64_t>(i), static_cast<std::int64_t>(t)})
           ->Iterations(volumes()[i].pairs)
           ->UseManualTime()

@@ -37,7 +37,7 @@ void wrap(vtkImageData* image, const void* samples, vtkIdType count) {
 }  // namespace
 
 flying_edges::flying_edges(const int dims[3], const double spacing[3], const double origin[3],
-                           vtk_sample type, const void* samples, double isovalue)
+                           vtk_sample type, const void* samples, double isovalue, bool normals)
     : impl_(std::make_unique<impl>()) {
   impl_->image = vtkSmartPointer<vtkImageData>::New();
   impl_->image->SetDimensions(dims[0], dims[1], dims[2]);
@@ -79,7 +79,7 @@ flying_edges::flying_edges(const int dims[3], const double spacing[3], const dou
     impl_->fe3 = vtkSmartPointer<vtkFlyingEdges3D>::New();
     impl_->fe3->SetInputData(impl_->image);
     impl_->fe3->SetValue(0, isovalue);
-    impl_->fe3->ComputeNormalsOff();
+    impl_->fe3->SetComputeNormals(normals ? 1 : 0);
     impl_->fe3->ComputeGradientsOff();
     impl_->fe3->ComputeScalarsOff();
     impl_->fe3->InterpolateAttributesOff();

@@ -18,9 +18,10 @@ enum class vtk_sample { u8, i8, u16, i16, u32, i32, f32, f64 };
 /// A Flying Edges filter (3D, or 2D for a depth of 1) on samples it reads in place.
 class flying_edges {
  public:
-  /// `samples` (x fastest) must outlive the filter; VTK only reads them.
+  /// `samples` (x fastest) must outlive the filter; VTK only reads them. `normals` turns
+  /// vtkFlyingEdges3D's ComputeNormals on (vertex normals from the samples' gradient).
   flying_edges(const int dims[3], const double spacing[3], const double origin[3], vtk_sample type,
-               const void* samples, double isovalue);
+               const void* samples, double isovalue, bool normals = false);
   ~flying_edges();
   flying_edges(const flying_edges&) = delete;
   flying_edges& operator=(const flying_edges&) = delete;

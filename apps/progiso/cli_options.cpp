@@ -17,9 +17,9 @@ const char* const usage_text =
     "          [--dims NX,NY,NZ --type u8|i8|u16|i16|u32|i32|f32|f64 [--big-endian]]\n"
     "          [--spacing SX,SY,SZ | --world] [--series N|UID] [--volume K]\n"
     "          [--full | --error E | --max-triangles K | --time-ms T]\n"
-    "          [--stats-json FILE] [--threads N]\n"
+    "          [--stats-json FILE] [--threads N] [--normals]\n"
     "          [--smooth S] [--smooth-from K] [--smooth-region X0,Y0,Z0,X1,Y1,Z1] [--alpha A]\n"
-    "  progiso extract --demo -o OUT.ply [--iso W] [--threads N]\n"
+    "  progiso extract --demo -o OUT.ply [--iso W] [--threads N] [--normals]\n"
     "  progiso contour INPUT.pgm|INPUT.png -o OUT.obj|OUT.svg --iso W[,W2,...]\n"
     "          [--full | --error E | --max-segments K | --time-ms T] [--frames DIR]\n"
     "          [--stats-json FILE]\n"
@@ -48,6 +48,10 @@ const char* const usage_text =
     "--time-ms T refines for T milliseconds and returns the surface published by then.\n"
     "--threads N runs the concurrent engine on N threads (default: all cores); --full gives\n"
     "the same file for every N.\n"
+    "--normals gives every vertex a unit normal for smooth shading (PLY nx ny nz, OBJ vn):\n"
+    "minus the field's gradient (central differences, interpolated at the vertex), so it\n"
+    "points out of the region above the isovalue, as the triangles face. STL stores facet\n"
+    "normals only.\n"
     "contour: INPUT is a binary PGM (8/16 bit) or a grayscale PNG; several isovalues are\n"
     "comma-separated and refined one after the other (a budget or deadline is shared);\n"
     "OBJ gets 'v x y 0' and 'l ...' polylines, SVG draws them over the image;\n"
@@ -289,6 +293,8 @@ extract_arguments parse_extract(const std::vector<std::string>& args) {
       }
     } else if (f == "--big-endian") {
       a.big_endian = true;
+    } else if (f == "--normals") {
+      a.options.normals = true;
     } else if (f == "--world") {
       a.world = true;
     } else if (f == "--series") {
@@ -345,6 +351,11 @@ extract_arguments parse_extract(const std::vector<std::string>& args) {
   const std::string ext = detail::lower_extension(*a.output);
   if (ext != ".ply" && ext != ".obj" && ext != ".stl") {
     throw error(*a.output + ": unknown mesh format (expected a .ply, .obj or .stl file name)");
+  }
+  if (a.options.normals && ext == ".stl") {
+    throw error("--normals: " + *a.output +
+                " is STL, which stores one normal per facet and none per vertex (write .ply or "
+                ".obj for vertex normals)");
   }
   if (a.stats_json && a.stats_json->empty()) {
     throw error("--stats-json: expected a file name, found an empty one");

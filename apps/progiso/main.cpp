@@ -81,6 +81,8 @@ std::string stats_json(const arguments& a, const std::string& input, double iso,
   o << "  \"extract_ms\": " << json_number(r.extract_seconds * 1e3) << ",\n";
   o << "  \"total_ms\": " << json_number(r.total_seconds * 1e3) << ",\n";
   o << "  \"pipeline_ms\": " << json_number(r.pipeline_seconds * 1e3) << ",\n";
+  o << "  \"normals\": " << (a.options.normals ? "true" : "false") << ",\n";
+  o << "  \"normals_ms\": " << json_number(r.normals_seconds * 1e3) << ",\n";
   o << "  \"range_data_bytes\": " << r.range_bytes << ",\n";
   o << "  \"volume_bytes\": " << data.byte_size() << ",\n";
   o << "  \"smoothing\": " << smoothing_json(a.smooth, data, vol) << ",\n";
@@ -165,7 +167,11 @@ void check_float_range(const fs::path& output, const progiso::volume& vol,
 
 /// The mesh in scanner coordinates: each vertex's grid index (its position in the data's
 /// origin + index × spacing) mapped by `world`, and every triangle's winding reversed when the
-/// map mirrors, so that triangles keep facing the side they faced.
+/// map mirrors, so that triangles keep facing the side they faced. Normals (−∇f) are mapped as
+/// gradients are: the index-space gradient is spacing × the physical one, and a world gradient
+/// is the inverse transpose of the map's 3 × 3 part M times an index-space one; M⁻ᵀ is M's
+/// cofactor matrix over det M. A map with det M = 0 (a .vti Direction that is singular, which
+/// flattens the mesh itself) leaves the normals as they were.
 void to_world(progiso::triangle_mesh& mesh, const progiso::volume& data,
               const progiso::index_to_world& world) {
   for (progiso::vec3& p : mesh.vertices) {
@@ -173,7 +179,29 @@ void to_world(progiso::triangle_mesh& mesh, const progiso::volume& data,
     for (std::size_t a = 0; a < 3; ++a) index[a] = (p[a] - data.origin()[a]) / data.spacing()[a];
     p = world.apply(index);
   }
-  if (world.determinant() < 0.0) {
+  const double det = world.determinant();
+  if (!mesh.normals.empty()) {
+    const auto& m = world.m;
+    const auto at = [&m](std::size_t r, std::size_t c) { return m[r % 3][c % 3]; };
+    std::array<std::array<double, 3>, 3> inverse_t{};  // cofactor(r, c) / det
+    for (std::size_t r = 0; r < 3; ++r) {
+      for (std::size_t c = 0; c < 3; ++c) {
+        inverse_t[r][c] =
+            (at(r + 1, c + 1) * at(r + 2, c + 2) - at(r + 1, c + 2) * at(r + 2, c + 1)) / det;
+      }
+    }
+    for (progiso::vec3& n : mesh.normals) {
+      progiso::vec3 g{};
+      for (std::size_t a = 0; a < 3; ++a) g[a] = n[a] * data.spacing()[a];
+      progiso::vec3 w{};
+      for (std::size_t r = 0; r < 3; ++r) {
+        w[r] = inverse_t[r][0] * g[0] + inverse_t[r][1] * g[1] + inverse_t[r][2] * g[2];
+      }
+      const double len = std::sqrt(w[0] * w[0] + w[1] * w[1] + w[2] * w[2]);
+      if (len > 0.0 && std::isfinite(len)) n = {w[0] / len, w[1] / len, w[2] / len};
+    }
+  }
+  if (det < 0.0) {
     for (auto& t : mesh.triangles) std::swap(t[1], t[2]);
   }
 }

@@ -210,6 +210,10 @@ extract_result extract_isosurface_parallel(const volume& vol, double isovalue,
   res.extract_seconds = seconds(t3 - t2);
   res.total_seconds = seconds(t3 - t0);
   res.pipeline_seconds = res.total_seconds;
+  if (options.normals) {
+    eng.add_normals(res.mesh);
+    res.normals_seconds = seconds(clock::now() - t3);
+  }
   res.stats = eng.statistics().refine;
   // A scan of every sample: after the timings, not inside "first surface".
   const auto [lo, hi] = vol.value_range();

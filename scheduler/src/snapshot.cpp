@@ -135,10 +135,32 @@ triangle_mesh surface_snapshot::mesh_cut(double max_error) const {
   return build([&coarse](std::uint64_t r) { return coarse[r] != 0; });
 }
 
-void surface_snapshot::mesh_into(render_buffers& out) const { fill_render_buffers(mesh(), out); }
+void surface_snapshot::mesh_into(render_buffers& out, vertex_normals normals) const {
+  triangle_mesh m = mesh();
+  if (normals == vertex_normals::gradient) owner_->add_normals(m);
+  fill_render_buffers(m, out);
+}
 
-void surface_snapshot::mesh_cut_into(double max_error, render_buffers& out) const {
-  fill_render_buffers(mesh_cut(max_error), out);
+void surface_snapshot::mesh_cut_into(double max_error, render_buffers& out,
+                                     vertex_normals normals) const {
+  triangle_mesh m = mesh_cut(max_error);
+  if (normals == vertex_normals::gradient) owner_->add_normals(m);
+  fill_render_buffers(m, out);
+}
+
+// ---------------------------------------------------------------------------------------------
+// engine::add_normals
+
+// In pieces of 16 K vertices on the engine's thread count, in a fresh arena (as the meshes
+// above): the same normals for every thread count, each computed from the vertex alone.
+void engine::add_normals(triangle_mesh& mesh) const {
+  const std::size_t threads = this->threads();
+  if (threads <= 1 || mesh.vertices.size() <= 16384) {
+    add_vertex_normals(mesh, field());
+    return;
+  }
+  tbb::task_arena arena(static_cast<int>(threads));
+  arena.execute([&] { add_vertex_normals(mesh, field(), detail::tbb_loop); });
 }
 
 bool surface_snapshot::check_integrity() const noexcept {

@@ -782,18 +782,26 @@ TEST_F(Cli, vti_input_gives_the_surface_of_the_same_samples_as_raw) {
   expect_bad_input("extract " + vectors.string() + " --iso 100", "vec.vti: point array");
 }
 
-TEST_F(Cli, world_writes_the_coordinates_a_nifti_nrrd_or_metaimage_file_declares) {
-  // A NIfTI-1 file whose sform mirrors x and rotates a little, as MRI files do; spacing 2,
-  // 1.5, 0.5 in pixdim. Without --world the vertices are at origin + index × spacing (the
-  // origin being the sform's translation); with it, at sform · (index, 1), and every triangle's
-  // winding is reversed (the map mirrors).
+// A NIfTI-1 file of cube_bytes(9) whose sform mirrors x and rotates a little, as MRI files do;
+// spacing 2, 1.5, 0.5 in pixdim.
+const std::array<std::array<float, 4>, 3> oriented_srow{
+    {{-1.8f, 0.2f, 0.0f, 90.5f}, {0.1f, 1.4f, -0.05f, -126.0f}, {0.0f, 0.1f, 0.5f, -72.25f}}};
+std::string oriented_nifti() {
   std::string nii = test::nifti1_file({9, 9, 9}, 2, 8, {2.0f, 1.5f, 0.5f}, cube_bytes(9));
-  const std::array<std::array<float, 4>, 3> srow{
-      {{-1.8f, 0.2f, 0.0f, 90.5f}, {0.1f, 1.4f, -0.05f, -126.0f}, {0.0f, 0.1f, 0.5f, -72.25f}}};
   const std::int16_t sform_code = 1;
   std::memcpy(nii.data() + 254, &sform_code, sizeof sform_code);
-  for (std::size_t r = 0; r < 3; ++r) std::memcpy(nii.data() + 280 + 16 * r, srow[r].data(), 16);
-  const fs::path in = write_file("oriented.nii", nii);
+  for (std::size_t r = 0; r < 3; ++r) {
+    std::memcpy(nii.data() + 280 + 16 * r, oriented_srow[r].data(), 16);
+  }
+  return nii;
+}
+
+TEST_F(Cli, world_writes_the_coordinates_a_nifti_nrrd_or_metaimage_file_declares) {
+  // Without --world the vertices are at origin + index × spacing (the origin being the sform's
+  // translation); with it, at sform · (index, 1), and every triangle's winding is reversed (the
+  // map mirrors).
+  const auto& srow = oriented_srow;
+  const fs::path in = write_file("oriented.nii", oriented_nifti());
   const fs::path plain = dir_ / "plain.obj";
   const fs::path world = dir_ / "world.obj";
   ASSERT_EQ(run("extract " + in.string() + " --iso 100 -o " + plain.string()).status, 0);
@@ -881,6 +889,111 @@ TEST_F(Cli, world_writes_the_coordinates_a_nifti_nrrd_or_metaimage_file_declares
   expect_bad_input("extract " + bare.string() + " --iso 100 --world",
                    "bare.nii: --world: the file declares no orientation");
   expect_bad_input("extract " + in.string() + " --iso 100 --world --spacing 1,1,1", "--spacing");
+}
+
+// --normals: a unit normal per vertex in PLY (nx ny nz) and OBJ (vn, faces naming them), the
+// time in the statistics; refused for STL. On a linear field f = a · index the normal is known
+// everywhere: −(a / spacing) normalised in the file's physical frame, and with --world, where
+// index = M⁻¹ (x − t), −M⁻ᵀ a normalised (M the sform's 3 × 3 part).
+TEST_F(Cli, normals_give_every_vertex_a_unit_normal_that_turns_with_world) {
+  const fs::path ply = dir_ / "demo.ply";
+  const fs::path stats = dir_ / "demo.json";
+  run_result r = run("extract --demo --max-triangles 20000 --threads 1 --normals -o " +
+                     ply.string() + " --stats-json " + stats.string());
+  ASSERT_EQ(r.status, 0) << r.err;
+  const triangle_mesh m = read_ply(ply);
+  ASSERT_GT(m.vertices.size(), 1000u);
+  ASSERT_EQ(m.normals.size(), m.vertices.size());
+  for (const auto& n : m.normals) {
+    ASSERT_NEAR(std::sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]), 1.0, 1e-6);
+  }
+  const std::string json = slurp(stats);
+  EXPECT_NE(json.find("\"normals\": true"), std::string::npos) << json;
+  EXPECT_GE(json_field(json, "normals_ms"), 0.0);
+
+  const fs::path obj = dir_ / "demo.obj";
+  r = run("extract --demo --max-triangles 20000 --threads 1 --normals -o " + obj.string());
+  ASSERT_EQ(r.status, 0) << r.err;
+  std::size_t v = 0;
+  std::size_t vn = 0;
+  std::size_t named = 0;
+  std::istringstream lines(slurp(obj));
+  for (std::string line; std::getline(lines, line);) {
+    v += line.rfind("v ", 0) == 0 ? 1u : 0u;
+    vn += line.rfind("vn ", 0) == 0 ? 1u : 0u;
+    named += line.rfind("f ", 0) == 0 && line.find("//") != std::string::npos ? 1u : 0u;
+  }
+  EXPECT_EQ(v, m.vertices.size());
+  EXPECT_EQ(vn, v);
+  EXPECT_EQ(named, m.triangles.size());
+
+  const fs::path stl = dir_ / "demo.stl";
+  r = run("extract --demo --normals -o " + stl.string());
+  EXPECT_EQ(r.status, 2);
+  EXPECT_NE(r.err.find("--normals"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("facet"), std::string::npos) << r.err;
+  EXPECT_FALSE(fs::exists(stl));
+
+  // f = 10 i + 5 j + 2 k (u8) in the oriented NIfTI's frame.
+  const std::array<double, 3> a{10.0, 5.0, 2.0};
+  std::string bytes(9 * 9 * 9, '\0');
+  for (int k = 0; k < 9; ++k) {
+    for (int j = 0; j < 9; ++j) {
+      for (int i = 0; i < 9; ++i) {
+        bytes[static_cast<std::size_t>(i + 9 * (j + 9 * k))] =
+            static_cast<char>(10 * i + 5 * j + 2 * k);
+      }
+    }
+  }
+  std::string nii = oriented_nifti();
+  nii.replace(nii.size() - bytes.size(), bytes.size(), bytes);
+  const fs::path in = write_file("linear.nii", nii);
+  const fs::path plain = dir_ / "plain.ply";
+  const fs::path world = dir_ / "world.ply";
+  ASSERT_EQ(run("extract " + in.string() + " --iso 50 --normals -o " + plain.string()).status, 0);
+  ASSERT_EQ(
+      run("extract " + in.string() + " --iso 50 --normals --world -o " + world.string()).status, 0);
+  const triangle_mesh p = read_ply(plain);
+  const triangle_mesh q = read_ply(world);
+  ASSERT_GT(p.vertices.size(), 20u);
+  ASSERT_EQ(q.normals.size(), p.normals.size());
+  const std::array<double, 3> spacing{2.0, 1.5, 0.5};
+  std::array<double, 3> want_plain{};
+  for (std::size_t c = 0; c < 3; ++c) want_plain[c] = -a[c] / spacing[c];
+  // M⁻¹ by the adjugate; −M⁻ᵀ a has components −Σ_c M⁻¹[c][r] a[c].
+  std::array<std::array<double, 3>, 3> mm{};
+  for (std::size_t i = 0; i < 3; ++i) {
+    for (std::size_t j = 0; j < 3; ++j) mm[i][j] = static_cast<double>(oriented_srow[i][j]);
+  }
+  const double det = mm[0][0] * (mm[1][1] * mm[2][2] - mm[1][2] * mm[2][1]) -
+                     mm[0][1] * (mm[1][0] * mm[2][2] - mm[1][2] * mm[2][0]) +
+                     mm[0][2] * (mm[1][0] * mm[2][1] - mm[1][1] * mm[2][0]);
+  std::array<std::array<double, 3>, 3> inv{};
+  inv[0][0] = (mm[1][1] * mm[2][2] - mm[1][2] * mm[2][1]) / det;
+  inv[0][1] = (mm[0][2] * mm[2][1] - mm[0][1] * mm[2][2]) / det;
+  inv[0][2] = (mm[0][1] * mm[1][2] - mm[0][2] * mm[1][1]) / det;
+  inv[1][0] = (mm[1][2] * mm[2][0] - mm[1][0] * mm[2][2]) / det;
+  inv[1][1] = (mm[0][0] * mm[2][2] - mm[0][2] * mm[2][0]) / det;
+  inv[1][2] = (mm[0][2] * mm[1][0] - mm[0][0] * mm[1][2]) / det;
+  inv[2][0] = (mm[1][0] * mm[2][1] - mm[1][1] * mm[2][0]) / det;
+  inv[2][1] = (mm[0][1] * mm[2][0] - mm[0][0] * mm[2][1]) / det;
+  inv[2][2] = (mm[0][0] * mm[1][1] - mm[0][1] * mm[1][0]) / det;
+  std::array<double, 3> want_world{};
+  for (std::size_t r2 = 0; r2 < 3; ++r2) {
+    for (std::size_t c = 0; c < 3; ++c) want_world[r2] -= inv[c][r2] * a[c];
+  }
+  const auto unit = [](std::array<double, 3> x) {
+    const double l = std::sqrt(x[0] * x[0] + x[1] * x[1] + x[2] * x[2]);
+    return std::array<double, 3>{x[0] / l, x[1] / l, x[2] / l};
+  };
+  want_plain = unit(want_plain);
+  want_world = unit(want_world);
+  for (std::size_t i = 0; i < p.normals.size(); ++i) {
+    for (std::size_t c = 0; c < 3; ++c) {
+      ASSERT_NEAR(p.normals[i][c], want_plain[c], 1e-6) << "vertex " << i;
+      ASSERT_NEAR(q.normals[i][c], want_world[c], 1e-6) << "vertex " << i;
+    }
+  }
 }
 
 }  // namespace

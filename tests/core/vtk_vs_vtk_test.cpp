@@ -3,6 +3,8 @@
 // - legacy .vtk: progiso and vtkStructuredPointsReader read the same generated files (every data
 //   type, binary and ASCII, SCALARS and FIELD arrays, keywords in either case, SPACING and
 //   ASPECT_RATIO) and must agree on the sizes, every sample, the spacing and the origin;
+// - vertex normals: progiso's (surface/normals.hpp) and vtkFlyingEdges3D's with ComputeNormals
+//   on agree on every axis-aligned grid edge both place a vertex on;
 // - .vti: every file vtkXMLImageDataWriter writes (every data type × ascii, inline binary,
 //   appended raw and appended base64 × no compressor and zlib in small and default blocks ×
 //   UInt32 and UInt64 headers, on an extent that does not start at 0) reads as the samples VTK
@@ -13,17 +15,24 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <array>
 #include <cmath>
 #include <cstring>
 #include <filesystem>
+#include <map>
+#include <optional>
 #include <string>
+#include <tuple>
 #include <vector>
 
+#include <progiso/core/field/analytic.hpp>
 #include <progiso/core/field/volume.hpp>
+#include <progiso/core/refine/refiner.hpp>
 
 #include "support/io_test_helpers.hpp"
 #include "support/scratch_dir.hpp"
+#include "support/test_data.hpp"
 #include "support/vti_files.hpp"
 #include "support/vtk_legacy_files.hpp"
 #include "support/vtk_reference.hpp"
@@ -156,6 +165,106 @@ TEST(VtiVsVtk, reads_every_pvti_vtks_parallel_writer_makes_as_vtks_reader_does) 
                   static_cast<std::size_t>(pieces) + 1);
       }
     }
+  }
+}
+
+// progiso's vertex normals (add_vertex_normals) against vtkFlyingEdges3D's with ComputeNormals on,
+// at the vertices both place on the same axis-aligned grid edge (marching tetrahedra also puts
+// vertices on cell diagonals, which Flying Edges has none of): VTK interpolates the central
+// differences of the edge's ends along the edge; progiso's trilinear weights reduce to the same
+// two ends there. Vertices moved by the clamp that keeps progiso's strictly inside their edge
+// (within 1/4096 of an end) are skipped; VTK's points and normals are floats. On an analytic field
+// with anisotropic spacing and an origin, and on the shared volumes where the data folder is found.
+struct edge_key {
+  std::array<std::int64_t, 3> low;
+  int axis;
+  bool operator<(const edge_key& o) const { return std::tie(low, axis) < std::tie(o.low, o.axis); }
+};
+
+// The axis-aligned grid edge a point of index coordinates q lies on, if it lies on one.
+std::optional<edge_key> edge_of(const std::array<double, 3>& q) {
+  int fractional = -1;
+  edge_key k{};
+  for (int a = 0; a < 3; ++a) {
+    const double r = std::round(q[static_cast<std::size_t>(a)]);
+    // VTK's points are floats: integral to within their rounding (a vertex clamped inside its
+    // edge lies at least 1/4096 from either end).
+    if (std::abs(q[static_cast<std::size_t>(a)] - r) < 1e-4) {
+      k.low[static_cast<std::size_t>(a)] = static_cast<std::int64_t>(r);
+    } else {
+      if (fractional >= 0) return std::nullopt;
+      fractional = a;
+      k.low[static_cast<std::size_t>(a)] =
+          static_cast<std::int64_t>(std::floor(q[static_cast<std::size_t>(a)]));
+    }
+  }
+  if (fractional < 0) return std::nullopt;
+  k.axis = fractional;
+  return k;
+}
+
+void expect_normals_of_flying_edges(const progiso::volume& v, double w, const std::string& name) {
+  SCOPED_TRACE(name + " w " + std::to_string(w));
+  std::vector<double> samples(v.voxel_count());
+  for (std::size_t i = 0; i < samples.size(); ++i) samples[i] = v.at(i);
+  const auto& d = v.dims();
+  const progiso::test::vtk_reference_surface fe = progiso::test::flying_edges_with_normals(
+      samples, {static_cast<int>(d[0]), static_cast<int>(d[1]), static_cast<int>(d[2])},
+      v.spacing(), v.origin(), w);
+  ASSERT_TRUE(fe.ok);
+  ASSERT_GT(fe.points.size(), 100u);
+  progiso::extract_options o;
+  o.normals = true;
+  const progiso::triangle_mesh m = progiso::extract_isosurface(v, w, o).mesh;
+  const auto index_of = [&v](const std::array<double, 3>& p) {
+    std::array<double, 3> q{};
+    for (std::size_t a = 0; a < 3; ++a) q[a] = (p[a] - v.origin()[a]) / v.spacing()[a];
+    return q;
+  };
+  std::map<edge_key, std::size_t> ours;
+  for (std::size_t i = 0; i < m.vertices.size(); ++i) {
+    if (const auto k = edge_of(index_of(m.vertices[i]))) ours.emplace(*k, i);
+  }
+  std::size_t compared = 0;
+  double worst = 1.0;
+  for (std::size_t i = 0; i < fe.points.size(); ++i) {
+    const auto q = index_of(fe.points[i]);
+    const auto k = edge_of(q);
+    if (!k) continue;  // on a grid point (VTK does not clamp)
+    const auto it = ours.find(*k);
+    ASSERT_NE(it, ours.end()) << "no vertex of progiso on Flying Edges' edge";
+    const auto p = index_of(m.vertices[it->second]);
+    if (std::abs(p[static_cast<std::size_t>(k->axis)] - q[static_cast<std::size_t>(k->axis)]) >
+        5e-5) {
+      continue;  // moved by the clamp
+    }
+    const auto& a = m.normals[it->second];
+    const auto& b = fe.normals[i];
+    const double cosine = a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+    worst = std::min(worst, cosine);
+    for (std::size_t c = 0; c < 3; ++c) {
+      ASSERT_NEAR(a[c], b[c], 1e-5) << "vertex at (" << q[0] << ", " << q[1] << ", " << q[2] << ")";
+    }
+    ++compared;
+  }
+  EXPECT_GT(compared, fe.points.size() / 2);
+  EXPECT_GT(worst, 0.9999);
+}
+
+TEST(NormalsVsVtk, equal_flying_edges_normals_on_the_grid_edges_both_use) {
+  // Marschner–Lobb on an anisotropic grid with an origin (spacing enters the normals).
+  const progiso::volume ml = progiso::make_marschner_lobb({41, 37, 33});
+  std::vector<std::byte> bytes(ml.byte_size());
+  std::memcpy(bytes.data(), ml.bytes(), bytes.size());
+  const progiso::volume v(ml.dims(), ml.type(), std::move(bytes), {0.5, 1.25, 2.0},
+                          {-3.0, 4.5, 10.0});
+  expect_normals_of_flying_edges(v, 0.5, "Marschner-Lobb");
+  const auto dir = progiso::test::shared_data_dir();
+  if (!dir) GTEST_SKIP() << "shared data folder not found (../shared/data or PROGISO_DATA_DIR)";
+  for (const char* name : {"hipip", "headsq", "brainsmall"}) {
+    const progiso::test::shared_volume& info = *progiso::test::find_shared_volume(name);
+    const progiso::volume data = progiso::test::load_shared_volume(info, *dir);
+    expect_normals_of_flying_edges(data, info.isovalues.front(), name);
   }
 }
 

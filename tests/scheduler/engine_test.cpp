@@ -188,6 +188,55 @@ TEST(Engine, render_buffers_hold_the_mesh_as_floats_and_keep_their_storage_frame
   EXPECT_TRUE(test::check_valid_cut(fine.mesh_cut(0.2), box[0], box[1]));
 }
 
+// A renderer asks for normals with its buffers: they are add_vertex_normals() of the snapshot's
+// mesh, as floats, on the engine's threads (the same for one thread and two); the buffers keep
+// their storage, and a frame without normals empties out.normals but keeps its storage too.
+// extract_isosurface_parallel gives the sequential path's normals.
+TEST(Engine, render_buffers_take_the_gradient_normals_of_the_cut_when_asked) {
+  const volume v = make_marschner_lobb({65, 65, 65});
+  engine one(v, 0.5, with_threads(1));
+  engine two(v, 0.5, with_threads(2));
+  one.refine_full();
+  two.refine_full();
+  render_buffers a;
+  render_buffers b;
+  one.snapshot().mesh_into(a, vertex_normals::gradient);
+  two.snapshot().mesh_into(b, vertex_normals::gradient);
+  triangle_mesh m = two.snapshot().mesh();
+  ASSERT_GT(m.vertices.size(), 2u * 16384u);  // pieces on both threads
+  add_vertex_normals(m, v);
+  ASSERT_EQ(b.normals.size(), 3 * m.vertices.size());
+  for (std::size_t i = 0; i < m.vertices.size(); ++i) {
+    for (std::size_t k = 0; k < 3; ++k) {
+      ASSERT_EQ(b.normals[3 * i + k], static_cast<float>(m.normals[i][k])) << i;
+    }
+  }
+  EXPECT_EQ(a.normals, b.normals);
+  EXPECT_EQ(a.positions, b.positions);
+  // A coarser cut with normals, then a frame without: the same storage throughout.
+  const float* normals = b.normals.data();
+  two.snapshot().mesh_cut_into(0.05, b, vertex_normals::gradient);
+  triangle_mesh coarse = two.snapshot().mesh_cut(0.05);
+  two.add_normals(coarse);
+  ASSERT_EQ(b.normals.size(), 3 * coarse.vertices.size());
+  EXPECT_EQ(b.normals[0], static_cast<float>(coarse.normals[0][0]));
+  EXPECT_EQ(b.normals.data(), normals);
+  two.snapshot().mesh_into(b);
+  EXPECT_TRUE(b.normals.empty());
+  EXPECT_GE(b.normals.capacity(), 3 * m.vertices.size());
+
+  extract_options o;
+  o.normals = true;
+  const extract_result seq = extract_isosurface(v, 0.5, o);
+  const extract_result par = extract_isosurface_parallel(v, 0.5, o, 2);
+  ASSERT_EQ(seq.mesh.vertices, par.mesh.vertices);
+  EXPECT_EQ(seq.mesh.normals, par.mesh.normals);
+  EXPECT_EQ(par.mesh.normals, m.normals);
+  EXPECT_GT(par.normals_seconds, 0.0);
+  o.normals = false;
+  EXPECT_TRUE(extract_isosurface_parallel(v, 0.5, o, 2).mesh.normals.empty());
+}
+
 // Full refinement tests children by their ranges alone and queues them by placeholder (no
 // errors). A run by error after an interrupted full run re-keys what is left by the real
 // errors: it splits the sequential set for its target and stops there, not everything; the

@@ -3,9 +3,12 @@
 #include <cstring>
 
 #include <vtkDataArray.h>
+#include <vtkDoubleArray.h>
+#include <vtkFlyingEdges3D.h>
 #include <vtkImageData.h>
 #include <vtkNew.h>
 #include <vtkPointData.h>
+#include <vtkPolyData.h>
 #include <vtkSMPTools.h>
 #include <vtkSmartPointer.h>
 #include <vtkStructuredPoints.h>
@@ -197,6 +200,48 @@ vtk_reference_volume read_pvti_with_vtk(const std::string& file) {
   reader->Update();
   if (reader->GetErrorCode() != 0) return {};
   return reference_of(reader->GetOutput());
+}
+
+vtk_reference_surface flying_edges_with_normals(const std::vector<double>& samples,
+                                                const std::array<int, 3>& dims,
+                                                const std::array<double, 3>& spacing,
+                                                const std::array<double, 3>& origin, double w) {
+  sequential_vtk();
+  vtkNew<vtkImageData> image;
+  image->SetDimensions(dims[0], dims[1], dims[2]);
+  image->SetSpacing(spacing[0], spacing[1], spacing[2]);
+  image->SetOrigin(origin[0], origin[1], origin[2]);
+  vtkNew<vtkDoubleArray> array;
+  array->SetNumberOfComponents(1);
+  array->SetNumberOfTuples(static_cast<vtkIdType>(samples.size()));
+  for (std::size_t i = 0; i < samples.size(); ++i) {
+    array->SetValue(static_cast<vtkIdType>(i), samples[i]);
+  }
+  array->SetName("samples");
+  image->GetPointData()->SetScalars(array);
+  vtkNew<vtkFlyingEdges3D> fe;
+  fe->SetInputData(image);
+  fe->SetValue(0, w);
+  fe->ComputeNormalsOn();
+  fe->ComputeGradientsOff();
+  fe->ComputeScalarsOff();
+  fe->Update();
+  vtk_reference_surface out;
+  if (fe->GetErrorCode() != 0) return out;
+  vtkPolyData* poly = fe->GetOutput();
+  vtkDataArray* normals = poly->GetPointData()->GetNormals();
+  if (normals == nullptr) return out;
+  const vtkIdType n = poly->GetNumberOfPoints();
+  for (vtkIdType i = 0; i < n; ++i) {
+    std::array<double, 3> p{};
+    poly->GetPoint(i, p.data());
+    out.points.push_back(p);
+    std::array<double, 3> q{};
+    normals->GetTuple(i, q.data());
+    out.normals.push_back(q);
+  }
+  out.ok = true;
+  return out;
 }
 
 }  // namespace progiso::test

@@ -58,4 +58,18 @@ vtk_reference_volume read_pvti_with_vtk(const std::string& file);
 /// ok is false when VTK reports an error or finds no point array.
 vtk_reference_volume read_vti_with_vtk(const std::string& file);
 
+/// vtkFlyingEdges3D's surface of f64 samples (x fastest) at isovalue w, with ComputeNormals on:
+/// its points and their normals (as VTK computes them: gradients of central differences at the
+/// edge's ends, one-sided on the faces, interpolated along the edge). ok is false when VTK
+/// reports an error.
+struct vtk_reference_surface {
+  bool ok = false;
+  std::vector<std::array<double, 3>> points;
+  std::vector<std::array<double, 3>> normals;
+};
+vtk_reference_surface flying_edges_with_normals(const std::vector<double>& samples,
+                                                const std::array<int, 3>& dims,
+                                                const std::array<double, 3>& spacing,
+                                                const std::array<double, 3>& origin, double w);
+
 }  // namespace progiso::test

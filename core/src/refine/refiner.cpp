@@ -13,6 +13,7 @@
 #include <progiso/core/refine/detail/ready_queue.hpp>
 #include <progiso/core/surface/detail/cut_mesher.hpp>
 #include <progiso/core/surface/marching.hpp>
+#include <progiso/core/surface/normals.hpp>
 
 namespace progiso {
 namespace {
@@ -327,6 +328,10 @@ extract_result extract_isosurface(const volume& vol, double isovalue,
   res.extract_seconds = seconds(t3 - t2);
   res.total_seconds = seconds(t3 - t0);
   res.pipeline_seconds = res.total_seconds;
+  if (options.normals) {
+    add_vertex_normals(res.mesh, vol);
+    res.normals_seconds = seconds(clock::now() - t3);
+  }
   res.stats = ref.statistics();
   // A scan of every sample: after the timings, not inside "first surface".
   const auto [lo, hi] = vol.value_range();

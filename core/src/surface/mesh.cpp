@@ -13,6 +13,13 @@ void fill_render_buffers(const triangle_mesh& m, render_buffers& out) {
     *p++ = static_cast<float>(v[1]);
     *p++ = static_cast<float>(v[2]);
   }
+  out.normals.resize(3 * m.normals.size());
+  float* n = out.normals.data();
+  for (const vec3& v : m.normals) {
+    *n++ = static_cast<float>(v[0]);
+    *n++ = static_cast<float>(v[1]);
+    *n++ = static_cast<float>(v[2]);
+  }
   static_assert(sizeof(std::array<std::uint32_t, 3>) == 3 * sizeof(std::uint32_t));
   out.indices.resize(3 * m.triangles.size());
   if (!m.triangles.empty()) {

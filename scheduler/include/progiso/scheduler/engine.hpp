@@ -60,6 +60,7 @@
 #include <progiso/core/refine/deadline.hpp>
 #include <progiso/core/refine/refiner.hpp>
 #include <progiso/core/surface/mesh.hpp>
+#include <progiso/core/surface/normals.hpp>
 #include <progiso/core/surface/split_record.hpp>
 
 namespace progiso {
@@ -194,10 +195,13 @@ class surface_snapshot {
   /// from the progress callback).
   [[nodiscard]] triangle_mesh mesh_cut(double max_error) const;
   /// mesh() as float positions and indices in buffers the caller owns (a renderer's, reused
-  /// frame after frame: their storage is kept, see render_buffers).
-  void mesh_into(render_buffers& out) const;
-  /// mesh_cut(max_error) into the caller's buffers.
-  void mesh_cut_into(double max_error, render_buffers& out) const;
+  /// frame after frame: their storage is kept, see render_buffers); with
+  /// vertex_normals::gradient also a unit normal per vertex in out.normals (engine::add_normals),
+  /// else out.normals is emptied.
+  void mesh_into(render_buffers& out, vertex_normals normals = vertex_normals::none) const;
+  /// mesh_cut(max_error) into the caller's buffers, normals as mesh_into().
+  void mesh_cut_into(double max_error, render_buffers& out,
+                     vertex_normals normals = vertex_normals::none) const;
   /// Checks that the root is alive and every record in the cut is well-formed (owners in the
   /// grid, triangle counts plausible); returns false on poison or garbage (stress tests).
   [[nodiscard]] bool check_integrity() const noexcept;
@@ -272,6 +276,10 @@ class engine {
 
   [[nodiscard]] const volume& field() const noexcept;
   [[nodiscard]] const hierarchy& hierarchy_of() const noexcept;
+  /// Sets mesh.normals for a mesh of field() (a snapshot's mesh(), mesh_cut()): −∇f / |∇f| at
+  /// each vertex (add_vertex_normals(), surface/normals.hpp), on the engine's thread count. Any
+  /// thread.
+  void add_normals(triangle_mesh& mesh) const;
   /// The range data; builds what no run has built yet (on the engine's threads). Any thread but
   /// the progress callback's (throws there when the data is not complete).
   [[nodiscard]] const range_data& ranges() const;

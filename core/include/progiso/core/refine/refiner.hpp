@@ -193,6 +193,9 @@ struct extract_options {
   std::chrono::duration<double> time_budget{0.0};
   /// Called about every 4096 splits.
   std::function<void(const extract_progress&)> progress;
+  /// Give the mesh vertex normals from the field's gradient (add_vertex_normals(),
+  /// surface/normals.hpp), after the pipeline: timed as normals_seconds.
+  bool normals = false;
 };
 
 struct extract_result {
@@ -208,6 +211,8 @@ struct extract_result {
   /// Volume in memory → indexed mesh of the cut in memory (range data, refinement, extraction;
   /// no file I/O).
   double pipeline_seconds = 0.0;
+  /// The vertex normals, when asked for (extract_options::normals); not in pipeline_seconds.
+  double normals_seconds = 0.0;
   std::size_t range_bytes = 0;
   bool isovalue_outside_data = false;  ///< empty because the isovalue misses the data range
 };

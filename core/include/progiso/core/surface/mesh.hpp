@@ -23,15 +23,20 @@ using vec3 = std::array<double, 3>;
 struct triangle_mesh {
   std::vector<vec3> vertices;
   std::vector<std::array<std::uint32_t, 3>> triangles;
+  /// Empty, or one unit normal per vertex, in the frame of the positions
+  /// (add_vertex_normals(), surface/normals.hpp).
+  std::vector<vec3> normals;
 
   [[nodiscard]] bool empty() const noexcept { return triangles.empty(); }
 };
 
-/// A mesh as a renderer uploads it: x, y, z floats per vertex and three indices per triangle,
-/// in buffers the renderer owns. Filling them again (frame after frame) reuses their storage:
-/// nothing is allocated while a surface fits the capacity an earlier one left.
+/// A mesh as a renderer uploads it: x, y, z floats per vertex, optionally a unit normal's x, y,
+/// z per vertex, and three indices per triangle, in buffers the renderer owns. Filling them again
+/// (frame after frame) reuses their storage: nothing is allocated while a surface fits the capacity
+/// an earlier one left.
 struct render_buffers {
   std::vector<float> positions;        ///< 3 per vertex
+  std::vector<float> normals;          ///< 3 per vertex when the mesh has normals, else empty
   std::vector<std::uint32_t> indices;  ///< 3 per triangle, same orientation as triangle_mesh
 
   [[nodiscard]] std::size_t vertex_count() const noexcept { return positions.size() / 3; }
@@ -39,7 +44,8 @@ struct render_buffers {
 };
 
 /// Writes m into out (resized, storage reused): each coordinate rounded to the nearest float, so
-/// a vertex shared by triangles stays one vertex and bit-identical.
+/// a vertex shared by triangles stays one vertex and bit-identical; the normals likewise when m
+/// has them (out.normals is emptied, its storage kept, when it has none).
 void fill_render_buffers(const triangle_mesh& m, render_buffers& out);
 
 }  // namespace progiso

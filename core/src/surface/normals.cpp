@@ -1,0 +1,192 @@
+#include <progiso/core/surface/normals.hpp>
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <cstdint>
+#include <limits>
+#include <vector>
+
+#include <progiso/core/field/detail/subdivision.hpp>
+
+namespace progiso {
+
+namespace {
+
+// Vertices per piece of the parallel loop.
+constexpr std::size_t piece_vertices = 16384;
+
+// The grid of a field in index space: sizes, strides and the map from physical positions.
+struct grid_frame {
+  index3 dims{};
+  std::array<std::int64_t, 3> stride{};
+  vec3 origin{};
+  vec3 inverse_spacing{};
+
+  explicit grid_frame(const volume& v) : dims(v.dims()), origin(v.origin()) {
+    stride = {1, dims[0], dims[0] * dims[1]};
+    for (std::size_t a = 0; a < 3; ++a) inverse_spacing[a] = 1.0 / v.spacing()[a];
+  }
+};
+
+// The gradient of central differences at grid point g (linear index at), in index units: one
+// sided on the box's faces, 0 along an axis one sample thick.
+template <class Samples>
+vec3 grid_gradient(const Samples& s, const grid_frame& f, const index3& g, std::int64_t at) {
+  vec3 d{};
+  for (std::size_t a = 0; a < 3; ++a) {
+    const std::int64_t n = f.dims[a];
+    if (n < 2) continue;
+    const std::int64_t st = f.stride[a];
+    if (g[a] == 0) {
+      d[a] = static_cast<double>(s[at + st]) - static_cast<double>(s[at]);
+    } else if (g[a] == n - 1) {
+      d[a] = static_cast<double>(s[at]) - static_cast<double>(s[at - st]);
+    } else {
+      d[a] = 0.5 * (static_cast<double>(s[at + st]) - static_cast<double>(s[at - st]));
+    }
+  }
+  return d;
+}
+
+// −(the gradient at physical position p) in physical units, unnormalised.
+template <class Samples>
+vec3 descent_at(const Samples& s, const grid_frame& f, const vec3& p) {
+  index3 cell{};
+  vec3 t{};
+  for (std::size_t a = 0; a < 3; ++a) {
+    const std::int64_t n = f.dims[a];
+    if (n < 2) continue;  // cell 0, weight 1 on the one layer
+    const double q =
+        std::clamp((p[a] - f.origin[a]) * f.inverse_spacing[a], 0.0, static_cast<double>(n - 1));
+    const std::int64_t c = std::min(static_cast<std::int64_t>(q), n - 2);
+    cell[a] = c;
+    t[a] = q - static_cast<double>(c);
+  }
+  vec3 g{};
+  const bool interior = cell[0] >= 1 && cell[0] + 2 < f.dims[0] && cell[1] >= 1 &&
+                        cell[1] + 2 < f.dims[1] && cell[2] >= 1 && cell[2] + 2 < f.dims[2];
+  if (interior) {
+    // Every corner's six neighbours lie in the box: central differences throughout, halved and
+    // divided by the spacing once at the end.
+    const std::array<double, 2> wx{1.0 - t[0], t[0]};
+    const std::array<double, 2> wy{1.0 - t[1], t[1]};
+    const std::array<double, 2> wz{1.0 - t[2], t[2]};
+    const std::int64_t sy = f.stride[1];
+    const std::int64_t sz = f.stride[2];
+    const std::int64_t base = cell[0] + sy * cell[1] + sz * cell[2];
+    for (std::size_t corner = 0; corner < 8; ++corner) {
+      const std::size_t bx = corner & 1u;
+      const std::size_t by = (corner >> 1) & 1u;
+      const std::size_t bz = corner >> 2;
+      const double weight = wx[bx] * wy[by] * wz[bz];  // zero ones too: no branch to mispredict
+      const std::int64_t at = base + static_cast<std::int64_t>(bx) +
+                              sy * static_cast<std::int64_t>(by) +
+                              sz * static_cast<std::int64_t>(bz);
+      g[0] += weight * (static_cast<double>(s[at + 1]) - static_cast<double>(s[at - 1]));
+      g[1] += weight * (static_cast<double>(s[at + sy]) - static_cast<double>(s[at - sy]));
+      g[2] += weight * (static_cast<double>(s[at + sz]) - static_cast<double>(s[at - sz]));
+    }
+    for (std::size_t a = 0; a < 3; ++a) g[a] *= -0.5 * f.inverse_spacing[a];
+    return g;
+  }
+  for (int corner = 0; corner < 8; ++corner) {
+    double weight = 1.0;
+    index3 at = cell;
+    for (std::size_t a = 0; a < 3; ++a) {
+      const bool high = ((corner >> a) & 1) != 0;
+      if (high) {
+        if (f.dims[a] < 2) weight = 0.0;
+        weight *= t[a];
+        ++at[a];
+      } else {
+        weight *= 1.0 - t[a];
+      }
+    }
+    if (weight == 0.0) continue;
+    const std::int64_t linear = at[0] + f.stride[1] * at[1] + f.stride[2] * at[2];
+    const vec3 d = grid_gradient(s, f, at, linear);
+    for (std::size_t a = 0; a < 3; ++a) g[a] += weight * d[a];
+  }
+  for (std::size_t a = 0; a < 3; ++a) g[a] = -g[a] * f.inverse_spacing[a];
+  return g;
+}
+
+// v / |v|; false when v has no direction. Scaled first, so that gradients of samples near the
+// double range do not overflow when squared (the pass takes the plain square first and comes
+// here only when it overflows or underflows).
+bool normalise(vec3& v) {
+  const double m = std::max({std::fabs(v[0]), std::fabs(v[1]), std::fabs(v[2])});
+  if (!(m > 0.0) || !std::isfinite(m)) return false;
+  const vec3 u{v[0] / m, v[1] / m, v[2] / m};
+  const double len = std::sqrt(u[0] * u[0] + u[1] * u[1] + u[2] * u[2]);
+  v = {u[0] / len, u[1] / len, u[2] / len};
+  return true;
+}
+
+// Normals of the vertices in `flat` (sorted) from their triangles: the sum of the area-weighted
+// right-hand normals, each triangle's scaled to its largest component first.
+void normals_from_triangles(triangle_mesh& mesh, const std::vector<std::uint32_t>& flat) {
+  constexpr std::uint32_t none = std::numeric_limits<std::uint32_t>::max();
+  std::vector<std::uint32_t> slot(mesh.vertices.size(), none);
+  for (std::size_t k = 0; k < flat.size(); ++k) slot[flat[k]] = static_cast<std::uint32_t>(k);
+  std::vector<vec3> sum(flat.size(), vec3{});
+  std::vector<vec3> any(flat.size(), vec3{});  // one triangle's unit normal, if the sum cancels
+  for (const auto& tri : mesh.triangles) {
+    if (slot[tri[0]] == none && slot[tri[1]] == none && slot[tri[2]] == none) continue;
+    const vec3& a = mesh.vertices[tri[0]];
+    const vec3& b = mesh.vertices[tri[1]];
+    const vec3& c = mesh.vertices[tri[2]];
+    const vec3 u{b[0] - a[0], b[1] - a[1], b[2] - a[2]};
+    const vec3 v{c[0] - a[0], c[1] - a[1], c[2] - a[2]};
+    const vec3 n{u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2], u[0] * v[1] - u[1] * v[0]};
+    for (const std::uint32_t corner : tri) {
+      const std::uint32_t k = slot[corner];
+      if (k == none) continue;
+      for (std::size_t i = 0; i < 3; ++i) sum[k][i] += n[i];
+      vec3 unit = n;
+      if (normalise(unit)) any[k] = unit;
+    }
+  }
+  for (std::size_t k = 0; k < flat.size(); ++k) {
+    vec3 n = sum[k];
+    mesh.normals[flat[k]] = normalise(n) ? n : any[k];
+  }
+}
+
+}  // namespace
+
+void add_vertex_normals(triangle_mesh& mesh, const volume& field, const parallel_loop& run) {
+  const std::size_t count = mesh.vertices.size();
+  mesh.normals.assign(count, vec3{});
+  if (count == 0) return;
+  const grid_frame frame(field);
+  const std::size_t pieces = (count + piece_vertices - 1) / piece_vertices;
+  std::vector<std::vector<std::uint32_t>> flat(pieces);  // per piece: gradients that vanished
+  detail::visit_field(field, [&](const auto& samples) {
+    run_loop(run, pieces, [&](std::size_t k) {
+      const std::size_t begin = k * piece_vertices;
+      const std::size_t end = std::min(count, (k + 1) * piece_vertices);
+      // The gradients first, then their lengths in a loop of their own: a square root and a
+      // division per vertex, independent from one vertex to the next, overlap there, where
+      // behind each vertex's sample loads they took a quarter of the pass.
+      for (std::size_t i = begin; i < end; ++i) {
+        mesh.normals[i] = descent_at(samples, frame, mesh.vertices[i]);
+      }
+      for (std::size_t i = begin; i < end; ++i) {
+        vec3& n = mesh.normals[i];
+        const double len2 = n[0] * n[0] + n[1] * n[1] + n[2] * n[2];
+        const bool plain = len2 >= std::numeric_limits<double>::min() &&
+                           len2 <= std::numeric_limits<double>::max();
+        const double inverse = plain ? 1.0 / std::sqrt(len2) : 1.0;
+        n = {n[0] * inverse, n[1] * inverse, n[2] * inverse};
+        if (!plain && !normalise(n)) flat[k].push_back(static_cast<std::uint32_t>(i));
+      }
+    });
+  });
+  std::vector<std::uint32_t> all;
+  for (const auto& f : flat) all.insert(all.end(), f.begin(), f.end());
+  if (!all.empty()) normals_from_triangles(mesh, all);
+}
+
+}  // namespace progiso
