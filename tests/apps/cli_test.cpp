@@ -23,6 +23,7 @@
 #include "support/io_test_helpers.hpp"
 #include "support/mesh_checks.hpp"
 #include "support/test_data.hpp"
+#include "support/tiff_files.hpp"
 #include "support/vti_files.hpp"
 
 namespace progiso {
@@ -711,6 +712,47 @@ obj_mesh read_obj_file(const fs::path& file) {
     }
   }
   return m;
+}
+
+TEST_F(Cli, tiff_stack_gives_the_surface_of_the_same_samples_as_raw) {
+  // cube_bytes(9) as 9 pages of 9 × 9 (LZW), as one multi-page file and as a directory of
+  // slice files (slice1 … slice9, with a log file beside them): the raw file's mesh, byte for
+  // byte. A hyperstack's frame is chosen with --volume.
+  const std::string bytes = cube_bytes(9);
+  const fs::path want = raw_cube_mesh("1,1,1");
+  std::vector<test::tiff_page_spec> pages;
+  for (std::size_t k = 0; k < 9; ++k) {
+    std::vector<std::byte> s(81);
+    std::memcpy(s.data(), bytes.data() + 81 * k, 81);
+    test::tiff_page_spec p = test::grey_page(9, 9, sample_type::u8, std::move(s));
+    p.compression = COMPRESSION_LZW;
+    pages.push_back(std::move(p));
+  }
+  const fs::path stack = dir_ / "stack.tif";
+  ASSERT_TRUE(test::write_tiff(stack, pages));
+  expect_same_mesh(stack, want);
+  const fs::path slices = dir_ / "slices";
+  fs::create_directory(slices);
+  for (std::size_t k = 0; k < 9; ++k) {
+    ASSERT_TRUE(test::write_tiff(slices / ("slice" + std::to_string(k + 1) + ".tif"), {pages[k]}));
+  }
+  write_file("slices/scan.log", "reconstruction log");
+  expect_same_mesh(slices, want);
+  // Two frames of the same 9 slices, the second one's samples inverted: --volume 0 is the cube.
+  std::vector<test::tiff_page_spec> frames = pages;
+  for (std::size_t k = 0; k < 9; ++k) {
+    test::tiff_page_spec p = pages[k];
+    for (std::byte& b : p.samples) b = static_cast<std::byte>(255 - static_cast<int>(b));
+    frames.push_back(std::move(p));
+  }
+  frames[0].description = "ImageJ=1.54f\nimages=18\nslices=9\nframes=2\nhyperstack=true\n";
+  const fs::path series = dir_ / "series.tif";
+  ASSERT_TRUE(test::write_tiff(series, frames));
+  const fs::path out = dir_ / "series.obj";
+  ASSERT_EQ(run("extract " + series.string() + " --volume 0 --iso 100 -o " + out.string()).status,
+            0);
+  EXPECT_EQ(slurp(out), slurp(want));
+  expect_bad_input("extract " + series.string() + " --iso 100", "time series of 2 volumes");
 }
 
 TEST_F(Cli, vti_input_gives_the_surface_of_the_same_samples_as_raw) {

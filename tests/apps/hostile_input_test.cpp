@@ -32,6 +32,7 @@
 #include "support/io_test_helpers.hpp"
 #include "support/scratch_dir.hpp"
 #include "support/test_data.hpp"
+#include "support/tiff_files.hpp"
 
 namespace progiso {
 namespace {
@@ -231,8 +232,14 @@ TEST_F(Hostile, declared_sizes_beyond_the_data_fail_before_allocating) {
             "0 999\"><PPointData><PDataArray type=\"UInt8\" Name=\"s\"/>"
             "</PPointData><Piece Extent=\"0 1 0 1 0 1\" Source=\"small.vti\"/>"
             "</PImageData></VTKFile>\n");
+  // And a TIFF stack of 3 pages of 32769 × 32769 doubles (25.8 GB) whose LZW strips hold 4 KB
+  // each (LZW expands at most 4096 times: 16 MB a page).
+  const std::string strip(4096, '\x55');
+  const fs::path tiff = write(
+      "big.tif", test::hand_made_tiff(false, 32769, 32769, 64, SAMPLEFORMAT_IEEEFP, COMPRESSION_LZW,
+                                      PREDICTOR_NONE, {strip, strip, strip}));
   for (const fs::path& in :
-       {raw, gz, nii, nii_gz, mha, mhd, vtk, vti, vti_z, pvti, series, enhanced, jpeg, rle}) {
+       {raw, gz, nii, nii_gz, mha, mhd, vtk, vti, vti_z, pvti, series, enhanced, jpeg, rle, tiff}) {
     const auto before = snapshot();
     const bounded_result r =
         run({"extract", in.string(), "--iso", "1", "-o", path("o.ply").string()},
@@ -330,6 +337,13 @@ TEST_F(Hostile, devices_and_fifos_are_refused_at_once) {
                              "ElementDataFile = LIST\nd.raw\nz.raw\n");
   expect_refused({"extract", mhd.string(), "--iso", "5", "-o", path("o.ply").string()},
                  "d.raw: expected a regular MetaImage data file, found a FIFO", quick);
+  // A TIFF stack that is a FIFO or /dev/zero.
+  ASSERT_EQ(::mkfifo(path("fifo.tif").c_str(), 0600), 0);
+  fs::create_symlink("/dev/zero", path("zero.tiff"));
+  for (const std::string in : {"fifo.tif", "zero.tiff"}) {
+    expect_refused({"extract", path(in).string(), "--iso", "5", "-o", path("o.ply").string()},
+                   in + ": expected a regular TIFF file", quick);
+  }
   // A .pvti whose pieces are a FIFO and /dev/zero.
   ASSERT_EQ(::mkfifo(path("p0.vti").c_str(), 0600), 0);
   fs::create_symlink("/dev/zero", path("p1.vti"));

@@ -583,6 +583,118 @@ def image_seeds(out, images):
         put(out, "png", "shared_" + name, png(iw, ih, [data[y * iw:(y + 1) * iw] for y in range(ih)]))
 
 
+# ---- TIFF stacks.
+
+def packbits(data):
+    """PackBits: literal runs of up to 128 bytes, repeats of 3 to 128 as two bytes."""
+    out, i = bytearray(), 0
+    while i < len(data):
+        j = i
+        while j < len(data) and j - i < 128 and data[j] == data[i]:
+            j += 1
+        if j - i >= 3:
+            out += bytes([257 - (j - i), data[i]])
+            i = j
+            continue
+        j = i
+        while j < len(data) and j - i < 128 and not (j + 2 < len(data) and data[j] == data[j + 1] == data[j + 2]):
+            j += 1
+        out += bytes([j - i - 1]) + data[i:j]
+        i = j
+    return bytes(out)
+
+
+def tiff(pages, width, height, bits=8, fmt=1, compression=1, predictor=1, big=False,
+         description=None, tile=None):
+    """A classic TIFF: `pages` of raw sample bytes (already in the file's byte order), each in
+    one strip (or in tiles of `tile` x `tile`), compressed by `compression` (1 none, 8 Deflate,
+    32773 PackBits); ImageJ's description on the first page."""
+    e = ">" if big else "<"
+    head = (b"MM" if big else b"II") + struct.pack(e + "H", 42)
+    body = b""
+    offset = 8
+    layouts = []
+    for raw in pages:
+        item = bits // 8
+        chunks = []
+        if tile:
+            for y0 in range(0, height, tile):
+                for x0 in range(0, width, tile):
+                    t = bytearray(tile * tile * item)
+                    for y in range(y0, min(height, y0 + tile)):
+                        n = (min(width, x0 + tile) - x0) * item
+                        t[(y - y0) * tile * item:(y - y0) * tile * item + n] = raw[(y * width + x0) * item:(y * width + x0) * item + n]
+                    chunks.append(bytes(t))
+        else:
+            chunks.append(raw)
+        coded = [zlib.compress(c) if compression == 8 else packbits(c) if compression == 32773 else c
+                 for c in chunks]
+        offsets = []
+        for c in coded:
+            offsets.append(offset + len(body))
+            body += c
+        layouts.append((offsets, [len(c) for c in coded]))
+    ifd_at = offset + len(body)
+    ifds = b""
+    extra = b""
+    for k, (offsets, counts) in enumerate(layouts):
+        entries = [(256, 4, [width]), (257, 4, [height]), (258, 3, [bits]), (259, 3, [compression]),
+                   (262, 3, [1])]
+        if description and k == 0:
+            entries.append((270, 2, description.encode() + b"\0"))
+        if tile:
+            entries += [(277, 3, [1]), (317, 3, [predictor]), (322, 3, [tile]), (323, 3, [tile]),
+                        (324, 4, offsets), (325, 4, counts), (339, 3, [fmt])]
+        else:
+            entries += [(273, 4, offsets), (277, 3, [1]), (278, 4, [height]), (279, 4, counts),
+                        (317, 3, [predictor]), (339, 3, [fmt])]
+        entries.sort()
+        size = 2 + 12 * len(entries) + 4
+        here = ifd_at + len(ifds)
+        data_at = here + size
+        block, spill = struct.pack(e + "H", len(entries)), b""
+        for tag, typ, values in entries:
+            if typ == 2:
+                payload, count = values, len(values)
+            else:
+                payload = b"".join(struct.pack(e + ("H" if typ == 3 else "I"), v) for v in values)
+                count = len(values)
+            if len(payload) <= 4:
+                block += struct.pack(e + "HHI", tag, typ, count) + payload.ljust(4, b"\0")
+            else:
+                block += struct.pack(e + "HHII", tag, typ, count, data_at + len(spill))
+                spill += payload + (b"\0" if len(payload) % 2 else b"")
+        last = k == len(layouts) - 1
+        block += struct.pack(e + "I", 0 if last else data_at + len(spill))
+        ifds += block + spill
+    return head + struct.pack(e + "I", ifd_at) + body + ifds
+
+
+def tiff_seeds(out, crops):
+    w, h = 9, 7
+    u8 = [bytes((x * 7 + y * 13 + z * 29) % 251 for y in range(h) for x in range(w)) for z in range(3)]
+    put(out, "tiff", "u8", tiff(u8, w, h))
+    put(out, "tiff", "u8_deflate", tiff(u8, w, h, compression=8))
+    put(out, "tiff", "u8_packbits", tiff(u8, w, h, compression=32773))
+    put(out, "tiff", "u8_tiles", tiff(u8, w, h, tile=16))
+    put(out, "tiff", "u8_tiles_deflate", tiff(u8, w, h, compression=8, tile=16))
+    i16 = [b"".join(struct.pack(">h", (x * 300 + y * 77 - z * 999) % 30000 - 15000) for y in range(h) for x in range(w))
+           for z in range(3)]
+    put(out, "tiff", "i16_big", tiff(i16, w, h, bits=16, fmt=2, big=True))
+    f32 = [b"".join(struct.pack("<f", math.sin(x * 0.5 + y * 0.3 + z)) for y in range(h) for x in range(w))
+           for z in range(4)]
+    put(out, "tiff", "f32_deflate", tiff(f32, w, h, bits=32, fmt=3, compression=8))
+    put(out, "tiff", "imagej_frames", tiff(f32, w, h, bits=32, fmt=3,
+                                           description="ImageJ=1.54f\nimages=4\nslices=2\nframes=2\nspacing=2.5\n"))
+    put(out, "tiff", "imagej_channels", tiff(u8, w, h, description="ImageJ=1.54f\nimages=3\nchannels=3\n"))
+    # 32769 x 32769 doubles declared over a few bytes of Deflate.
+    put(out, "tiff", "huge", tiff([zlib.decompress(zlib.compress(b"\0" * 64))] * 2, 32769, 32769, bits=64, fmt=3,
+                                  compression=8))
+    for name, ((nx, ny, nz), crop) in sorted(crops.items()):
+        slices = [crop[z * nx * ny:(z + 1) * nx * ny] for z in range(nz)]
+        put(out, "tiff", name + "_deflate", tiff(slices, nx, ny, compression=8))
+
+
 # ---- mesh and contour files.
 
 def ply(vertices, faces, normals=None):
@@ -689,6 +801,7 @@ def main():
     vti_seeds(out, crops)
     jpeg_seeds(out)
     dicom_seeds(out)
+    tiff_seeds(out, crops)
     image_seeds(out, images)
     mesh_seeds(out)
     cli_seeds(out)

@@ -19,6 +19,7 @@
 #include <progiso/core/io/detail/metaimage_reader.hpp>
 #include <progiso/core/io/detail/nifti_reader.hpp>
 #include <progiso/core/io/detail/nrrd_reader.hpp>
+#include <progiso/core/io/detail/tiff_reader.hpp>
 #include <progiso/core/io/detail/vti_reader.hpp>
 #include <progiso/core/io/detail/vtk_legacy_reader.hpp>
 
@@ -51,12 +52,16 @@ volume make_volume(const fs::path& file, const index3& dims, sample_type type,
   }
 }
 
-enum class volume_format { nrrd, nifti, metaimage, vtk_legacy, vti, pvti, dicom };
+enum class volume_format { nrrd, nifti, metaimage, vtk_legacy, vti, pvti, dicom, tiff };
 
 /// The format a file name asks for; throws "FILE: unknown volume format (…)" for any other.
 volume_format format_of(const fs::path& file) {
   std::error_code ec;
-  if (fs::is_directory(file, ec)) return volume_format::dicom;
+  // A directory of TIFF slices (a micro-CT or microscope's export), else of DICOM files.
+  if (fs::is_directory(file, ec)) {
+    return detail::is_tiff_directory(file) ? volume_format::tiff : volume_format::dicom;
+  }
+  if (detail::has_tiff_name(file)) return volume_format::tiff;
   // One DICOM file: an enhanced multi-frame image (one slice alone is refused by the reader).
   if (lower_extension(file) == ".dcm") return volume_format::dicom;
   if (detail::has_nifti_name(file)) return volume_format::nifti;
@@ -71,8 +76,8 @@ volume_format format_of(const fs::path& file) {
   throw error(
       file.string() +
       ": unknown volume format (expected .nrrd, .nhdr, .nii, .nii.gz, .hdr, .mha, .mhd, "
-      ".vtk, .vti, .pvti, a directory of DICOM files or an enhanced DICOM file, or a raw file "
-      "with --dims and --type)");
+      ".vtk, .vti, .pvti, .tif, .tiff, a directory of DICOM files or of TIFF slices, an enhanced "
+      "DICOM file, or a raw file with --dims and --type)");
 }
 
 /// The header of a NRRD, MetaImage or legacy VTK file (each reads its data through
@@ -88,6 +93,7 @@ detail::nrrd_header parse_text_header(detail::input_file& in, volume_format form
     case volume_format::vti:
     case volume_format::pvti:
     case volume_format::dicom:
+    case volume_format::tiff:
       break;
   }
   return detail::parse_nrrd_header(in);
@@ -105,6 +111,7 @@ std::string_view format_kind(volume_format format) {
     case volume_format::nrrd:
     case volume_format::nifti:
     case volume_format::dicom:
+    case volume_format::tiff:
       break;
   }
   return "NRRD";
@@ -242,6 +249,25 @@ struct dicom_source final : source_state {
   }
 };
 
+/// A TIFF stack (one multi-page file or a directory of slices): every page's header read; an
+/// ImageJ hyperstack's frame chosen.
+struct tiff_source final : source_state {
+  detail::tiff_stack stack;
+  std::size_t first = 0;  // the chosen frame's first page
+  tiff_source(const fs::path& input, const volume_choice& choice)
+      : stack(detail::read_tiff_stack(input)) {
+    const std::int64_t k = pick_volume(input, stack.volumes, choice, "ImageJ frames");
+    first = static_cast<std::size_t>(k * stack.dims[2]);
+    if (stack.files.size() != 1 || stack.files[0] != input) files.push_back(input);
+    files.insert(files.end(), stack.files.begin(), stack.files.end());
+  }
+  volume read(const spacing_override& spacing) override {
+    std::vector<std::byte> samples = detail::read_tiff_samples(stack, first);
+    return make_volume(stack.input, stack.dims, stack.type, std::move(samples),
+                       spacing.value_or(stack.spacing), {0.0, 0.0, 0.0});
+  }
+};
+
 /// A .vti: its header parsed up to the appended data; the file stays open for the samples.
 struct vti_source final : source_state {
   fs::path file;
@@ -292,6 +318,8 @@ std::unique_ptr<source_state> open_source(const fs::path& file,
       return std::make_unique<nifti_source>(file, choice);
     case volume_format::dicom:
       return std::make_unique<dicom_source>(file, choice);
+    case volume_format::tiff:
+      return std::make_unique<tiff_source>(file, choice);
     case volume_format::vti:
       (void)pick_volume(file, 1, choice);
       return std::make_unique<vti_source>(file);
@@ -374,6 +402,10 @@ volume read_metaimage(const std::filesystem::path& file, const volume_choice& ch
 
 volume read_dicom(const std::filesystem::path& directory, const volume_choice& choice) {
   return dicom_source(directory, choice).read(std::nullopt);
+}
+
+volume read_tiff(const std::filesystem::path& input, const volume_choice& choice) {
+  return tiff_source(input, choice).read(std::nullopt);
 }
 
 volume read_vtk_legacy(const std::filesystem::path& file) {

@@ -1,7 +1,7 @@
 // progiso/core/io/volume_io.hpp — reading volumes from headerless raw files, NRRD, NIfTI,
-// MetaImage, legacy VTK, VTK XML image data and DICOM series.
+// MetaImage, legacy VTK, VTK XML image data, DICOM series and TIFF stacks.
 //
-// Seven kinds of input are supported. A headerless raw file holds nothing but the samples, x
+// Eight kinds of input are supported. A headerless raw file holds nothing but the samples, x
 // varying fastest, then y, then z; its layout (dims, sample type, byte order) comes from the
 // caller, usually the command line's --dims and --type, and the file size must match it exactly.
 // NRRD files (.nrrd with attached data, .nhdr with detached data files) describe themselves;
@@ -20,6 +20,8 @@
 // to the units the files give (Hounsfield units for CT); so are enhanced multi-frame DICOM files
 // (Enhanced CT and MR), whose one file holds every frame. VTK XML image data (.vti, and .pvti
 // with its pieces), ParaView's format for a regular grid, is read by detail/vti_reader.hpp.
+// TIFF stacks (a multi-page .tif, or a directory of .tif slices), as micro-CT scanners and
+// microscopes export volumes, are read by detail/tiff_reader.hpp through libtiff.
 // read_volume() picks the reader the way the command-line tool does: an explicit raw layout
 // wins, otherwise the file extension decides. volume_input_files() names the files a read
 // would open, from the header alone, and read_volume_world() gives the orientation the header
@@ -191,16 +193,29 @@ struct index_to_world {
 [[nodiscard]] volume read_dicom(const std::filesystem::path& directory,
                                 const volume_choice& choice = {});
 
+/// Reads a TIFF stack (micro-CT scanners', confocal and light-sheet microscopes', ImageJ's and
+/// Fiji's volumes): one multi-page .tif/.tiff file, or a directory of them, whose pages are the
+/// slices in order (files in natural order of their names: slice2 before slice10; other files
+/// ignored; thumbnails skipped). One grey channel of 8, 16 or 32-bit integers or 32 or 64-bit
+/// floats per page, one size and type for all, in strips or tiles, uncompressed, LZW, Deflate or
+/// PackBits. Spacing 1, or from ImageJ's description (pixels per unit in XResolution and
+/// YResolution, "spacing=" for z); an ImageJ hyperstack of several frames is a time series
+/// whose volume `choice.volume` picks. Origin 0. Throws progiso::error naming the file and page
+/// at fault; see detail/tiff_reader.hpp and docs/ARCHITECTURE.md "Reading TIFF stacks".
+[[nodiscard]] volume read_tiff(const std::filesystem::path& input,
+                               const volume_choice& choice = {});
+
 /// Reads a volume the way the command-line tool does: with a raw layout, read_raw(); else, for
-/// a directory or a .dcm file, read_dicom(); for the extensions .nrrd and .nhdr, read_nrrd(); for
+/// a directory holding .tif or .tiff files or for a .tif or .tiff file, read_tiff(); for another
+/// directory or a .dcm file, read_dicom(); for the extensions .nrrd and .nhdr, read_nrrd(); for
 /// .nii, .nii.gz, .hdr and .hdr.gz, read_nifti(); for .mha and .mhd, read_metaimage(); for .vtk,
 /// read_vtk_legacy(); for .vti, read_vti(); for .pvti, read_pvti() (case-insensitive); any other
 /// file that starts as DICOM Part 10 does ("DICM" at byte 128), read_dicom(). A single DICOM
 /// file must be a multi-frame image (one slice alone is refused). A `choice` that names a series
 /// is refused for anything but DICOM, one that names a volume other than 0 for anything but a
-/// NIfTI, MetaImage or NRRD series that has it. A given `spacing` replaces the one from the
-/// header (or the default 1,1,1 for raw files). Throws progiso::error "FILE: unknown volume format
-/// (…)" for any other file, and whatever the chosen reader throws.
+/// NIfTI, MetaImage, NRRD, DICOM or ImageJ series that has it. A given `spacing` replaces the one
+/// from the header (or the default 1,1,1 for raw files). Throws progiso::error "FILE: unknown
+/// volume format (…)" for any other file, and whatever the chosen reader throws.
 [[nodiscard]] volume read_volume(const std::filesystem::path& file,
                                  const std::optional<raw_layout>& raw,
                                  std::optional<std::array<double, 3>> spacing,
