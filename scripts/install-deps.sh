@@ -8,7 +8,7 @@
 #                                     (bench/peer_bench.cpp; a large download)
 set -euo pipefail
 packages=(cmake ninja-build g++ clang-format pkg-config libgtest-dev libgmock-dev libbenchmark-dev
-          libteem-dev libnifti2-dev libdcmtk-dev zlib1g-dev libpng-dev libtiff-dev libcgal-dev libgmp-dev libmpfr-dev libboost-dev
+          libteem-dev libnifti2-dev libdcmtk-dev zlib1g-dev libpng-dev libtiff-dev libopenjp2-7-dev libcgal-dev libgmp-dev libmpfr-dev libboost-dev
           libtbb-dev)
 for option in "$@"; do
   case "$option" in

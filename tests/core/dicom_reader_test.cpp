@@ -323,8 +323,14 @@ TEST(DicomReader, refuses_series_it_cannot_place_with_one_line_naming_the_file) 
   one_bad(
       "jpeg", [](dicom_slice_file& f) { f.transfer_syntax = "1.2.840.10008.1.2.4.50"; }, "(JPEG)");
   one_bad(
+      "htj2k", [](dicom_slice_file& f) { f.transfer_syntax = "1.2.840.10008.1.2.4.201"; },
+      "High-Throughput JPEG 2000");
+  one_bad(
+      "jpegls", [](dicom_slice_file& f) { f.transfer_syntax = "1.2.840.10008.1.2.4.80"; },
+      "JPEG-LS");
+  one_bad(
       "j2k", [](dicom_slice_file& f) { f.transfer_syntax = "1.2.840.10008.1.2.4.90"; },
-      "JPEG 2000");
+      "native pixel data in a compressed transfer syntax");
   one_bad(
       "rle", [](dicom_slice_file& f) { f.transfer_syntax = "1.2.840.10008.1.2.5"; },
       "native pixel data in a compressed transfer syntax");

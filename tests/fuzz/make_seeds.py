@@ -519,6 +519,8 @@ def dicom_slice(ts, k, rows=4, cols=5, bits=16, signed=1, seq=True, pixels=None,
 
 
 def dicom_seeds(out):
+    # The corpus's dicom/j2k_* seeds (JPEG 2000 frames) come from OpenJPEG through the tests'
+    # support/jpeg2000_encode.hpp: Python here has no JPEG 2000 encoder.
     for name, ts in (("implicit", "1.2.840.10008.1.2"), ("explicit", "1.2.840.10008.1.2.1"),
                      ("big", "1.2.840.10008.1.2.2")):
         put(out, "dicom", "series_" + name, NEXT.join(dicom_slice(ts, k) for k in range(3)))

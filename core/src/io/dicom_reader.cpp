@@ -15,6 +15,7 @@
 #include <vector>
 
 #include <progiso/core/base/error.hpp>
+#include <progiso/core/io/detail/dicom_jpeg2000.hpp>
 #include <progiso/core/io/detail/dicom_rle.hpp>
 #include <progiso/core/io/detail/file_input.hpp>
 #include <progiso/core/io/detail/header_text.hpp>
@@ -97,12 +98,18 @@ std::optional<syntax> syntax_of(std::string_view uid, std::string& refused) {
     return syntax{true, false, dicom_codec::jpeg_lossless};
   }
   if (uid == "1.2.840.10008.1.2.5") return syntax{true, false, dicom_codec::rle};
+  // JPEG 2000 Image Compression (Lossless Only), and the one that allows lossy frames.
+  if (uid == "1.2.840.10008.1.2.4.90" || uid == "1.2.840.10008.1.2.4.91") {
+    return syntax{true, false, dicom_codec::jpeg2000};
+  }
   if (uid == "1.2.840.10008.1.2.1.99") {
     refused = "deflated explicit VR little endian";
   } else if (uid.rfind("1.2.840.10008.1.2.4.8", 0) == 0) {
     refused = "JPEG-LS";
   } else if (uid.rfind("1.2.840.10008.1.2.4.9", 0) == 0) {
-    refused = "JPEG 2000";
+    refused = "JPEG 2000 multi-component or JPIP";
+  } else if (uid.rfind("1.2.840.10008.1.2.4.20", 0) == 0) {
+    refused = "High-Throughput JPEG 2000";
   } else if (uid.rfind("1.2.840.10008.1.2.4.", 0) == 0) {
     refused = "JPEG";
   } else {
@@ -769,6 +776,17 @@ dicom_series read_dicom_series(const fs::path& input, const std::optional<std::s
                          " frames of " + std::to_string(h.columns) + "x" + std::to_string(h.rows) +
                          " (at least a bit a sample)");
       }
+    } else if (h.codec == dicom_codec::jpeg2000) {
+      // JPEG 2000 has no smallest code per sample; a codestream decoding to more than 4096
+      // times its size is refused (jpeg2000_largest_expansion), so the fragments bound the
+      // frames here as well.
+      if (h.pixel_length < need / jpeg2000_largest_expansion) {
+        refuse(name, "holds " + std::to_string(h.pixel_length) +
+                         " bytes of JPEG 2000 data, too few for " + std::to_string(h.frames) +
+                         " frames of " + std::to_string(h.columns) + "x" + std::to_string(h.rows) +
+                         " (at most " + std::to_string(jpeg2000_largest_expansion) +
+                         " bytes from each)");
+      }
     } else if (h.codec == dicom_codec::rle) {
       // RLE's longest run, two bytes, makes 128: the fragments bound the frames.
       if (h.pixel_length < need / 64) {
@@ -989,13 +1007,16 @@ dicom_series read_dicom_series(const fs::path& input, const std::optional<std::s
 
 namespace {
 
+bool is_signed_type(sample_type t) noexcept {
+  return t == sample_type::i8 || t == sample_type::i16 || t == sample_type::i32;
+}
+
 /// Writes frame `raw` (BitsAllocated-wide stored values, host order) into `dst` as the volume
 /// holds it: masked to BitsStored, sign-extended, and rescaled when the series is.
 void convert_frame(const dicom_series& s, const dicom_slice& d, const std::vector<std::byte>& raw,
                    std::byte* dst) {
   const std::size_t count = raw.size() / sample_size(s.stored);
-  const bool is_signed =
-      s.stored == sample_type::i8 || s.stored == sample_type::i16 || s.stored == sample_type::i32;
+  const bool is_signed = is_signed_type(s.stored);
   const auto convert = [&]<class U>(U) {
     for (std::size_t i = 0; i < count; ++i) {
       U word;
@@ -1109,7 +1130,8 @@ std::vector<std::byte> read_dicom_samples(const dicom_series& s) {
   }
   // Each compressed file's frames in order. JPEG: frame f starts at the first fragment at or
   // after the end of frame f − 1 (a fragment never holds two frames), so no offsets table is
-  // needed. RLE: frame f is fragment f.
+  // needed. RLE: frame f is fragment f. JPEG 2000: frame f is the fragments from the f-th that
+  // starts a codestream (or a JP2 file) up to the next such one.
   std::vector<std::uint16_t> decoded(frame_count);
   const auto rows = static_cast<std::uint32_t>(s.dims[1]);
   const auto columns = static_cast<std::uint32_t>(s.dims[0]);
@@ -1119,20 +1141,31 @@ std::vector<std::byte> read_dicom_samples(const dicom_series& s) {
     const dicom_slice& first = s.slices[wanted.front().second];
     const fragments data = read_fragments(open(file), first.pixel_offset, name);
     const bool rle = first.codec == dicom_codec::rle;
+    const bool j2k = first.codec == dicom_codec::jpeg2000;
+    std::vector<std::size_t> codestreams;  // JPEG 2000: where each frame's fragments start
+    if (j2k) {
+      for (const std::size_t at : data.starts) {
+        if (starts_jpeg2000_frame(std::span(data.bytes).subspan(at))) codestreams.push_back(at);
+      }
+    }
     std::size_t end = 0;   // of the last frame decoded
     std::size_t next = 0;  // the next wanted entry
     for (std::int64_t f = 0; next < wanted.size(); ++f) {
-      const auto count = static_cast<std::int64_t>(data.starts.size());
-      const auto start = rle ? data.starts.begin() + std::min(f, count)
-                             : std::lower_bound(data.starts.begin(), data.starts.end(), end);
-      if (start == data.starts.end()) {
+      const std::vector<std::size_t>& starts = j2k ? codestreams : data.starts;
+      const auto count = static_cast<std::int64_t>(starts.size());
+      const auto start = rle || j2k ? starts.begin() + std::min(f, count)
+                                    : std::lower_bound(starts.begin(), starts.end(), end);
+      if (start == starts.end()) {
         throw error(name + ": DICOM file's encapsulated pixel data holds " + std::to_string(f) +
                     " frames, fewer than its NumberOfFrames");
       }
       try {
+        const std::size_t stop = start + 1 == starts.end() ? data.bytes.size() : start[1];
         if (rle) {
-          const std::size_t stop = start + 1 == data.starts.end() ? data.bytes.size() : start[1];
           decode_dicom_rle(std::span(data.bytes).subspan(*start, stop - *start), item, frame);
+        } else if (j2k) {
+          decode_dicom_jpeg2000(std::span(data.bytes).subspan(*start, stop - *start), rows, columns,
+                                item, s.bits_stored, is_signed_type(s.stored), frame);
         } else {
           end = decode_lossless_jpeg(data.bytes, *start, rows, columns,
                                      static_cast<unsigned>(item * 8), decoded);
@@ -1142,7 +1175,7 @@ std::vector<std::byte> read_dicom_samples(const dicom_series& s) {
       }
       while (next < wanted.size() && wanted[next].first == f) {
         const std::size_t k = wanted[next++].second;
-        if (!rle) {
+        if (!rle && !j2k) {
           for (std::size_t i = 0; i < frame_count; ++i) {
             if (item == 1) {
               frame[i] = static_cast<std::byte>(decoded[i]);

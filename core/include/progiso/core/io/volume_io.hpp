@@ -181,7 +181,8 @@ struct index_to_world {
 /// groups place, an RT dose grid each frame its GridFrameOffsetVector places (values ×
 /// DoseGridScaling: Gy); one series, at least 2 slices of one size, orientation and pixel spacing,
 /// evenly spaced along their normal; transfer syntax implicit or explicit VR little endian,
-/// explicit VR big endian, lossless JPEG (process 14) or RLE Lossless; 8, 16 or 32 bits, signed or
+/// explicit VR big endian, lossless JPEG (process 14), RLE Lossless or JPEG 2000; 8, 16 or 32
+/// bits, signed or
 /// not, one sample per pixel. Spacing is (column spacing, row spacing, slice step), the origin the
 /// first slice's ImagePositionPatient; samples with a RescaleSlope or RescaleIntercept other than 1
 /// and 0 become f32 in the rescaled units. Throws progiso::error naming the directory or the file

@@ -27,14 +27,16 @@
 // Accepted: transfer syntaxes implicit VR little endian, explicit VR little endian and explicit
 // VR big endian (uncompressed pixel data), and lossless JPEG (1.2.840.10008.1.2.4.70 and .57,
 // the compression of most archives' CT and MR: 8 or 16 bits allocated, each frame in one or more
-// fragments, decoded by detail/jpeg_lossless.hpp) and RLE Lossless (1.2.840.10008.1.2.5: a
-// fragment per frame, detail/dicom_rle.hpp); SamplesPerPixel 1 (MONOCHROME1 or MONOCHROME2);
+// fragments, decoded by detail/jpeg_lossless.hpp), RLE Lossless (1.2.840.10008.1.2.5: a
+// fragment per frame, detail/dicom_rle.hpp) and JPEG 2000 (1.2.840.10008.1.2.4.90 lossless and
+// .91: a codestream per frame, in one or more fragments, decoded by OpenJPEG through
+// detail/dicom_jpeg2000.hpp); SamplesPerPixel 1 (MONOCHROME1 or MONOCHROME2);
 // BitsAllocated 8, 16 or 32, signed or unsigned, BitsStored ≤ BitsAllocated (the bits above
 // are masked off, and signed values sign-extended from BitsStored); RescaleSlope and
 // RescaleIntercept applied per frame when not 1 and 0 (the samples become f32, in the units they
 // give: Hounsfield units for CT). Refused by name: the other compressed transfer syntaxes (lossy
-// JPEG, JPEG-LS, JPEG 2000, deflate), colour, multi-frame files that do not place their
-// frames, float pixel data.
+// JPEG, JPEG-LS, High-Throughput JPEG 2000, JPEG 2000 multi-component, deflate), colour,
+// multi-frame files that do not place their frames, float pixel data.
 //
 // Geometry: spacing (PixelSpacing's column spacing, its row spacing, the slices' step); origin
 // the first slice's ImagePositionPatient; the index-to-patient map (LPS, as DICOM gives it): the
@@ -46,7 +48,8 @@
 // most 32769 slices (the axis limit), a directory at most 4 × 32769 per-frame groups and dose
 // offsets; memory follows the data: each file must hold its frames before the volume is
 // allocated (lossless JPEG codes each sample in at least one bit, an RLE run of two bytes makes
-// at most 128, so the fragments bound the frames they can hold).
+// at most 128, and a JPEG 2000 codestream may decode to at most 4096 times its size, so the
+// fragments bound the frames they can hold).
 //
 // Thread safety: no global state. Every failure throws progiso::error with one line naming the
 // file (and the frame, in a multi-frame file) or the directory that failed.
@@ -67,7 +70,7 @@ namespace progiso::detail {
 inline constexpr std::size_t dicom_max_slices = (std::size_t{1} << 15) + 1;
 
 /// How a file's pixel data is stored: native, or encapsulated (fragments) in a compression.
-enum class dicom_codec : std::uint8_t { native, jpeg_lossless, rle };
+enum class dicom_codec : std::uint8_t { native, jpeg_lossless, rle, jpeg2000 };
 
 /// One slice of a series: where its frame lies and how to read it.
 struct dicom_slice {
