@@ -25,6 +25,9 @@ namespace fs = std::filesystem;
 
 constexpr std::uint32_t max_side = 32769;      // samples per axis, as every reader
 constexpr std::size_t max_entries = 1u << 20;  // a directory's entries listed at most
+// Pages of a stack at most: an ImageJ hyperstack's frames may hold more than 32769 slices in
+// all, each volume at most 32769 (16 bytes a page kept).
+constexpr std::size_t max_pages = 1u << 20;
 
 // ---------------------------------------------------------------------------------------------
 // libtiff reading through input_file.
@@ -413,8 +416,9 @@ tiff_stack read_tiff_stack(const fs::path& input) {
                       std::to_string(first->width) + " × " + std::to_string(first->height) + " " +
                       std::string(to_string(first->type)) + " (expected one size and type)");
         }
-        if (s.pages.size() == max_side) {
-          throw error(page_name(s.files[f], page) + ": more than 32769 slices");
+        if (s.pages.size() == max_pages) {
+          throw error(page_name(s.files[f], page) + ": more than " + std::to_string(max_pages) +
+                      " pages");
         }
         s.pages.push_back({f, page});
       }
@@ -457,6 +461,10 @@ tiff_stack read_tiff_stack(const fs::path& input) {
   }
   if (s.dims[2] < 2) {
     throw error(input.string() + ": one slice (expected a stack of at least 2 pages)");
+  }
+  if (s.dims[2] > max_side) {
+    throw error(input.string() + ": " + std::to_string(s.dims[2]) +
+                " slices (expected at most 32769 per volume)");
   }
   return s;
 }
