@@ -223,6 +223,53 @@ TEST(TiffReader, imagej_gives_the_spacing_and_a_hyperstack_of_frames_is_a_time_s
   EXPECT_NE(series.find("not a DICOM directory"), std::string::npos) << series;
 }
 
+TEST(TiffReader, ome_tiff_gives_physical_sizes_and_a_time_series_in_its_dimension_order) {
+  // An OME-TIFF as Bio-Formats writes one: 2 time points of 3 slices, planes in DimensionOrder
+  // XYTZC (T varies fastest: page t + 2z), 0.65 µm pixels and 2000 nm between slices.
+  const test::scratch_dir dir("progiso-tiff-test-");
+  const auto planes = random_slices(sample_type::u16, 14, 9, 6, 21);
+  const std::string xml =
+      "<?xml version=\"1.0\" encoding=\"UTF-8\"?><OME xmlns=\"http://www.openmicroscopy.org/"
+      "Schemas/OME/2016-06\"><Image ID=\"Image:0\"><Pixels BigEndian=\"false\" "
+      "DimensionOrder=\"XYTZC\" ID=\"Pixels:0\" PhysicalSizeX=\"0.65\" PhysicalSizeY=\"0.65\" "
+      "PhysicalSizeZ=\"2000\" PhysicalSizeZUnit=\"nm\" SizeC=\"1\" SizeT=\"2\" SizeX=\"14\" "
+      "SizeY=\"9\" SizeZ=\"3\" Type=\"uint16\"><TiffData/></Pixels></Image></OME>";
+  std::vector<tiff_page_spec> pages;
+  for (const auto& p : planes) pages.push_back(test::grey_page(14, 9, sample_type::u16, p));
+  pages[0].description = xml;
+  const fs::path file = dir.path() / "cells.ome.tif";
+  ASSERT_TRUE(test::write_tiff(file, pages));
+  for (std::int64_t t = 0; t < 2; ++t) {
+    const volume v = read_tiff(file, {std::nullopt, t});
+    EXPECT_EQ(v.dims(), (index3{14, 9, 3}));
+    for (std::size_t a = 0; a < 3; ++a) {
+      EXPECT_DOUBLE_EQ(v.spacing()[a], (std::array<double, 3>{0.65, 0.65, 2.0})[a]);
+    }
+    std::vector<std::vector<std::byte>> want;
+    for (std::size_t z = 0; z < 3; ++z) want.push_back(planes[static_cast<std::size_t>(t) + 2 * z]);
+    expect_samples(v, joined(want));
+  }
+  const std::string unchosen = test::error_message_naming(file, [&] { (void)read_tiff(file); });
+  EXPECT_NE(unchosen.find("time series of 2 volumes"), std::string::npos) << unchosen;
+  // Two channels; planes in other files (SizeZ × SizeT above the pages): refused.
+  std::string two = xml;
+  two.replace(two.find("SizeC=\"1\""), 9, "SizeC=\"2\"");
+  pages[0].description = two;
+  const fs::path channels = dir.path() / "channels.ome.tif";
+  ASSERT_TRUE(test::write_tiff(channels, pages));
+  EXPECT_NE(test::error_message_naming(channels, [&] { (void)read_tiff(channels); })
+                .find("an OME-TIFF of 2 channels"),
+            std::string::npos);
+  std::string split = xml;
+  split.replace(split.find("SizeT=\"2\""), 9, "SizeT=\"5\"");
+  pages[0].description = split;
+  const fs::path parts = dir.path() / "part.ome.tif";
+  ASSERT_TRUE(test::write_tiff(parts, pages));
+  EXPECT_NE(test::error_message_naming(parts, [&] { (void)read_tiff(parts); })
+                .find("describes 3 × 5 planes (SizeZ × SizeT), the file has 6 pages"),
+            std::string::npos);
+}
+
 TEST(TiffReader, reduced_resolution_pages_are_not_slices) {
   const test::scratch_dir dir("progiso-tiff-test-");
   const auto slices = random_slices(sample_type::f32, 10, 11, 3, 5);

@@ -688,6 +688,10 @@ def tiff_seeds(out, crops):
     put(out, "tiff", "f32_deflate", tiff(f32, w, h, bits=32, fmt=3, compression=8))
     put(out, "tiff", "imagej_frames", tiff(f32, w, h, bits=32, fmt=3,
                                            description="ImageJ=1.54f\nimages=4\nslices=2\nframes=2\nspacing=2.5\n"))
+    ome = ('<?xml version="1.0"?><OME><Image ID="Image:0"><Pixels DimensionOrder="XYTZC" '
+           'PhysicalSizeX="0.65" PhysicalSizeY="0.65" PhysicalSizeZ="2" PhysicalSizeZUnit="nm" SizeC="1" '
+           'SizeT="2" SizeZ="2" SizeX="9" SizeY="7"/></Image></OME>')
+    put(out, "tiff", "ome_xytzc", tiff(f32, w, h, bits=32, fmt=3, description=ome))
     put(out, "tiff", "imagej_channels", tiff(u8, w, h, description="ImageJ=1.54f\nimages=3\nchannels=3\n"))
     # 32769 x 32769 doubles declared over a few bytes of Deflate.
     put(out, "tiff", "huge", tiff([zlib.decompress(zlib.compress(b"\0" * 64))] * 2, 32769, 32769, bits=64, fmt=3,

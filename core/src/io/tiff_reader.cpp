@@ -1,10 +1,12 @@
 #include <progiso/core/io/detail/tiff_reader.hpp>
 
 #include <algorithm>
+#include <array>
 #include <cctype>
 #include <cmath>
 #include <cstdarg>
 #include <cstdio>
+#include <cstdlib>
 #include <cstring>
 #include <limits>
 #include <memory>
@@ -319,6 +321,77 @@ imagej_layout parse_imagej(std::string_view d) {
   return l;
 }
 
+// ---------------------------------------------------------------------------------------------
+// OME-TIFF's description (Bio-Formats, microscope software): the OME-XML's Pixels element.
+
+struct ome_layout {
+  bool present = false;
+  std::int64_t size_z = 1, size_c = 1, size_t_ = 1;
+  bool t_before_z = false;  // DimensionOrder names T before Z: a plane's T varies faster
+  std::array<double, 3> spacing{0.0, 0.0, 0.0};  // µm; 0 when absent
+};
+
+/// Attribute `name` of the start tag `tag` (text from '<' to '>'), or empty.
+std::string_view attribute(std::string_view tag, std::string_view name) {
+  for (std::size_t at = tag.find(name); at != std::string_view::npos; at = tag.find(name, at + 1)) {
+    const char before = at > 0 ? tag[at - 1] : ' ';
+    const std::size_t eq = at + name.size();
+    if ((before == ' ' || before == '\t' || before == '\n' || before == '\r') &&
+        tag.substr(eq, 2) == "=\"") {
+      const std::size_t end = tag.find('"', eq + 2);
+      if (end == std::string_view::npos) return {};
+      return tag.substr(eq + 2, end - eq - 2);
+    }
+  }
+  return {};
+}
+
+/// Micrometres per unit of OME's length units (the ones microscopes write), 0 for others.
+double micrometres_per(std::string_view unit) {
+  if (unit.empty() || unit == "\xc2\xb5m" || unit == "um" || unit == "micron") return 1.0;
+  if (unit == "nm") return 1e-3;
+  if (unit == "mm") return 1e3;
+  if (unit == "cm") return 1e4;
+  if (unit == "m") return 1e6;
+  return 0.0;
+}
+
+ome_layout parse_ome(std::string_view d) {
+  ome_layout l;
+  if (d.find("<OME") == std::string_view::npos) return l;
+  std::size_t at = d.find("<Pixels");
+  if (at == std::string_view::npos) at = d.find(":Pixels");
+  if (at == std::string_view::npos) return l;
+  const std::size_t end = d.find('>', at);
+  if (end == std::string_view::npos) return l;
+  const std::string_view tag = d.substr(at, end - at);
+  l.present = true;
+  const auto count = [&](std::string_view name, std::int64_t& out) {
+    const std::string v(attribute(tag, name));
+    char* stop = nullptr;
+    const long long n = std::strtoll(v.c_str(), &stop, 10);
+    if (!v.empty() && stop != v.c_str() && n >= 1 && n <= (std::int64_t{1} << 40)) out = n;
+  };
+  count("SizeZ", l.size_z);
+  count("SizeC", l.size_c);
+  count("SizeT", l.size_t_);
+  const std::string_view order = attribute(tag, "DimensionOrder");
+  const std::size_t z = order.find('Z');
+  const std::size_t t = order.find('T');
+  l.t_before_z = z != std::string_view::npos && t != std::string_view::npos && t < z;
+  const std::array<std::string_view, 3> sizes{"PhysicalSizeX", "PhysicalSizeY", "PhysicalSizeZ"};
+  for (std::size_t a = 0; a < 3; ++a) {
+    const std::string v(attribute(tag, sizes[a]));
+    const double per = micrometres_per(attribute(tag, std::string(sizes[a]) + "Unit"));
+    char* stop = nullptr;
+    const double x = std::strtod(v.c_str(), &stop);
+    if (!v.empty() && stop != v.c_str() && std::isfinite(x) && x > 0.0 && per > 0.0) {
+      l.spacing[a] = x * per;
+    }
+  }
+  return l;
+}
+
 /// Natural order: digit runs compare as numbers (slice2 before slice10), the rest bytewise.
 bool natural_less(const std::string& a, const std::string& b) {
   std::size_t i = 0;
@@ -431,6 +504,40 @@ tiff_stack read_tiff_stack(const fs::path& input) {
   s.dims = {first->width, first->height, pages};
   s.type = first->type;
   const imagej_layout ij = parse_imagej(first->description);
+  const ome_layout ome = ij.present ? ome_layout{} : parse_ome(first->description);
+  if (ome.present) {
+    if (ome.size_c > 1) {
+      throw error(first_file.string() + ": an OME-TIFF of " + std::to_string(ome.size_c) +
+                  " channels (progiso reads one; export one channel)");
+    }
+    if (!directory) {
+      if (ome.size_z * ome.size_t_ != pages) {
+        throw error(first_file.string() + ": its OME-XML describes " + std::to_string(ome.size_z) +
+                    " × " + std::to_string(ome.size_t_) + " planes (SizeZ × SizeT), the file has " +
+                    std::to_string(pages) +
+                    " pages (an OME-TIFF split over several files is not read)");
+      }
+      if (ome.size_t_ > 1) {
+        // Volumes made contiguous: with T before Z in DimensionOrder, plane (z, t) is page
+        // t + SizeT · z.
+        if (ome.t_before_z) {
+          std::vector<tiff_page> ordered(s.pages.size());
+          for (std::int64_t t = 0; t < ome.size_t_; ++t) {
+            for (std::int64_t z = 0; z < ome.size_z; ++z) {
+              ordered[static_cast<std::size_t>(t * ome.size_z + z)] =
+                  s.pages[static_cast<std::size_t>(t + ome.size_t_ * z)];
+            }
+          }
+          s.pages = std::move(ordered);
+        }
+        s.volumes = ome.size_t_;
+        s.dims[2] = ome.size_z;
+      }
+    }
+    for (std::size_t a = 0; a < 3; ++a) {
+      if (ome.spacing[a] > 0.0) s.spacing[a] = ome.spacing[a];
+    }
+  }
   if (ij.present) {
     if (ij.channels > 1) {
       throw error(first_file.string() + ": an ImageJ stack of " + std::to_string(ij.channels) +

@@ -200,8 +200,9 @@ struct index_to_world {
 /// ignored; thumbnails skipped). One grey channel of 8, 16 or 32-bit integers or 32 or 64-bit
 /// floats per page, one size and type for all, in strips or tiles, uncompressed, LZW, Deflate or
 /// PackBits. Spacing 1, or from ImageJ's description (pixels per unit in XResolution and
-/// YResolution, "spacing=" for z); an ImageJ hyperstack of several frames is a time series
-/// whose volume `choice.volume` picks. Origin 0. Throws progiso::error naming the file and page
+/// YResolution, "spacing=" for z) or an OME-TIFF's PhysicalSizeX/Y/Z (µm); an ImageJ hyperstack
+/// of several frames, or an OME-TIFF of several time points, is a time series whose volume
+/// `choice.volume` picks. Origin 0. Throws progiso::error naming the file and page
 /// at fault; see detail/tiff_reader.hpp and docs/ARCHITECTURE.md "Reading TIFF stacks".
 [[nodiscard]] volume read_tiff(const std::filesystem::path& input,
                                const volume_choice& choice = {});

@@ -16,7 +16,12 @@
 // file, the hyperstack layout: "frames=T" volumes of "slices=Z" pages each (a time series, whose
 // volume the caller chooses, as for NIfTI); more than one channel is refused, and so is a
 // description that counts more images than the file has pages (ImageJ's stacks over 4 GB keep
-// the pages after the first outside TIFF's directories). Without it the spacing is 1.
+// the pages after the first outside TIFF's directories). An OME-TIFF's OME-XML (Bio-Formats,
+// microscope software) gives the same from its Pixels element: PhysicalSizeX/Y/Z (in µm,
+// converted from nm, mm, cm or m), and for one file SizeT volumes of SizeZ planes, taken in
+// DimensionOrder (T before Z: plane (z, t) is page t + SizeT·z); SizeC > 1 is refused, and so is
+// SizeZ × SizeT other than the pages (a dataset split over files). Without either description
+// the spacing is 1.
 //
 // libtiff decodes; progiso opens every file through input_file (regular files only; libtiff
 // reads through it) and bounds every allocation before making it: the samples by what the
