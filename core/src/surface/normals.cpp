@@ -137,9 +137,7 @@ void normals_from_triangles(triangle_mesh& mesh, const std::vector<std::uint32_t
     const vec3& a = mesh.vertices[tri[0]];
     const vec3& b = mesh.vertices[tri[1]];
     const vec3& c = mesh.vertices[tri[2]];
-    const vec3 u{b[0] - a[0], b[1] - a[1], b[2] - a[2]};
-    const vec3 v{c[0] - a[0], c[1] - a[1], c[2] - a[2]};
-    const vec3 n{u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2], u[0] * v[1] - u[1] * v[0]};
+    const vec3 n = area_normal(a, b, c);
     for (const std::uint32_t corner : tri) {
       const std::uint32_t k = slot[corner];
       if (k == none) continue;

@@ -30,6 +30,15 @@ struct triangle_mesh {
   [[nodiscard]] bool empty() const noexcept { return triangles.empty(); }
 };
 
+/// The right-hand normal of triangle (a, b, c) scaled by twice its area: (b − a) × (c − a). It
+/// points out of the region f > isovalue for the triangles extraction writes; zero for a
+/// degenerate triangle.
+[[nodiscard]] inline vec3 area_normal(const vec3& a, const vec3& b, const vec3& c) noexcept {
+  const vec3 u{b[0] - a[0], b[1] - a[1], b[2] - a[2]};
+  const vec3 v{c[0] - a[0], c[1] - a[1], c[2] - a[2]};
+  return {u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2], u[0] * v[1] - u[1] * v[0]};
+}
+
 /// A mesh as a renderer uploads it: x, y, z floats per vertex, optionally a unit normal's x, y,
 /// z per vertex, and three indices per triangle, in buffers the renderer owns. Filling them again
 /// (frame after frame) reuses their storage: nothing is allocated while a surface fits the capacity
