@@ -9,7 +9,7 @@
 set -euo pipefail
 packages=(cmake ninja-build g++ clang-format pkg-config libgtest-dev libgmock-dev libbenchmark-dev
           libteem-dev libnifti2-dev libdcmtk-dev zlib1g-dev libpng-dev libtiff-dev libopenjp2-7-dev libcgal-dev libgmp-dev libmpfr-dev libboost-dev
-          libtbb-dev)
+          libtbb-dev python3-mrcfile)
 for option in "$@"; do
   case "$option" in
     --fuzz) packages+=(clang libclang-rt-14-dev python3) ;;

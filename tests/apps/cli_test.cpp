@@ -22,6 +22,7 @@
 #include "support/dicom_files.hpp"
 #include "support/io_test_helpers.hpp"
 #include "support/mesh_checks.hpp"
+#include "support/mrc_files.hpp"
 #include "support/test_data.hpp"
 #include "support/tiff_files.hpp"
 #include "support/vti_files.hpp"
@@ -753,6 +754,52 @@ TEST_F(Cli, tiff_stack_gives_the_surface_of_the_same_samples_as_raw) {
             0);
   EXPECT_EQ(slurp(out), slurp(want));
   expect_bad_input("extract " + series.string() + " --iso 100", "time series of 2 volumes");
+}
+
+TEST_F(Cli, mrc_map_gives_the_surface_of_the_same_samples_as_raw) {
+  // cube_bytes(9) as an MRC map of IMOD's unsigned bytes (cell 9 Å over 9 samples: spacing 1):
+  // the raw file's mesh, byte for byte, also with --world (a right-angled cell at the origin),
+  // stored with its axes permuted (columns along Z, rows along X, sections along Y) in gzip, and
+  // as the first volume of a volume stack whose second volume is the cube inverted.
+  const std::string bytes = cube_bytes(9);
+  const fs::path want = raw_cube_mesh("1,1,1");
+  test::mrc_file f;
+  f.mode = 0;
+  f.imod_unsigned = true;
+  f.item = 1;
+  f.n = {9, 9, 9};
+  f.m = {9, 9, 9};
+  f.cell = {9.0f, 9.0f, 9.0f};
+  f.samples.resize(bytes.size());
+  std::memcpy(f.samples.data(), bytes.data(), bytes.size());
+  const fs::path map = write_file("cube.mrc", f.bytes());
+  expect_same_mesh(map, want);
+  const fs::path world = dir_ / "world.obj";
+  ASSERT_EQ(
+      run("extract " + map.string() + " --iso 100 --full --world -o " + world.string()).status, 0);
+  EXPECT_EQ(slurp(world), slurp(want));
+  test::mrc_file t = f;
+  t.map = {3, 1, 2};
+  for (std::size_t s = 0; s < 9; ++s) {
+    for (std::size_t r = 0; r < 9; ++r) {
+      for (std::size_t c = 0; c < 9; ++c) {
+        t.samples[c + 9 * (r + 9 * s)] = f.samples[r + 9 * (s + 9 * c)];  // x = r, y = s, z = c
+      }
+    }
+  }
+  expect_same_mesh(write_file("cube_t.map.gz", test::gzip(t.bytes())), want);
+  test::mrc_file stack = f;
+  stack.ispg = 401;
+  stack.n[2] = 18;
+  for (std::size_t i = 0; i < bytes.size(); ++i) {
+    stack.samples.push_back(static_cast<std::byte>(255 - static_cast<unsigned char>(bytes[i])));
+  }
+  const fs::path stack_file = write_file("stack.mrcs", stack.bytes());
+  const fs::path out = dir_ / "stack.obj";
+  ASSERT_EQ(
+      run("extract " + stack_file.string() + " --volume 0 --iso 100 -o " + out.string()).status, 0);
+  EXPECT_EQ(slurp(out), slurp(want));
+  expect_bad_input("extract " + stack_file.string() + " --iso 100", "time series of 2 volumes");
 }
 
 TEST_F(Cli, vti_input_gives_the_surface_of_the_same_samples_as_raw) {

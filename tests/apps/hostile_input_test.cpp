@@ -30,6 +30,7 @@
 #include "support/bounded_run.hpp"
 #include "support/dicom_files.hpp"
 #include "support/io_test_helpers.hpp"
+#include "support/mrc_files.hpp"
 #include "support/scratch_dir.hpp"
 #include "support/test_data.hpp"
 #include "support/tiff_files.hpp"
@@ -238,8 +239,15 @@ TEST_F(Hostile, declared_sizes_beyond_the_data_fail_before_allocating) {
   const fs::path tiff = write(
       "big.tif", test::hand_made_tiff(false, 32769, 32769, 64, SAMPLEFORMAT_IEEEFP, COMPRESSION_LZW,
                                       PREDICTOR_NONE, {strip, strip, strip}));
-  for (const fs::path& in :
-       {raw, gz, nii, nii_gz, mha, mhd, vtk, vti, vti_z, pvti, series, enhanced, jpeg, rle, tiff}) {
+  // And an MRC map of 2000 × 2000 × 1000 float32 samples in 33 KB, plain, and in 4 MB of gzip.
+  test::mrc_file map;
+  map.n = {2000, 2000, 1000};
+  map.samples.resize(33000);
+  const fs::path mrc = write("big.mrc", map.bytes());
+  map.samples.assign(std::size_t{4} << 20, std::byte{0});
+  const fs::path mrc_gz = write("big.map.gz", gzip(map.bytes()));
+  for (const fs::path& in : {raw, gz, nii, nii_gz, mha, mhd, vtk, vti, vti_z, pvti, series,
+                             enhanced, jpeg, rle, tiff, mrc, mrc_gz}) {
     const auto before = snapshot();
     const bounded_result r =
         run({"extract", in.string(), "--iso", "1", "-o", path("o.ply").string()},
@@ -281,7 +289,17 @@ TEST_F(Hostile, declared_sizes_beyond_the_data_fail_before_allocating) {
                                   "sizes: 30 1000 1000 500\nkinds: list domain domain domain\n"
                                   "endian: little\nencoding: gzip\n\n" +
                                       gzip(std::string(4 << 20, '\0')));
-  for (const fs::path& in : {nii_series, nii_gz_series, mha_series, nrrd_series, nrrd_dwi}) {
+  // An MRC volume stack of 50 volumes of 500³ bytes in 33 KB.
+  test::mrc_file stack;
+  stack.mode = 0;
+  stack.ispg = 401;
+  stack.n = {500, 500, 25000};
+  stack.m = {500, 500, 500};
+  stack.samples.resize(33000);
+  stack.item = 1;
+  const fs::path mrc_stack = write("stack.mrcs", stack.bytes());
+  for (const fs::path& in :
+       {nii_series, nii_gz_series, mha_series, nrrd_series, nrrd_dwi, mrc_stack}) {
     const auto before = snapshot();
     const bounded_result r =
         run({"extract", in.string(), "--volume", "1", "--iso", "1", "-o", path("o.ply").string()},
@@ -343,6 +361,13 @@ TEST_F(Hostile, devices_and_fifos_are_refused_at_once) {
   for (const std::string in : {"fifo.tif", "zero.tiff"}) {
     expect_refused({"extract", path(in).string(), "--iso", "5", "-o", path("o.ply").string()},
                    in + ": expected a regular TIFF file", quick);
+  }
+  // An MRC map that is a FIFO or /dev/zero.
+  ASSERT_EQ(::mkfifo(path("fifo.mrc").c_str(), 0600), 0);
+  fs::create_symlink("/dev/zero", path("zero.map"));
+  for (const std::string in : {"fifo.mrc", "zero.map"}) {
+    expect_refused({"extract", path(in).string(), "--iso", "5", "-o", path("o.ply").string()},
+                   in + ": expected a regular MRC file", quick);
   }
   // A .pvti whose pieces are a FIFO and /dev/zero.
   ASSERT_EQ(::mkfifo(path("p0.vti").c_str(), 0600), 0);

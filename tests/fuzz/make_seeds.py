@@ -3,7 +3,7 @@
 
     make_seeds.py OUT_DIR [SHARED_DATA_DIR]
 
-writes OUT_DIR/<harness>/<name> for the harnesses raw, extract, nrrd, nifti, metaimage, vtk, vti, pvti, dicom, jpeg, pgm, png, ply, obj and cli: small
+writes OUT_DIR/<harness>/<name> for the harnesses raw, extract, nrrd, nifti, metaimage, vtk, vti, pvti, dicom, tiff, mrc, jpeg, pgm, png, ply, obj and cli: small
 valid files of every kind the readers accept, and the hostile cases of issue 11 (printf field
 widths in data file names, declared sizes far beyond the data, NaN samples, numbers beyond
 their types …). With SHARED_DATA_DIR (../shared/data), it adds crops of the real volumes and
@@ -701,6 +701,51 @@ def tiff_seeds(out, crops):
         put(out, "tiff", name + "_deflate", tiff(slices, nx, ny, compression=8))
 
 
+# ---- mrc: MRC2014 maps, field by field.
+
+def mrc(n, mode, data, big=False, m=None, cell=None, angles=(90.0, 90.0, 90.0), axes=(1, 2, 3),
+        start=(0, 0, 0), origin=(0.0, 0.0, 0.0), ispg=1, extended=b"", stamp=True, imod_unsigned=False):
+    e = ">" if big else "<"
+    m = m or n
+    cell = cell or tuple(float(v) for v in m)
+    h = bytearray(1024)
+    struct.pack_into(e + "3ii3i3i", h, 0, *n, mode, *start, *m)
+    struct.pack_into(e + "3f3f3i", h, 40, *cell, *angles, *axes)
+    struct.pack_into(e + "ii", h, 88, ispg, len(extended))
+    struct.pack_into(e + "i", h, 108, 20141)
+    if imod_unsigned:
+        struct.pack_into(e + "ii", h, 152, 1146047817, 0)
+    struct.pack_into(e + "3f", h, 196, *origin)
+    h[208:212] = b"MAP "
+    if stamp:
+        h[212:214] = b"\x11\x11" if big else b"\x44\x44"
+    return bytes(h) + extended + data
+
+
+def mrc_seeds(out, crops):
+    n = (5, 4, 3)
+    count = 60
+    f32 = b"".join(struct.pack("<f", math.sin(i * 0.37) * 10) for i in range(count))
+    put(out, "mrc", "f32", mrc(n, 2, f32, cell=(7.5, 6.0, 4.5), origin=(10.0, -5.0, 2.5)))
+    put(out, "mrc", "f32_gzip", gzip.compress(mrc(n, 2, f32)))
+    i16_big = b"".join(struct.pack(">h", (i * 997) % 4000 - 2000) for i in range(count))
+    put(out, "mrc", "i16_big", mrc(n, 1, i16_big, big=True))
+    u16 = b"".join(struct.pack("<H", (i * 1237) % 65536) for i in range(count))
+    put(out, "mrc", "u16_permuted", mrc(n, 6, u16, axes=(3, 1, 2), m=(4, 3, 5), start=(-2, 3, 7)))
+    half = b"".join(struct.pack("<e", math.cos(i * 0.21) * 100) for i in range(count))
+    put(out, "mrc", "f16_no_stamp", mrc(n, 12, half, stamp=False))
+    u8 = bytes((i * 37) % 251 for i in range(count))
+    put(out, "mrc", "imod_u8_extended", mrc(n, 0, u8, imod_unsigned=True, extended=b"x" * 128))
+    put(out, "mrc", "i8_oblique", mrc(n, 0, u8, angles=(70.0, 80.0, 100.0)))
+    put(out, "mrc", "volume_stack", mrc((5, 4, 6), 0, u8 * 2, m=(5, 4, 3), ispg=401))
+    put(out, "mrc", "declared_2000x2000x1000", mrc((2000, 2000, 1000), 2, f32))
+    put(out, "mrc", "declared_gzip_floats", gzip.compress(mrc((2000, 2000, 1000), 2, bytes(1 << 16))))
+    f32_nan = b"".join(struct.pack("<f", float("nan") if i % 2 else i) for i in range(count))
+    put(out, "mrc", "f32_every_other_nan", mrc(n, 2, f32_nan))
+    for name, (dims, data) in sorted(crops.items()):
+        put(out, "mrc", "shared_%s_gzip" % name, gzip.compress(mrc(dims, 0, data, imod_unsigned=True)))
+
+
 # ---- mesh and contour files.
 
 def ply(vertices, faces, normals=None):
@@ -808,6 +853,7 @@ def main():
     jpeg_seeds(out)
     dicom_seeds(out)
     tiff_seeds(out, crops)
+    mrc_seeds(out, crops)
     image_seeds(out, images)
     mesh_seeds(out)
     cli_seeds(out)

@@ -6,6 +6,7 @@
 #include <climits>
 #include <limits>
 #include <new>
+#include <utility>
 #include <vector>
 
 #include <progiso/core/base/error.hpp>
@@ -95,6 +96,24 @@ std::uint64_t gzip_input::skip(std::uint64_t n) {
     if (got < want) break;
   }
   return skipped;
+}
+
+sequential_input::sequential_input(const std::filesystem::path& file, std::string_view kind,
+                                   std::string gzip_label)
+    : in_(file, kind) {
+  if (starts_with_gzip_magic(in_)) gz_ = std::make_unique<gzip_input>(in_, std::move(gzip_label));
+}
+
+std::size_t sequential_input::read(std::span<std::byte> out) {
+  if (gz_) return gz_->read(out);
+  return in_.read(out.data(), out.size());
+}
+
+bool sequential_input::skip_to(std::uint64_t to) {
+  if (gz_) return gz_->skip(to) == to;
+  if (to > in_.size()) return false;
+  in_.seek(to);
+  return true;
 }
 
 }  // namespace progiso::detail

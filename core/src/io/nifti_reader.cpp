@@ -17,61 +17,13 @@
 #include <progiso/core/base/error.hpp>
 #include <progiso/core/io/detail/file_output.hpp>
 #include <progiso/core/io/detail/gzip_input.hpp>
+#include <progiso/core/io/detail/header_bytes.hpp>
 #include <progiso/core/io/detail/nrrd_reader.hpp>
 
 namespace progiso::detail {
 namespace {
 
 namespace fs = std::filesystem;
-
-/// A file read front to back, plain or gzip (told by its first bytes).
-class sequential_input {
- public:
-  sequential_input(const fs::path& file, std::string_view kind) : in_(file, kind) {
-    if (starts_with_gzip_magic(in_)) {
-      gz_ = std::make_unique<gzip_input>(in_, "NIfTI gzip data");
-    }
-  }
-  [[nodiscard]] bool gzipped() const noexcept { return gz_ != nullptr; }
-  [[nodiscard]] const fs::path& path() const noexcept { return in_.path(); }
-  [[nodiscard]] std::uint64_t size() const noexcept { return in_.size(); }
-  /// Reads up to out.size() bytes; fewer only at the end.
-  std::size_t read(std::span<std::byte> out) {
-    if (gz_) return gz_->read(out);
-    return in_.read(out.data(), out.size());
-  }
-  /// From the start (nothing read yet), moves to byte `to`; false when the data ends first.
-  bool skip_to(std::uint64_t to) {
-    if (gz_) return gz_->skip(to) == to;
-    if (to > in_.size()) return false;
-    in_.seek(to);
-    return true;
-  }
-
- private:
-  input_file in_;
-  std::unique_ptr<gzip_input> gz_;
-};
-
-/// Fields of a header in its byte order.
-class header_bytes {
- public:
-  header_bytes(const std::byte* data, bool swap) : data_(data), swap_(swap) {}
-  template <class T>
-  [[nodiscard]] T get(std::size_t offset) const noexcept {
-    std::array<std::byte, sizeof(T)> b{};
-    std::memcpy(b.data(), data_ + offset, sizeof(T));
-    if (swap_) std::reverse(b.begin(), b.end());
-    return std::bit_cast<T>(b);
-  }
-  [[nodiscard]] std::string_view text(std::size_t offset, std::size_t n) const noexcept {
-    return {reinterpret_cast<const char*>(data_ + offset), n};
-  }
-
- private:
-  const std::byte* data_;
-  bool swap_;
-};
 
 /// Where the fields lie in the two versions (nifti1.h and nifti2.h, packed).
 struct layout {
@@ -168,7 +120,7 @@ bool has_nifti_name(const fs::path& file) {
 }
 
 nifti_header read_nifti_header(const fs::path& file) {
-  sequential_input in(file, "NIfTI");
+  sequential_input in(file, "NIfTI", "NIfTI gzip data");
   const std::string name = file.string();
   std::array<std::byte, nifti2_header_bytes> raw{};
   const std::size_t first = in.read(std::span<std::byte>(raw.data(), 4));
@@ -380,7 +332,7 @@ std::vector<std::byte> read_nifti_samples(const nifti_header& h, const fs::path&
                      static_cast<std::uint64_t>(h.dims[2]);
   const std::uint64_t bytes = count * item;  // ≤ 32769³ × 8 < 2^48
   const fs::path& source = h.data_file ? *h.data_file : file;
-  sequential_input in(source, h.data_file ? "NIfTI data" : "NIfTI");
+  sequential_input in(source, h.data_file ? "NIfTI data" : "NIfTI", "NIfTI gzip data");
   const std::string name = source.string();
   const std::string shape = std::to_string(h.dims[0]) + "x" + std::to_string(h.dims[1]) + "x" +
                             std::to_string(h.dims[2]) +

@@ -17,6 +17,7 @@
 #include <progiso/core/io/detail/file_input.hpp>
 #include <progiso/core/io/detail/file_output.hpp>
 #include <progiso/core/io/detail/metaimage_reader.hpp>
+#include <progiso/core/io/detail/mrc_reader.hpp>
 #include <progiso/core/io/detail/nifti_reader.hpp>
 #include <progiso/core/io/detail/nrrd_reader.hpp>
 #include <progiso/core/io/detail/tiff_reader.hpp>
@@ -52,7 +53,7 @@ volume make_volume(const fs::path& file, const index3& dims, sample_type type,
   }
 }
 
-enum class volume_format { nrrd, nifti, metaimage, vtk_legacy, vti, pvti, dicom, tiff };
+enum class volume_format { nrrd, nifti, metaimage, vtk_legacy, vti, pvti, dicom, tiff, mrc };
 
 /// The format a file name asks for; throws "FILE: unknown volume format (…)" for any other.
 volume_format format_of(const fs::path& file) {
@@ -69,15 +70,18 @@ volume_format format_of(const fs::path& file) {
   if (detail::has_vtk_legacy_name(file)) return volume_format::vtk_legacy;
   if (detail::has_vti_name(file)) return volume_format::vti;
   if (detail::has_pvti_name(file)) return volume_format::pvti;
+  if (detail::has_mrc_name(file)) return volume_format::mrc;
   const std::string ext = lower_extension(file);
   if (ext == ".nrrd" || ext == ".nhdr") return volume_format::nrrd;
   // Scanners and PACS name DICOM files without an extension (IM0001, a UID).
   if (detail::has_dicom_preamble(file)) return volume_format::dicom;
+  // MRC2014 files carry "MAP " at byte 208 whatever their name.
+  if (detail::has_mrc_identifier(file)) return volume_format::mrc;
   throw error(
       file.string() +
       ": unknown volume format (expected .nrrd, .nhdr, .nii, .nii.gz, .hdr, .mha, .mhd, "
-      ".vtk, .vti, .pvti, .tif, .tiff, a directory of DICOM files or of TIFF slices, an enhanced "
-      "DICOM file, or a raw file with --dims and --type)");
+      ".vtk, .vti, .pvti, .tif, .tiff, .mrc, .map, .ccp4, .rec, a directory of DICOM files or of "
+      "TIFF slices, an enhanced DICOM file, or a raw file with --dims and --type)");
 }
 
 /// The header of a NRRD, MetaImage or legacy VTK file (each reads its data through
@@ -94,6 +98,7 @@ detail::nrrd_header parse_text_header(detail::input_file& in, volume_format form
     case volume_format::pvti:
     case volume_format::dicom:
     case volume_format::tiff:
+    case volume_format::mrc:
       break;
   }
   return detail::parse_nrrd_header(in);
@@ -112,6 +117,7 @@ std::string_view format_kind(volume_format format) {
     case volume_format::nifti:
     case volume_format::dicom:
     case volume_format::tiff:
+    case volume_format::mrc:
       break;
   }
   return "NRRD";
@@ -228,6 +234,24 @@ struct nifti_source final : source_state {
   }
 };
 
+/// An MRC or CCP4 map: its header read once; a volume stack's volume chosen.
+struct mrc_source final : source_state {
+  fs::path file;
+  detail::mrc_header header;
+  std::int64_t volume_index = 0;
+  mrc_source(const fs::path& f, const volume_choice& choice)
+      : file(f), header(detail::read_mrc_header(f)) {
+    volume_index = pick_volume(f, header.volumes, choice, "NZ / MZ");
+    world = header.world;
+    files = {f};
+  }
+  volume read(const spacing_override& spacing) override {
+    std::vector<std::byte> samples = detail::read_mrc_samples(header, file, volume_index);
+    return make_volume(file, header.dims, header.volume_type(), std::move(samples),
+                       spacing.value_or(header.spacing), header.origin);
+  }
+};
+
 struct dicom_source final : source_state {
   fs::path directory;
   detail::dicom_series series;
@@ -320,6 +344,8 @@ std::unique_ptr<source_state> open_source(const fs::path& file,
       return std::make_unique<dicom_source>(file, choice);
     case volume_format::tiff:
       return std::make_unique<tiff_source>(file, choice);
+    case volume_format::mrc:
+      return std::make_unique<mrc_source>(file, choice);
     case volume_format::vti:
       (void)pick_volume(file, 1, choice);
       return std::make_unique<vti_source>(file);
@@ -406,6 +432,10 @@ volume read_dicom(const std::filesystem::path& directory, const volume_choice& c
 
 volume read_tiff(const std::filesystem::path& input, const volume_choice& choice) {
   return tiff_source(input, choice).read(std::nullopt);
+}
+
+volume read_mrc(const std::filesystem::path& file, const volume_choice& choice) {
+  return mrc_source(file, choice).read(std::nullopt);
 }
 
 volume read_vtk_legacy(const std::filesystem::path& file) {

@@ -1,7 +1,7 @@
 // progiso/core/io/volume_io.hpp — reading volumes from headerless raw files, NRRD, NIfTI,
-// MetaImage, legacy VTK, VTK XML image data, DICOM series and TIFF stacks.
+// MetaImage, legacy VTK, VTK XML image data, DICOM series, TIFF stacks and MRC maps.
 //
-// Eight kinds of input are supported. A headerless raw file holds nothing but the samples, x
+// Nine kinds of input are supported. A headerless raw file holds nothing but the samples, x
 // varying fastest, then y, then z; its layout (dims, sample type, byte order) comes from the
 // caller, usually the command line's --dims and --type, and the file size must match it exactly.
 // NRRD files (.nrrd with attached data, .nhdr with detached data files) describe themselves;
@@ -21,7 +21,9 @@
 // (Enhanced CT and MR), whose one file holds every frame. VTK XML image data (.vti, and .pvti
 // with its pieces), ParaView's format for a regular grid, is read by detail/vti_reader.hpp.
 // TIFF stacks (a multi-page .tif, or a directory of .tif slices), as micro-CT scanners and
-// microscopes export volumes, are read by detail/tiff_reader.hpp through libtiff.
+// microscopes export volumes, are read by detail/tiff_reader.hpp through libtiff. MRC and CCP4
+// maps (.mrc, .map, .ccp4, .rec, plain or gzip: cryo-EM maps, tomograms, X-ray electron
+// density) are read by detail/mrc_reader.hpp.
 // read_volume() picks the reader the way the command-line tool does: an explicit raw layout
 // wins, otherwise the file extension decides. volume_input_files() names the files a read
 // would open, from the header alone, and read_volume_world() gives the orientation the header
@@ -114,8 +116,9 @@ struct index_to_world {
 /// direction of index axis i, as ITK reads it; identity when absent) scaled by ElementSpacing,
 /// and Offset; for legacy VTK origin + index × SPACING (structured points are axis-aligned);
 /// for a DICOM series the patient (LPS) coordinates its ImageOrientationPatient, PixelSpacing
-/// and ImagePositionPatient give; nullopt for files without one (NIfTI with both
-/// codes 0, NRRD without space directions, raw files), whose positions are origin + index ×
+/// and ImagePositionPatient give; for an MRC map the unit cell's axes over MX, MY, MZ (oblique
+/// when CELLB's angles are not right) and its origin; nullopt for files without one (NIfTI with
+/// both codes 0, NRRD without space directions, raw files), whose positions are origin + index ×
 /// spacing only. Throws progiso::error like read_volume() for an unknown format and header
 /// errors.
 [[nodiscard]] std::optional<index_to_world> read_volume_world(const std::filesystem::path& file,
@@ -207,16 +210,29 @@ struct index_to_world {
 [[nodiscard]] volume read_tiff(const std::filesystem::path& input,
                                const volume_choice& choice = {});
 
+/// Reads an MRC or CCP4 map (.mrc, .mrcs, .map, .ccp4, .rec, plain or gzip): cryo-EM maps as
+/// EMDB distributes them, IMOD's tomograms, crystallographic electron density. Modes 0 (8-bit
+/// integers), 1 (int16), 2 (float32), 6 (uint16) and 12 (float16, read as float32), either byte
+/// order, columns, rows and sections along any permutation of X, Y, Z (returned x fastest),
+/// 2 to 32769 samples per axis. Spacing is CELLA / (MX, MY, MZ), the origin ORIGIN when given,
+/// else the start indices × spacing; an oblique unit cell's skew is in read_volume_world()'s map
+/// only. A volume stack (ISPG 401–630) is a series whose volume `choice.volume` picks. Throws
+/// progiso::error naming the file on any failure; see detail/mrc_reader.hpp and
+/// docs/ARCHITECTURE.md "Reading MRC maps".
+[[nodiscard]] volume read_mrc(const std::filesystem::path& file, const volume_choice& choice = {});
+
 /// Reads a volume the way the command-line tool does: with a raw layout, read_raw(); else, for
 /// a directory holding .tif or .tiff files or for a .tif or .tiff file, read_tiff(); for another
 /// directory or a .dcm file, read_dicom(); for the extensions .nrrd and .nhdr, read_nrrd(); for
 /// .nii, .nii.gz, .hdr and .hdr.gz, read_nifti(); for .mha and .mhd, read_metaimage(); for .vtk,
-/// read_vtk_legacy(); for .vti, read_vti(); for .pvti, read_pvti() (case-insensitive); any other
-/// file that starts as DICOM Part 10 does ("DICM" at byte 128), read_dicom(). A single DICOM
+/// read_vtk_legacy(); for .vti, read_vti(); for .pvti, read_pvti(); for .mrc, .mrcs, .map, .ccp4
+/// and .rec (each optionally .gz), read_mrc() (case-insensitive); any other file that starts as
+/// DICOM Part 10 does ("DICM" at byte 128), read_dicom(), or that holds MRC2014's "MAP " at byte
+/// 208, read_mrc(). A single DICOM
 /// file must be a multi-frame image (one slice alone is refused). A `choice` that names a series
 /// is refused for anything but DICOM, one that names a volume other than 0 for anything but a
-/// NIfTI, MetaImage, NRRD, DICOM or ImageJ series that has it. A given `spacing` replaces the one
-/// from the header (or the default 1,1,1 for raw files). Throws progiso::error "FILE: unknown
+/// NIfTI, MetaImage, NRRD, DICOM, ImageJ or MRC series that has it. A given `spacing` replaces the
+/// one from the header (or the default 1,1,1 for raw files). Throws progiso::error "FILE: unknown
 /// volume format (…)" for any other file, and whatever the chosen reader throws.
 [[nodiscard]] volume read_volume(const std::filesystem::path& file,
                                  const std::optional<raw_layout>& raw,

@@ -1,5 +1,7 @@
 // progiso/core/io/detail/gzip_input.hpp — reading gzip (or zlib) data from an untrusted file,
-// shared by the NRRD reader (gzip encoding) and the NIfTI reader (.nii.gz, .img.gz).
+// shared by the NRRD reader (gzip encoding), the NIfTI reader (.nii.gz, .img.gz) and the MRC
+// reader (.map.gz, as EMDB distributes maps). sequential_input reads a file front to back,
+// inflating it when it starts with the gzip magic, whatever its name.
 //
 // gzip_input inflates from the file's current position, one or more concatenated gzip members
 // (as gzip and pigz write them), into buffers the caller owns: nothing is allocated beyond a
@@ -19,6 +21,7 @@
 #include <memory>
 #include <span>
 #include <string>
+#include <string_view>
 
 #include <progiso/core/io/detail/file_input.hpp>
 
@@ -54,6 +57,27 @@ class gzip_input {
   input_file& in_;
   std::string label_;
   std::unique_ptr<state> state_;
+};
+
+/// A file read front to back, plain or gzip (told by its first two bytes, not its name).
+class sequential_input {
+ public:
+  /// Opens `file` (input_file's `kind`); gzip data is named `gzip_label` in messages.
+  sequential_input(const std::filesystem::path& file, std::string_view kind,
+                   std::string gzip_label);
+  [[nodiscard]] bool gzipped() const noexcept { return gz_ != nullptr; }
+  [[nodiscard]] const std::filesystem::path& path() const noexcept { return in_.path(); }
+  /// The file's size (compressed, for gzip).
+  [[nodiscard]] std::uint64_t size() const noexcept { return in_.size(); }
+  /// Reads up to out.size() bytes; fewer only at the end.
+  std::size_t read(std::span<std::byte> out);
+  /// From the start (nothing read yet), moves to byte `to` of the (inflated) data; false when
+  /// the data ends first.
+  bool skip_to(std::uint64_t to);
+
+ private:
+  input_file in_;
+  std::unique_ptr<gzip_input> gz_;
 };
 
 }  // namespace progiso::detail
