@@ -4,7 +4,8 @@
 // start from the volume in memory (FE reads progiso's own sample array, wrapped without a copy)
 // and end with the surface in memory: FE's vtkPolyData (normals, gradients and scalars off),
 // progiso's pipeline — range data, refinement and extraction of the finest cut into an indexed
-// mesh (extract_isosurface_parallel, as the command runs it), or the contour polylines in 2D.
+// mesh (extract_isosurface_parallel, as the command runs it: a full run's finest cut by
+// finest_surface(), BM_peer_refined by refining the hierarchy), or the contour polylines in 2D.
 // vtkSMPTools runs on the same thread count as progiso. BM_deadline_quality measures what a
 // deadline buys (see there), BM_peer_scaling the pipeline's speed-up from one thread (see there),
 // BM_peer_normals both sides with vertex normals (see there).
@@ -196,9 +197,13 @@ volume_case volume_setup(benchmark::State& state) {
   return {in, vol, threads, peer(vol, in.isovalue)};
 }
 
-void BM_peer_volume(benchmark::State& state) {
+// The pipeline of a full run: by default its finest cut by finest_surface() (two passes over
+// the samples; refine_ms and range_ms are 0); BM_peer_refined takes the hierarchy's path instead
+// (range data, full refinement, extraction of the cut), the same surface.
+void peer_volume(benchmark::State& state, bool finest_direct) {
   auto [in, vol, threads, fe] = volume_setup(state);
   extract_options options;  // full
+  options.finest_direct = finest_direct;
   pair_stats s;
   run_pairs(state, *fe, s, [&] {
     const auto t0 = clock_type::now();
@@ -216,6 +221,8 @@ void BM_peer_volume(benchmark::State& state) {
   });
   report(state, s, "triangles");
 }
+void BM_peer_volume(benchmark::State& state) { peer_volume(state, true); }
+void BM_peer_refined(benchmark::State& state) { peer_volume(state, false); }
 
 // ---- Shading: the same with vertex normals on both sides (vtkFlyingEdges3D's ComputeNormals;
 // progiso's extract_options::normals, gradient normals of the finest cut's vertices, computed
@@ -379,6 +386,16 @@ void register_all() {
   for (std::size_t i = 0; i < volumes().size(); ++i) {
     for (const unsigned t : thread_counts(cores)) {
       benchmark::RegisterBenchmark(("BM_peer_volume/" + volumes()[i].name).c_str(), BM_peer_volume)
+          ->Args({static_cast<std::int64_t>(i), static_cast<std::int64_t>(t)})
+          ->Iterations(volumes()[i].pairs)
+          ->UseManualTime()
+          ->Unit(benchmark::kMillisecond);
+    }
+  }
+  for (std::size_t i = 0; i < volumes().size(); ++i) {
+    for (const unsigned t : thread_counts(cores)) {
+      benchmark::RegisterBenchmark(("BM_peer_refined/" + volumes()[i].name).c_str(),
+                                   BM_peer_refined)
           ->Args({static_cast<std::int64_t>(i), static_cast<std::int64_t>(t)})
           ->Iterations(volumes()[i].pairs)
           ->UseManualTime()

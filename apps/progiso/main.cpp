@@ -69,6 +69,8 @@ std::string stats_json(const arguments& a, const std::string& input, double iso,
   o << "  \"mode\": \"" << mode_names[static_cast<int>(a.options.mode)] << "\",\n";
   const auto available = static_cast<unsigned>(progiso::scheduler::default_concurrency());
   o << "  \"threads\": " << (a.threads == 0 ? available : std::min(a.threads, available)) << ",\n";
+  // "finest": the full surface came from two passes over the samples, not from refinement.
+  o << "  \"path\": \"" << (r.finest_direct ? "finest" : "refinement") << "\",\n";
   o << "  \"splits\": " << r.stats.splits << ",\n";
   o << "  \"diamonds_visited\": " << r.stats.visited << ",\n";
   o << "  \"diamonds_culled\": " << r.stats.culled << ",\n";
@@ -289,6 +291,14 @@ int run(const std::vector<std::string>& args) {
   if (stats_out) stats_out->finish();
   mesh_out.publish();
   if (stats_out) stats_out->publish();
+  if (r.finest_direct) {
+    std::printf(
+        "progiso: %zu triangles, %zu vertices (%zu voxels); first surface %.3f ms, finest "
+        "surface %.1f ms (two passes over the samples); wrote %s\n",
+        r.mesh.triangles.size(), r.mesh.vertices.size(), vol->voxel_count(),
+        r.first_surface_seconds * 1e3, r.extract_seconds * 1e3, a.output->c_str());
+    return 0;
+  }
   std::printf(
       "progiso: %zu triangles, %zu vertices; %llu splits, %llu diamonds visited (%zu voxels); "
       "first surface %.3f ms, range data %.1f ms (%zu bytes), refinement %.1f ms, extraction "

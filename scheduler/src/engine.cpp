@@ -5,6 +5,7 @@
 #include <string>
 
 #include <progiso/core/base/error.hpp>
+#include <progiso/core/surface/finest_surface.hpp>
 
 namespace progiso {
 
@@ -180,6 +181,31 @@ extract_result extract_isosurface_parallel(const volume& vol, double isovalue,
     res.first_surface_seconds = seconds(clock::now() - t0);
   }
   const auto t1 = clock::now();
+  if (options.mode == extract_mode::full && options.finest_direct) {
+    // The finest cut is all a full run returns: two streaming passes over the samples give it
+    // (finest_surface()), without range data, splits or records. Pieces of rows on the
+    // engine's thread count, in a fresh arena (as the snapshots' meshes).
+    const std::size_t n = eng.threads();
+    if (n <= 1) {
+      res.mesh = finest_surface(vol, isovalue);
+    } else {
+      tbb::task_arena arena(static_cast<int>(n));
+      arena.execute([&] { res.mesh = finest_surface(vol, isovalue, detail::tbb_loop, 16 * n); });
+    }
+    const auto t2 = clock::now();
+    res.finest_direct = true;
+    res.extract_seconds = seconds(t2 - t1);
+    res.total_seconds = seconds(t2 - t0);
+    res.pipeline_seconds = res.total_seconds;
+    res.stats.triangles = res.mesh.triangles.size();
+    if (options.normals) {
+      eng.add_normals(res.mesh);
+      res.normals_seconds = seconds(clock::now() - t2);
+    }
+    const auto [lo, hi] = vol.value_range();
+    res.isovalue_outside_data = !(lo <= isovalue && isovalue < hi);
+    return res;
+  }
   switch (options.mode) {
     case extract_mode::full:
       eng.refine_full();

@@ -227,6 +227,7 @@ TEST(Engine, render_buffers_take_the_gradient_normals_of_the_cut_when_asked) {
 
   extract_options o;
   o.normals = true;
+  o.finest_direct = false;  // the hierarchy's cut, numbered as the sequential path numbers it
   const extract_result seq = extract_isosurface(v, 0.5, o);
   const extract_result par = extract_isosurface_parallel(v, 0.5, o, 2);
   ASSERT_EQ(seq.mesh.vertices, par.mesh.vertices);
@@ -952,7 +953,10 @@ TEST(Engine, parallel_extraction_matches_the_sequential_one_in_every_mode) {
   const extract_result seq = extract_isosurface(v, 0.5, full);
   const extract_result par = extract_isosurface_parallel(v, 0.5, full, 2);
   EXPECT_TRUE(test::same_surface(seq.mesh, par.mesh));
-  EXPECT_EQ(seq.stats.splits, par.stats.splits);
+  full.finest_direct = false;  // the hierarchy's path: the same splits as the sequential one
+  const extract_result refined = extract_isosurface_parallel(v, 0.5, full, 2);
+  EXPECT_TRUE(test::same_surface(seq.mesh, refined.mesh));
+  EXPECT_EQ(seq.stats.splits, refined.stats.splits);
   extract_options err;
   err.mode = extract_mode::error;
   err.max_error = 0.05;
@@ -991,12 +995,54 @@ TEST(Engine, root_surface_is_published_before_any_pass_over_the_volume) {
 
 TEST(Engine, pipeline_reports_the_first_surface_before_the_range_data) {
   const volume v = make_marschner_lobb({65, 65, 65});
-  const extract_result r = extract_isosurface_parallel(v, 0.5, extract_options{}, 2);
+  extract_options refined;
+  refined.finest_direct = false;
+  const extract_result r = extract_isosurface_parallel(v, 0.5, refined, 2);
+  EXPECT_FALSE(r.finest_direct);
   EXPECT_GT(r.range_build_seconds, 0.0);
   EXPECT_LE(r.first_surface_seconds + r.range_build_seconds + r.refine_seconds + r.extract_seconds,
             r.pipeline_seconds + 1e-9);
   EXPECT_GT(r.range_bytes, 0u);
   EXPECT_TRUE(test::same_surface(r.mesh, test::reference_marching_tetrahedra(v, 0.5).mesh));
+}
+
+TEST(Engine, full_pipeline_gives_the_finest_surface_by_two_passes_the_same_for_every_count) {
+  // A full run's result is the finest cut: by finest_surface(), after the root surface, with no
+  // range data and no splits; the surface the hierarchy's path ends at, byte for byte the same
+  // for 1, 2 and 3 threads.
+  const volume v = make_marschner_lobb({57, 49, 41});
+  const extract_result one = extract_isosurface_parallel(v, 0.5, extract_options{}, 1);
+  EXPECT_TRUE(one.finest_direct);
+  EXPECT_GT(one.first_surface_seconds, 0.0);
+  EXPECT_EQ(one.range_build_seconds, 0.0);
+  EXPECT_EQ(one.stats.splits, 0u);
+  EXPECT_EQ(one.stats.triangles, one.mesh.triangles.size());
+  EXPECT_LE(one.first_surface_seconds + one.extract_seconds, one.pipeline_seconds + 1e-9);
+  for (const unsigned threads : {2u, 3u}) {
+    const extract_result r = extract_isosurface_parallel(v, 0.5, extract_options{}, threads);
+    EXPECT_EQ(r.mesh.vertices, one.mesh.vertices) << threads;
+    EXPECT_EQ(r.mesh.triangles, one.mesh.triangles) << threads;
+  }
+  extract_options refined;
+  refined.finest_direct = false;
+  const extract_result by_splits = extract_isosurface_parallel(v, 0.5, refined, 2);
+  EXPECT_GT(by_splits.stats.splits, 0u);
+  EXPECT_EQ(by_splits.mesh.vertices.size(), one.mesh.vertices.size());
+  EXPECT_TRUE(test::same_surface(by_splits.mesh, one.mesh));
+  // Normals on the direct path: those of the same positions on the hierarchy's path.
+  extract_options normals;
+  normals.normals = true;
+  const extract_result shaded = extract_isosurface_parallel(v, 0.5, normals, 2);
+  refined.normals = true;
+  const extract_result shaded_refined = extract_isosurface_parallel(v, 0.5, refined, 2);
+  std::map<vec3, vec3> by_position;
+  for (std::size_t i = 0; i < shaded_refined.mesh.vertices.size(); ++i) {
+    by_position[shaded_refined.mesh.vertices[i]] = shaded_refined.mesh.normals[i];
+  }
+  ASSERT_EQ(shaded.mesh.normals.size(), shaded.mesh.vertices.size());
+  for (std::size_t i = 0; i < shaded.mesh.vertices.size(); ++i) {
+    EXPECT_EQ(shaded.mesh.normals[i], by_position.at(shaded.mesh.vertices[i])) << i;
+  }
 }
 
 }  // namespace

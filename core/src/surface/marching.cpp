@@ -4,20 +4,6 @@
 
 namespace progiso {
 
-vec3 interpolate(const ipoint& a, double fa, const ipoint& b, double fb, double isovalue) noexcept {
-  const bool swap = vertex_less(b, a);
-  const ipoint& p = swap ? b : a;
-  const ipoint& q = swap ? a : b;
-  const double fp = swap ? fb : fa;
-  const double fq = swap ? fa : fb;
-  const double t = crossing_parameter(fp, fq, isovalue);
-  vec3 r{};
-  for (std::size_t k = 0; k < 3; ++k) {
-    r[k] = static_cast<double>(p[k]) + t * static_cast<double>(q[k] - p[k]);
-  }
-  return r;
-}
-
 namespace {
 
 // Orients triangle (k0, k1, k2) of doubled midpoints so its normal points from `black` to

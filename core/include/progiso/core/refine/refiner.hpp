@@ -196,6 +196,12 @@ struct extract_options {
   /// Give the mesh vertex normals from the field's gradient (add_vertex_normals(),
   /// surface/normals.hpp), after the pipeline: timed as normals_seconds.
   bool normals = false;
+  /// extract_mode::full through the engine (extract_isosurface_parallel()): give the finest cut
+  /// by finest_surface() (surface/finest_surface.hpp), two streaming passes over the samples,
+  /// rather than by refining the hierarchy to the end and extracting its cut. The same surface;
+  /// its vertices and triangles numbered in grid order. False: the hierarchy's path (to compare
+  /// the two, or for its split statistics).
+  bool finest_direct = true;
 };
 
 struct extract_result {
@@ -215,6 +221,9 @@ struct extract_result {
   double normals_seconds = 0.0;
   std::size_t range_bytes = 0;
   bool isovalue_outside_data = false;  ///< empty because the isovalue misses the data range
+  /// The mesh came from finest_surface() (extract_options::finest_direct): no range data, no
+  /// splits; extract_seconds is its two passes.
+  bool finest_direct = false;
 };
 
 /// Throws progiso::error for a non-finite isovalue or invalid options (shared by every entry).

@@ -76,8 +76,19 @@ inline constexpr int edge_key_bits = 21;
 }
 
 /// The surface vertex on crossed edge (a, b), in grid units, by the canonical rule above.
-[[nodiscard]] vec3 interpolate(const ipoint& a, double fa, const ipoint& b, double fb,
-                               double isovalue) noexcept;
+/// Inline: every extraction places its vertices through it, the finest surface's per vertex.
+[[nodiscard]] inline vec3 interpolate(const ipoint& a, double fa, const ipoint& b, double fb,
+                                      double isovalue) noexcept {
+  const bool swap = vertex_less(b, a);
+  const ipoint& p = swap ? b : a;
+  const ipoint& q = swap ? a : b;
+  const double t = crossing_parameter(swap ? fb : fa, swap ? fa : fb, isovalue);
+  vec3 r{};
+  for (std::size_t k = 0; k < 3; ++k) {
+    r[k] = static_cast<double>(p[k]) + t * static_cast<double>(q[k] - p[k]);
+  }
+  return r;
+}
 
 /// At most two oriented triangles, each three edge keys.
 struct tet_surface {

@@ -1,0 +1,44 @@
+// progiso/core/surface/finest_surface.hpp — the finest cut's surface in two streaming passes,
+// without the hierarchy: what a full refinement ends at, for a caller who wants only that.
+//
+// The finest bisection mesh has six tetrahedra in each unit cube of the data box, around the
+// diagonal from the cube's corner with even coordinates (the corner whose every coordinate is
+// even) to the opposite one, and one diagonal on each unit square, from its even corner. Its
+// marching-tetrahedra surface is the finest cut's: every triangle, every vertex (interpolate()
+// on the same edge ends) and every orientation (march_tet()) are the ones full refinement and
+// extraction give, only numbered in another order.
+//
+// How, as Flying Edges does for marching cubes: no vertex is looked up. Each grid point owns
+// up to seven edges (+x, +y, +z, the diagonals of the three unit squares and the unit cube of
+// which it is the lowest corner); a first pass over the rows of grid points records which owned
+// edges are crossed (one byte per point) and counts each row's vertices and its cubes'
+// triangles (a table per cube, of the colours of its eight corners and the parity of its lowest
+// corner, made once from march_tet()); prefix sums give every row its first vertex and first
+// triangle; a second pass writes each row's vertex positions and its cubes' triangles, the id
+// of an owned edge being its row's first id, plus the crossed edges of the points before it in
+// the row, plus those before it at its point. Both passes run over pieces of rows through a
+// parallel_loop, and the output is the same for every piece count.
+//
+// Cost: the samples are read twice, each pass in row order; one byte per grid point and two
+// counts per row beside the output. No allocation per vertex or triangle.
+// Thread safety: reads `field` only.
+#pragma once
+
+#include <cstddef>
+
+#include <progiso/core/base/config.hpp>
+#include <progiso/core/base/parallel_loop.hpp>
+#include <progiso/core/field/volume.hpp>
+#include <progiso/core/surface/mesh.hpp>
+
+namespace progiso {
+
+/// The surface of the finest cut at `isovalue` (see the file comment), positions in the physical
+/// frame (origin + index × spacing), in `parts` pieces of rows through `run` (on this thread
+/// when `run` is empty). Vertices are numbered by grid point (z, then y, then x) and owned
+/// edge; triangles follow their cubes in the same order. Throws progiso::error for a
+/// non-finite isovalue and for a surface of 2^32 vertices or more.
+[[nodiscard]] triangle_mesh finest_surface(const volume& field, double isovalue,
+                                           const parallel_loop& run = {}, std::size_t parts = 1);
+
+}  // namespace progiso

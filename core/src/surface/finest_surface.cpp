@@ -1,0 +1,438 @@
+#include <progiso/core/surface/finest_surface.hpp>
+
+#include <array>
+#include <bit>
+#include <cmath>
+#include <cstdint>
+#include <cstring>
+#include <limits>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include <progiso/core/base/error.hpp>
+#include <progiso/core/field/detail/subdivision.hpp>
+#include <progiso/core/surface/detail/mesh_clip.hpp>
+#include <progiso/core/surface/marching.hpp>
+
+namespace progiso {
+namespace {
+
+// A grid point's owned edges, by slot: 0 +x, 1 +y, 2 +z, 3 the diagonal of its xy square,
+// 4 of its xz square, 5 of its yz square, 6 of its cube. A cube corner is dx + 2 dy + 4 dz;
+// an edge of a cube is (owner corner) · 8 + slot; a cube's parity class is the parity of its
+// lowest corner, x + 2 y + 4 z (bits).
+constexpr int slots = 7;
+
+/// Set bits of a 7-bit mask (std::popcount compiles to a library call without -mpopcnt).
+constexpr std::array<std::uint8_t, 128> bit_counts = [] {
+  std::array<std::uint8_t, 128> c{};
+  for (unsigned m = 0; m < 128; ++m) c[m] = static_cast<std::uint8_t>(std::popcount(m));
+  return c;
+}();
+inline unsigned bits(unsigned m) noexcept { return bit_counts[m & 127u]; }
+
+struct cube_case {
+  std::uint8_t count = 0;
+  std::array<std::array<std::uint8_t, 3>, 12> triangles{};  // cube edges
+};
+
+struct tables {
+  std::array<std::array<cube_case, 256>, 8> cases{};
+  /// cases[…][…].count alone: the first pass reads only these (2 KB, not 75).
+  std::array<std::array<std::uint8_t, 256>, 8> counts{};
+  /// The owned edges a point crosses, from its cube's corner colours (corners beyond the data
+  /// box as white; the caller masks the slots whose ends are not there).
+  std::array<std::array<std::uint8_t, 256>, 8> crossed{};
+};
+
+/// The two ends of slot `k` of a point of parity `cls`, as corner offsets of its cube.
+constexpr std::array<int, 2> slot_ends(int cls, int k) noexcept {
+  const int px = cls & 1, py = (cls >> 1) & 1, pz = (cls >> 2) & 1;
+  switch (k) {
+    case 0:
+      return {0, 1};
+    case 1:
+      return {0, 2};
+    case 2:
+      return {0, 4};
+    case 3:  // the square's even corner to its opposite: (0,0)-(1,1) when x + y is even
+      return (px ^ py) == 0 ? std::array<int, 2>{0, 3} : std::array<int, 2>{1, 2};
+    case 4:
+      return (px ^ pz) == 0 ? std::array<int, 2>{0, 5} : std::array<int, 2>{1, 4};
+    case 5:
+      return (py ^ pz) == 0 ? std::array<int, 2>{0, 6} : std::array<int, 2>{2, 4};
+    default: {  // the cube's all-even corner to the all-odd one
+      const int even = px | (py << 1) | (pz << 2);
+      return {even, 7 - even};
+    }
+  }
+}
+
+tables make_tables() {
+  tables t;
+  static constexpr int perms[6][3] = {{0, 1, 2}, {0, 2, 1}, {1, 0, 2},
+                                      {1, 2, 0}, {2, 0, 1}, {2, 1, 0}};
+  for (int cls = 0; cls < 8; ++cls) {
+    const ipoint b{cls & 1, (cls >> 1) & 1, (cls >> 2) & 1};
+    for (int mask = 0; mask < 256; ++mask) {
+      std::uint8_t crossed = 0;
+      for (int k = 0; k < slots; ++k) {
+        const auto [p, q] = slot_ends(cls, k);
+        if (((mask >> p) & 1) != ((mask >> q) & 1)) crossed |= static_cast<std::uint8_t>(1u << k);
+      }
+      t.crossed[static_cast<std::size_t>(cls)][static_cast<std::size_t>(mask)] = crossed;
+      // The six tetrahedra around the diagonal from the even corner, as full refinement leaves
+      // them; colours from the mask (1 above the isovalue 0, −1 at or below).
+      ipoint e{}, st{};
+      for (std::size_t a = 0; a < 3; ++a) {
+        e[a] = (b[a] & 1) == 0 ? b[a] : b[a] + 1;
+        st[a] = e[a] == b[a] ? 1 : -1;
+      }
+      const auto value = [&](const ipoint& p) {
+        const int corner = (p[0] - b[0]) + 2 * (p[1] - b[1]) + 4 * (p[2] - b[2]);
+        return ((mask >> corner) & 1) != 0 ? 1.0 : -1.0;
+      };
+      cube_case& c = t.cases[static_cast<std::size_t>(cls)][static_cast<std::size_t>(mask)];
+      std::uint8_t& count = t.counts[static_cast<std::size_t>(cls)][static_cast<std::size_t>(mask)];
+      for (const auto& pm : perms) {
+        std::array<ipoint, 4> tet{};
+        std::array<double, 4> f{};
+        ipoint p = e;
+        tet[0] = p;
+        for (std::size_t k = 0; k < 3; ++k) {
+          const auto a = static_cast<std::size_t>(pm[k]);
+          p[a] += st[a];
+          tet[k + 1] = p;
+        }
+        for (std::size_t k = 0; k < 4; ++k) f[k] = value(tet[k]);
+        const tet_surface s = march_tet(tet, f, 0.0);
+        count = static_cast<std::uint8_t>(count + s.count);
+        for (int n = 0; n < s.count; ++n) {
+          auto& out = c.triangles[c.count++];
+          for (std::size_t v = 0; v < 3; ++v) {
+            // The edge's doubled midpoint, relative to the cube: odd along the edge's axes.
+            const ipoint m = edge_key_point(s.triangles[static_cast<std::size_t>(n)][v]);
+            int corner = 0;
+            int axes = 0;
+            for (std::size_t a = 0; a < 3; ++a) {
+              const int local = m[a] - 2 * b[a];  // 0, 1 or 2
+              if (local == 1) axes |= 1 << a;
+              if (local == 2) corner |= 1 << a;
+            }
+            static constexpr int slot_of_axes[8] = {-1, 0, 1, 3, 2, 4, 5, 6};
+            out[v] = static_cast<std::uint8_t>((corner << 3) | slot_of_axes[axes]);
+          }
+        }
+      }
+    }
+  }
+  return t;
+}
+
+/// slot_ends() for every parity class and slot.
+constexpr auto slot_end_table = [] {
+  std::array<std::array<std::array<std::uint8_t, 2>, slots>, 8> t{};
+  for (int cls = 0; cls < 8; ++cls) {
+    for (int k = 0; k < slots; ++k) {
+      const auto [p, q] = slot_ends(cls, k);
+      t[static_cast<std::size_t>(cls)][static_cast<std::size_t>(k)] = {
+          static_cast<std::uint8_t>(p), static_cast<std::uint8_t>(q)};
+    }
+  }
+  return t;
+}();
+
+const tables& the_tables() {
+  static const tables t = make_tables();
+  return t;
+}
+
+/// Eight bytes from p (any alignment).
+inline std::uint64_t load8(const std::uint8_t* p) noexcept {
+  std::uint64_t v = 0;
+  std::memcpy(&v, p, sizeof v);
+  return v;
+}
+
+template <class S>
+class finest_mesher {
+ public:
+  finest_mesher(const volume& field, S samples, double w)
+      : field_(field), s_(samples), w_(w), t_(the_tables()) {
+    const index3& d = field.dims();
+    nx_ = d[0];
+    ny_ = d[1];
+    nz_ = d[2];
+    rows_ = static_cast<std::size_t>(ny_ * nz_);
+    // Written by the first pass, every byte (not zeroed first: a volume's worth of bytes each).
+    masks_ = std::make_unique_for_overwrite<std::uint8_t[]>(static_cast<std::size_t>(nx_) * rows_);
+    corners_ =
+        std::make_unique_for_overwrite<std::uint8_t[]>(static_cast<std::size_t>(nx_) * rows_);
+    row_vertices_.assign(rows_ + 1, 0);
+    row_triangles_.assign(rows_ + 1, 0);
+  }
+
+  triangle_mesh run(const parallel_loop& loop, std::size_t parts) {
+    parts = std::max<std::size_t>(1, std::min(parts, rows_));
+    run_loop(loop, parts, [&](std::size_t k) {
+      count_rows(piece_begin(rows_, parts, k), piece_begin(rows_, parts, k + 1));
+    });
+    // Each row's first vertex and triangle.
+    std::uint64_t v = 0, t = 0;
+    for (std::size_t r = 0; r <= rows_; ++r) {
+      const std::uint64_t nv = row_vertices_[r], nt = row_triangles_[r];
+      row_vertices_[r] = v;
+      row_triangles_[r] = t;
+      v += nv;
+      t += nt;
+    }
+    if (v > std::numeric_limits<std::uint32_t>::max()) {
+      throw error("finest surface: " + std::to_string(v) +
+                  " vertices, beyond the 2^32 a mesh's 32-bit ids can name");
+    }
+    // The two arrays are zeroed as they are sized (a std::vector's only way): side by side.
+    triangle_mesh mesh;
+    run_loop(loop, 2, [&](std::size_t k) {
+      if (k == 0) {
+        mesh.vertices.resize(static_cast<std::size_t>(row_vertices_[rows_]));
+      } else {
+        mesh.triangles.resize(static_cast<std::size_t>(row_triangles_[rows_]));
+      }
+    });
+    run_loop(loop, parts, [&](std::size_t k) {
+      for (std::size_t r = piece_begin(rows_, parts, k); r < piece_begin(rows_, parts, k + 1);
+           ++r) {
+        write_vertices(r, mesh);
+        write_triangles(r, mesh);
+      }
+    });
+    return mesh;
+  }
+
+ private:
+  [[nodiscard]] bool black(std::int64_t i) const noexcept {
+    return static_cast<double>(s_[i]) > w_;
+  }
+
+  // Colour pairs of row (y, z): bit 0 the colour of point x (1 above the isovalue), bit 1 that
+  // of point x + 1 (0 past the end).
+  void colour_row(std::int64_t y, std::int64_t z, std::vector<std::uint8_t>& out) const {
+    const std::int64_t row = nx_ * (y + ny_ * z);
+    const auto n = static_cast<std::size_t>(nx_);
+    std::uint8_t* o = out.data();
+    for (std::size_t x = 0; x < n; ++x) {
+      o[x] = black(row + static_cast<std::int64_t>(x)) ? 1 : 0;
+    }
+    for (std::size_t x = 0; x + 1 < n; ++x)
+      o[x] = static_cast<std::uint8_t>(o[x] | (o[x + 1] << 1));
+  }
+
+  // Pass 1 over rows [first, last): each point's cube corners (colours of the eight corners,
+  // corner dx + 2 dy + 4 dz as bit), the owned edges it crosses, and each row's vertices and
+  // the triangles of its cubes. Colour rows are made once and shared by the rows beside them.
+  void count_rows(std::size_t first, std::size_t last) {
+    const auto n = static_cast<std::size_t>(nx_);
+    std::array<std::vector<std::uint8_t>, 4>
+        c;  // rows (y, z), (y + 1, z), (y, z + 1), (y + 1, z + 1)
+    for (auto& row : c) row.assign(n, 0);
+    for (std::size_t r = first; r < last; ++r) {
+      const auto y = static_cast<std::int64_t>(r) % ny_;
+      const auto z = static_cast<std::int64_t>(r) / ny_;
+      const bool up_y = y + 1 < ny_, up_z = z + 1 < nz_;
+      if (r == first || y == 0) {
+        colour_row(y, z, c[0]);
+        if (up_z) colour_row(y, z + 1, c[2]);
+      } else {
+        std::swap(c[0], c[1]);
+        std::swap(c[2], c[3]);
+      }
+      if (up_y) {
+        colour_row(y + 1, z, c[1]);
+      } else {
+        std::fill(c[1].begin(), c[1].end(), std::uint8_t{0});
+      }
+      if (up_y && up_z) {
+        colour_row(y + 1, z + 1, c[3]);
+      } else {
+        std::fill(c[3].begin(), c[3].end(), std::uint8_t{0});
+      }
+      if (!up_z) {
+        std::fill(c[2].begin(), c[2].end(), std::uint8_t{0});
+      }
+      // Corners of the cube at each x (at the last x: the corners dx = 0 alone).
+      std::uint8_t* corners = corners_.get() + n * r;
+      const std::uint8_t *c0 = c[0].data(), *c1 = c[1].data(), *c2 = c[2].data(), *c3 = c[3].data();
+      for (std::size_t x = 0; x < n; ++x) {
+        corners[x] = static_cast<std::uint8_t>(c0[x] | (c1[x] << 2) | (c2[x] << 4) | (c3[x] << 6));
+      }
+      // Slots whose ends exist, with and without the next point along x.
+      const unsigned valid_last =
+          (up_y ? 0b0000010u : 0u) | (up_z ? 0b0000100u : 0u) | (up_y && up_z ? 0b0100000u : 0u);
+      const unsigned valid = valid_last | 0b0000001u | (up_y ? 0b0001000u : 0u) |
+                             (up_z ? 0b0010000u : 0u) | (up_y && up_z ? 0b1000000u : 0u);
+      const bool cubes = up_y && up_z;
+      const std::size_t cls_yz = static_cast<std::size_t>(((y & 1) << 1) | ((z & 1) << 2));
+      std::uint8_t* mask = masks_.get() + n * r;
+      std::uint64_t vertices = 0, triangles = 0;
+      const auto point = [&](std::size_t x, unsigned ok, bool cube) {
+        const unsigned k = corners[x];
+        const std::size_t cls = cls_yz | (x & 1);
+        const auto m = static_cast<std::uint8_t>(t_.crossed[cls][k] & ok);
+        mask[x] = m;
+        vertices += bits(m);
+        if (cube) triangles += t_.counts[cls][k];
+      };
+      std::size_t x = 0;
+      while (x + 1 < n) {
+        // Eight cubes of one colour cross nothing.
+        if (x + 9 <= n) {
+          const std::uint64_t v = load8(corners + x);
+          if (v == 0 || v == ~std::uint64_t{0}) {
+            std::memset(mask + x, 0, 8);
+            x += 8;
+            continue;
+          }
+        }
+        point(x, valid, cubes);
+        ++x;
+      }
+      point(n - 1, valid_last, false);  // no cube beyond the last point
+      row_vertices_[r] = vertices;
+      row_triangles_[r] = triangles;
+    }
+  }
+
+  // Pass 2: row r's vertex positions.
+  void write_vertices(std::size_t r, triangle_mesh& mesh) const {
+    if (row_vertices_[r + 1] == row_vertices_[r]) return;
+    const auto n = static_cast<std::size_t>(nx_);
+    const auto y = static_cast<std::int64_t>(r) % ny_;
+    const auto z = static_cast<std::int64_t>(r) / ny_;
+    const std::int64_t row = nx_ * static_cast<std::int64_t>(r);
+    const std::int64_t dy = nx_, dz = nx_ * ny_;
+    const std::uint8_t* mask = masks_.get() + n * r;
+    const std::array<std::int64_t, 8> offset{0, 1, dy, dy + 1, dz, dz + 1, dy + dz, dy + dz + 1};
+    auto id = static_cast<std::size_t>(row_vertices_[r]);
+    for (std::size_t x = 0; x < n; ++x) {
+      if (x + 8 <= n && load8(mask + x) == 0) {
+        x += 7;
+        continue;
+      }
+      unsigned m = mask[x];
+      const int cls = static_cast<int>((x & 1) | static_cast<std::size_t>((y & 1) << 1) |
+                                       static_cast<std::size_t>((z & 1) << 2));
+      const auto xi = static_cast<std::int64_t>(x);
+      while (m != 0) {
+        const int k = std::countr_zero(m);
+        m &= m - 1;
+        const auto [p, q] =
+            slot_end_table[static_cast<std::size_t>(cls)][static_cast<std::size_t>(k)];
+        const ipoint a{static_cast<std::int32_t>(xi + (p & 1)),
+                       static_cast<std::int32_t>(y + ((p >> 1) & 1)),
+                       static_cast<std::int32_t>(z + (p >> 2))};
+        const ipoint b{static_cast<std::int32_t>(xi + (q & 1)),
+                       static_cast<std::int32_t>(y + ((q >> 1) & 1)),
+                       static_cast<std::int32_t>(z + (q >> 2))};
+        const double fa = static_cast<double>(s_[row + xi + offset[static_cast<std::size_t>(p)]]);
+        const double fb = static_cast<double>(s_[row + xi + offset[static_cast<std::size_t>(q)]]);
+        mesh.vertices[id++] = detail::physical_position(field_, interpolate(a, fa, b, fb, w_));
+      }
+    }
+  }
+
+  // Pass 2: the triangles of the cubes between point rows r, r + 1 (y + 1), r + ny (z + 1) and
+  // r + ny + 1, each vertex's id being its owner row's first id plus the crossed edges before it
+  // in that row (counted forward as the cubes advance, eight empty points at a time).
+  void write_triangles(std::size_t r, triangle_mesh& mesh) const {
+    const auto y = static_cast<std::int64_t>(r) % ny_;
+    const auto z = static_cast<std::int64_t>(r) / ny_;
+    if (y + 1 >= ny_ || z + 1 >= nz_ || row_triangles_[r + 1] == row_triangles_[r]) return;
+    const auto n = static_cast<std::size_t>(nx_);
+    const std::array<std::size_t, 4> rows{r, r + 1, r + static_cast<std::size_t>(ny_),
+                                          r + static_cast<std::size_t>(ny_) + 1};
+    std::array<const std::uint8_t*, 4> masks{};
+    std::array<std::uint64_t, 4> first{};  // the first id of point pos[j] in row j
+    std::array<std::size_t, 4> pos{};
+    for (std::size_t j = 0; j < 4; ++j) {
+      masks[j] = masks_.get() + n * rows[j];
+      first[j] = row_vertices_[rows[j]];
+    }
+    const auto advance = [&](std::size_t j, std::size_t to) {
+      std::size_t p = pos[j];
+      std::uint64_t f = first[j];
+      const std::uint8_t* m = masks[j];
+      while (p < to) {
+        if (p + 8 <= to && load8(m + p) == 0) {
+          p += 8;
+        } else {
+          f += bits(m[p]);
+          ++p;
+        }
+      }
+      pos[j] = p;
+      first[j] = f;
+    };
+    const std::uint8_t* corners = corners_.get() + n * r;
+    auto out = static_cast<std::size_t>(row_triangles_[r]);
+    const std::size_t cls_yz = static_cast<std::size_t>(((y & 1) << 1) | ((z & 1) << 2));
+    for (std::size_t x = 0; x + 1 < n; ++x) {
+      if (x + 9 <= n) {
+        const std::uint64_t v = load8(corners + x);
+        if (v == 0 || v == ~std::uint64_t{0}) {
+          x += 7;
+          continue;
+        }
+      }
+      const unsigned k = corners[x];
+      const std::size_t cls = cls_yz | (x & 1);
+      const cube_case& c = t_.cases[cls][k];
+      if (c.count == 0) continue;
+      for (std::size_t j = 0; j < 4; ++j) advance(j, x);
+      // The first id and the crossed edges of each corner's point.
+      std::array<std::uint64_t, 8> base{};
+      std::array<unsigned, 8> crossed{};
+      for (std::size_t j = 0; j < 4; ++j) {
+        crossed[2 * j] = masks[j][x];
+        crossed[2 * j + 1] = masks[j][x + 1];
+        base[2 * j] = first[j];
+        base[2 * j + 1] = first[j] + bits(crossed[2 * j]);
+      }
+      for (std::size_t t = 0; t < c.count; ++t) {
+        std::array<std::uint32_t, 3>& tri = mesh.triangles[out++];
+        for (std::size_t v = 0; v < 3; ++v) {
+          const unsigned edge = c.triangles[t][v];
+          const unsigned corner = edge >> 3, slot = edge & 7u;
+          tri[v] = static_cast<std::uint32_t>(base[corner] +
+                                              bits(crossed[corner] & ((1u << slot) - 1u)));
+        }
+      }
+    }
+  }
+
+  const volume& field_;
+  S s_;
+  double w_;
+  const tables& t_;
+  std::int64_t nx_ = 0, ny_ = 0, nz_ = 0;
+  std::size_t rows_ = 0;
+  std::unique_ptr<std::uint8_t[]> masks_;    // owned edges crossed, per point
+  std::unique_ptr<std::uint8_t[]> corners_;  // corner colours of the cube at each point
+  std::vector<std::uint64_t> row_vertices_;
+  std::vector<std::uint64_t> row_triangles_;
+};
+
+}  // namespace
+
+triangle_mesh finest_surface(const volume& field, double isovalue, const parallel_loop& run,
+                             std::size_t parts) {
+  if (!std::isfinite(isovalue)) {
+    throw error("finest surface: the isovalue must be finite, found " + std::to_string(isovalue));
+  }
+  return detail::visit_field(field, [&](const auto samples) {
+    finest_mesher<std::remove_cv_t<decltype(samples)>> m(field, samples, isovalue);
+    return m.run(run, parts);
+  });
+}
+
+}  // namespace progiso
