@@ -56,6 +56,8 @@ std::string contour_stats_json(const contour_arguments& a, const progiso::volume
     o << (i ? ", " : "") << json_number(a.isovalues[i]);
   }
   o << "],\n  \"mode\": \"" << mode_names[static_cast<int>(a.options.mode)] << "\",\n";
+  // "finest": full contours from two passes over the pixels, not from refinement.
+  o << "  \"path\": \"" << (r.finest_direct ? "finest" : "refinement") << "\",\n";
   o << "  \"splits\": " << splits << ",\n  \"diamonds_visited\": " << visited
     << ",\n  \"diamonds_culled\": " << culled << ",\n";
   o << "  \"pixels\": " << img.voxel_count() << ",\n";
@@ -164,6 +166,13 @@ int run_contour(const std::vector<std::string>& args) {
   if (frames) frames->publish();
   std::uint64_t splits = 0;
   for (const auto& s : r.stats) splits += s.splits;
+  if (r.finest_direct) {
+    std::printf(
+        "progiso: %zu polylines, %zu segments; finest contours %.1f ms (two passes over "
+        "the pixels); wrote %s\n",
+        polylines, segments, r.refine_seconds * 1e3, a.output->c_str());
+    return 0;
+  }
   std::printf(
       "progiso: %zu polylines, %zu segments; %llu splits; first contour %.3f ms, range data "
       "%.1f ms (%zu bytes), refinement %.1f ms; wrote %s\n",

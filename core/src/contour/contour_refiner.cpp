@@ -1,5 +1,7 @@
 #include <progiso/core/contour/contour_refiner.hpp>
 
+#include <progiso/core/contour/finest_contours.hpp>
+
 #include <algorithm>
 #include <cmath>
 #include <cstdlib>
@@ -248,6 +250,38 @@ contour_result extract_contours(const volume& image, const std::vector<double>& 
   }
   contour_result res;
   const auto t0 = clock::now();
+  if (options.mode == contour_mode::full && !options.frame && options.finest_direct) {
+    // Only the finest cut is asked for: two passes over the pixels give it (finest_contours()),
+    // without range data or splits. The first contour is the first isovalue's finest one.
+    clock::duration in_sink{};
+    for (std::size_t k = 0; k < isovalues.size(); ++k) {
+      contour_set c = finest_contours(image, isovalues[k]);
+      if (k == 0) res.first_contour_seconds = seconds(clock::now() - t0);
+      contour_statistics st;
+      st.segments = c.segment_count();
+      res.stats.push_back(st);
+      if (options.sink) {
+        const auto c0 = clock::now();
+        options.sink(c, k);
+        in_sink += clock::now() - c0;
+      } else if (res.contours.vertices.empty() && res.contours.polylines.empty()) {
+        res.contours = std::move(c);
+      } else {
+        const auto base = static_cast<std::uint32_t>(res.contours.vertices.size());
+        res.contours.vertices.insert(res.contours.vertices.end(), c.vertices.begin(),
+                                     c.vertices.end());
+        for (polyline& pl : c.polylines) {
+          for (auto& v : pl.vertices) v += base;
+          res.contours.polylines.push_back(std::move(pl));
+        }
+      }
+    }
+    res.finest_direct = true;
+    res.total_seconds = seconds(clock::now() - t0);
+    res.refine_seconds = res.total_seconds;
+    res.pipeline_seconds = res.total_seconds - seconds(in_sink);
+    return res;
+  }
   const hierarchy2d hier(image.dims()[0], image.dims()[1]);
   const range_data2d ranges(image, hier);
   const auto t1 = clock::now();

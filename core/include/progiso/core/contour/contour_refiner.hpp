@@ -146,6 +146,11 @@ struct contour_options {
   /// Called with each isovalue's contours (and its index in the list) as soon as it is
   /// finished. When set, contour_result::contours stays empty.
   std::function<void(const contour_set&, std::size_t index)> sink;
+  /// contour_mode::full without frames: each isovalue's finest cut by finest_contours()
+  /// (contour/finest_contours.hpp), two passes over the pixels, rather than by refining the
+  /// hierarchy to the end. The same contours, numbered in grid order. False: the hierarchy's
+  /// path (to compare the two, or for its split statistics).
+  bool finest_direct = true;
 };
 
 struct contour_result {
@@ -159,6 +164,9 @@ struct contour_result {
   /// in the frame and sink callbacks (writing files).
   double pipeline_seconds = 0.0;
   std::size_t range_bytes = 0;
+  /// The contours came from finest_contours() (contour_options::finest_direct): no range data,
+  /// no splits; refine_seconds is the passes' time.
+  bool finest_direct = false;
 };
 
 /// Contours of `image` (dims w, h, 1) at each isovalue. Throws progiso::error on bad input
