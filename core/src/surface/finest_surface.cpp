@@ -165,8 +165,7 @@ class finest_mesher {
     ny_ = d[1];
     nz_ = d[2];
     rows_ = static_cast<std::size_t>(ny_ * nz_);
-    // Written by the first pass, every byte (not zeroed first: a volume's worth of bytes each).
-    masks_ = std::make_unique_for_overwrite<std::uint8_t[]>(static_cast<std::size_t>(nx_) * rows_);
+    // Written by the first pass, every byte (not zeroed first: a byte per sample).
     corners_ =
         std::make_unique_for_overwrite<std::uint8_t[]>(static_cast<std::size_t>(nx_) * rows_);
     row_vertices_.assign(rows_ + 1, 0);
@@ -228,6 +227,41 @@ class finest_mesher {
       o[x] = static_cast<std::uint8_t>(o[x] | (o[x + 1] << 1));
   }
 
+  // What a row's points cross, from their corner bytes (point_masks::at()): the table of their
+  // parity and the slots whose ends exist in the row.
+  struct point_masks {
+    const std::uint8_t* corners;
+    const std::array<std::uint8_t, 256>* crossed[2];  // for even and odd x
+    unsigned valid, valid_last;
+    std::size_t last;
+    [[nodiscard]] unsigned at(std::size_t x) const noexcept {
+      return (*crossed[x & 1])[corners[x]] & (x == last ? valid_last : valid);
+    }
+    /// Whether points x … x + 7 (all before the last) cross nothing: one colour each.
+    [[nodiscard]] bool uniform8(std::size_t x) const noexcept {
+      const std::uint64_t v = load8(corners + x);
+      return v == 0 || v == ~std::uint64_t{0};
+    }
+  };
+  [[nodiscard]] point_masks masks_of(std::size_t r) const noexcept {
+    const auto n = static_cast<std::size_t>(nx_);
+    const auto y = static_cast<std::int64_t>(r) % ny_;
+    const auto z = static_cast<std::int64_t>(r) / ny_;
+    const bool up_y = y + 1 < ny_, up_z = z + 1 < nz_;
+    const auto cls_yz = static_cast<std::size_t>(((y & 1) << 1) | ((z & 1) << 2));
+    point_masks m{};
+    m.corners = corners_.get() + n * r;
+    m.crossed[0] = &t_.crossed[cls_yz];
+    m.crossed[1] = &t_.crossed[cls_yz | 1];
+    // Slots whose ends exist, with and without the next point along x.
+    m.valid_last =
+        (up_y ? 0b0000010u : 0u) | (up_z ? 0b0000100u : 0u) | (up_y && up_z ? 0b0100000u : 0u);
+    m.valid = m.valid_last | 0b0000001u | (up_y ? 0b0001000u : 0u) | (up_z ? 0b0010000u : 0u) |
+              (up_y && up_z ? 0b1000000u : 0u);
+    m.last = n - 1;
+    return m;
+  }
+
   // Pass 1 over rows [first, last): each point's cube corners (colours of the eight corners,
   // corner dx + 2 dy + 4 dz as bit), the owned edges it crosses, and each row's vertices and
   // the triangles of its cubes. Colour rows are made once and shared by the rows beside them.
@@ -266,38 +300,21 @@ class finest_mesher {
       for (std::size_t x = 0; x < n; ++x) {
         corners[x] = static_cast<std::uint8_t>(c0[x] | (c1[x] << 2) | (c2[x] << 4) | (c3[x] << 6));
       }
-      // Slots whose ends exist, with and without the next point along x.
-      const unsigned valid_last =
-          (up_y ? 0b0000010u : 0u) | (up_z ? 0b0000100u : 0u) | (up_y && up_z ? 0b0100000u : 0u);
-      const unsigned valid = valid_last | 0b0000001u | (up_y ? 0b0001000u : 0u) |
-                             (up_z ? 0b0010000u : 0u) | (up_y && up_z ? 0b1000000u : 0u);
+      const point_masks masks = masks_of(r);
       const bool cubes = up_y && up_z;
       const std::size_t cls_yz = static_cast<std::size_t>(((y & 1) << 1) | ((z & 1) << 2));
-      std::uint8_t* mask = masks_.get() + n * r;
       std::uint64_t vertices = 0, triangles = 0;
-      const auto point = [&](std::size_t x, unsigned ok, bool cube) {
-        const unsigned k = corners[x];
-        const std::size_t cls = cls_yz | (x & 1);
-        const auto m = static_cast<std::uint8_t>(t_.crossed[cls][k] & ok);
-        mask[x] = m;
-        vertices += bits(m);
-        if (cube) triangles += t_.counts[cls][k];
-      };
       std::size_t x = 0;
       while (x + 1 < n) {
-        // Eight cubes of one colour cross nothing.
-        if (x + 9 <= n) {
-          const std::uint64_t v = load8(corners + x);
-          if (v == 0 || v == ~std::uint64_t{0}) {
-            std::memset(mask + x, 0, 8);
-            x += 8;
-            continue;
-          }
+        if (x + 9 <= n && masks.uniform8(x)) {  // eight cubes of one colour cross nothing
+          x += 8;
+          continue;
         }
-        point(x, valid, cubes);
+        vertices += bits(masks.at(x));
+        if (cubes) triangles += t_.counts[cls_yz | (x & 1)][corners[x]];
         ++x;
       }
-      point(n - 1, valid_last, false);  // no cube beyond the last point
+      vertices += bits(masks.at(n - 1));  // no cube beyond the last point
       row_vertices_[r] = vertices;
       row_triangles_[r] = triangles;
     }
@@ -311,15 +328,15 @@ class finest_mesher {
     const auto z = static_cast<std::int64_t>(r) / ny_;
     const std::int64_t row = nx_ * static_cast<std::int64_t>(r);
     const std::int64_t dy = nx_, dz = nx_ * ny_;
-    const std::uint8_t* mask = masks_.get() + n * r;
+    const point_masks masks = masks_of(r);
     const std::array<std::int64_t, 8> offset{0, 1, dy, dy + 1, dz, dz + 1, dy + dz, dy + dz + 1};
     auto id = static_cast<std::size_t>(row_vertices_[r]);
     for (std::size_t x = 0; x < n; ++x) {
-      if (x + 8 <= n && load8(mask + x) == 0) {
+      if (x + 9 <= n && masks.uniform8(x)) {
         x += 7;
         continue;
       }
-      unsigned m = mask[x];
+      unsigned m = masks.at(x);
       const int cls = static_cast<int>((x & 1) | static_cast<std::size_t>((y & 1) << 1) |
                                        static_cast<std::size_t>((z & 1) << 2));
       const auto xi = static_cast<std::int64_t>(x);
@@ -351,22 +368,22 @@ class finest_mesher {
     const auto n = static_cast<std::size_t>(nx_);
     const std::array<std::size_t, 4> rows{r, r + 1, r + static_cast<std::size_t>(ny_),
                                           r + static_cast<std::size_t>(ny_) + 1};
-    std::array<const std::uint8_t*, 4> masks{};
+    std::array<point_masks, 4> masks{};
     std::array<std::uint64_t, 4> first{};  // the first id of point pos[j] in row j
     std::array<std::size_t, 4> pos{};
     for (std::size_t j = 0; j < 4; ++j) {
-      masks[j] = masks_.get() + n * rows[j];
+      masks[j] = masks_of(rows[j]);
       first[j] = row_vertices_[rows[j]];
     }
     const auto advance = [&](std::size_t j, std::size_t to) {
       std::size_t p = pos[j];
       std::uint64_t f = first[j];
-      const std::uint8_t* m = masks[j];
+      const point_masks& m = masks[j];
       while (p < to) {
-        if (p + 8 <= to && load8(m + p) == 0) {
+        if (p + 8 <= to && m.uniform8(p)) {
           p += 8;
         } else {
-          f += bits(m[p]);
+          f += bits(m.at(p));
           ++p;
         }
       }
@@ -393,8 +410,8 @@ class finest_mesher {
       std::array<std::uint64_t, 8> base{};
       std::array<unsigned, 8> crossed{};
       for (std::size_t j = 0; j < 4; ++j) {
-        crossed[2 * j] = masks[j][x];
-        crossed[2 * j + 1] = masks[j][x + 1];
+        crossed[2 * j] = masks[j].at(x);
+        crossed[2 * j + 1] = masks[j].at(x + 1);
         base[2 * j] = first[j];
         base[2 * j + 1] = first[j] + bits(crossed[2 * j]);
       }
@@ -416,7 +433,6 @@ class finest_mesher {
   const tables& t_;
   std::int64_t nx_ = 0, ny_ = 0, nz_ = 0;
   std::size_t rows_ = 0;
-  std::unique_ptr<std::uint8_t[]> masks_;    // owned edges crossed, per point
   std::unique_ptr<std::uint8_t[]> corners_;  // corner colours of the cube at each point
   std::vector<std::uint64_t> row_vertices_;
   std::vector<std::uint64_t> row_triangles_;
