@@ -10,10 +10,11 @@
 //
 // How, as Flying Edges does for marching cubes: no vertex is looked up. Each grid point owns
 // up to seven edges (+x, +y, +z, the diagonals of the three unit squares and the unit cube of
-// which it is the lowest corner); a first pass over the rows of grid points records which owned
-// edges are crossed (one byte per point) and counts each row's vertices and its cubes'
-// triangles (a table per cube, of the colours of its eight corners and the parity of its lowest
-// corner, made once from march_tet()); prefix sums give every row its first vertex and first
+// which it is the lowest corner); a first pass over the rows of grid points records each point's
+// cube corner colours (one byte per point, from which a table gives the owned edges it crosses)
+// and counts each row's vertices and its cubes' triangles (a table per cube, of the colours of
+// its eight corners and the parity of its lowest corner, made once from march_tet()); prefix
+// sums give every row its first vertex and first
 // triangle; a second pass writes each row's vertex positions and its cubes' triangles, the id
 // of an owned edge being its row's first id, plus the crossed edges of the points before it in
 // the row, plus those before it at its point. Both passes run over pieces of rows through a
