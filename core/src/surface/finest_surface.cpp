@@ -267,8 +267,8 @@ class finest_mesher {
   // the triangles of its cubes. Colour rows are made once and shared by the rows beside them.
   void count_rows(std::size_t first, std::size_t last) {
     const auto n = static_cast<std::size_t>(nx_);
-    std::array<std::vector<std::uint8_t>, 4>
-        c;  // rows (y, z), (y + 1, z), (y, z + 1), (y + 1, z + 1)
+    // Colour pairs of the rows (y, z), (y + 1, z), (y, z + 1), (y + 1, z + 1).
+    std::array<std::vector<std::uint8_t>, 4> c;
     for (auto& row : c) row.assign(n, 0);
     for (std::size_t r = first; r < last; ++r) {
       const auto y = static_cast<std::int64_t>(r) % ny_;
