@@ -6,6 +6,7 @@
 
 #include <progiso/core/base/detail/flat_map.hpp>
 #include <progiso/core/field/volume.hpp>
+#include <progiso/core/hierarchy/hierarchy.hpp>
 #include <progiso/core/surface/marching.hpp>
 #include <progiso/core/surface/mesh.hpp>
 
@@ -42,8 +43,6 @@ triangle_mesh plain_marching_tetrahedra(const volume& v, const T* s, double w) {
     }
     return id;
   };
-  static constexpr int perms[6][3] = {{0, 1, 2}, {0, 2, 1}, {1, 0, 2},
-                                      {1, 2, 0}, {2, 0, 1}, {2, 1, 0}};
   const std::int64_t sx = 1, sy = d[0], sz = d[0] * d[1];
   for (std::int32_t z = 0; z + 1 < d[2]; ++z) {
     for (std::int32_t y = 0; y + 1 < d[1]; ++y) {
@@ -58,25 +57,11 @@ triangle_mesh plain_marching_tetrahedra(const volume& v, const T* s, double w) {
         unsigned mask = 0;
         for (unsigned i = 0; i < 8; ++i) mask |= (f[i] > w ? 1u : 0u) << i;
         if (mask == 0 || mask == 0xFF) continue;
-        const ipoint b{x, y, z};
-        ipoint e{}, st{};
-        for (std::size_t q = 0; q < 3; ++q) {
-          e[q] = (b[q] & 1) == 0 ? b[q] : b[q] + 1;
-          st[q] = e[q] == b[q] ? 1 : -1;
-        }
         const auto corner = [&](const ipoint& p) {
           return f[static_cast<std::size_t>((p[0] - x) + 2 * (p[1] - y) + 4 * (p[2] - z))];
         };
-        for (const auto& pm : perms) {
-          std::array<ipoint, 4> t{};
+        for (const std::array<ipoint, 4>& t : cube_tetrahedra({x, y, z}, 1)) {
           std::array<double, 4> tf{};
-          ipoint p = e;
-          t[0] = p;
-          for (std::size_t k = 0; k < 3; ++k) {
-            const auto q = static_cast<std::size_t>(pm[k]);
-            p[q] += st[q];
-            t[k + 1] = p;
-          }
           for (std::size_t k = 0; k < 4; ++k) tf[k] = corner(t[k]);
           const tet_surface ts = march_tet(t, tf, w);
           for (int k = 0; k < ts.count; ++k) {

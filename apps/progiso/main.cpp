@@ -115,22 +115,40 @@ class progress_bar {
   void update(const progiso::extract_progress& p) {
     if (!tty_) return;
     if (std::chrono::steady_clock::now() - start_ < std::chrono::seconds(1)) return;
+    if (p.rows_total > 0) {  // the finest surface's two passes
+      const std::uint64_t per_pass = p.rows_total / 2;
+      const bool second = p.rows_done >= per_pass;
+      draw(static_cast<double>(p.rows_done) / static_cast<double>(p.rows_total));
+      // Rows as wide as their total, so that a shorter count leaves nothing of a longer one.
+      const int digits = static_cast<int>(std::to_string(per_pass).size());
+      std::fprintf(stderr, "finest surface: pass %d of 2, %*llu of %llu rows ", second ? 2 : 1,
+                   digits,
+                   static_cast<unsigned long long>(second ? p.rows_done - per_pass : p.rows_done),
+                   static_cast<unsigned long long>(per_pass));
+      return;
+    }
     const double frac = p.max_depth > 0 && p.depth >= 0
                             ? std::min(1.0, static_cast<double>(p.depth) / p.max_depth)
                             : 1.0;
-    const int width = 30;
-    const int fill = static_cast<int>(frac * width);
-    std::fprintf(stderr, "\r[%.*s%.*s] level %d/%d  %llu splits  %llu triangles ", fill,
-                 "##############################", width - fill, "..............................",
-                 p.depth, p.max_depth, static_cast<unsigned long long>(p.splits),
+    draw(frac);
+    std::fprintf(stderr, "level %d/%d  %llu splits  %llu triangles ", p.depth, p.max_depth,
+                 static_cast<unsigned long long>(p.splits),
                  static_cast<unsigned long long>(p.triangles));
-    shown_ = true;
   }
   void finish() {
     if (shown_) std::fprintf(stderr, "\n");
   }
 
  private:
+  // The bar, from the start of the line, filled to `frac` (0 to 1).
+  void draw(double frac) {
+    const int width = 30;
+    const int fill = static_cast<int>(std::clamp(frac, 0.0, 1.0) * width);
+    std::fprintf(stderr, "\r[%.*s%.*s] ", fill, "##############################", width - fill,
+                 "..............................");
+    shown_ = true;
+  }
+
   bool tty_;
   bool shown_ = false;
   std::chrono::steady_clock::time_point start_;

@@ -186,11 +186,13 @@ extract_result extract_isosurface_parallel(const volume& vol, double isovalue,
     // (finest_surface()), without range data, splits or records. Pieces of rows on the
     // engine's thread count, in a fresh arena (as the snapshots' meshes).
     const std::size_t n = eng.threads();
+    const finest_progress progress = direct_progress(options, max_depth);
     if (n <= 1) {
-      res.mesh = finest_surface(vol, isovalue);
+      res.mesh = finest_surface(vol, isovalue, {}, 1, progress);
     } else {
       tbb::task_arena arena(static_cast<int>(n));
-      arena.execute([&] { res.mesh = finest_surface(vol, isovalue, detail::tbb_loop, 16 * n); });
+      arena.execute(
+          [&] { res.mesh = finest_surface(vol, isovalue, detail::tbb_loop, 16 * n, progress); });
     }
     const auto t2 = clock::now();
     res.finest_direct = true;

@@ -9,9 +9,12 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <atomic>
 #include <cstdint>
 #include <cstring>
+#include <exception>
 #include <memory>
+#include <mutex>
 #include <set>
 #include <string>
 #include <thread>
@@ -30,16 +33,25 @@ namespace progiso {
 namespace {
 
 /// Runs the pieces last to first, on as many threads as pieces (at most 8): the passes must
-/// not depend on the order or the interleaving of their pieces.
+/// not depend on the order or the interleaving of their pieces. The first exception a piece
+/// throws is thrown again once every thread is done, as a parallel_loop must.
 void scrambled_loop(std::size_t n, const std::function<void(std::size_t)>& body) {
   std::vector<std::thread> threads;
+  std::mutex mutex;
+  std::exception_ptr failure;
   const std::size_t lanes = std::min<std::size_t>(n, 8);
   for (std::size_t l = 0; l < lanes; ++l) {
     threads.emplace_back([&, l] {
-      for (std::size_t k = l; k < n; k += lanes) body(n - 1 - k);
+      try {
+        for (std::size_t k = l; k < n; k += lanes) body(n - 1 - k);
+      } catch (...) {
+        const std::lock_guard lock(mutex);
+        if (!failure) failure = std::current_exception();
+      }
     });
   }
   for (std::thread& t : threads) t.join();
+  if (failure) std::rethrow_exception(failure);
 }
 
 bool same_bytes(const triangle_mesh& a, const triangle_mesh& b) {
@@ -134,6 +146,59 @@ TEST(FinestSurface, an_isovalue_outside_the_data_gives_nothing_and_nan_is_refuse
   EXPECT_TRUE(finest_surface(v, 100.0).empty());
   EXPECT_TRUE(finest_surface(v, 100.0).vertices.empty());
   EXPECT_THROW((void)finest_surface(v, std::nan("")), error);
+}
+
+// The progress of both passes: every row of the volume counted once per pass, reported one
+// call at a time with counts that never go down, the last call on the caller's thread with
+// everything done; the surface unchanged by being watched; a callback that throws ends the call.
+TEST(FinestSurface, reports_the_rows_of_both_passes_one_call_at_a_time_and_stops_when_told) {
+  const volume v = make_sphere_field({40, 33, 29}, {19.0, 16.0, 14.0});
+  const double w = 10.0;
+  const std::uint64_t rows_total = 2 * 33 * 29;
+  const triangle_mesh plain = finest_surface(v, w);
+  for (const std::size_t parts : {std::size_t{1}, std::size_t{7}, std::size_t{64}}) {
+    SCOPED_TRACE(parts);
+    std::atomic<bool> inside{false};
+    std::atomic<int> overlaps{0};
+    std::vector<std::uint64_t> seen;  // filled one call at a time
+    std::vector<std::thread::id> callers;
+    const finest_progress progress = [&](std::uint64_t done, std::uint64_t total) {
+      if (inside.exchange(true)) ++overlaps;
+      EXPECT_EQ(total, rows_total);
+      seen.push_back(done);
+      callers.push_back(std::this_thread::get_id());
+      std::this_thread::yield();  // widen the window another call would overlap in
+      inside.store(false);
+    };
+    const triangle_mesh watched = parts == 1
+                                      ? finest_surface(v, w, {}, 1, progress)
+                                      : finest_surface(v, w, scrambled_loop, parts, progress);
+    EXPECT_TRUE(same_bytes(plain, watched));
+    EXPECT_EQ(overlaps.load(), 0);
+    ASSERT_FALSE(seen.empty());
+    EXPECT_TRUE(std::is_sorted(seen.begin(), seen.end()));
+    EXPECT_GT(seen.front(), 0U);
+    EXPECT_EQ(seen.back(), rows_total);
+    EXPECT_EQ(callers.back(), std::this_thread::get_id());
+    if (parts == 1) {
+      // On one thread no call is dropped: 64 rows at a time through each pass (957 rows: 14
+      // steps of 64 and one of 61), then the last report.
+      EXPECT_EQ(seen.size(), 2 * 15 + 1);
+      EXPECT_EQ(seen[0], 64U);
+      EXPECT_EQ(seen[13], 896U);
+      EXPECT_EQ(seen[14], 957U);
+      EXPECT_EQ(seen[15], 957U + 64U);
+      EXPECT_EQ(seen[29], rows_total);
+    }
+  }
+  // What the callback throws leaves the call, from either pass.
+  for (const std::uint64_t stop_at : {std::uint64_t{64}, rows_total / 2 + 64}) {
+    const finest_progress stop = [stop_at](std::uint64_t done, std::uint64_t) {
+      if (done >= stop_at) throw error("stopped at " + std::to_string(done));
+    };
+    EXPECT_THROW((void)finest_surface(v, w, {}, 1, stop), error);
+    EXPECT_THROW((void)finest_surface(v, w, scrambled_loop, 7, stop), error);
+  }
 }
 
 }  // namespace

@@ -171,29 +171,13 @@ void check_against_brute_force(const index3& dims) {
     EXPECT_EQ(d.depth == 0, np == 0);
   }
 
-  // Finest level: each unit cube cut into 6 tets around the all-even to all-odd diagonal.
+  // Finest level: each unit cube cut into 6 tets around the all-even to all-odd diagonal, as
+  // cube_tetrahedra() lists them (finest_surface() and the root cubes use it).
   std::set<tet> kuhn;
   for (std::int32_t z = 0; z < h.grid_max()[2]; ++z)
     for (std::int32_t y = 0; y < h.grid_max()[1]; ++y)
       for (std::int32_t x = 0; x < h.grid_max()[0]; ++x) {
-        const ipoint b{x, y, z};
-        ipoint e{}, s{};
-        for (std::size_t q = 0; q < 3; ++q) {
-          e[q] = b[q] % 2 == 0 ? b[q] : b[q] + 1;
-          s[q] = e[q] == b[q] ? 1 : -1;
-        }
-        std::array<int, 3> perm{0, 1, 2};
-        do {
-          tet t{};
-          ipoint p = e;
-          t[0] = p;
-          for (std::size_t k = 0; k < 3; ++k) {
-            const auto q = static_cast<std::size_t>(perm[k]);
-            p[q] += s[q];
-            t[k + 1] = p;
-          }
-          kuhn.insert(sorted(t));
-        } while (std::next_permutation(perm.begin(), perm.end()));
+        for (const tet& t : cube_tetrahedra({x, y, z}, 1)) kuhn.insert(sorted(t));
       }
   EXPECT_EQ(bf.finest, kuhn);
 

@@ -7,6 +7,7 @@
 #include <cmath>
 #include <limits>
 #include <numeric>
+#include <vector>
 
 #include <gtest/gtest.h>
 
@@ -186,6 +187,40 @@ TEST(Refiner, same_split_set_gives_the_same_surface_whatever_the_order) {
   EXPECT_EQ(a.statistics().splits, c.statistics().splits);
   EXPECT_TRUE(test::same_surface(a.extract(), b.extract()));
   EXPECT_TRUE(test::same_surface(a.extract(), c.extract()));
+}
+
+// extract_isosurface() in full mode takes the direct path (finest_surface()): the surface full
+// refinement gives, with no split, and its progress told in rows; asked not to, it refines.
+TEST(Refiner, one_shot_full_extraction_gives_the_refined_surface_in_two_passes) {
+  const volume v = make_marschner_lobb({49, 45, 47});
+  extract_options o;
+  std::vector<extract_progress> direct_reports;
+  o.progress = [&](const extract_progress& p) { direct_reports.push_back(p); };
+  const extract_result direct = extract_isosurface(v, 0.5, o);
+  EXPECT_TRUE(direct.finest_direct);
+  EXPECT_EQ(direct.stats.splits, 0U);
+  EXPECT_EQ(direct.range_build_seconds, 0.0);
+  EXPECT_EQ(direct.stats.triangles, direct.mesh.triangles.size());
+  EXPECT_GT(direct.first_surface_seconds, 0.0);
+  EXPECT_EQ(direct.first_surface_seconds, direct.pipeline_seconds);
+  ASSERT_FALSE(direct_reports.empty());
+  EXPECT_EQ(direct_reports.back().rows_done, 2U * 45U * 47U);
+  EXPECT_EQ(direct_reports.back().rows_total, 2U * 45U * 47U);
+  EXPECT_EQ(direct_reports.back().depth, hierarchy(v.dims()).max_depth());
+
+  o.finest_direct = false;
+  std::uint64_t refined_reports = 0;
+  o.progress = [&](const extract_progress& p) {
+    ++refined_reports;
+    EXPECT_EQ(p.rows_total, 0U);  // splits and depths on the hierarchy's path
+  };
+  const extract_result refined = extract_isosurface(v, 0.5, o);
+  EXPECT_FALSE(refined.finest_direct);
+  EXPECT_GT(refined.stats.splits, 0U);
+  EXPECT_GT(refined_reports, 0U);
+  EXPECT_EQ(direct.mesh.triangles.size(), refined.mesh.triangles.size());
+  EXPECT_TRUE(test::same_surface(direct.mesh, refined.mesh));
+  EXPECT_TRUE(test::same_surface(direct.mesh, test::reference_marching_tetrahedra(v, 0.5).mesh));
 }
 
 TEST(Refiner, isovalue_outside_the_data_range_gives_an_empty_surface) {

@@ -952,11 +952,19 @@ TEST(Engine, parallel_extraction_matches_the_sequential_one_in_every_mode) {
   extract_options full;
   const extract_result seq = extract_isosurface(v, 0.5, full);
   const extract_result par = extract_isosurface_parallel(v, 0.5, full, 2);
-  EXPECT_TRUE(test::same_surface(seq.mesh, par.mesh));
-  full.finest_direct = false;  // the hierarchy's path: the same splits as the sequential one
+  // Both take the direct path: the same mesh, numbered alike.
+  EXPECT_TRUE(seq.finest_direct);
+  EXPECT_TRUE(par.finest_direct);
+  EXPECT_EQ(seq.mesh.vertices, par.mesh.vertices);
+  EXPECT_EQ(seq.mesh.triangles, par.mesh.triangles);
+  full.finest_direct = false;  // the hierarchy's path: the same splits on both
+  const extract_result seq_refined = extract_isosurface(v, 0.5, full);
   const extract_result refined = extract_isosurface_parallel(v, 0.5, full, 2);
+  EXPECT_FALSE(seq_refined.finest_direct);
+  EXPECT_TRUE(test::same_surface(seq.mesh, seq_refined.mesh));
   EXPECT_TRUE(test::same_surface(seq.mesh, refined.mesh));
-  EXPECT_EQ(seq.stats.splits, refined.stats.splits);
+  EXPECT_GT(refined.stats.splits, 0U);
+  EXPECT_EQ(seq_refined.stats.splits, refined.stats.splits);
   extract_options err;
   err.mode = extract_mode::error;
   err.max_error = 0.05;
@@ -966,6 +974,36 @@ TEST(Engine, parallel_extraction_matches_the_sequential_one_in_every_mode) {
   bad.mode = extract_mode::error;
   bad.max_error = -1.0;
   EXPECT_THROW((void)extract_isosurface_parallel(v, 0.5, bad, 2), error);
+}
+
+TEST(Engine, full_pipeline_reports_the_rows_of_its_two_passes_one_call_at_a_time) {
+  const volume v = make_marschner_lobb({41, 37, 33});
+  for (const unsigned threads : {1U, 2U, 4U}) {
+    SCOPED_TRACE(threads);
+    std::atomic<bool> inside{false};
+    std::atomic<int> overlaps{0};
+    std::vector<extract_progress> seen;  // one call at a time
+    extract_options o;
+    o.progress = [&](const extract_progress& p) {
+      if (inside.exchange(true)) ++overlaps;
+      seen.push_back(p);
+      std::this_thread::yield();
+      inside.store(false);
+    };
+    const extract_result r = extract_isosurface_parallel(v, 0.5, o, threads);
+    ASSERT_TRUE(r.finest_direct);
+    EXPECT_EQ(overlaps.load(), 0);
+    ASSERT_FALSE(seen.empty());
+    for (std::size_t i = 0; i < seen.size(); ++i) {
+      EXPECT_EQ(seen[i].rows_total, 2U * 37U * 33U);
+      EXPECT_EQ(seen[i].depth, seen[i].max_depth);
+      EXPECT_GT(seen[i].max_depth, 0);
+      if (i > 0) {
+        EXPECT_GE(seen[i].rows_done, seen[i - 1].rows_done);
+      }
+    }
+    EXPECT_EQ(seen.back().rows_done, seen.back().rows_total);
+  }
 }
 
 TEST(Engine, root_surface_is_published_before_any_pass_over_the_volume) {

@@ -307,29 +307,12 @@ void hierarchy::root_tets(std::uint64_t r,
                           std::array<std::array<ipoint, 4>, 6>& out) const noexcept {
   const auto cx = static_cast<std::uint64_t>(cubes_[0]);
   const auto cy = static_cast<std::uint64_t>(cubes_[1]);
-  const ipoint m{static_cast<std::int32_t>(r % cx) * root_,
-                 static_cast<std::int32_t>((r / cx) % cy) * root_,
-                 static_cast<std::int32_t>(r / (cx * cy)) * root_};
   // The diagonal joins the corner whose coordinates are even multiples of N to the corner
   // whose coordinates are odd multiples of N (the reflected pattern, consistent across cubes).
-  ipoint e{};
-  ipoint step{};
-  for (std::size_t q = 0; q < 3; ++q) {
-    const bool even = ((m[q] / root_) & 1) == 0;
-    e[q] = even ? m[q] : m[q] + root_;
-    step[q] = even ? root_ : -root_;
-  }
-  static constexpr int perms[6][3] = {{0, 1, 2}, {0, 2, 1}, {1, 0, 2},
-                                      {1, 2, 0}, {2, 0, 1}, {2, 1, 0}};
-  for (std::size_t t = 0; t < 6; ++t) {
-    ipoint p = e;
-    out[t][0] = p;
-    for (std::size_t s = 0; s < 3; ++s) {
-      const auto q = static_cast<std::size_t>(perms[t][s]);
-      p[q] += step[q];
-      out[t][s + 1] = p;
-    }
-  }
+  out = cube_tetrahedra(
+      {static_cast<std::int32_t>(r % cx) * root_, static_cast<std::int32_t>((r / cx) % cy) * root_,
+       static_cast<std::int32_t>(r / (cx * cy)) * root_},
+      root_);
 }
 
 std::array<ipoint, 2> hierarchy::spine_ends(const ipoint& d2) const noexcept {

@@ -268,6 +268,18 @@ void check_extract_inputs(double isovalue, const extract_options& options) {
   }
 }
 
+finest_progress direct_progress(const extract_options& options, int max_depth) {
+  if (!options.progress) return {};
+  return [&options, max_depth](std::uint64_t done, std::uint64_t total) {
+    extract_progress p;
+    p.depth = max_depth;
+    p.max_depth = max_depth;
+    p.rows_done = done;
+    p.rows_total = total;
+    options.progress(p);
+  };
+}
+
 extract_result extract_isosurface(const volume& vol, double isovalue,
                                   const extract_options& options) {
   using clock = std::chrono::steady_clock;
@@ -275,6 +287,26 @@ extract_result extract_isosurface(const volume& vol, double isovalue,
   check_extract_inputs(isovalue, options);
   extract_result res;
   const auto t0 = clock::now();
+  if (options.mode == extract_mode::full && options.finest_direct) {
+    // The finest cut alone: two passes over the samples, no range data or splits (the engine's
+    // entry does the same after its root surface).
+    res.mesh = finest_surface(vol, isovalue, {}, 1,
+                              direct_progress(options, hierarchy(vol.dims()).max_depth()));
+    const auto t1 = clock::now();
+    res.finest_direct = true;
+    res.first_surface_seconds = seconds(t1 - t0);
+    res.extract_seconds = res.first_surface_seconds;
+    res.total_seconds = res.first_surface_seconds;
+    res.pipeline_seconds = res.first_surface_seconds;
+    res.stats.triangles = res.mesh.triangles.size();
+    if (options.normals) {
+      add_vertex_normals(res.mesh, vol);
+      res.normals_seconds = seconds(clock::now() - t1);
+    }
+    const auto [lo, hi] = vol.value_range();
+    res.isovalue_outside_data = !(lo <= isovalue && isovalue < hi);
+    return res;
+  }
   const hierarchy hier(vol.dims());
   const range_data ranges(vol, hier);
   const auto t1 = clock::now();

@@ -1,17 +1,21 @@
 #include <progiso/core/surface/finest_surface.hpp>
 
+#include <algorithm>
 #include <array>
+#include <atomic>
 #include <bit>
 #include <cmath>
 #include <cstdint>
 #include <cstring>
 #include <limits>
 #include <memory>
+#include <mutex>
 #include <string>
 #include <vector>
 
 #include <progiso/core/base/error.hpp>
 #include <progiso/core/field/detail/subdivision.hpp>
+#include <progiso/core/hierarchy/hierarchy.hpp>
 #include <progiso/core/surface/detail/mesh_clip.hpp>
 #include <progiso/core/surface/marching.hpp>
 
@@ -71,8 +75,6 @@ constexpr std::array<int, 2> slot_ends(int cls, int k) noexcept {
 
 tables make_tables() {
   tables t;
-  static constexpr int perms[6][3] = {{0, 1, 2}, {0, 2, 1}, {1, 0, 2},
-                                      {1, 2, 0}, {2, 0, 1}, {2, 1, 0}};
   for (int cls = 0; cls < 8; ++cls) {
     const ipoint b{cls & 1, (cls >> 1) & 1, (cls >> 2) & 1};
     for (int mask = 0; mask < 256; ++mask) {
@@ -82,29 +84,16 @@ tables make_tables() {
         if (((mask >> p) & 1) != ((mask >> q) & 1)) crossed |= static_cast<std::uint8_t>(1u << k);
       }
       t.crossed[static_cast<std::size_t>(cls)][static_cast<std::size_t>(mask)] = crossed;
-      // The six tetrahedra around the diagonal from the even corner, as full refinement leaves
-      // them; colours from the mask (1 above the isovalue 0, −1 at or below).
-      ipoint e{}, st{};
-      for (std::size_t a = 0; a < 3; ++a) {
-        e[a] = (b[a] & 1) == 0 ? b[a] : b[a] + 1;
-        st[a] = e[a] == b[a] ? 1 : -1;
-      }
+      // The six tetrahedra of the unit cube, as full refinement leaves them; colours from the
+      // mask (1 above the isovalue 0, −1 at or below).
       const auto value = [&](const ipoint& p) {
         const int corner = (p[0] - b[0]) + 2 * (p[1] - b[1]) + 4 * (p[2] - b[2]);
         return ((mask >> corner) & 1) != 0 ? 1.0 : -1.0;
       };
       cube_case& c = t.cases[static_cast<std::size_t>(cls)][static_cast<std::size_t>(mask)];
       std::uint8_t& count = t.counts[static_cast<std::size_t>(cls)][static_cast<std::size_t>(mask)];
-      for (const auto& pm : perms) {
-        std::array<ipoint, 4> tet{};
+      for (const std::array<ipoint, 4>& tet : cube_tetrahedra(b, 1)) {
         std::array<double, 4> f{};
-        ipoint p = e;
-        tet[0] = p;
-        for (std::size_t k = 0; k < 3; ++k) {
-          const auto a = static_cast<std::size_t>(pm[k]);
-          p[a] += st[a];
-          tet[k + 1] = p;
-        }
         for (std::size_t k = 0; k < 4; ++k) f[k] = value(tet[k]);
         const tet_surface s = march_tet(tet, f, 0.0);
         count = static_cast<std::uint8_t>(count + s.count);
@@ -148,6 +137,40 @@ const tables& the_tables() {
   return t;
 }
 
+/// Rows done, passed on to a finest_progress one call at a time (see finest_surface.hpp).
+class progress_relay {
+ public:
+  static constexpr std::size_t step = 64;  // rows between reports
+
+  progress_relay(const finest_progress& to, std::uint64_t total) : to_(to), total_(total) {}
+
+  [[nodiscard]] bool active() const noexcept { return static_cast<bool>(to_); }
+
+  /// `rows` more rows done; tells the callback unless another thread is telling it now.
+  void add(std::uint64_t rows) {
+    // relaxed: a count; the mutex below orders the calls and what they are told.
+    const std::uint64_t done = done_.fetch_add(rows, std::memory_order_relaxed) + rows;
+    const std::unique_lock lock(mutex_, std::try_to_lock);
+    if (!lock.owns_lock()) return;
+    told_ = std::max(told_, done);
+    to_(told_, total_);
+  }
+
+  /// The last report, on the calling thread once both passes are over.
+  void finish() {
+    const std::lock_guard lock(mutex_);
+    told_ = total_;
+    to_(total_, total_);
+  }
+
+ private:
+  const finest_progress& to_;
+  std::uint64_t total_;
+  std::atomic<std::uint64_t> done_{0};
+  std::mutex mutex_;
+  std::uint64_t told_ = 0;  // under mutex_
+};
+
 /// Eight bytes from p (any alignment).
 inline std::uint64_t load8(const std::uint8_t* p) noexcept {
   std::uint64_t v = 0;
@@ -172,10 +195,23 @@ class finest_mesher {
     row_triangles_.assign(rows_ + 1, 0);
   }
 
-  triangle_mesh run(const parallel_loop& loop, std::size_t parts) {
+  triangle_mesh run(const parallel_loop& loop, std::size_t parts, const finest_progress& to) {
     parts = std::max<std::size_t>(1, std::min(parts, rows_));
+    progress_relay progress(to, 2 * static_cast<std::uint64_t>(rows_));
+    // Rows [first, last) of the second pass, `step` rows at a time, each step reported.
+    const auto in_steps = [&](std::size_t first, std::size_t last, const auto& pass) {
+      if (!progress.active()) {
+        pass(first, last);
+        return;
+      }
+      for (std::size_t r = first; r < last; r += progress_relay::step) {
+        const std::size_t end = std::min(last, r + progress_relay::step);
+        pass(r, end);
+        progress.add(end - r);
+      }
+    };
     run_loop(loop, parts, [&](std::size_t k) {
-      count_rows(piece_begin(rows_, parts, k), piece_begin(rows_, parts, k + 1));
+      count_rows(piece_begin(rows_, parts, k), piece_begin(rows_, parts, k + 1), progress);
     });
     // Each row's first vertex and triangle.
     std::uint64_t v = 0, t = 0;
@@ -200,12 +236,15 @@ class finest_mesher {
       }
     });
     run_loop(loop, parts, [&](std::size_t k) {
-      for (std::size_t r = piece_begin(rows_, parts, k); r < piece_begin(rows_, parts, k + 1);
-           ++r) {
-        write_vertices(r, mesh);
-        write_triangles(r, mesh);
-      }
+      in_steps(piece_begin(rows_, parts, k), piece_begin(rows_, parts, k + 1),
+               [&](std::size_t first, std::size_t last) {
+                 for (std::size_t r = first; r < last; ++r) {
+                   write_vertices(r, mesh);
+                   write_triangles(r, mesh);
+                 }
+               });
     });
+    if (progress.active()) progress.finish();
     return mesh;
   }
 
@@ -265,8 +304,10 @@ class finest_mesher {
   // Pass 1 over rows [first, last): each point's cube corners (colours of the eight corners,
   // corner dx + 2 dy + 4 dz as bit), the owned edges it crosses, and each row's vertices and
   // the triangles of its cubes. Colour rows are made once and shared by the rows beside them.
-  void count_rows(std::size_t first, std::size_t last) {
+  // Every `progress_relay::step` rows and at the end, the rows done go to `progress`.
+  void count_rows(std::size_t first, std::size_t last, progress_relay& progress) {
     const auto n = static_cast<std::size_t>(nx_);
+    std::size_t unreported = 0;
     // Colour pairs of the rows (y, z), (y + 1, z), (y, z + 1), (y + 1, z + 1).
     std::array<std::vector<std::uint8_t>, 4> c;
     for (auto& row : c) row.assign(n, 0);
@@ -317,6 +358,10 @@ class finest_mesher {
       vertices += bits(masks.at(n - 1));  // no cube beyond the last point
       row_vertices_[r] = vertices;
       row_triangles_[r] = triangles;
+      if (++unreported == progress_relay::step || r + 1 == last) {
+        if (progress.active()) progress.add(unreported);
+        unreported = 0;
+      }
     }
   }
 
@@ -441,13 +486,13 @@ class finest_mesher {
 }  // namespace
 
 triangle_mesh finest_surface(const volume& field, double isovalue, const parallel_loop& run,
-                             std::size_t parts) {
+                             std::size_t parts, const finest_progress& progress) {
   if (!std::isfinite(isovalue)) {
     throw error("finest surface: the isovalue must be finite, found " + std::to_string(isovalue));
   }
   return detail::visit_field(field, [&](const auto samples) {
     finest_mesher<std::remove_cv_t<decltype(samples)>> m(field, samples, isovalue);
-    return m.run(run, parts);
+    return m.run(run, parts, progress);
   });
 }
 

@@ -53,6 +53,36 @@ namespace progiso {
           static_cast<int>(code / 25) - 2};
 }
 
+/// The six tetrahedra of the cube with lowest corner `lowest` and edge `size` (each coordinate
+/// of `lowest` a multiple of `size`), as longest-edge bisection leaves them: around the diagonal
+/// from the cube's corner whose coordinates are even multiples of `size` to the opposite
+/// corner, each tetrahedron that corner and one step of `size` towards the other along each
+/// axis in turn, the six orders of the axes (x y z, x z y, y x z, y z x, z x y, z y x) giving
+/// the six. Neighbouring cubes reflect the pattern, so their faces' diagonals agree. The root
+/// cubes of a hierarchy (size N) and the unit cubes of the finest mesh (size 1).
+[[nodiscard]] constexpr std::array<std::array<ipoint, 4>, 6> cube_tetrahedra(
+    const ipoint& lowest, std::int32_t size) noexcept {
+  constexpr int orders[6][3] = {{0, 1, 2}, {0, 2, 1}, {1, 0, 2}, {1, 2, 0}, {2, 0, 1}, {2, 1, 0}};
+  ipoint from{};
+  ipoint step{};
+  for (std::size_t a = 0; a < 3; ++a) {
+    const bool even = ((lowest[a] / size) & 1) == 0;
+    from[a] = even ? lowest[a] : lowest[a] + size;
+    step[a] = even ? size : -size;
+  }
+  std::array<std::array<ipoint, 4>, 6> out{};
+  for (std::size_t t = 0; t < 6; ++t) {
+    ipoint p = from;
+    out[t][0] = p;
+    for (std::size_t k = 0; k < 3; ++k) {
+      const auto a = static_cast<std::size_t>(orders[t][k]);
+      p[a] += step[a];
+      out[t][k + 1] = p;
+    }
+  }
+  return out;
+}
+
 /// What the centre of a diamond determines.
 struct diamond {
   ipoint centre{};

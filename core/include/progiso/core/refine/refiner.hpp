@@ -17,7 +17,8 @@
 // in a cut exactly when its record is in the cut and its owner is not, so extract() and
 // extract_cut() walk records without touching the field except to place vertices.
 //
-// extract_isosurface() is the one-shot entry point used by the command-line tool.
+// extract_isosurface() is the one-shot entry point on this thread; the command-line tool runs
+// extract_isosurface_parallel() (scheduler/engine.hpp), the same through the engine.
 //
 // Thread safety: a refiner is a single-threaded object; distinct refiners over the same
 // volume, hierarchy and range data may run concurrently.
@@ -39,6 +40,7 @@
 #include <progiso/core/field/volume.hpp>
 #include <progiso/core/hierarchy/hierarchy.hpp>
 #include <progiso/core/ranges/range_data.hpp>
+#include <progiso/core/surface/finest_surface.hpp>
 #include <progiso/core/surface/mesh.hpp>
 #include <progiso/core/surface/split_record.hpp>
 
@@ -176,12 +178,18 @@ class refiner {
 
 enum class extract_mode { full, error, triangles, time };
 
-/// Progress of a running extraction.
+/// Progress of a running extraction. On the hierarchy's path: splits, triangles and depths;
+/// on the direct path (extract_options::finest_direct): the rows of grid points its two passes
+/// have done (finest_progress, surface/finest_surface.hpp) and depth == max_depth.
 struct extract_progress {
   std::uint64_t splits = 0;
   std::uint64_t triangles = 0;
   int depth = 0;      ///< depth being refined
   int max_depth = 0;  ///< deepest level of the hierarchy
+  /// The direct path: rows done by its two passes, of rows_total (twice the volume's rows);
+  /// both 0 on the hierarchy's path.
+  std::uint64_t rows_done = 0;
+  std::uint64_t rows_total = 0;
 };
 
 struct extract_options {
@@ -191,16 +199,16 @@ struct extract_options {
   /// extract_mode::time: from the volume in memory (the engine's path) or from the start of
   /// refinement, after the range data (extract_isosurface()).
   std::chrono::duration<double> time_budget{0.0};
-  /// Called about every 4096 splits.
+  /// Called about every 4096 splits; on the direct path every 64 rows of a pass (one call at a
+  /// time, from any of the run's threads).
   std::function<void(const extract_progress&)> progress;
   /// Give the mesh vertex normals from the field's gradient (add_vertex_normals(),
   /// surface/normals.hpp), after the pipeline: timed as normals_seconds.
   bool normals = false;
-  /// extract_mode::full through the engine (extract_isosurface_parallel()): give the finest cut
-  /// by finest_surface() (surface/finest_surface.hpp), two streaming passes over the samples,
-  /// rather than by refining the hierarchy to the end and extracting its cut. The same surface;
-  /// its vertices and triangles numbered in grid order. False: the hierarchy's path (to compare
-  /// the two, or for its split statistics).
+  /// extract_mode::full: give the finest cut by finest_surface() (surface/finest_surface.hpp),
+  /// two streaming passes over the samples, rather than by refining the hierarchy to the end
+  /// and extracting its cut. The same surface; its vertices and triangles numbered in grid
+  /// order. False: the hierarchy's path (to compare the two, or for its split statistics).
   bool finest_direct = true;
 };
 
@@ -209,7 +217,8 @@ struct extract_result {
   refine_statistics stats;
   double range_build_seconds = 0.0;
   /// Root surface extracted: from the volume in memory (the engine's path), from the start of
-  /// refinement (extract_isosurface()).
+  /// refinement (extract_isosurface()). The direct path of extract_isosurface() makes no root
+  /// surface: its first surface is the finest one, from the volume in memory.
   double first_surface_seconds = 0.0;
   double refine_seconds = 0.0;
   double extract_seconds = 0.0;
@@ -229,8 +238,14 @@ struct extract_result {
 /// Throws progiso::error for a non-finite isovalue or invalid options (shared by every entry).
 void check_extract_inputs(double isovalue, const extract_options& options);
 
-/// Builds the hierarchy and range data, refines in the requested mode and extracts the cut.
-/// Throws progiso::error for a non-finite isovalue or invalid options.
+/// What the direct path (extract_options::finest_direct) passes to finest_surface() to tell
+/// `options.progress` of its rows (an empty callback when `options.progress` is; shared by
+/// every entry): depth and max_depth both `max_depth`.
+[[nodiscard]] finest_progress direct_progress(const extract_options& options, int max_depth);
+
+/// Builds the hierarchy and range data, refines in the requested mode and extracts the cut; for
+/// extract_mode::full with extract_options::finest_direct (the default), finest_surface()
+/// instead, on this thread. Throws progiso::error for a non-finite isovalue or invalid options.
 [[nodiscard]] extract_result extract_isosurface(const volume& vol, double isovalue,
                                                 const extract_options& options);
 

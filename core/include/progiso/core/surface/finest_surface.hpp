@@ -20,12 +20,17 @@
 // the row, plus those before it at its point. Both passes run over pieces of rows through a
 // parallel_loop, and the output is the same for every piece count.
 //
+// Progress: each pass reports the rows it has finished, in steps of 64 rows, through an
+// optional callback (a command's progress bar over a 1024³ volume's seconds).
+//
 // Cost: the samples are read twice, each pass in row order; one byte per grid point and two
 // counts per row beside the output. No allocation per vertex or triangle.
 // Thread safety: reads `field` only.
 #pragma once
 
 #include <cstddef>
+#include <cstdint>
+#include <functional>
 
 #include <progiso/core/base/config.hpp>
 #include <progiso/core/base/parallel_loop.hpp>
@@ -34,12 +39,21 @@
 
 namespace progiso {
 
+/// Work done by finest_surface(): rows of grid points finished by its two passes (each row
+/// counted once per pass), out of `rows_total` (twice the rows of the volume). Called from
+/// whichever thread finished them, one call at a time (calls never overlap; one that would is
+/// dropped), with `rows_done` never decreasing from one call to the next; the last call, on the
+/// calling thread after both passes, has rows_done == rows_total. Keep it short.
+using finest_progress = std::function<void(std::uint64_t rows_done, std::uint64_t rows_total)>;
+
 /// The surface of the finest cut at `isovalue` (see the file comment), positions in the physical
 /// frame (origin + index × spacing), in `parts` pieces of rows through `run` (on this thread
 /// when `run` is empty). Vertices are numbered by grid point (z, then y, then x) and owned
-/// edge; triangles follow their cubes in the same order. Throws progiso::error for a
-/// non-finite isovalue and for a surface of 2^32 vertices or more.
+/// edge; triangles follow their cubes in the same order. `progress`, when not empty, is told the
+/// rows done (finest_progress). Throws progiso::error for a non-finite isovalue and for a
+/// surface of 2^32 vertices or more; what `progress` throws ends the call.
 [[nodiscard]] triangle_mesh finest_surface(const volume& field, double isovalue,
-                                           const parallel_loop& run = {}, std::size_t parts = 1);
+                                           const parallel_loop& run = {}, std::size_t parts = 1,
+                                           const finest_progress& progress = {});
 
 }  // namespace progiso
