@@ -108,13 +108,18 @@ std::string stats_json(const arguments& a, const std::string& input, double iso,
   return o.str();
 }
 
-// A progress bar on stderr, shown only on a terminal and only once a run has taken a second.
+// A progress bar on stderr, shown only on a terminal and only once a run has taken a second;
+// redrawn at most ten times a second, and once more when the finest surface's passes end.
 class progress_bar {
  public:
   progress_bar() : tty_(isatty(STDERR_FILENO) != 0), start_(std::chrono::steady_clock::now()) {}
   void update(const progiso::extract_progress& p) {
     if (!tty_) return;
-    if (std::chrono::steady_clock::now() - start_ < std::chrono::seconds(1)) return;
+    const auto now = std::chrono::steady_clock::now();
+    if (now - start_ < std::chrono::seconds(1)) return;
+    const bool last = p.rows_total > 0 && p.rows_done == p.rows_total;
+    if (shown_ && !last && now - drawn_ < std::chrono::milliseconds(100)) return;
+    drawn_ = now;
     if (p.rows_total > 0) {  // the finest surface's two passes
       const std::uint64_t per_pass = p.rows_total / 2;
       const bool second = p.rows_done >= per_pass;
@@ -152,6 +157,7 @@ class progress_bar {
   bool tty_;
   bool shown_ = false;
   std::chrono::steady_clock::time_point start_;
+  std::chrono::steady_clock::time_point drawn_;  // the last redraw
 };
 
 /// Refuses a PLY or STL output whose float coordinates could not hold the volume's extent (in
