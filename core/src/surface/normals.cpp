@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <array>
+#include <bit>
 #include <cmath>
 #include <cstdint>
 #include <limits>
@@ -75,11 +76,18 @@ vec3 descent_at(const Samples& s, const grid_frame& f, const vec3& p) {
     const std::int64_t sy = f.stride[1];
     const std::int64_t sz = f.stride[2];
     const std::int64_t base = cell[0] + sy * cell[1] + sz * cell[2];
-    for (std::size_t corner = 0; corner < 8; ++corner) {
+    // Corners of weight 0 (the vertex on the cell's face or edge, as every vertex of the finest
+    // cut is) add only a zero: they are left out, which changes at most the sign of a zero.
+    unsigned live = 0xFFu;
+    if (t[0] == 0.0) live &= 0x55u;
+    if (t[1] == 0.0) live &= 0x33u;
+    if (t[2] == 0.0) live &= 0x0Fu;
+    for (; live != 0; live &= live - 1) {
+      const auto corner = static_cast<std::size_t>(std::countr_zero(live));
       const std::size_t bx = corner & 1u;
       const std::size_t by = (corner >> 1) & 1u;
       const std::size_t bz = corner >> 2;
-      const double weight = wx[bx] * wy[by] * wz[bz];  // zero ones too: no branch to mispredict
+      const double weight = wx[bx] * wy[by] * wz[bz];
       const std::int64_t at = base + static_cast<std::int64_t>(bx) +
                               sy * static_cast<std::int64_t>(by) +
                               sz * static_cast<std::int64_t>(bz);
