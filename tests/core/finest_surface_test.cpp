@@ -163,18 +163,20 @@ TEST(FinestSurface, reports_the_rows_of_both_passes_one_call_at_a_time_and_stops
     std::vector<std::uint64_t> seen;  // filled one call at a time
     std::vector<std::thread::id> callers;
     const finest_progress progress = [&](std::uint64_t done, std::uint64_t total) {
+      // seq_cst: the exchange pairs with another call's store of false below; a call that
+      // finds true overlaps one still running.
       if (inside.exchange(true)) ++overlaps;
       EXPECT_EQ(total, rows_total);
       seen.push_back(done);
       callers.push_back(std::this_thread::get_id());
       std::this_thread::yield();  // widen the window another call would overlap in
-      inside.store(false);
+      inside.store(false);        // seq_cst: pairs with the next call's exchange
     };
     const triangle_mesh watched = parts == 1
                                       ? finest_surface(v, w, {}, 1, progress)
                                       : finest_surface(v, w, scrambled_loop, parts, progress);
     EXPECT_TRUE(same_bytes(plain, watched));
-    EXPECT_EQ(overlaps.load(), 0);
+    EXPECT_EQ(overlaps.load(), 0);  // seq_cst: after the run's threads are joined
     ASSERT_FALSE(seen.empty());
     EXPECT_TRUE(std::is_sorted(seen.begin(), seen.end()));
     EXPECT_GT(seen.front(), 0U);

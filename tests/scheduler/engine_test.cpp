@@ -985,14 +985,16 @@ TEST(Engine, full_pipeline_reports_the_rows_of_its_two_passes_one_call_at_a_time
     std::vector<extract_progress> seen;  // one call at a time
     extract_options o;
     o.progress = [&](const extract_progress& p) {
+      // seq_cst: the exchange pairs with another call's store of false below; a call that
+      // finds true overlaps one still running.
       if (inside.exchange(true)) ++overlaps;
       seen.push_back(p);
       std::this_thread::yield();
-      inside.store(false);
+      inside.store(false);  // seq_cst: pairs with the next call's exchange
     };
     const extract_result r = extract_isosurface_parallel(v, 0.5, o, threads);
     ASSERT_TRUE(r.finest_direct);
-    EXPECT_EQ(overlaps.load(), 0);
+    EXPECT_EQ(overlaps.load(), 0);  // seq_cst: after the run's threads are joined
     ASSERT_FALSE(seen.empty());
     for (std::size_t i = 0; i < seen.size(); ++i) {
       EXPECT_EQ(seen[i].rows_total, 2U * 37U * 33U);
