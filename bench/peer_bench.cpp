@@ -313,8 +313,10 @@ void BM_peer_scaling(benchmark::State& state) {
 // voxel (the largest spacing) of the surface progiso publishes by a deadline of 1/8, 1/4, 1/2
 // and 1 × Flying Edges' full time (FE's median over 5 runs, same thread count), counted from
 // the volume in memory. Per deadline: the median over 3 runs of the fraction (100 000 points
-// drawn by area on the full surface, exact distances to the cut from a CGAL AABB tree) and of
-// the cut's triangles.
+// drawn by area on the full surface, exact distances to the cut from a CGAL AABB tree), of the
+// cut's triangles and of the stride of the uniform cut reached (the default, the ladder of
+// uniform cuts: area_, tri_, stride_); the same for refinement by priority (prio_area_,
+// prio_tri_), its runs alternated with the ladder's (ABBA).
 
 void BM_deadline_quality(benchmark::State& state) {
   auto [in, vol, threads, fe] = volume_setup(state);
@@ -334,19 +336,28 @@ void BM_deadline_quality(benchmark::State& state) {
     state.counters["fe_ms"] = fe_full;
     state.counters["full_triangles"] = static_cast<double>(full.triangles.size());
     for (const int d : divisors) {
-      std::vector<double> fraction;
-      std::vector<double> triangles;
-      for (int k = 0; k < 3; ++k) {
+      // The ladder of uniform cuts (the default) and refinement by priority, alternated.
+      std::array<std::vector<double>, 2> fraction;
+      std::array<std::vector<double>, 2> triangles;
+      std::vector<double> strides;
+      for (int k = 0; k < 6; ++k) {
+        const bool ladder = (k % 2 == 0) == (k % 4 < 2);
         extract_options o;
         o.mode = extract_mode::time;
         o.time_budget = std::chrono::duration<double, std::milli>(fe_full / d);
+        o.deadline_ladder = ladder;
         const extract_result r = extract_isosurface_parallel(vol, in.isovalue, o, threads);
-        fraction.push_back(area_within(full, r.mesh, voxel, 100000).fraction);
-        triangles.push_back(static_cast<double>(r.mesh.triangles.size()));
+        const std::size_t j = ladder ? 0 : 1;
+        fraction[j].push_back(area_within(full, r.mesh, voxel, 100000).fraction);
+        triangles[j].push_back(static_cast<double>(r.mesh.triangles.size()));
+        if (ladder) strides.push_back(r.ladder_stride);
       }
       const std::string at = "1/" + std::to_string(d);
-      state.counters["area_" + at] = median(fraction);
-      state.counters["tri_" + at] = median(triangles);
+      state.counters["area_" + at] = median(fraction[0]);
+      state.counters["tri_" + at] = median(triangles[0]);
+      state.counters["stride_" + at] = median(strides);
+      state.counters["prio_area_" + at] = median(fraction[1]);
+      state.counters["prio_tri_" + at] = median(triangles[1]);
     }
   }
 }

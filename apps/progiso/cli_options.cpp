@@ -16,7 +16,7 @@ const char* const usage_text =
     "  progiso extract INPUT -o OUT.ply|OUT.obj|OUT.stl --iso W\n"
     "          [--dims NX,NY,NZ --type u8|i8|u16|i16|u32|i32|f32|f64 [--big-endian]]\n"
     "          [--spacing SX,SY,SZ | --world] [--series N|UID] [--volume K]\n"
-    "          [--full | --error E | --max-triangles K | --time-ms T]\n"
+    "          [--full | --error E | --max-triangles K | --time-ms T [--by-priority]]\n"
     "          [--stats-json FILE] [--threads N] [--normals]\n"
     "          [--smooth S] [--smooth-from K] [--smooth-region X0,Y0,Z0,X1,Y1,Z1] [--alpha A]\n"
     "  progiso extract --demo -o OUT.ply [--iso W] [--threads N] [--normals]\n"
@@ -50,7 +50,9 @@ const char* const usage_text =
     "given).\n"
     "Modes: --full (default) refines everywhere the surface can be; --error E stops when\n"
     "every remaining split error is <= E; --max-triangles K keeps at most K triangles;\n"
-    "--time-ms T refines for T milliseconds and returns the surface published by then.\n"
+    "--time-ms T returns the finest surface made within T milliseconds: uniform cuts of the\n"
+    "hierarchy, coarse to fine (every 2^k-th sample, then every 2^(k-1)-th, ... then every\n"
+    "sample); with --by-priority, the hierarchy refined by largest error first instead.\n"
     "--threads N runs the concurrent engine on N threads (default: all cores); --full gives\n"
     "the same file for every N.\n"
     "--normals gives every vertex a unit normal for smooth shading (PLY nx ny nz, OBJ vn):\n"
@@ -264,6 +266,7 @@ extract_arguments parse_extract(const std::vector<std::string>& args) {
     throw error("unknown command " + shown(args[0]) + " (expected 'extract' or 'contour')");
   }
   int modes = 0;
+  bool by_priority = false;
   for (std::size_t i = 1; i < args.size(); ++i) {
     const std::string& f = args[i];
     const auto value = [&] { return next_value(args, i, f); };
@@ -300,6 +303,9 @@ extract_arguments parse_extract(const std::vector<std::string>& args) {
       a.big_endian = true;
     } else if (f == "--normals") {
       a.options.normals = true;
+    } else if (f == "--by-priority") {
+      a.options.deadline_ladder = false;
+      by_priority = true;
     } else if (f == "--world") {
       a.world = true;
     } else if (f == "--series") {
@@ -333,6 +339,9 @@ extract_arguments parse_extract(const std::vector<std::string>& args) {
     }
   }
   if (modes > 1) throw error("choose at most one of --full, --error, --max-triangles, --time-ms");
+  if (by_priority && a.options.mode != extract_mode::time) {
+    throw error("--by-priority applies to --time-ms (the other modes choose their own order)");
+  }
   if (a.demo && a.input) throw error("--demo takes no INPUT");
   if (!a.demo && !a.input) throw error("missing INPUT (or --demo)");
   if (!a.output) throw error("missing -o OUT.ply|OUT.obj|OUT.stl");

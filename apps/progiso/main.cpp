@@ -69,8 +69,11 @@ std::string stats_json(const arguments& a, const std::string& input, double iso,
   o << "  \"mode\": \"" << mode_names[static_cast<int>(a.options.mode)] << "\",\n";
   const auto available = static_cast<unsigned>(progiso::scheduler::default_concurrency());
   o << "  \"threads\": " << (a.threads == 0 ? available : std::min(a.threads, available)) << ",\n";
-  // "finest": the full surface came from two passes over the samples, not from refinement.
-  o << "  \"path\": \"" << (r.finest_direct ? "finest" : "refinement") << "\",\n";
+  // "finest": the full surface came from two passes over the samples, not from refinement;
+  // "uniform": a deadline's uniform cut, from the same passes over every stride-th sample.
+  o << "  \"path\": \""
+    << (r.finest_direct ? "finest" : (r.ladder_stride > 0 ? "uniform" : "refinement")) << "\",\n";
+  if (r.ladder_stride > 0) o << "  \"stride\": " << r.ladder_stride << ",\n";
   o << "  \"splits\": " << r.stats.splits << ",\n";
   o << "  \"diamonds_visited\": " << r.stats.visited << ",\n";
   o << "  \"diamonds_culled\": " << r.stats.culled << ",\n";
@@ -321,6 +324,18 @@ int run(const std::vector<std::string>& args) {
         "surface %.1f ms (two passes over the samples); wrote %s\n",
         r.mesh.triangles.size(), r.mesh.vertices.size(), vol->voxel_count(),
         r.first_surface_seconds * 1e3, r.extract_seconds * 1e3, a.output->c_str());
+    return 0;
+  }
+  if (r.ladder_stride > 0) {
+    const std::string cut = r.ladder_stride == 1
+                                ? std::string("the finest cut")
+                                : "the uniform cut of every " + std::to_string(r.ladder_stride) +
+                                      (r.ladder_stride == 2 ? "nd" : "th") + " sample";
+    std::printf(
+        "progiso: %zu triangles, %zu vertices (%zu voxels); %s by the deadline, in %.1f ms "
+        "(first surface %.3f ms); wrote %s\n",
+        r.mesh.triangles.size(), r.mesh.vertices.size(), vol->voxel_count(), cut.c_str(),
+        r.extract_seconds * 1e3, r.first_surface_seconds * 1e3, a.output->c_str());
     return 0;
   }
   std::printf(

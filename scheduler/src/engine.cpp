@@ -181,21 +181,39 @@ extract_result extract_isosurface_parallel(const volume& vol, double isovalue,
     res.first_surface_seconds = seconds(clock::now() - t0);
   }
   const auto t1 = clock::now();
-  if (options.mode == extract_mode::full && options.finest_direct) {
-    // The finest cut is all a full run returns: two streaming passes over the samples give it
-    // (finest_surface()), without range data, splits or records. Pieces of rows on the
-    // engine's thread count, in a fresh arena (as the snapshots' meshes).
+  // The direct paths run pieces of rows on the engine's thread count, in a fresh arena (as the
+  // snapshots' meshes), or on this thread alone.
+  const auto direct = [&eng](auto&& f) {
     const std::size_t n = eng.threads();
-    const finest_progress progress = direct_progress(options, max_depth);
     if (n <= 1) {
-      res.mesh = finest_surface(vol, isovalue, {}, 1, progress);
+      f(parallel_loop{}, std::size_t{1});
     } else {
       tbb::task_arena arena(static_cast<int>(n));
-      arena.execute(
-          [&] { res.mesh = finest_surface(vol, isovalue, detail::tbb_loop, 16 * n, progress); });
+      arena.execute([&] { f(parallel_loop{detail::tbb_loop}, 16 * n); });
+    }
+  };
+  // A 2D field has no coarser uniform cut than its finest: it refines by priority.
+  const bool ladder =
+      options.mode == extract_mode::time && options.deadline_ladder && vol.dims()[2] >= 2;
+  if ((options.mode == extract_mode::full && options.finest_direct) || ladder) {
+    // The finest cut is all a full run returns: two streaming passes over the samples give it
+    // (finest_surface()), without range data, splits or records. A deadline run on the ladder
+    // makes uniform cuts the same way, coarse to fine, until the deadline (ladder_surface()).
+    const finest_progress progress = direct_progress(options, max_depth);
+    if (ladder) {
+      const auto deadline = deadline_after(t0, options.time_budget);
+      direct([&](const parallel_loop& loop, std::size_t parts) {
+        ladder_result l = ladder_surface(vol, isovalue, deadline, loop, parts, progress);
+        res.mesh = std::move(l.mesh);
+        res.ladder_stride = l.stride;
+      });
+    } else {
+      direct([&](const parallel_loop& loop, std::size_t parts) {
+        res.mesh = finest_surface(vol, isovalue, loop, parts, progress);
+      });
+      res.finest_direct = true;
     }
     const auto t2 = clock::now();
-    res.finest_direct = true;
     res.extract_seconds = seconds(t2 - t1);
     res.total_seconds = seconds(t2 - t0);
     res.pipeline_seconds = res.total_seconds;

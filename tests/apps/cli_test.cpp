@@ -349,6 +349,37 @@ TEST_F(Cli, time_budget_returns_a_partial_valid_surface) {
   EXPECT_TRUE(test::consistently_oriented(m));
 }
 
+TEST_F(Cli, a_deadline_climbs_uniform_cuts_unless_told_to_refine_by_priority) {
+  // The demo (129³, 128 cells a side) with a spent budget: the coarsest uniform cut, every 16th
+  // sample (8 cells); with a budget of an hour, the finest cut (every sample, the full
+  // surface); --by-priority refines the hierarchy instead and says so.
+  const fs::path stats = dir_ / "d.json";
+  const auto timed = [&](const std::string& extra) {
+    const run_result r = run("extract --demo " + extra + " -o " + (dir_ / "d.ply").string() +
+                             " --stats-json " + stats.string());
+    EXPECT_EQ(r.status, 0) << r.err;
+    return std::make_pair(r, slurp(stats));
+  };
+  const auto [spent, spent_json] = timed("--time-ms 0");
+  EXPECT_NE(spent_json.find("\"path\": \"uniform\""), std::string::npos) << spent_json;
+  EXPECT_EQ(json_field(spent_json, "stride"), 16.0) << spent_json;
+  EXPECT_NE(spent.out.find("the uniform cut of every 16th sample by the deadline"),
+            std::string::npos)
+      << spent.out;
+  const triangle_mesh coarse = read_ply(dir_ / "d.ply");
+  EXPECT_TRUE(test::edge_manifold(coarse));
+  EXPECT_TRUE(test::consistently_oriented(coarse));
+  const auto [far, far_json] = timed("--time-ms 3600000");
+  EXPECT_EQ(json_field(far_json, "stride"), 1.0) << far_json;
+  EXPECT_EQ(json_field(far_json, "triangles"), 764704.0) << far_json;
+  EXPECT_NE(far.out.find("the finest cut by the deadline"), std::string::npos) << far.out;
+  const auto [priority, priority_json] = timed("--time-ms 5 --by-priority");
+  EXPECT_NE(priority_json.find("\"path\": \"refinement\""), std::string::npos) << priority_json;
+  EXPECT_TRUE(std::isnan(json_field(priority_json, "stride"))) << priority_json;
+  expect_bad_input("extract --demo --by-priority", "--by-priority applies to --time-ms");
+  expect_bad_input("extract --demo --error 1 --by-priority", "--by-priority");
+}
+
 TEST_F(Cli, nrrd_input_is_read_with_its_spacing) {
   std::string payload = cube_bytes(9);
   const fs::path in = write_file("v.nrrd",

@@ -10,6 +10,7 @@
 
 #include <algorithm>
 #include <atomic>
+#include <chrono>
 #include <cstdint>
 #include <cstring>
 #include <exception>
@@ -201,6 +202,183 @@ TEST(FinestSurface, reports_the_rows_of_both_passes_one_call_at_a_time_and_stops
     EXPECT_THROW((void)finest_surface(v, w, {}, 1, stop), error);
     EXPECT_THROW((void)finest_surface(v, w, scrambled_loop, 7, stop), error);
   }
+}
+
+// ---- uniform_surface(): a uniform cut above the finest, by the same passes on every
+// stride-th sample.
+
+// The hierarchy's cut in which every diamond of scale ≥ stride is split (the refiner replays a
+// parent-closed set), extracted as refinement extracts it.
+triangle_mesh hierarchy_uniform_cut(const volume& v, double w, std::int32_t stride) {
+  const hierarchy h(v.dims());
+  const range_data ranges(v, h);
+  refiner r(v, h, ranges, w, refine_order::depth_first);
+  r.refine_set([&h, stride](std::uint64_t index) { return h.scale_of(h.point(index)) >= stride; });
+  return r.extract();
+}
+
+TEST(UniformSurface, is_the_hierarchy_cut_of_every_diamond_of_the_stride_or_coarser) {
+  // Boxes whose every dims − 1 the strides divide: the surface must be the hierarchy's cut,
+  // triangle for triangle, vertex for vertex and orientation included (a diagonal pattern
+  // around the wrong corners or a position computed another way would differ).
+  struct field_case {
+    volume v;
+    double w;
+  };
+  std::vector<field_case> cases;
+  cases.push_back({make_sphere_field({33, 33, 33}, {16.3, 15.8, 16.1}), 11.0});
+  cases.push_back({make_gyroid_field({33, 17, 65}, 11.0), 0.2});
+  cases.push_back({make_marschner_lobb({33, 33, 33}), 0.5});
+  std::vector<std::byte> bytes(33 * 17 * 17);
+  std::uint32_t state = 777;
+  for (std::byte& b : bytes) {
+    state = state * 1664525u + 1013904223u;
+    b = static_cast<std::byte>((state >> 24) & 3u);
+  }
+  cases.push_back({volume({33, 17, 17}, sample_type::u8, bytes), 1.0});  // ties at the isovalue
+  for (const field_case& c : cases) {
+    for (const std::int32_t stride : {2, 4, 8}) {
+      SCOPED_TRACE(stride);
+      const triangle_mesh mine = uniform_surface(c.v, c.w, stride);
+      const triangle_mesh cut = hierarchy_uniform_cut(c.v, c.w, stride);
+      ASSERT_FALSE(cut.empty());
+      EXPECT_EQ(mine.triangles.size(), cut.triangles.size());
+      EXPECT_EQ(mine.vertices.size(), cut.vertices.size());
+      EXPECT_TRUE(test::same_surface(mine, cut));
+      EXPECT_TRUE(same_bytes(mine, uniform_surface(c.v, c.w, stride, scrambled_loop, 7)));
+    }
+  }
+}
+
+TEST(UniformSurface, covers_the_whole_box_when_the_stride_does_not_divide_it) {
+  // A linear field: marching tetrahedra reproduces its level set exactly, so every vertex
+  // must lie on the plane, inside the box, and the surface must reach the box's last planes
+  // (the thinner last cells stretched to them, not cut off or pushed past them).
+  const index3 dims{30, 37, 23};
+  std::vector<std::byte> bytes(static_cast<std::size_t>(dims[0] * dims[1] * dims[2]) * 4);
+  const auto f = [](double x, double y, double z) { return 0.5 * x + 0.25 * y + z; };
+  for (std::int64_t z = 0; z < dims[2]; ++z) {
+    for (std::int64_t y = 0; y < dims[1]; ++y) {
+      for (std::int64_t x = 0; x < dims[0]; ++x) {
+        const auto v = static_cast<float>(
+            f(static_cast<double>(x), static_cast<double>(y), static_cast<double>(z)));
+        std::memcpy(bytes.data() + 4 * static_cast<std::size_t>(x + dims[0] * (y + dims[1] * z)),
+                    &v, 4);
+      }
+    }
+  }
+  const volume v(dims, sample_type::f32, bytes, {0.5, 2.0, 1.0}, {-3.0, 7.0, 1.5});
+  const double w = 23.3;
+  const vec3 lo{-3.0, 7.0, 1.5};
+  const vec3 hi{-3.0 + 29 * 0.5, 7.0 + 36 * 2.0, 1.5 + 22 * 1.0};
+  for (const std::int32_t stride : {2, 4, 8, 16}) {
+    SCOPED_TRACE(stride);
+    const triangle_mesh m = uniform_surface(v, w, stride, scrambled_loop, 5);
+    ASSERT_FALSE(m.empty());
+    EXPECT_TRUE(test::check_valid_cut(m, lo, hi));
+    vec3 top = lo;
+    for (const vec3& p : m.vertices) {
+      for (std::size_t q = 0; q < 3; ++q) {
+        ASSERT_GE(p[q], lo[q]);
+        ASSERT_LE(p[q], hi[q]);
+        top[q] = std::max(top[q], p[q]);
+      }
+      const double value = f((p[0] + 3.0) / 0.5, (p[1] - 7.0) / 2.0, p[2] - 1.5);
+      ASSERT_NEAR(value, w, 1e-9);
+    }
+    // The plane x/2 + y/4 + z = 23.3 meets the box's last y and z planes (y index 36, z 22)
+    // inside the box; a surface cut off at the last whole stride would stop short of them.
+    EXPECT_EQ(top[1], hi[1]);
+    EXPECT_EQ(top[2], hi[2]);
+  }
+  // The grid read: every stride-th index and the last.
+  EXPECT_EQ(uniform_grid_dims(dims, 4),
+            (index3{9, 10, 7}));  // 0, 4, …, 28, 29; 0, …, 36; 0, …, 20, 22
+  EXPECT_EQ(uniform_grid_dims({33, 2, 1}, 8), (index3{5, 2, 1}));
+}
+
+TEST(UniformSurface, stride_one_is_the_finest_surface_and_bad_strides_are_refused) {
+  const volume v = make_sphere_field({21, 19, 17}, {10.0, 9.0, 8.0});
+  EXPECT_TRUE(same_bytes(uniform_surface(v, 7.0, 1), finest_surface(v, 7.0)));
+  for (const std::int32_t bad : {0, -2, 3, 6, 1 << 15}) {
+    EXPECT_THROW((void)uniform_surface(v, 7.0, bad), error) << bad;
+  }
+  EXPECT_THROW((void)uniform_surface(v, std::nan(""), 2), error);
+  const volume image({16, 16, 1}, sample_type::u8, std::vector<std::byte>(256));
+  EXPECT_THROW((void)uniform_surface(image, 0.5, 2), error);
+  // Every stride up to one cell for the whole box: surfaces, valid, within the box.
+  for (std::int32_t stride = 2; stride <= 32; stride *= 2) {
+    SCOPED_TRACE(stride);
+    EXPECT_TRUE(test::check_valid_cut(uniform_surface(v, 7.0, stride), {0, 0, 0}, {20, 18, 16}));
+  }
+}
+
+// ---- ladder_surface(): uniform cuts, coarse to fine, until a deadline.
+
+TEST(LadderSurface, a_distant_deadline_climbs_every_stride_to_the_finest_cut) {
+  // Longest axis 64 cells: strides 8 (the largest leaving 8 cells), 4, 2 and 1, each heard by
+  // the progress callback in turn (two passes over its own rows), the last the finest cut.
+  const volume v = make_sphere_field({65, 40, 33}, {31.0, 19.5, 16.2});
+  const double w = 14.0;
+  std::vector<std::uint64_t> totals;
+  const finest_progress heard = [&](std::uint64_t, std::uint64_t total) {
+    if (totals.empty() || totals.back() != total) totals.push_back(total);
+  };
+  const auto far = std::chrono::steady_clock::now() + std::chrono::hours(1);
+  const ladder_result l = ladder_surface(v, w, far, scrambled_loop, 6, heard);
+  EXPECT_EQ(l.stride, 1);
+  EXPECT_EQ(l.levels_done, 4);
+  EXPECT_FALSE(l.abandoned);
+  EXPECT_GE(l.first_seconds, 0.0);
+  EXPECT_TRUE(same_bytes(l.mesh, finest_surface(v, w)));
+  std::vector<std::uint64_t> expected;
+  for (const std::int32_t stride : {8, 4, 2, 1}) {
+    const index3 d = uniform_grid_dims(v.dims(), stride);
+    expected.push_back(static_cast<std::uint64_t>(2 * d[1] * d[2]));
+  }
+  EXPECT_EQ(totals, expected);
+}
+
+TEST(LadderSurface, a_passed_deadline_gives_the_coarsest_cut_and_a_2d_field_its_finest) {
+  const volume v = make_sphere_field({65, 40, 33}, {31.0, 19.5, 16.2});
+  const auto past = std::chrono::steady_clock::now() - std::chrono::seconds(1);
+  const ladder_result l = ladder_surface(v, 14.0, past);
+  EXPECT_EQ(l.stride, 8);
+  EXPECT_EQ(l.levels_done, 1);
+  EXPECT_FALSE(l.mesh.empty());
+  EXPECT_TRUE(same_bytes(l.mesh, uniform_surface(v, 14.0, 8)));
+  // A 2D field has no coarser uniform cut: its finest, whatever the deadline.
+  std::vector<std::byte> bytes(24 * 20);
+  for (std::size_t i = 0; i < bytes.size(); ++i) bytes[i] = static_cast<std::byte>((i * 37) % 11);
+  const volume image({24, 20, 1}, sample_type::u8, bytes);
+  const ladder_result flat = ladder_surface(image, 4.5, past);
+  EXPECT_EQ(flat.stride, 1);
+  EXPECT_TRUE(same_bytes(flat.mesh, finest_surface(image, 4.5)));
+}
+
+TEST(LadderSurface, gives_up_the_cut_the_deadline_passes_in_and_keeps_the_last_one_done) {
+  // Stride 2's first pass is held past the deadline (the callback sleeps): its work is dropped
+  // and the stride-4 cut, done before, is the result.
+  const volume v = make_sphere_field({65, 40, 33}, {31.0, 19.5, 16.2});
+  const index3 d2 = uniform_grid_dims(v.dims(), 2);
+  const auto rows2 = static_cast<std::uint64_t>(2 * d2[1] * d2[2]);
+  bool slept = false;
+  const finest_progress slow = [&](std::uint64_t, std::uint64_t total) {
+    if (total == rows2 && !slept) {
+      slept = true;
+      std::this_thread::sleep_for(std::chrono::milliseconds(400));
+    }
+  };
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::milliseconds(300);
+  const ladder_result l = ladder_surface(v, 14.0, deadline, {}, 1, slow);
+  EXPECT_TRUE(slept);
+  EXPECT_TRUE(l.abandoned);
+  EXPECT_EQ(l.stride, 4);
+  EXPECT_EQ(l.levels_done, 2);
+  EXPECT_TRUE(same_bytes(l.mesh, uniform_surface(v, 14.0, 4)));
+  // What the caller's callback throws still leaves the call.
+  const finest_progress refuse = [](std::uint64_t, std::uint64_t) { throw error("stop"); };
+  EXPECT_THROW((void)ladder_surface(v, 14.0, deadline, {}, 1, refuse), error);
 }
 
 }  // namespace

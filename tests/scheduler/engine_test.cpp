@@ -4,6 +4,7 @@
 #include <progiso/core/field/smoothing.hpp>
 #include <progiso/core/refine/detail/ready_queue.hpp>
 #include <progiso/core/refine/refiner.hpp>
+#include <progiso/core/surface/finest_surface.hpp>
 #include <progiso/scheduler/engine.hpp>
 
 #include <atomic>
@@ -467,6 +468,43 @@ TEST(Engine, time_critical_gives_a_surface_by_the_deadline_then_improves_it) {
   e.refine_full();
   EXPECT_TRUE(
       test::same_surface(e.snapshot().mesh(), test::reference_marching_tetrahedra(v, 0.5).mesh));
+}
+
+// The one-shot deadline runs (the command's --time-ms) on both entries: by default the ladder of
+// uniform cuts (a distant deadline reaches the finest cut, a spent one the coarsest, each a
+// valid surface: the hierarchy's uniform cut here, 64 cells a side), and refinement by priority
+// when asked (deadline_ladder = false), which publishes the engine's cut and reports splits.
+TEST(Engine, one_shot_deadline_runs_climb_uniform_cuts_or_refine_by_priority_when_asked) {
+  const volume v = make_marschner_lobb({65, 65, 65});
+  const auto box = test::data_box(v);
+  const test::reference_surface full = test::reference_marching_tetrahedra(v, 0.5);
+  extract_options o;
+  o.mode = extract_mode::time;
+  const auto both = [&v](const extract_options& opt, unsigned threads) {
+    return threads == 0 ? extract_isosurface(v, 0.5, opt)
+                        : extract_isosurface_parallel(v, 0.5, opt, threads);
+  };
+  for (const unsigned threads : {0u, 1u, 2u}) {
+    SCOPED_TRACE(threads);
+    o.deadline_ladder = true;
+    o.time_budget = std::chrono::hours(1);
+    const extract_result far = both(o, threads);
+    EXPECT_EQ(far.ladder_stride, 1);
+    EXPECT_EQ(far.stats.splits, 0u);
+    EXPECT_TRUE(test::same_surface(far.mesh, full.mesh));
+    o.time_budget = std::chrono::duration<double>(0.0);
+    const extract_result spent = both(o, threads);
+    EXPECT_EQ(spent.ladder_stride, 8);
+    EXPECT_TRUE(test::same_surface(spent.mesh, uniform_surface(v, 0.5, 8)));
+    EXPECT_TRUE(test::check_valid_cut(spent.mesh, box[0], box[1]));
+    EXPECT_LE(spent.first_surface_seconds, spent.pipeline_seconds);
+    o.deadline_ladder = false;
+    o.time_budget = std::chrono::milliseconds(200);
+    const extract_result priority = both(o, threads);
+    EXPECT_EQ(priority.ladder_stride, 0);
+    EXPECT_GT(priority.stats.splits, 0u);
+    EXPECT_TRUE(test::check_valid_cut(priority.mesh, box[0], box[1]));
+  }
 }
 
 // A deadline run does not wait for the range data: while its min/max pass is incomplete it

@@ -307,6 +307,28 @@ extract_result extract_isosurface(const volume& vol, double isovalue,
     res.isovalue_outside_data = !(lo <= isovalue && isovalue < hi);
     return res;
   }
+  if (options.mode == extract_mode::time && options.deadline_ladder && vol.dims()[2] >= 2) {
+    // Uniform cuts, coarse to fine, until the deadline (the engine's entry does the same after
+    // its root surface); the first is always made, so it is the first surface.
+    const finest_progress inner = direct_progress(options, hierarchy(vol.dims()).max_depth());
+    ladder_result l =
+        ladder_surface(vol, isovalue, deadline_after(t0, options.time_budget), {}, 1, inner);
+    const auto t1 = clock::now();
+    res.mesh = std::move(l.mesh);
+    res.ladder_stride = l.stride;
+    res.first_surface_seconds = l.first_seconds;
+    res.extract_seconds = seconds(t1 - t0);
+    res.total_seconds = res.extract_seconds;
+    res.pipeline_seconds = res.extract_seconds;
+    res.stats.triangles = res.mesh.triangles.size();
+    if (options.normals) {
+      add_vertex_normals(res.mesh, vol);
+      res.normals_seconds = seconds(clock::now() - t1);
+    }
+    const auto [lo, hi] = vol.value_range();
+    res.isovalue_outside_data = !(lo <= isovalue && isovalue < hi);
+    return res;
+  }
   const hierarchy hier(vol.dims());
   const range_data ranges(vol, hier);
   const auto t1 = clock::now();

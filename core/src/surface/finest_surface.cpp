@@ -11,6 +11,7 @@
 #include <memory>
 #include <mutex>
 #include <string>
+#include <type_traits>
 #include <vector>
 
 #include <progiso/core/base/error.hpp>
@@ -21,6 +22,10 @@
 
 namespace progiso {
 namespace {
+
+// Told a surface's vertex and triangle counts once the first pass has them, before the output
+// is sized (on the calling thread); what it throws ends the call.
+using output_hook = std::function<void(std::uint64_t vertices, std::uint64_t triangles)>;
 
 // A grid point's owned edges, by slot: 0 +x, 1 +y, 2 +z, 3 the diagonal of its xy square,
 // 4 of its xz square, 5 of its yz square, 6 of its cube. A cube corner is dx + 2 dy + 4 dz;
@@ -181,9 +186,10 @@ inline std::uint64_t load8(const std::uint8_t* p) noexcept {
 template <class S>
 class finest_mesher {
  public:
-  finest_mesher(const volume& field, S samples, double w)
-      : field_(field), s_(samples), w_(w), t_(the_tables()) {
-    const index3& d = field.dims();
+  // The grid of `samples` (x fastest), placed at origin + index × spacing.
+  finest_mesher(const index3& d, const std::array<double, 3>& spacing,
+                const std::array<double, 3>& origin, S samples, double w)
+      : spacing_(spacing), origin_(origin), s_(samples), w_(w), t_(the_tables()) {
     nx_ = d[0];
     ny_ = d[1];
     nz_ = d[2];
@@ -195,7 +201,8 @@ class finest_mesher {
     row_triangles_.assign(rows_ + 1, 0);
   }
 
-  triangle_mesh run(const parallel_loop& loop, std::size_t parts, const finest_progress& to) {
+  triangle_mesh run(const parallel_loop& loop, std::size_t parts, const finest_progress& to,
+                    const output_hook& sized = {}) {
     parts = std::max<std::size_t>(1, std::min(parts, rows_));
     progress_relay progress(to, 2 * static_cast<std::uint64_t>(rows_));
     // Rows [first, last) of the second pass, `step` rows at a time, each step reported.
@@ -226,6 +233,7 @@ class finest_mesher {
       throw error("finest surface: " + std::to_string(v) +
                   " vertices, beyond the 2^32 a mesh's 32-bit ids can name");
     }
+    if (sized) sized(v, t);
     // The two arrays are zeroed as they are sized (a std::vector's only way): side by side.
     triangle_mesh mesh;
     run_loop(loop, 2, [&](std::size_t k) {
@@ -398,7 +406,9 @@ class finest_mesher {
                        static_cast<std::int32_t>(z + (q >> 2))};
         const double fa = static_cast<double>(s_[row + xi + offset[static_cast<std::size_t>(p)]]);
         const double fb = static_cast<double>(s_[row + xi + offset[static_cast<std::size_t>(q)]]);
-        mesh.vertices[id++] = detail::physical_position(field_, interpolate(a, fa, b, fb, w_));
+        const vec3 at = interpolate(a, fa, b, fb, w_);
+        mesh.vertices[id++] = {origin_[0] + at[0] * spacing_[0], origin_[1] + at[1] * spacing_[1],
+                               origin_[2] + at[2] * spacing_[2]};
       }
     }
   }
@@ -472,7 +482,8 @@ class finest_mesher {
     }
   }
 
-  const volume& field_;
+  std::array<double, 3> spacing_;
+  std::array<double, 3> origin_;
   S s_;
   double w_;
   const tables& t_;
@@ -485,15 +496,186 @@ class finest_mesher {
 
 }  // namespace
 
-triangle_mesh finest_surface(const volume& field, double isovalue, const parallel_loop& run,
-                             std::size_t parts, const finest_progress& progress) {
+namespace {
+
+triangle_mesh finest_surface_hooked(const volume& field, double isovalue, const parallel_loop& run,
+                                    std::size_t parts, const finest_progress& progress,
+                                    const output_hook& sized) {
   if (!std::isfinite(isovalue)) {
     throw error("finest surface: the isovalue must be finite, found " + std::to_string(isovalue));
   }
   return detail::visit_field(field, [&](const auto samples) {
-    finest_mesher<std::remove_cv_t<decltype(samples)>> m(field, samples, isovalue);
-    return m.run(run, parts, progress);
+    finest_mesher<std::remove_cv_t<decltype(samples)>> m(field.dims(), field.spacing(),
+                                                         field.origin(), samples, isovalue);
+    return m.run(run, parts, progress, sized);
   });
+}
+
+}  // namespace
+
+triangle_mesh finest_surface(const volume& field, double isovalue, const parallel_loop& run,
+                             std::size_t parts, const finest_progress& progress) {
+  return finest_surface_hooked(field, isovalue, run, parts, progress, {});
+}
+
+index3 uniform_grid_dims(const index3& dims, std::int32_t stride) noexcept {
+  index3 sub{};
+  for (std::size_t q = 0; q < 3; ++q) sub[q] = dims[q] < 2 ? dims[q] : (dims[q] - 2) / stride + 2;
+  return sub;
+}
+
+namespace {
+
+// Grid index along one axis of the subsampled grid → index of the field's grid, for a vertex
+// position p of the subsampled grid (in its index frame). Cells before the last are `stride`
+// wide, so p × stride (exact: a power of two), the ends of a vertex's edge scaled exactly as
+// refinement has them; the last cell runs from (k − 1) × stride to the last index, so a
+// position there is mapped linearly, and a position on a grid plane (an integer) to its index.
+double field_index(double p, std::int64_t sub_n, std::int64_t n, std::int32_t stride) noexcept {
+  const auto last_cell = static_cast<double>(sub_n - 2);
+  if ((sub_n - 1) * stride == n - 1 || p <= last_cell) return p * stride;
+  if (p == std::floor(p)) return static_cast<double>(n - 1);
+  const double from = last_cell * stride;
+  return from + (p - last_cell) * (static_cast<double>(n - 1) - from);
+}
+
+triangle_mesh uniform_surface_hooked(const volume& field, double isovalue, std::int32_t stride,
+                                     const parallel_loop& run, std::size_t parts,
+                                     const finest_progress& progress, const output_hook& sized) {
+  if (stride < 1 || stride > (1 << 14) ||
+      !std::has_single_bit(static_cast<std::uint32_t>(stride))) {
+    throw error("uniform surface: the stride must be a power of two in [1, 16384], found " +
+                std::to_string(stride));
+  }
+  if (stride == 1) return finest_surface_hooked(field, isovalue, run, parts, progress, sized);
+  const index3 dims = field.dims();
+  if (dims[2] < 2) throw error("uniform surface: a 2D field has no stride above 1");
+  if (!std::isfinite(isovalue)) {
+    throw error("uniform surface: the isovalue must be finite, found " + std::to_string(isovalue));
+  }
+  const index3 sub = uniform_grid_dims(dims, stride);
+  const auto index_of = [&](std::size_t q, std::int64_t k) {
+    return std::min<std::int64_t>(k * stride, dims[q] - 1);
+  };
+  // The subsampled samples, in the field's own sample type (a smoothed field's doubles), so
+  // that every colour and crossing is computed from the same values as on the field; written
+  // by the copy, every one (not zeroed first), and meshed in the subsampled grid's index frame.
+  const auto points = static_cast<std::size_t>(sub[0] * sub[1] * sub[2]);
+  triangle_mesh mesh = detail::visit_field(field, [&](const auto src) {
+    using S = std::remove_cv_t<decltype(src)>;
+    using T = std::conditional_t<std::is_pointer_v<S>, std::remove_cv_t<std::remove_pointer_t<S>>,
+                                 double>;
+    const std::unique_ptr<T[]> samples = std::make_unique_for_overwrite<T[]>(points);
+    T* const out = samples.get();
+    const std::int64_t nx = sub[0];
+    const std::int64_t last_x = dims[0] - 1;
+    const auto plane = [&](std::size_t k) {
+      const std::int64_t z = index_of(2, static_cast<std::int64_t>(k));
+      for (std::int64_t j = 0; j < sub[1]; ++j) {
+        const std::int64_t row = dims[0] * (index_of(1, j) + dims[1] * z);
+        T* o = out + nx * (j + sub[1] * static_cast<std::int64_t>(k));
+        // Every stride-th sample of the row, then its last.
+        for (std::int64_t i = 0; i + 1 < nx; ++i) o[i] = static_cast<T>(src[row + i * stride]);
+        o[nx - 1] = static_cast<T>(src[row + last_x]);
+      }
+    };
+    run_loop(run, static_cast<std::size_t>(sub[2]), plane);
+    finest_mesher<const T*> m(sub, {1.0, 1.0, 1.0}, {0.0, 0.0, 0.0}, out, isovalue);
+    return m.run(run, parts, progress, sized);
+  });
+  // Index frame of the subsampled grid → the field's physical frame.
+  const auto& sp = field.spacing();
+  const auto& org = field.origin();
+  const auto place = [&](std::size_t part) {
+    const std::size_t n = mesh.vertices.size();
+    const std::size_t count = std::max<std::size_t>(parts, 1);
+    for (std::size_t v = n * part / count; v < n * (part + 1) / count; ++v) {
+      vec3& p = mesh.vertices[v];
+      for (std::size_t q = 0; q < 3; ++q) {
+        p[q] = org[q] + field_index(p[q], sub[q], dims[q], stride) * sp[q];
+      }
+    }
+  };
+  run_loop(run, std::max<std::size_t>(parts, 1), place);
+  return mesh;
+}
+
+}  // namespace
+
+triangle_mesh uniform_surface(const volume& field, double isovalue, std::int32_t stride,
+                              const parallel_loop& run, std::size_t parts,
+                              const finest_progress& progress) {
+  return uniform_surface_hooked(field, isovalue, stride, run, parts, progress, {});
+}
+
+namespace {
+
+// Thrown through finest_surface() by ladder_surface()'s progress when the deadline has passed.
+struct deadline_passed {};
+
+}  // namespace
+
+ladder_result ladder_surface(const volume& field, double isovalue,
+                             std::chrono::steady_clock::time_point deadline,
+                             const parallel_loop& run, std::size_t parts,
+                             const finest_progress& progress) {
+  using clock = std::chrono::steady_clock;
+  const auto since = [](clock::time_point t) {
+    return std::chrono::duration<double>(clock::now() - t).count();
+  };
+  const index3 dims = field.dims();
+  std::int32_t stride = 1;
+  if (dims[2] >= 2) {
+    const std::int64_t longest = std::max({dims[0], dims[1], dims[2]}) - 1;
+    while (longest / (2 * stride) >= 8 && stride < (1 << 14)) stride *= 2;
+  }
+  ladder_result res;
+  const auto called = clock::now();
+  // A cut's time: its first pass (and the copy of its samples) in proportion to its grid
+  // points, the rest (sizing the output, the second pass) to its vertices and triangles, each
+  // rate that of the last cut done. A finer cut's output is about four times the last one's
+  // (a surface's area in cells of half the side); its exact size is known after its first pass.
+  double per_point = 0.0;
+  double per_output = 0.0;
+  double last_output = 0.0;
+  for (; stride >= 1; stride /= 2) {
+    const index3 sub = uniform_grid_dims(dims, stride);
+    const double points =
+        static_cast<double>(sub[0]) * static_cast<double>(sub[1]) * static_cast<double>(sub[2]);
+    const bool must = res.levels_done == 0;
+    const auto left = [&deadline] {
+      return std::chrono::duration<double>(deadline - clock::now()).count();
+    };
+    if (!must && per_point * points + per_output * 4.0 * last_output > left()) break;
+    const auto start = clock::now();
+    double first_pass = 0.0;
+    double output = 0.0;
+    const output_hook sized = [&](std::uint64_t v, std::uint64_t t) {
+      first_pass = since(start);
+      output = static_cast<double>(v + t);
+      if (!must && per_output * output > left()) throw deadline_passed{};
+    };
+    const finest_progress watch = [&](std::uint64_t done, std::uint64_t total) {
+      if (progress) progress(done, total);
+      // The last call says all is done: nothing left to give up.
+      if (!must && done < total && clock::now() >= deadline) throw deadline_passed{};
+    };
+    try {
+      triangle_mesh m = uniform_surface_hooked(field, isovalue, stride, run, parts, watch, sized);
+      res.mesh = std::move(m);
+    } catch (const deadline_passed&) {
+      res.abandoned = true;
+      break;
+    }
+    const double took = since(start);
+    if (res.levels_done == 0) res.first_seconds = since(called);
+    res.stride = stride;
+    ++res.levels_done;
+    per_point = first_pass / points;
+    per_output = output > 0 ? (took - first_pass) / output : per_output;
+    last_output = output;
+  }
+  return res;
 }
 
 }  // namespace progiso

@@ -196,8 +196,9 @@ struct extract_options {
   extract_mode mode = extract_mode::full;
   double max_error = 0.0;           ///< extract_mode::error
   std::uint64_t max_triangles = 0;  ///< extract_mode::triangles
-  /// extract_mode::time: from the volume in memory (the engine's path) or from the start of
-  /// refinement, after the range data (extract_isosurface()).
+  /// extract_mode::time: from the volume in memory (the engine's path, and the ladder of
+  /// uniform cuts on either entry) or from the start of refinement, after the range data
+  /// (extract_isosurface() refining by priority).
   std::chrono::duration<double> time_budget{0.0};
   /// Called about every 4096 splits; on the direct path every 64 rows of a pass (one call at a
   /// time, from any of the run's threads).
@@ -210,6 +211,13 @@ struct extract_options {
   /// and extracting its cut. The same surface; its vertices and triangles numbered in grid
   /// order. False: the hierarchy's path (to compare the two, or for its split statistics).
   bool finest_direct = true;
+  /// extract_mode::time: spend the budget on uniform cuts, coarse to fine (ladder_surface(),
+  /// surface/finest_surface.hpp): each a few streaming passes over every stride-th sample, the
+  /// finest one done by the deadline returned. False: refine the hierarchy by priority (largest
+  /// error first) until the deadline, which adapts to the field but splits diamonds at a
+  /// fraction of the passes' speed (docs/ARCHITECTURE.md, "What a deadline buys"). A 2D field
+  /// (dims[2] == 1) has no coarser uniform cut: it refines by priority either way.
+  bool deadline_ladder = true;
 };
 
 struct extract_result {
@@ -233,6 +241,9 @@ struct extract_result {
   /// The mesh came from finest_surface() (extract_options::finest_direct): no range data, no
   /// splits; extract_seconds is its two passes.
   bool finest_direct = false;
+  /// The mesh is a uniform cut of the ladder (extract_options::deadline_ladder): its stride (1:
+  /// the finest cut); 0 otherwise. No range data, no splits; extract_seconds is its cuts' time.
+  std::int32_t ladder_stride = 0;
 };
 
 /// Throws progiso::error for a non-finite isovalue or invalid options (shared by every entry).

@@ -28,6 +28,7 @@
 // Thread safety: reads `field` only.
 #pragma once
 
+#include <chrono>
 #include <cstddef>
 #include <cstdint>
 #include <functional>
@@ -53,6 +54,50 @@ using finest_progress = std::function<void(std::uint64_t rows_done, std::uint64_
 /// rows done (finest_progress). Throws progiso::error for a non-finite isovalue and for a
 /// surface of 2^32 vertices or more; what `progress` throws ends the call.
 [[nodiscard]] triangle_mesh finest_surface(const volume& field, double isovalue,
+                                           const parallel_loop& run = {}, std::size_t parts = 1,
+                                           const finest_progress& progress = {});
+
+/// The surface of a uniform cut one or more levels above the finest: marching tetrahedra on
+/// the grid of every `stride`-th sample along each axis, the box's last sample plane included
+/// (stride a power of two; 1 gives finest_surface()). Where `stride` divides each dims − 1,
+/// this is exactly the cut of the hierarchy in which every diamond of scale ≥ `stride` is split
+/// (cubes of side `stride`, six tetrahedra each around the diagonal from the corner whose
+/// coordinates are even multiples of `stride`): the surface refinement reaches there, vertex
+/// for vertex. Otherwise the last layer of cells along an axis is thinner than `stride` (it
+/// ends on the box's last plane) and its tetrahedra are those cells', stretched: a valid
+/// surface (no crack, no self-intersection, open only on the box) that covers the whole box.
+/// Cost: the subsampled grid's samples copied (pieces of planes through `run`), then
+/// finest_surface() on them: about 1 / stride³ of the finest surface's. `progress` hears the
+/// rows of the subsampled grid. Throws progiso::error for a stride that is not a power of two
+/// in [1, 2^14], a 2D field (dims[2] == 1) with a stride above 1, and as finest_surface().
+[[nodiscard]] triangle_mesh uniform_surface(const volume& field, double isovalue,
+                                            std::int32_t stride, const parallel_loop& run = {},
+                                            std::size_t parts = 1,
+                                            const finest_progress& progress = {});
+
+/// The grid uniform_surface() reads at `stride`: dims[q] → (dims[q] − 2) / stride + 2 for
+/// dims[q] ≥ 2 (every stride-th index and the last), 1 stays 1.
+[[nodiscard]] index3 uniform_grid_dims(const index3& dims, std::int32_t stride) noexcept;
+
+/// What ladder_surface() made by its deadline.
+struct ladder_result {
+  triangle_mesh mesh;          ///< the finest uniform cut done
+  std::int32_t stride = 0;     ///< its stride (1: the finest cut)
+  int levels_done = 0;         ///< uniform cuts finished, the returned one included
+  bool abandoned = false;      ///< a finer cut was begun and given up at the deadline
+  double first_seconds = 0.0;  ///< from the call to the first (coarsest) cut done
+};
+
+/// The time-critical scenario on uniform cuts: uniform_surface() at strides 2^k, 2^(k−1), …, 1,
+/// coarse to fine, until `deadline`; returns the finest one done. The first stride is the
+/// largest power of two that leaves at least 8 cells along the longest axis (at most 17 points
+/// along each axis: microseconds), and it is always made, whatever the deadline. Each later one
+/// is begun only if the time per grid point of the last one done, times its own points, ends
+/// before the deadline, and is given up (its work dropped) when the deadline passes during its
+/// passes. A 2D field (dims[2] == 1) has one stride: 1. `progress` hears the rows of each cut
+/// in turn (rows_total is the cut's own); what it throws ends the call.
+[[nodiscard]] ladder_result ladder_surface(const volume& field, double isovalue,
+                                           std::chrono::steady_clock::time_point deadline,
                                            const parallel_loop& run = {}, std::size_t parts = 1,
                                            const finest_progress& progress = {});
 
