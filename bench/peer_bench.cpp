@@ -315,7 +315,8 @@ void BM_peer_scaling(benchmark::State& state) {
 // the volume in memory. Per deadline: the median over 3 runs of the fraction (100 000 points
 // drawn by area on the full surface, exact distances to the cut from a CGAL AABB tree), of the
 // cut's triangles and of the stride of the uniform cut reached (the default, the ladder of
-// uniform cuts: area_, tri_, stride_); the same for refinement by priority (prio_area_,
+// uniform cuts: area_, tri_, stride_; late_ms_, the latest of its runs' returns after the
+// deadline, negative when all were early); the same for refinement by priority (prio_area_,
 // prio_tri_), its runs alternated with the ladder's (ABBA).
 
 void BM_deadline_quality(benchmark::State& state) {
@@ -340,6 +341,7 @@ void BM_deadline_quality(benchmark::State& state) {
       std::array<std::vector<double>, 2> fraction;
       std::array<std::vector<double>, 2> triangles;
       std::vector<double> strides;
+      std::vector<double> late;
       for (int k = 0; k < 6; ++k) {
         const bool ladder = (k % 2 == 0) == (k % 4 < 2);
         extract_options o;
@@ -350,12 +352,16 @@ void BM_deadline_quality(benchmark::State& state) {
         const std::size_t j = ladder ? 0 : 1;
         fraction[j].push_back(area_within(full, r.mesh, voxel, 100000).fraction);
         triangles[j].push_back(static_cast<double>(r.mesh.triangles.size()));
-        if (ladder) strides.push_back(r.ladder_stride);
+        if (ladder) {
+          strides.push_back(r.ladder_stride);
+          late.push_back(r.pipeline_seconds * 1e3 - fe_full / d);
+        }
       }
       const std::string at = "1/" + std::to_string(d);
       state.counters["area_" + at] = median(fraction[0]);
       state.counters["tri_" + at] = median(triangles[0]);
       state.counters["stride_" + at] = median(strides);
+      state.counters["late_ms_" + at] = *std::max_element(late.begin(), late.end());
       state.counters["prio_area_" + at] = median(fraction[1]);
       state.counters["prio_tri_" + at] = median(triangles[1]);
     }

@@ -23,9 +23,16 @@
 namespace progiso {
 namespace {
 
-// Told a surface's vertex and triangle counts once the first pass has them, before the output
-// is sized (on the calling thread); what it throws ends the call.
-using output_hook = std::function<void(std::uint64_t vertices, std::uint64_t triangles)>;
+// How a caller (ladder_surface()) may end a call between steps that cannot be interrupted: what
+// either throws leaves the call.
+struct interrupts {
+  // Told the surface's vertex and triangle counts once the first pass has them, before the
+  // output is sized (on the calling thread).
+  std::function<void(std::uint64_t vertices, std::uint64_t triangles)> sized;
+  // Asked between planes of a subsampled copy and between steps of sizing the output (from any
+  // of the call's threads, concurrently).
+  std::function<void()> poll;
+};
 
 // A grid point's owned edges, by slot: 0 +x, 1 +y, 2 +z, 3 the diagonal of its xy square,
 // 4 of its xz square, 5 of its yz square, 6 of its cube. A cube corner is dx + 2 dy + 4 dz;
@@ -202,7 +209,7 @@ class finest_mesher {
   }
 
   triangle_mesh run(const parallel_loop& loop, std::size_t parts, const finest_progress& to,
-                    const output_hook& sized = {}) {
+                    const interrupts& stop = {}) {
     parts = std::max<std::size_t>(1, std::min(parts, rows_));
     progress_relay progress(to, 2 * static_cast<std::uint64_t>(rows_));
     // Rows [first, last) of the second pass, `step` rows at a time, each step reported.
@@ -233,14 +240,28 @@ class finest_mesher {
       throw error("finest surface: " + std::to_string(v) +
                   " vertices, beyond the 2^32 a mesh's 32-bit ids can name");
     }
-    if (sized) sized(v, t);
-    // The two arrays are zeroed as they are sized (a std::vector's only way): side by side.
+    if (stop.sized) stop.sized(v, t);
+    // The two arrays are zeroed as they are sized (a std::vector's only way): side by side; in
+    // steps of 1 M elements into the reserved capacity when the caller polls between them (a
+    // 512³ field's output took up to 400 ms to size on this machine's fresh pages).
     triangle_mesh mesh;
+    const auto size = [&stop](auto& array, std::uint64_t n) {
+      if (!stop.poll) {
+        array.resize(static_cast<std::size_t>(n));
+        return;
+      }
+      array.reserve(static_cast<std::size_t>(n));
+      constexpr std::size_t step = std::size_t{1} << 20;
+      while (array.size() < n) {
+        stop.poll();
+        array.resize(std::min(static_cast<std::size_t>(n), array.size() + step));
+      }
+    };
     run_loop(loop, 2, [&](std::size_t k) {
       if (k == 0) {
-        mesh.vertices.resize(static_cast<std::size_t>(row_vertices_[rows_]));
+        size(mesh.vertices, row_vertices_[rows_]);
       } else {
-        mesh.triangles.resize(static_cast<std::size_t>(row_triangles_[rows_]));
+        size(mesh.triangles, row_triangles_[rows_]);
       }
     });
     run_loop(loop, parts, [&](std::size_t k) {
@@ -500,14 +521,14 @@ namespace {
 
 triangle_mesh finest_surface_hooked(const volume& field, double isovalue, const parallel_loop& run,
                                     std::size_t parts, const finest_progress& progress,
-                                    const output_hook& sized) {
+                                    const interrupts& stop) {
   if (!std::isfinite(isovalue)) {
     throw error("finest surface: the isovalue must be finite, found " + std::to_string(isovalue));
   }
   return detail::visit_field(field, [&](const auto samples) {
     finest_mesher<std::remove_cv_t<decltype(samples)>> m(field.dims(), field.spacing(),
                                                          field.origin(), samples, isovalue);
-    return m.run(run, parts, progress, sized);
+    return m.run(run, parts, progress, stop);
   });
 }
 
@@ -541,13 +562,13 @@ double field_index(double p, std::int64_t sub_n, std::int64_t n, std::int32_t st
 
 triangle_mesh uniform_surface_hooked(const volume& field, double isovalue, std::int32_t stride,
                                      const parallel_loop& run, std::size_t parts,
-                                     const finest_progress& progress, const output_hook& sized) {
+                                     const finest_progress& progress, const interrupts& stop) {
   if (stride < 1 || stride > (1 << 14) ||
       !std::has_single_bit(static_cast<std::uint32_t>(stride))) {
     throw error("uniform surface: the stride must be a power of two in [1, 16384], found " +
                 std::to_string(stride));
   }
-  if (stride == 1) return finest_surface_hooked(field, isovalue, run, parts, progress, sized);
+  if (stride == 1) return finest_surface_hooked(field, isovalue, run, parts, progress, stop);
   const index3 dims = field.dims();
   if (dims[2] < 2) throw error("uniform surface: a 2D field has no stride above 1");
   if (!std::isfinite(isovalue)) {
@@ -570,6 +591,7 @@ triangle_mesh uniform_surface_hooked(const volume& field, double isovalue, std::
     const std::int64_t nx = sub[0];
     const std::int64_t last_x = dims[0] - 1;
     const auto plane = [&](std::size_t k) {
+      if (stop.poll) stop.poll();
       const std::int64_t z = index_of(2, static_cast<std::int64_t>(k));
       for (std::int64_t j = 0; j < sub[1]; ++j) {
         const std::int64_t row = dims[0] * (index_of(1, j) + dims[1] * z);
@@ -581,7 +603,7 @@ triangle_mesh uniform_surface_hooked(const volume& field, double isovalue, std::
     };
     run_loop(run, static_cast<std::size_t>(sub[2]), plane);
     finest_mesher<const T*> m(sub, {1.0, 1.0, 1.0}, {0.0, 0.0, 0.0}, out, isovalue);
-    return m.run(run, parts, progress, sized);
+    return m.run(run, parts, progress, stop);
   });
   // Index frame of the subsampled grid → the field's physical frame.
   const auto& sp = field.spacing();
@@ -650,18 +672,24 @@ ladder_result ladder_surface(const volume& field, double isovalue,
     const auto start = clock::now();
     double first_pass = 0.0;
     double output = 0.0;
-    const output_hook sized = [&](std::uint64_t v, std::uint64_t t) {
+    interrupts stop;
+    stop.sized = [&](std::uint64_t v, std::uint64_t t) {
       first_pass = since(start);
       output = static_cast<double>(v + t);
       if (!must && per_output * output > left()) throw deadline_passed{};
     };
+    if (!must) {
+      stop.poll = [&deadline] {
+        if (clock::now() >= deadline) throw deadline_passed{};
+      };
+    }
     const finest_progress watch = [&](std::uint64_t done, std::uint64_t total) {
       if (progress) progress(done, total);
       // The last call says all is done: nothing left to give up.
       if (!must && done < total && clock::now() >= deadline) throw deadline_passed{};
     };
     try {
-      triangle_mesh m = uniform_surface_hooked(field, isovalue, stride, run, parts, watch, sized);
+      triangle_mesh m = uniform_surface_hooked(field, isovalue, stride, run, parts, watch, stop);
       res.mesh = std::move(m);
     } catch (const deadline_passed&) {
       res.abandoned = true;
