@@ -792,6 +792,8 @@ def cli_seeds(out):
         "demo": ["extract", "--demo", "-o", "demo.ply", "--stats-json", "demo.json"],
         "normals": ["extract", "--demo", "--normals", "-o", "demo.obj"],
         "time_overflow": ["extract", "v.nrrd", "--iso", "1", "--time-ms", "9.3e12", "-o", "o.ply"],
+        "time_by_priority": ["extract", "v.nrrd", "--iso", "1", "--time-ms", "5", "--by-priority",
+                             "-o", "o.ply"],
         "count_overflow": ["extract", "v.nrrd", "--iso", "1", "--max-triangles", "3e19", "-o", "o.ply"],
         "count_max": ["extract", "v.nrrd", "--iso", "1", "--max-triangles", "18446744073709551615", "-o", "o.ply"],
         "spacing_huge": ["extract", "v.raw", "--dims", "8,8,8", "--type", "u8", "--spacing", "1e40,1,1",
