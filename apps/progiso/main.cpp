@@ -129,8 +129,13 @@ class progress_bar {
       draw(static_cast<double>(p.rows_done) / static_cast<double>(p.rows_total));
       // Rows as wide as their total, so that a shorter count leaves nothing of a longer one.
       const int digits = static_cast<int>(std::to_string(per_pass).size());
-      std::fprintf(stderr, "finest surface: pass %d of 2, %*llu of %llu rows ", second ? 2 : 1,
-                   digits,
+      if (p.stride > 1) {
+        std::fprintf(stderr, "uniform cut, every %d%s sample: ", p.stride,
+                     p.stride == 2 ? "nd" : "th");
+      } else {
+        std::fprintf(stderr, "finest surface: ");
+      }
+      std::fprintf(stderr, "pass %d of 2, %*llu of %llu rows ", second ? 2 : 1, digits,
                    static_cast<unsigned long long>(second ? p.rows_done - per_pass : p.rows_done),
                    static_cast<unsigned long long>(per_pass));
       return;

@@ -199,15 +199,16 @@ extract_result extract_isosurface_parallel(const volume& vol, double isovalue,
     // The finest cut is all a full run returns: two streaming passes over the samples give it
     // (finest_surface()), without range data, splits or records. A deadline run on the ladder
     // makes uniform cuts the same way, coarse to fine, until the deadline (ladder_surface()).
-    const finest_progress progress = direct_progress(options, max_depth);
     if (ladder) {
       const auto deadline = deadline_after(t0, options.time_budget);
+      const ladder_progress progress = ladder_direct_progress(options, max_depth);
       direct([&](const parallel_loop& loop, std::size_t parts) {
         ladder_result l = ladder_surface(vol, isovalue, deadline, loop, parts, progress);
         res.mesh = std::move(l.mesh);
         res.ladder_stride = l.stride;
       });
     } else {
+      const finest_progress progress = direct_progress(options, max_depth);
       direct([&](const parallel_loop& loop, std::size_t parts) {
         res.mesh = finest_surface(vol, isovalue, loop, parts, progress);
       });

@@ -321,8 +321,12 @@ TEST(LadderSurface, a_distant_deadline_climbs_every_stride_to_the_finest_cut) {
   const volume v = make_sphere_field({65, 40, 33}, {31.0, 19.5, 16.2});
   const double w = 14.0;
   std::vector<std::uint64_t> totals;
-  const finest_progress heard = [&](std::uint64_t, std::uint64_t total) {
-    if (totals.empty() || totals.back() != total) totals.push_back(total);
+  std::vector<std::int32_t> strides;
+  const ladder_progress heard = [&](std::int32_t stride, std::uint64_t, std::uint64_t total) {
+    if (totals.empty() || totals.back() != total) {
+      totals.push_back(total);
+      strides.push_back(stride);
+    }
   };
   const auto far = std::chrono::steady_clock::now() + std::chrono::hours(1);
   const ladder_result l = ladder_surface(v, w, far, scrambled_loop, 6, heard);
@@ -337,6 +341,7 @@ TEST(LadderSurface, a_distant_deadline_climbs_every_stride_to_the_finest_cut) {
     expected.push_back(static_cast<std::uint64_t>(2 * d[1] * d[2]));
   }
   EXPECT_EQ(totals, expected);
+  EXPECT_EQ(strides, (std::vector<std::int32_t>{8, 4, 2, 1}));
 }
 
 TEST(LadderSurface, a_passed_deadline_gives_the_coarsest_cut_and_a_2d_field_its_finest) {
@@ -363,7 +368,7 @@ TEST(LadderSurface, gives_up_the_cut_the_deadline_passes_in_and_keeps_the_last_o
   const index3 d2 = uniform_grid_dims(v.dims(), 2);
   const auto rows2 = static_cast<std::uint64_t>(2 * d2[1] * d2[2]);
   bool slept = false;
-  const finest_progress slow = [&](std::uint64_t, std::uint64_t total) {
+  const ladder_progress slow = [&](std::int32_t, std::uint64_t, std::uint64_t total) {
     if (total == rows2 && !slept) {
       slept = true;
       std::this_thread::sleep_for(std::chrono::milliseconds(400));
@@ -377,7 +382,9 @@ TEST(LadderSurface, gives_up_the_cut_the_deadline_passes_in_and_keeps_the_last_o
   EXPECT_EQ(l.levels_done, 2);
   EXPECT_TRUE(same_bytes(l.mesh, uniform_surface(v, 14.0, 4)));
   // What the caller's callback throws still leaves the call.
-  const finest_progress refuse = [](std::uint64_t, std::uint64_t) { throw error("stop"); };
+  const ladder_progress refuse = [](std::int32_t, std::uint64_t, std::uint64_t) {
+    throw error("stop");
+  };
   EXPECT_THROW((void)ladder_surface(v, 14.0, deadline, {}, 1, refuse), error);
 }
 

@@ -488,7 +488,15 @@ TEST(Engine, one_shot_deadline_runs_climb_uniform_cuts_or_refine_by_priority_whe
     SCOPED_TRACE(threads);
     o.deadline_ladder = true;
     o.time_budget = std::chrono::hours(1);
+    // Progress names each cut's stride, coarse to fine (calls never overlap: see
+    // finest_progress).
+    std::vector<std::int32_t> strides;
+    o.progress = [&strides](const extract_progress& p) {
+      if (strides.empty() || strides.back() != p.stride) strides.push_back(p.stride);
+    };
     const extract_result far = both(o, threads);
+    o.progress = {};
+    EXPECT_EQ(strides, (std::vector<std::int32_t>{8, 4, 2, 1}));
     EXPECT_EQ(far.ladder_stride, 1);
     EXPECT_EQ(far.stats.splits, 0u);
     EXPECT_TRUE(test::same_surface(far.mesh, full.mesh));

@@ -276,6 +276,20 @@ finest_progress direct_progress(const extract_options& options, int max_depth) {
     p.max_depth = max_depth;
     p.rows_done = done;
     p.rows_total = total;
+    p.stride = 1;
+    options.progress(p);
+  };
+}
+
+ladder_progress ladder_direct_progress(const extract_options& options, int max_depth) {
+  if (!options.progress) return {};
+  return [&options, max_depth](std::int32_t stride, std::uint64_t done, std::uint64_t total) {
+    extract_progress p;
+    p.depth = max_depth;
+    p.max_depth = max_depth;
+    p.rows_done = done;
+    p.rows_total = total;
+    p.stride = stride;
     options.progress(p);
   };
 }
@@ -310,7 +324,8 @@ extract_result extract_isosurface(const volume& vol, double isovalue,
   if (options.mode == extract_mode::time && options.deadline_ladder && vol.dims()[2] >= 2) {
     // Uniform cuts, coarse to fine, until the deadline (the engine's entry does the same after
     // its root surface); the first is always made, so it is the first surface.
-    const finest_progress inner = direct_progress(options, hierarchy(vol.dims()).max_depth());
+    const ladder_progress inner =
+        ladder_direct_progress(options, hierarchy(vol.dims()).max_depth());
     ladder_result l =
         ladder_surface(vol, isovalue, deadline_after(t0, options.time_budget), {}, 1, inner);
     const auto t1 = clock::now();

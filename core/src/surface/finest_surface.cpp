@@ -29,9 +29,10 @@ struct interrupts {
   // Told the surface's vertex and triangle counts once the first pass has them, before the
   // output is sized (on the calling thread).
   std::function<void(std::uint64_t vertices, std::uint64_t triangles)> sized;
-  // Asked between planes of a subsampled copy and between steps of sizing the output (from any
-  // of the call's threads, concurrently).
-  std::function<void()> poll;
+  // Asked between planes of a subsampled copy (with -1), between steps of sizing the output
+  // (with the fraction of that array sized so far, from any of the call's threads,
+  // concurrently), and once both arrays are sized (with 2, on the calling thread).
+  std::function<void(double)> poll;
 };
 
 // A grid point's owned edges, by slot: 0 +x, 1 +y, 2 +z, 3 the diagonal of its xy square,
@@ -253,7 +254,7 @@ class finest_mesher {
       array.reserve(static_cast<std::size_t>(n));
       constexpr std::size_t step = std::size_t{1} << 20;
       while (array.size() < n) {
-        stop.poll();
+        stop.poll(static_cast<double>(array.size()) / static_cast<double>(n));
         array.resize(std::min(static_cast<std::size_t>(n), array.size() + step));
       }
     };
@@ -264,6 +265,7 @@ class finest_mesher {
         size(mesh.triangles, row_triangles_[rows_]);
       }
     });
+    if (stop.poll) stop.poll(2.0);
     run_loop(loop, parts, [&](std::size_t k) {
       in_steps(piece_begin(rows_, parts, k), piece_begin(rows_, parts, k + 1),
                [&](std::size_t first, std::size_t last) {
@@ -591,7 +593,7 @@ triangle_mesh uniform_surface_hooked(const volume& field, double isovalue, std::
     const std::int64_t nx = sub[0];
     const std::int64_t last_x = dims[0] - 1;
     const auto plane = [&](std::size_t k) {
-      if (stop.poll) stop.poll();
+      if (stop.poll) stop.poll(-1.0);
       const std::int64_t z = index_of(2, static_cast<std::int64_t>(k));
       for (std::int64_t j = 0; j < sub[1]; ++j) {
         const std::int64_t row = dims[0] * (index_of(1, j) + dims[1] * z);
@@ -640,7 +642,7 @@ struct deadline_passed {};
 ladder_result ladder_surface(const volume& field, double isovalue,
                              std::chrono::steady_clock::time_point deadline,
                              const parallel_loop& run, std::size_t parts,
-                             const finest_progress& progress) {
+                             const ladder_progress& progress) {
   using clock = std::chrono::steady_clock;
   const auto since = [](clock::time_point t) {
     return std::chrono::duration<double>(clock::now() - t).count();
@@ -655,11 +657,23 @@ ladder_result ladder_surface(const volume& field, double isovalue,
   const auto called = clock::now();
   // A cut's time: its first pass (and the copy of its samples) in proportion to its grid
   // points, the rest (sizing the output, the second pass) to its vertices and triangles, each
-  // rate that of the last cut done. A finer cut's output is about four times the last one's
-  // (a surface's area in cells of half the side); its exact size is known after its first pass.
+  // rate that of the last cut done. A finer cut's output is four times the last one's where the
+  // surface is a smooth sheet (its area in cells of half the side) and up to eight where it
+  // fills the volume (noise): the last two cuts' ratio, within [4, 8], says which. Its exact
+  // size is known after its first pass; the rest is then begun only if half as long again
+  // would still end in time, because giving it up is not free: the output sized so far is
+  // returned to the system before the call returns (a 400³ noise volume's stride-2 cut, 88 M
+  // vertices and triangles, took 1.5 × its predicted rest, and dropping it 90 ms). While the
+  // output is sized, its own rate so far and the last cut's second pass per output element
+  // say when the cut would end; it is dropped as soon as that is past the deadline, with
+  // little of the output touched (fresh pages cost what the machine's memory makes them).
+  constexpr double rest_margin = 1.5;
+  constexpr double sizing_seen = 0.1;  // projected from a tenth of an array sized
+  double pass2_per_output = 0.0;
   double per_point = 0.0;
   double per_output = 0.0;
   double last_output = 0.0;
+  double growth = 4.0;
   for (; stride >= 1; stride /= 2) {
     const index3 sub = uniform_grid_dims(dims, stride);
     const double points =
@@ -668,23 +682,39 @@ ladder_result ladder_surface(const volume& field, double isovalue,
     const auto left = [&deadline] {
       return std::chrono::duration<double>(deadline - clock::now()).count();
     };
-    if (!must && per_point * points + per_output * 4.0 * last_output > left()) break;
+    if (!must && per_point * points + per_output * growth * last_output > left()) break;
     const auto start = clock::now();
     double first_pass = 0.0;
     double output = 0.0;
+    double sizing = 0.0;
+    clock::time_point sized_at{};
     interrupts stop;
     stop.sized = [&](std::uint64_t v, std::uint64_t t) {
-      first_pass = since(start);
+      sized_at = clock::now();
+      first_pass = std::chrono::duration<double>(sized_at - start).count();
       output = static_cast<double>(v + t);
-      if (!must && per_output * output > left()) throw deadline_passed{};
+      if (!must && rest_margin * per_output * output > left()) throw deadline_passed{};
     };
-    if (!must) {
-      stop.poll = [&deadline] {
-        if (clock::now() >= deadline) throw deadline_passed{};
-      };
-    }
+    stop.poll = [&](double fraction) {
+      const auto now = clock::now();
+      const double so_far = std::chrono::duration<double>(now - sized_at).count();
+      if (fraction > 1.0) sizing = so_far;  // both arrays sized (the calling thread)
+      if (must) return;
+      if (now >= deadline) throw deadline_passed{};
+      double ends = -1.0;  // projected seconds from sizing's start to the cut's end
+      if (fraction > 1.0) {
+        ends = so_far + pass2_per_output * output;
+      } else if (fraction >= sizing_seen) {
+        ends = so_far / fraction + pass2_per_output * output;
+      }
+      if (ends > 0.0 && sized_at + std::chrono::duration_cast<clock::duration>(
+                                       std::chrono::duration<double>(ends)) >
+                            deadline) {
+        throw deadline_passed{};
+      }
+    };
     const finest_progress watch = [&](std::uint64_t done, std::uint64_t total) {
-      if (progress) progress(done, total);
+      if (progress) progress(stride, done, total);
       // The last call says all is done: nothing left to give up.
       if (!must && done < total && clock::now() >= deadline) throw deadline_passed{};
     };
@@ -701,6 +731,8 @@ ladder_result ladder_surface(const volume& field, double isovalue,
     ++res.levels_done;
     per_point = first_pass / points;
     per_output = output > 0 ? (took - first_pass) / output : per_output;
+    if (output > 0) pass2_per_output = std::max(0.0, took - first_pass - sizing) / output;
+    if (last_output > 0 && output > 0) growth = std::clamp(output / last_output, 4.0, 8.0);
     last_output = output;
   }
   return res;

@@ -190,6 +190,10 @@ struct extract_progress {
   /// both 0 on the hierarchy's path.
   std::uint64_t rows_done = 0;
   std::uint64_t rows_total = 0;
+  /// The direct paths: the stride of the cut whose rows these are (1: the finest; above 1, a
+  /// deadline's uniform cut, extract_options::deadline_ladder, whose rows are of its grid);
+  /// 0 on the hierarchy's path.
+  std::int32_t stride = 0;
 };
 
 struct extract_options {
@@ -253,6 +257,9 @@ void check_extract_inputs(double isovalue, const extract_options& options);
 /// `options.progress` of its rows (an empty callback when `options.progress` is; shared by
 /// every entry): depth and max_depth both `max_depth`.
 [[nodiscard]] finest_progress direct_progress(const extract_options& options, int max_depth);
+/// The same for ladder_surface() (the deadline's uniform cuts), each report with its cut's
+/// stride.
+[[nodiscard]] ladder_progress ladder_direct_progress(const extract_options& options, int max_depth);
 
 /// Builds the hierarchy and range data, refines in the requested mode and extracts the cut; for
 /// extract_mode::full with extract_options::finest_direct (the default), finest_surface()

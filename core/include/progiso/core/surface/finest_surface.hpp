@@ -81,6 +81,11 @@ using finest_progress = std::function<void(std::uint64_t rows_done, std::uint64_
 /// dims[q] ≥ 2 (every stride-th index and the last), 1 stays 1.
 [[nodiscard]] index3 uniform_grid_dims(const index3& dims, std::int32_t stride) noexcept;
 
+/// Work done by ladder_surface(): the rows of the cut at `stride` done so far, as
+/// finest_progress says them for each cut in turn (rows_total is that cut's own).
+using ladder_progress =
+    std::function<void(std::int32_t stride, std::uint64_t rows_done, std::uint64_t rows_total)>;
+
 /// What ladder_surface() made by its deadline.
 struct ladder_result {
   triangle_mesh mesh;          ///< the finest uniform cut done
@@ -99,10 +104,10 @@ struct ladder_result {
 /// given up (its work dropped) when, after its first pass, its exact output no longer fits, or
 /// when the deadline passes: between planes of its copy, between steps of sizing its output,
 /// every 64 rows of its passes. A 2D field (dims[2] == 1) has one stride: 1. `progress` hears
-/// the rows of each cut in turn (rows_total is the cut's own); what it throws ends the call.
+/// the rows of each cut in turn, with its stride; what it throws ends the call.
 [[nodiscard]] ladder_result ladder_surface(const volume& field, double isovalue,
                                            std::chrono::steady_clock::time_point deadline,
                                            const parallel_loop& run = {}, std::size_t parts = 1,
-                                           const finest_progress& progress = {});
+                                           const ladder_progress& progress = {});
 
 }  // namespace progiso
