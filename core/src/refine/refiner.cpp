@@ -268,19 +268,6 @@ void check_extract_inputs(double isovalue, const extract_options& options) {
   }
 }
 
-finest_progress direct_progress(const extract_options& options, int max_depth) {
-  if (!options.progress) return {};
-  return [&options, max_depth](std::uint64_t done, std::uint64_t total) {
-    extract_progress p;
-    p.depth = max_depth;
-    p.max_depth = max_depth;
-    p.rows_done = done;
-    p.rows_total = total;
-    p.stride = 1;
-    options.progress(p);
-  };
-}
-
 ladder_progress ladder_direct_progress(const extract_options& options, int max_depth) {
   if (!options.progress) return {};
   return [&options, max_depth](std::int32_t stride, std::uint64_t done, std::uint64_t total) {
@@ -294,6 +281,13 @@ ladder_progress ladder_direct_progress(const extract_options& options, int max_d
   };
 }
 
+finest_progress direct_progress(const extract_options& options, int max_depth) {
+  ladder_progress each = ladder_direct_progress(options, max_depth);
+  if (!each) return {};
+  return
+      [each = std::move(each)](std::uint64_t done, std::uint64_t total) { each(1, done, total); };
+}
+
 extract_result extract_isosurface(const volume& vol, double isovalue,
                                   const extract_options& options) {
   using clock = std::chrono::steady_clock;
@@ -301,38 +295,29 @@ extract_result extract_isosurface(const volume& vol, double isovalue,
   check_extract_inputs(isovalue, options);
   extract_result res;
   const auto t0 = clock::now();
-  if (options.mode == extract_mode::full && options.finest_direct) {
-    // The finest cut alone: two passes over the samples, no range data or splits (the engine's
-    // entry does the same after its root surface).
-    res.mesh = finest_surface(vol, isovalue, {}, 1,
-                              direct_progress(options, hierarchy(vol.dims()).max_depth()));
-    const auto t1 = clock::now();
-    res.finest_direct = true;
-    res.first_surface_seconds = seconds(t1 - t0);
-    res.extract_seconds = res.first_surface_seconds;
-    res.total_seconds = res.first_surface_seconds;
-    res.pipeline_seconds = res.first_surface_seconds;
-    res.stats.triangles = res.mesh.triangles.size();
-    if (options.normals) {
-      add_vertex_normals(res.mesh, vol);
-      res.normals_seconds = seconds(clock::now() - t1);
+  const bool finest = options.mode == extract_mode::full && options.finest_direct;
+  // Uniform cuts, coarse to fine, until the deadline (the engine's entry does the same after
+  // its root surface); the first is always made, so it is the first surface.
+  const bool ladder =
+      options.mode == extract_mode::time && options.deadline_ladder && vol.dims()[2] >= 2;
+  if (finest || ladder) {
+    // No range data or splits: the finest cut alone by two passes over the samples, or the
+    // ladder's uniform cuts by the same passes (the engine's entry does the same after its
+    // root surface).
+    const int max_depth = hierarchy(vol.dims()).max_depth();
+    if (finest) {
+      res.mesh = finest_surface(vol, isovalue, {}, 1, direct_progress(options, max_depth));
+      res.finest_direct = true;
+    } else {
+      ladder_result l = ladder_surface(vol, isovalue, deadline_after(t0, options.time_budget), {},
+                                       1, ladder_direct_progress(options, max_depth));
+      res.mesh = std::move(l.mesh);
+      res.ladder_stride = l.stride;
+      res.first_surface_seconds = l.first_seconds;
     }
-    const auto [lo, hi] = vol.value_range();
-    res.isovalue_outside_data = !(lo <= isovalue && isovalue < hi);
-    return res;
-  }
-  if (options.mode == extract_mode::time && options.deadline_ladder && vol.dims()[2] >= 2) {
-    // Uniform cuts, coarse to fine, until the deadline (the engine's entry does the same after
-    // its root surface); the first is always made, so it is the first surface.
-    const ladder_progress inner =
-        ladder_direct_progress(options, hierarchy(vol.dims()).max_depth());
-    ladder_result l =
-        ladder_surface(vol, isovalue, deadline_after(t0, options.time_budget), {}, 1, inner);
     const auto t1 = clock::now();
-    res.mesh = std::move(l.mesh);
-    res.ladder_stride = l.stride;
-    res.first_surface_seconds = l.first_seconds;
     res.extract_seconds = seconds(t1 - t0);
+    if (finest) res.first_surface_seconds = res.extract_seconds;
     res.total_seconds = res.extract_seconds;
     res.pipeline_seconds = res.extract_seconds;
     res.stats.triangles = res.mesh.triangles.size();
