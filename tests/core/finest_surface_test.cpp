@@ -56,10 +56,12 @@ void scrambled_loop(std::size_t n, const std::function<void(std::size_t)>& body)
 }
 
 bool same_bytes(const triangle_mesh& a, const triangle_mesh& b) {
+  // memcmp is not given the null pointers of empty meshes.
   return a.vertices.size() == b.vertices.size() && a.triangles.size() == b.triangles.size() &&
-         std::memcmp(a.vertices.data(), b.vertices.data(), a.vertices.size() * sizeof(vec3)) == 0 &&
-         std::memcmp(a.triangles.data(), b.triangles.data(),
-                     a.triangles.size() * sizeof(a.triangles[0])) == 0;
+         (a.vertices.empty() || std::memcmp(a.vertices.data(), b.vertices.data(),
+                                            a.vertices.size() * sizeof(vec3)) == 0) &&
+         (a.triangles.empty() || std::memcmp(a.triangles.data(), b.triangles.data(),
+                                             a.triangles.size() * sizeof(a.triangles[0])) == 0);
 }
 
 void expect_finest_equals_full_refinement(const volume& v, double w) {
@@ -352,12 +354,14 @@ TEST(LadderSurface, a_passed_deadline_gives_the_coarsest_cut_and_a_2d_field_its_
   EXPECT_EQ(l.levels_done, 1);
   EXPECT_FALSE(l.mesh.empty());
   EXPECT_TRUE(same_bytes(l.mesh, uniform_surface(v, 14.0, 8)));
-  // A 2D field has no coarser uniform cut: its finest, whatever the deadline.
+  // A 2D field has no coarser uniform cut: its finest (no cube, so no triangle: a surface needs
+  // a third dimension), whatever the deadline, and no other.
   std::vector<std::byte> bytes(24 * 20);
   for (std::size_t i = 0; i < bytes.size(); ++i) bytes[i] = static_cast<std::byte>((i * 37) % 11);
   const volume image({24, 20, 1}, sample_type::u8, bytes);
   const ladder_result flat = ladder_surface(image, 4.5, past);
   EXPECT_EQ(flat.stride, 1);
+  EXPECT_EQ(flat.levels_done, 1);
   EXPECT_TRUE(same_bytes(flat.mesh, finest_surface(image, 4.5)));
 }
 
