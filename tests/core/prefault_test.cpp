@@ -6,6 +6,9 @@
 #include <cerrno>
 #include <cstddef>
 #include <cstdint>
+#include <mutex>
+#include <set>
+#include <thread>
 #include <vector>
 
 #include <gtest/gtest.h>
@@ -81,6 +84,44 @@ TEST(Prefault, leaves_small_buffers_to_fault_page_by_page) {
   ASSERT_NE(m.p, MAP_FAILED);
   detail::prefault(m.p, bytes);
   EXPECT_EQ(resident_pages(m.p, bytes), 0u);
+}
+
+TEST(Prefault, in_parts_maps_every_page_in_slices_of_at_least_the_minimum_through_the_loop) {
+  if (!kernel_populates()) GTEST_SKIP() << "this kernel has no MADV_POPULATE_WRITE (Linux 5.14)";
+  const auto page = static_cast<std::size_t>(sysconf(_SC_PAGESIZE));
+  // 5.5 MiB in up to 8 parts: 5 slices (a slice is at least 1 MiB), the last one shorter.
+  const std::size_t bytes = 5 * detail::prefault_min_bytes + detail::prefault_min_bytes / 2;
+  fresh_mapping m(bytes);
+  ASSERT_NE(m.p, MAP_FAILED);
+  std::mutex mutex;
+  std::set<std::size_t> bodies;
+  std::size_t calls = 0;
+  // A loop that runs each body on its own thread, as the engine's would on several.
+  const parallel_loop loop = [&](std::size_t n, const std::function<void(std::size_t)>& body) {
+    {
+      const std::lock_guard lock(mutex);
+      ++calls;
+    }
+    std::vector<std::thread> threads;
+    for (std::size_t k = 0; k < n; ++k) {
+      threads.emplace_back([&, k] {
+        body(k);
+        const std::lock_guard lock(mutex);
+        bodies.insert(k);
+      });
+    }
+    for (auto& t : threads) t.join();
+  };
+  detail::prefault_in_parts(loop, 8, m.p, bytes);
+  EXPECT_EQ(calls, 1u);
+  EXPECT_EQ(bodies.size(), 5u);
+  EXPECT_EQ(resident_pages(m.p, bytes), bytes / page);
+  // One part: one call on this thread, the loop untouched; the whole range mapped all the same.
+  fresh_mapping one(bytes);
+  ASSERT_NE(one.p, MAP_FAILED);
+  detail::prefault_in_parts(loop, 1, one.p, bytes);
+  EXPECT_EQ(calls, 1u);
+  EXPECT_EQ(resident_pages(one.p, bytes), bytes / page);
 }
 
 TEST(Prefault, reserve_prefaulted_reserves_and_keeps_the_elements) {

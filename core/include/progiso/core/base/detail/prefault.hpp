@@ -13,8 +13,11 @@
 // 200–204 on later ones), since the kernel takes them from memory the host has not backed yet.
 #pragma once
 
+#include <algorithm>
 #include <cstddef>
 #include <cstdint>
+
+#include <progiso/core/base/parallel_loop.hpp>
 
 #if defined(__linux__)
 #include <sys/mman.h>
@@ -45,6 +48,26 @@ inline void prefault(const void* p, std::size_t bytes) noexcept {
   (void)p;
   (void)bytes;
 #endif
+}
+
+/// prefault() of [p, p + bytes) in up to `parts` slices through `run`, each of at least
+/// prefault_min_bytes (below it prefault() does nothing), so that a buffer of a few MiB still
+/// spreads over the threads: a fault per page costs about 2 µs on our virtual machines, a mapped
+/// range about 60% of that, and two threads populating halves take about half as long as one.
+inline void prefault_in_parts(const parallel_loop& run, std::size_t parts, const void* p,
+                              std::size_t bytes) {
+  const std::size_t slices = std::min(parts, bytes / prefault_min_bytes);
+  if (slices <= 1) {
+    prefault(p, bytes);
+    return;
+  }
+  const std::size_t slice = (bytes / slices + 4095) & ~std::size_t{4095};
+  const auto* at = static_cast<const unsigned char*>(p);
+  run_loop(run, slices, [&](std::size_t k) {
+    const std::size_t lo = std::min(bytes, k * slice);
+    const std::size_t hi = std::min(bytes, lo + slice);
+    if (hi > lo) prefault(at + lo, hi - lo);
+  });
 }
 
 /// v.reserve(n), with the new buffer's pages mapped at once when it is freshly allocated.

@@ -181,23 +181,9 @@ class cut_mesher {
     std::array<std::uint32_t, 3> ids;
   };
 
-  // Maps the pages of a buffer about to be written everywhere, in up to one slice per piece of
-  // work, each of at least prefault_min_bytes (below it prefault() does nothing), so that a
-  // buffer of a few MiB still spreads over the threads: a fault per page costs about 2 µs on
-  // our virtual machines, a mapped range about 60% of that (prefault.hpp).
+  // Maps the pages of a buffer about to be written everywhere, a slice per piece of work at most.
   void prefault_in_parts(const parallel_loop& run, const void* p, std::size_t bytes) const {
-    const std::size_t slices = std::min(parts_, bytes / prefault_min_bytes);
-    if (slices <= 1) {
-      prefault(p, bytes);
-      return;
-    }
-    const std::size_t slice = (bytes / slices + 4095) & ~std::size_t{4095};
-    const auto* at = static_cast<const unsigned char*>(p);
-    run_loop(run, slices, [&](std::size_t k) {
-      const std::size_t lo = std::min(bytes, k * slice);
-      const std::size_t hi = std::min(bytes, lo + slice);
-      if (hi > lo) prefault(at + lo, hi - lo);
-    });
+    detail::prefault_in_parts(run, parts_, p, bytes);
   }
 
   // Piece k of n items: [first(n, k), first(n, k + 1)).
