@@ -8,8 +8,7 @@ target_compile_options(progiso_warnings INTERFACE
 # GCC 12 at -O2 and -O3 reports -Wrestrict inside std::string's operator+ (libstdc++'s
 # char_traits, sizes of exabytes at negative offsets): a false positive of the compiler (GCC bug
 # 105329, fixed in GCC 13). A release build printed 26 of them (the NRRD, NIfTI, MRC and PLY
-# readers, 16 test files),
-# so the warning is off for every target under GCC < 13.
+# readers, 16 test files), so the warning is off for every target under GCC < 13.
 if(CMAKE_CXX_COMPILER_ID STREQUAL "GNU" AND CMAKE_CXX_COMPILER_VERSION VERSION_LESS 13)
   add_compile_options(-Wno-restrict)
 endif()
