@@ -395,8 +395,10 @@ BENCHMARK(BM_snapshot_mesh)
 // and a fresh root for each run; pairs alternate which runs first, and the counter is the
 // median of the per-pair ratios. Mode 0: a deadline at half the pair's full time. Mode 1: the
 // error target that leaves about half of the full splits (found once by bisection). Mode 2: a
-// budget of half the full surface's triangles. Args: threads, mode, schedule of the priority
-// runs on more than one thread (0: tasks by bands, the default; 1: the flow graph).
+// budget of half the full surface's triangles. Mode 3: mode 1's error target in any order
+// (refine_goal::error_in_any_order: by grid plane, the same split set). Args: threads, mode,
+// schedule of the priority runs on more than one thread (0: tasks by bands, the default; 1: the
+// flow graph).
 void BM_priority_over_full(benchmark::State& state) {
   engine_options o;
   o.threads = static_cast<unsigned>(state.range(0));
@@ -408,7 +410,7 @@ void BM_priority_over_full(benchmark::State& state) {
   const std::uint64_t full_splits = e.statistics().refine.splits;
   const std::uint64_t full_triangles = e.statistics().refine.triangles;
   double epsilon = 0.0;
-  if (mode == 1) {
+  if (mode == 1 || mode == 3) {
     double lo = 1e-9;
     double hi = 1e3;
     for (int k = 0; k < 30; ++k) {
@@ -443,6 +445,8 @@ void BM_priority_over_full(benchmark::State& state) {
                                              std::chrono::duration<double>(budget_seconds))));
       } else if (mode == 1) {
         e.refine(refine_goal::error(epsilon));
+      } else if (mode == 3) {
+        e.refine(refine_goal::error_in_any_order(epsilon));
       } else {
         e.refine(refine_goal::triangles(full_triangles / 2));
       }
@@ -473,7 +477,7 @@ void BM_priority_over_full(benchmark::State& state) {
   state.counters["full_splits"] = static_cast<double>(full_splits);
 }
 BENCHMARK(BM_priority_over_full)
-    ->ArgsProduct({{1, 2}, {0, 1, 2}, {0}})
+    ->ArgsProduct({{1, 2}, {0, 1, 2, 3}, {0}})
     ->ArgsProduct({{2}, {0, 1, 2}, {1}})
     ->Iterations(8)
     ->Unit(benchmark::kMillisecond)

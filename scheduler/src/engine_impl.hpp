@@ -504,6 +504,12 @@ struct engine_impl : run_control {
   // Full refinement splits every straddling diamond whatever its error: children are tested
   // by straddles() (stops at the first samples on both sides), and queued by placeholder.
   [[nodiscard]] bool errors_needed() const noexcept { return goal.what != refine_goal::kind::full; }
+  // Goals whose split set does not depend on the order (full refinement, an error target taken
+  // in any order) run by grid plane (sweep_alone(), the tasks' plane lists), not by the queue.
+  [[nodiscard]] bool swept_goal() const noexcept {
+    return goal.what == refine_goal::kind::full ||
+           (goal.what == refine_goal::kind::error && goal.any_order);
+  }
   [[nodiscard]] bool eligible(const engine_root& r) const noexcept {
     if (r.queue.empty()) return false;
     if (goal.what == refine_goal::kind::error) return r.queue.top().error > goal.max_error;
@@ -557,8 +563,8 @@ struct engine_impl : run_control {
   template <class Take, class Sink>
   bool split_alone(engine_root& r, const ready_item& item, const ipoint& centre,
                    const range_data* rd, split_tally& tally, Take&& take, Sink&& ready);
-  // refine_serially()'s full goal: the ready diamonds taken by grid plane, lowest first
-  // (serial_refinement.cpp), from sweep_planes.
+  // refine_serially()'s swept goals (swept_goal()): the ready diamonds taken by grid plane,
+  // lowest first (serial_refinement.cpp), from sweep_planes.
   template <class Publish>
   void sweep_alone(engine_root& r, const range_data* rd, split_tally& tally, Publish&& publish);
 

@@ -93,9 +93,17 @@ struct engine_impl::full_run {
   const range_data* ranges = nullptr;
   tbb::task_group* group = nullptr;
   // A band of a priority run: children ranked below `floor` (ready_queue::rank) are left for a
-  // later band. Off in full refinement.
+  // later band. Off in full refinement. An error target in any order is one band, every rank
+  // above the target, taken by plane.
   bool banded = false;
   std::uint64_t floor = 0;
+  // Where full_task::hold_below() counts ranks down from: the floor of a band; for an error
+  // target, the rank just above the target's own (the errors held are at most the target, most
+  // of them just below it).
+  std::uint64_t hold_base = 0;
+  // Ready diamonds taken by grid plane (plane_lists), volume cut into slabs: full refinement
+  // and an error target in any order (engine_impl::swept_goal()). Otherwise a stack.
+  bool swept = false;
   // Tasks running or spawned: a hint for sharing work (relaxed; a stale value only shares a
   // little early or late).
   std::atomic<unsigned> active{0};
@@ -121,8 +129,9 @@ struct engine_impl::full_run {
 
 struct engine_impl::full_task {
   full_run* run = nullptr;
-  // Ready diamonds: by grid plane in full refinement (the one-thread sweep's order), on a stack
-  // (next at the back: depth first) in a band of a priority run.
+  // Ready diamonds: by grid plane in a run by plane (full refinement, an error target in any
+  // order: the one-thread sweep's order), on a stack (next at the back: depth first) in a band
+  // of a priority run. A stopped task's planes go to the stack keyed by placeholder.
   plane_lists planes;
   std::vector<ready_item> stack;
   // A band's first task takes its share of the band from here on its own thread: [lo, hi) of
@@ -130,14 +139,15 @@ struct engine_impl::full_task {
   const std::vector<ready_item>* band = nullptr;
   std::size_t band_lo = 0;
   std::size_t band_hi = 0;
-  // Children ranked below the band, by rank, and where each rank's vector is: by the rank's
-  // distance below the band's (floor − rank, at most below_near − 1), else searched.
+  // Children ranked below the band (or the error target), by rank, and where each rank's vector
+  // is: by the rank's distance below full_run::hold_base (at most below_near − 1), else
+  // searched.
   std::vector<ranked_items> below;
   static constexpr std::uint64_t below_near = 64;
   std::array<std::int32_t, below_near> below_at{};  // 1 + index in `below`, 0: none yet
 
-  void hold_below(std::uint64_t floor, std::uint64_t rank, const ready_item& item) {
-    const std::uint64_t d = floor - rank;
+  void hold_below(std::uint64_t base, std::uint64_t rank, const ready_item& item) {
+    const std::uint64_t d = base - rank;
     if (d < below_near && below_at[d] != 0) {
       below[static_cast<std::size_t>(below_at[d] - 1)].items.push_back(item);
       return;
@@ -169,6 +179,8 @@ void engine_impl::refine_in_tasks(engine_root& r) {
   seed_roots(r);  // a no-op once seeded
   const range_data* rd = built_ranges();
   const bool banded = goal.what != refine_goal::kind::full;
+  // By grid plane: one run over every eligible diamond; an error target's queue keeps the rest.
+  const bool swept = swept_goal() && rd != nullptr;
   PROGISO_ASSERT(banded || rd != nullptr);  // drive() builds the ranges before a full run
   note_keys(r, rd);
   while (!stopping() && eligible(r)) {
@@ -180,10 +192,14 @@ void engine_impl::refine_in_tasks(engine_root& r) {
     // eligible or none: an error goal aims the queue at its target). Full refinement: all.
     std::vector<ready_item> items;
     std::uint64_t floor = 0;
-    if (banded) {
+    full_run run;
+    if (!swept) {
       floor = r.queue.top_rank();
       items = r.queue.take_top_band();
     } else {
+      // An error target in any order: every rank above it (launch() aimed the queue at it).
+      if (banded) floor = r.queue.above_target_rank();
+      run.hold_base = r.queue.rank(goal.max_error) + 1;
       items.reserve(r.queue.size());
       while (eligible(r)) {
         items.push_back(r.queue.top());
@@ -192,16 +208,17 @@ void engine_impl::refine_in_tasks(engine_root& r) {
       std::reverse(items.begin(), items.end());
     }
 
-    full_run run;
     run.root = &r;
     run.ranges = rd;
     run.banded = banded;
     run.floor = floor;
+    if (!swept) run.hold_base = floor;
+    run.swept = swept;
     run.outstanding.store(static_cast<std::int64_t>(items.size()), std::memory_order_relaxed);
     arena.execute([&] {
       tbb::task_group group;
       run.group = &group;
-      if (banded) {
+      if (!swept) {
         // A band: its diamonds in queue order, cut into one run of consecutive ones per thread.
         const std::size_t tasks = std::min<std::size_t>(threads, items.size());
         for (std::size_t k = 0; k < tasks; ++k) {
@@ -212,9 +229,9 @@ void engine_impl::refine_in_tasks(engine_root& r) {
           spawn_full_task(run, std::move(part));
         }
       } else {
-        // Full refinement: the volume cut into slabs of planes, one per thread, each swept
-        // from its lowest plane up; the slab with the most diamonds is halved until there are
-        // as many as threads.
+        // By plane: the volume cut into slabs of planes, one per thread, each swept from its
+        // lowest plane up; the slab with the most diamonds is halved until there are as many as
+        // threads.
         std::vector<std::shared_ptr<full_task>> parts;
         parts.push_back(std::make_shared<full_task>());
         reset_planes(parts[0]->planes);
@@ -246,7 +263,9 @@ void engine_impl::refine_in_tasks(engine_root& r) {
       for (ranked_items& part : run.left_ranked)
         r.queue.push_band(part.rank, std::move(part.items));
     }
-    if (!banded) break;  // full refinement: one run over everything
+    // Left by a stopped run by plane: keyed by placeholder (full_item()).
+    if (swept && !run.left.empty()) r.unranged = true;
+    if (swept) break;  // one run over everything eligible
   }
   // Queued by placeholder: full refinement's children, or any before the range data exists.
   if (ready_count(r) != 0 && (!banded || rd == nullptr)) r.unranged = true;
@@ -260,7 +279,7 @@ void engine_impl::run_full_task(full_task& t) {
   const bool prefetch = vol.byte_size() > prefetch_min_bytes;
   const bool deadline = goal.what == refine_goal::kind::deadline;
   const bool budget = goal.what == refine_goal::kind::triangles;
-  const bool swept = !run.banded;  // full refinement: by grid plane (plane_lists)
+  const bool swept = run.swept;  // by grid plane (plane_lists)
   if (t.band != nullptr) {
     t.stack.assign(t.band->begin() + static_cast<std::ptrdiff_t>(t.band_lo),
                    t.band->begin() + static_cast<std::ptrdiff_t>(t.band_hi));
@@ -480,7 +499,7 @@ bool engine_impl::publish_full_task(full_task& t, bool wait, bool stopped) {
   if ((t.planes.size() >= 2 || t.stack.size() >= 2) &&
       run.active.load(std::memory_order_relaxed) < threads) {
     auto part = std::make_shared<full_task>();
-    if (!run.banded) {
+    if (run.swept) {
       t.planes.give_upper_half(part->planes);
     } else {
       const auto half = static_cast<std::ptrdiff_t>(t.stack.size() / 2);
@@ -526,11 +545,12 @@ std::int64_t engine_impl::count_full_task_children(full_task& t, std::size_t fir
                       owns_piece(t.groups.data() + p.first, p.count, p.item.index, p.scale, ci));
       if (!child) {
         ++t.tally.culled;
-      } else if (!run.banded) {
-        t.planes.push(ci);  // full refinement: by grid plane
+      } else if (const std::uint64_t rank = run.banded ? r.queue.rank(child->error) : run.floor;
+                 rank < run.floor) {
+        t.hold_below(run.hold_base, rank, *child);  // a later band's, or below the target
+      } else if (run.swept) {
+        t.planes.push(ci);  // by grid plane
         ++pushed;
-      } else if (const std::uint64_t rank = r.queue.rank(child->error); rank < run.floor) {
-        t.hold_below(run.floor, rank, *child);  // a later band's
       } else {
         t.stack.push_back(*child);
         ++pushed;

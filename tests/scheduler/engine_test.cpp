@@ -436,6 +436,122 @@ TEST(Engine, runs_by_priority_reach_their_goals_on_tasks_and_on_the_flow_graph) 
   }
 }
 
+// An error target in any order (refine_goal::error_in_any_order) takes its diamonds by grid
+// plane, on one thread and on tasks, and ends on exactly the split set of the target by priority
+// (the sequential refiner's), diamond by diamond. The order is not the priority order: by
+// priority on one thread the records' error bands never rise (a child's error is at most its
+// parent's, and a band is taken only when every larger one is empty); by plane they do. What
+// the run leaves below the target is keyed by its errors, so a smaller target afterwards reaches
+// its own set; stopped half way, what is left is handed back and the target still reached.
+TEST(Engine, an_error_target_in_any_order_splits_the_targets_set_by_plane) {
+  const volume v = make_gaussian_blobs({37, 35, 33}, 9, 5u);
+  const hierarchy h(v.dims());
+  const range_data ranges(v, h);
+  const auto box = test::data_box(v);
+  const double w = 0.4;
+  const auto same_set = [&](const surface_snapshot& s, const refiner& r) {
+    std::uint64_t differ = 0;
+    for (std::uint64_t d = 0; d < h.vertex_count(); ++d) {
+      differ += (r.is_split(h.point(d)) != s.is_split(d)) ? 1U : 0U;
+    }
+    return differ;
+  };
+  // Whether the error bands of the records rise anywhere in publication order.
+  const auto bands_rise = [&](const surface_snapshot& s) {
+    std::uint32_t last = std::numeric_limits<std::uint32_t>::max();
+    bool rose = false;
+    s.for_each_split([&](std::uint64_t d) {
+      const std::uint32_t b = detail::error_bucket(ranges.get(h.point(d)).error);
+      rose = rose || b > last;
+      last = b;
+    });
+    return rose;
+  };
+  refiner all(v, h, ranges, w);
+  all.refine_full();
+  for (const unsigned n : {1u, 2u, 3u}) {
+    SCOPED_TRACE(n);
+    for (const double eps : {0.1, 0.02}) {
+      SCOPED_TRACE(eps);
+      refiner r(v, h, ranges, w);
+      r.refine_to_error(eps);
+      engine e(v, w, with_threads(n));
+      EXPECT_TRUE(e.refine(refine_goal::error_in_any_order(eps)));
+      const surface_snapshot s = e.snapshot();
+      EXPECT_EQ(s.split_count(), r.statistics().splits);
+      EXPECT_EQ(same_set(s, r), 0u);
+      EXPECT_TRUE(test::same_surface(s.mesh(), r.extract()));
+      EXPECT_TRUE(test::check_valid_cut(s.mesh(), box[0], box[1]));
+      if (n == 1) {
+        EXPECT_TRUE(bands_rise(s)) << "the run took its diamonds by priority";
+        engine by_priority(v, w, with_threads(1));
+        EXPECT_TRUE(by_priority.refine(refine_goal::error(eps)));
+        EXPECT_FALSE(bands_rise(by_priority.snapshot())) << "the check cannot tell the orders";
+      }
+      // What is left below the target is queued by its errors: a smaller target from here.
+      refiner finer(v, h, ranges, w);
+      finer.refine_to_error(eps / 4);
+      EXPECT_TRUE(e.refine(refine_goal::error_in_any_order(eps / 4)));
+      EXPECT_EQ(same_set(e.snapshot(), finer), 0u);
+      EXPECT_TRUE(e.refine_until(eps / 16));
+      refiner finest(v, h, ranges, w);
+      finest.refine_to_error(eps / 16);
+      EXPECT_EQ(same_set(e.snapshot(), finest), 0u);
+      EXPECT_TRUE(e.refine_full());
+      EXPECT_EQ(same_set(e.snapshot(), all), 0u);
+    }
+    // Stopped part way (a stop request from the progress callback), then the same target
+    // again, in any order and by priority: the target's set, nothing lost or split twice. Or a
+    // larger target by priority: the stopped cut's set plus the larger target's, no more (what
+    // the stopped run left is keyed again by its errors, not taken first by placeholder).
+    const double eps = 0.01;
+    std::vector<std::unique_ptr<refiner>> targets;
+    for (const double t : {eps, 2 * eps, 8 * eps}) {
+      targets.push_back(std::make_unique<refiner>(v, h, ranges, w));
+      targets.back()->refine_to_error(t);
+    }
+    const refiner& r = *targets[0];
+    for (const int again : {0, 1, 2, 3}) {
+      for (const std::uint64_t sixteenths : {3u, 8u, 13u}) {
+        SCOPED_TRACE(std::to_string(again) + " " + std::to_string(sixteenths));
+        std::atomic<bool> armed{true};
+        engine* self = nullptr;
+        engine_options o = with_threads(n);
+        o.progress_interval = 1;
+        o.progress = [&](const engine_progress& p) {
+          if (armed && p.splits >= r.statistics().splits * sixteenths / 16) self->cancel();
+        };
+        engine e(v, w, o);
+        self = &e;
+        EXPECT_FALSE(e.refine(refine_goal::error_in_any_order(eps)));
+        const surface_snapshot stopped = e.snapshot();
+        EXPECT_LT(stopped.split_count(), r.statistics().splits);
+        EXPECT_TRUE(test::check_valid_cut(stopped.mesh(), box[0], box[1]));
+        EXPECT_TRUE(test::same_surface(stopped.mesh(), replay(e, stopped)));
+        armed = false;
+        if (again >= 2) {
+          const refiner& coarser = *targets[static_cast<std::size_t>(again - 1)];
+          std::vector<bool> before(h.vertex_count(), false);
+          stopped.for_each_split([&](std::uint64_t d) { before[d] = true; });
+          EXPECT_TRUE(e.refine_until(again == 2 ? 2 * eps : 8 * eps));
+          const surface_snapshot s = e.snapshot();
+          std::uint64_t differ = 0;
+          for (std::uint64_t d = 0; d < h.vertex_count(); ++d) {
+            differ += ((before[d] || coarser.is_split(h.point(d))) != s.is_split(d)) ? 1U : 0U;
+          }
+          EXPECT_EQ(differ, 0u);
+          continue;
+        }
+        EXPECT_TRUE(
+            e.refine(again == 0 ? refine_goal::error_in_any_order(eps) : refine_goal::error(eps)));
+        const surface_snapshot s = e.snapshot();
+        EXPECT_EQ(s.split_count(), r.statistics().splits);
+        EXPECT_EQ(same_set(s, r), 0u);
+      }
+    }
+  }
+}
+
 TEST(Engine, triangle_budget_is_respected) {
   const volume v = make_gaussian_blobs({33, 33, 33}, 8, 3u);
   const auto box = test::data_box(v);

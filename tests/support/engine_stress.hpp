@@ -18,9 +18,9 @@
 namespace progiso::test {
 
 /// One random control operation on an engine (3D or contour): an isovalue change (2 in 7),
-/// a full run, an error run to `error_goal`, a cancel, a deadline run of 0–3 ms, or a run to a
-/// budget of 50–20 000 triangles (segments); then a pause of 0–1.2 ms. Returns whether the
-/// isovalue changed.
+/// a full run, an error run to `error_goal` (by priority or in any order), a cancel, a deadline
+/// run of 0–3 ms, or a run to a budget of 50–20 000 triangles (segments); then a pause of
+/// 0–1.2 ms. Returns whether the isovalue changed.
 template <class Engine, class Rng>
 bool random_control_step(Engine& e, Rng& rng, const std::vector<double>& isovalues,
                          double error_goal) {
@@ -38,8 +38,9 @@ bool random_control_step(Engine& e, Rng& rng, const std::vector<double>& isovalu
     case 2:
       e.start(refine_goal::full());
       break;
-    case 3:
-      e.start(refine_goal::error(error_goal));
+    case 3:  // by priority, or in any order (the contour engine takes both by priority)
+      e.start(ms(rng) % 2 == 0 ? refine_goal::error(error_goal)
+                               : refine_goal::error_in_any_order(error_goal));
       break;
     case 4:
       e.cancel();

@@ -157,6 +157,11 @@ class ready_queue {
   /// items of one rank form a band, taken together. Reads only the target: any thread, while
   /// nothing moves it.
   [[nodiscard]] std::uint64_t rank(double e) const noexcept { return key_of(e); }
+  /// Largest error first: the lowest rank of an error above the target (aim_at()): rank(e) is at
+  /// least this exactly when e > target or e is NaN.
+  [[nodiscard]] static constexpr std::uint64_t above_target_rank() noexcept {
+    return std::uint64_t{1} << 32;
+  }
   /// Largest error first: the rank of top(). Not empty.
   [[nodiscard]] std::uint64_t top_rank() const noexcept { return buckets_.back().key; }
   void push(const Item& item) {
@@ -236,7 +241,8 @@ class ready_queue {
   // Above the target first, then by bucket.
   [[nodiscard]] std::uint64_t key_of(double e) const noexcept {
     const bool above = !(e <= target_);
-    return (std::uint64_t{above} << 32) | error_bucket(e);
+    static_assert(error_bucket_bits < 20);  // every bucket below above_target_rank()
+    return (above ? above_target_rank() : 0) | error_bucket(e);
   }
   // The bucket of `key`, made if there is none: a few buckets below the top, mostly, so searched
   // from the top down.
