@@ -510,6 +510,15 @@ struct engine_impl : run_control {
     return goal.what == refine_goal::kind::full ||
            (goal.what == refine_goal::kind::error && goal.any_order);
   }
+  // What a ready diamond's error is needed up to (ready_rule(), range_data::test_upto()): an
+  // error target in any order only tells errors above it from the rest, and a diamond's error
+  // mostly exceeds it after a few of its splits or bricks; every other goal keys its queue by
+  // exact errors.
+  [[nodiscard]] double error_bound() const noexcept {
+    return goal.what == refine_goal::kind::error && goal.any_order
+               ? goal.max_error
+               : std::numeric_limits<double>::infinity();
+  }
   [[nodiscard]] bool eligible(const engine_root& r) const noexcept {
     if (r.queue.empty()) return false;
     if (goal.what == refine_goal::kind::error) return r.queue.top().error > goal.max_error;

@@ -198,8 +198,10 @@ void engine_impl::refine_in_tasks(engine_root& r) {
       items = r.queue.take_top_band();
     } else {
       // An error target in any order: every rank above it (launch() aimed the queue at it).
-      if (banded) floor = r.queue.above_target_rank();
-      run.hold_base = r.queue.rank(goal.max_error) + 1;
+      if (banded) {
+        floor = r.queue.above_target_rank();
+        run.hold_base = r.queue.rank(goal.max_error) + 1;
+      }
       items.reserve(r.queue.size());
       while (eligible(r)) {
         items.push_back(r.queue.top());

@@ -52,8 +52,9 @@ std::optional<ready_item> engine_impl::ready_child(const engine_root& r, const i
     if (ranges_for_empty().empty(c, h)) return std::nullopt;
     return ready_item{unranged_error(depth), depth, index};
   }
+  // An error target in any order asks only whether an error exceeds it (error_bound()).
   const detail::readiness ready =
-      ready_rule(*rd, c, h, owns_surface, errors_needed(), r.isovalue, r.threshold);
+      ready_rule(*rd, c, h, owns_surface, errors_needed(), r.isovalue, r.threshold, error_bound());
   if (!ready.keep) return std::nullopt;
   return ready_item{errors_needed() ? ready.error : unranged_error(depth), depth, index};
 }

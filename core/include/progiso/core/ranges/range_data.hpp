@@ -53,6 +53,12 @@ struct diamond_range {
   [[nodiscard]] bool empty() const noexcept { return lo > hi; }
 };
 
+/// Whether a diamond's range straddles an isovalue, and its error (range_data::test_upto()).
+struct straddle_and_error {
+  bool straddles = false;
+  double error = 0.0;
+};
+
 /// The range data of one volume.
 class range_data {
  public:
@@ -121,6 +127,15 @@ class range_data {
   /// for every ready diamond once a straddle test (or owning a piece of its parent's surface)
   /// has kept it.
   [[nodiscard]] double error(const ipoint& centre, std::int32_t scale) const noexcept;
+  /// get(centre, scale).straddles(w.w) and its error, for a caller that needs the error only up
+  /// to `bound` (a refinement to an error target ≤ bound, in any order): the error is get()'s
+  /// when at most `bound`, otherwise some value above `bound` (not necessarily the diamond's).
+  /// Reads only as much as it takes to know both.
+  [[nodiscard]] straddle_and_error test_upto(const ipoint& centre, std::int32_t scale, double bound,
+                                             const detail::sample_threshold& w) const noexcept;
+  /// error(centre, scale) the same way: exact when at most `bound`, else some value above it.
+  [[nodiscard]] double error_upto(const ipoint& centre, std::int32_t scale,
+                                  double bound) const noexcept;
   /// True when get(centre, scale) is empty (the subtree lies wholly in the padding), without
   /// computing the range: O(1), no samples read.
   [[nodiscard]] bool empty(const ipoint& centre, std::int32_t scale) const noexcept;
