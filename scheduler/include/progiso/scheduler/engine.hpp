@@ -132,8 +132,8 @@ struct refine_goal {
   /// kind::error: split the diamonds of error > max_error by grid plane, as a full run splits
   /// every straddling one, instead of largest error first. An error target fixes its split set,
   /// so the cut it ends on is the same either way; in any order it comes sooner (Marschner–Lobb
-  /// 257³, half of the full splits: 0.66–0.68× full refinement's splits per second against
-  /// 0.51–0.52 by priority at one thread, 0.72–0.74 against 0.58 at two), but the cuts
+  /// 257³, half of the full splits: 0.68–0.71× full refinement's splits per second against
+  /// 0.51–0.53 by priority at one thread, 0.72–0.79 against 0.58 at two), but the cuts
   /// published on the way are refined plane by plane, not the best of their size: for a caller
   /// that waits for the goal (a one-shot extraction), not for one that shows or interrupts the
   /// run. The contour engine (2D) takes its targets by priority either way.
