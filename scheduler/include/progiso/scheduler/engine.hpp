@@ -76,8 +76,11 @@ struct engine_impl;
 struct engine_progress {
   std::uint64_t splits = 0;
   std::uint64_t triangles = 0;
-  double next_error = 0.0;  ///< error of the next ready diamond (0 when none)
-  int depth = 0;            ///< depth of the last diamond published
+  /// Error of the next ready diamond (0 when none). In a run by grid plane (full refinement,
+  /// an error target in any order) the largest error queued for a later goal: 0 in a full run,
+  /// at most the target in an error run.
+  double next_error = 0.0;
+  int depth = 0;  ///< depth of the last diamond published
 };
 
 /// How runs by priority (error, budget, deadline) share more than one thread. Full runs always
