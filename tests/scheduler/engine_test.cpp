@@ -442,7 +442,7 @@ TEST(Engine, runs_by_priority_reach_their_goals_on_tasks_and_on_the_flow_graph) 
 // priority on one thread the records' error bands never rise (a child's error is at most its
 // parent's, and a band is taken only when every larger one is empty); by plane they do. What
 // the run leaves below the target is keyed by its errors, so a smaller target afterwards reaches
-// its own set; stopped half way, what is left is handed back and the target still reached.
+// its own set; stopped part way, what is left is handed back and the target still reached.
 TEST(Engine, an_error_target_in_any_order_splits_the_targets_set_by_plane) {
   const volume v = make_gaussian_blobs({37, 35, 33}, 9, 5u);
   const hierarchy h(v.dims());
