@@ -398,7 +398,10 @@ BENCHMARK(BM_snapshot_mesh)
 // budget of half the full surface's triangles. Mode 3: mode 1's error target in any order
 // (refine_goal::error_in_any_order: by grid plane, the same split set). Args: threads, mode,
 // schedule of the priority runs on more than one thread (0: tasks by bands, the default; 1: the
-// flow graph).
+// flow graph). Also the diamonds each examines per split (`visited`: straddle test and, by
+// priority, error, for every diamond made ready): a partial run also examines the ready
+// diamonds it leaves unsplit, which full refinement splits; `visited_ratio_median` is the
+// median ratio of diamonds examined per second.
 void BM_priority_over_full(benchmark::State& state) {
   engine_options o;
   o.threads = static_cast<unsigned>(state.range(0));
@@ -409,6 +412,7 @@ void BM_priority_over_full(benchmark::State& state) {
   e.refine_full();
   const std::uint64_t full_splits = e.statistics().refine.splits;
   const std::uint64_t full_triangles = e.statistics().refine.triangles;
+  const auto full_visited = static_cast<double>(e.statistics().refine.visited);
   double epsilon = 0.0;
   if (mode == 1 || mode == 3) {
     double lo = 1e-9;
@@ -422,13 +426,16 @@ void BM_priority_over_full(benchmark::State& state) {
     epsilon = hi;
   }
   std::vector<double> ratios;
+  std::vector<double> visited_ratios;
   double priority_splits = 0.0;
+  double priority_visited = 0.0;
   double priority_seconds = 0.0;
   double full_seconds = 0.0;
   for (auto _ : state) {
     double t_full = 0.0;
     double rate_full = 0.0;
     double rate_priority = 0.0;
+    double visited_rate_priority = 0.0;
     const auto run_full = [&] {
       e.set_isovalue(0.5);
       const auto t0 = clock::now();
@@ -453,7 +460,10 @@ void BM_priority_over_full(benchmark::State& state) {
       const double t = std::chrono::duration<double>(clock::now() - t0).count();
       const auto splits = static_cast<double>(e.statistics().refine.splits);
       rate_priority = splits / t;
+      const auto visited = static_cast<double>(e.statistics().refine.visited);
+      visited_rate_priority = visited / t;
       priority_splits += splits;
+      priority_visited += visited;
       priority_seconds += t;
     };
     if (state.iterations() % 2 == 0) {
@@ -466,8 +476,13 @@ void BM_priority_over_full(benchmark::State& state) {
       run_full();
     }
     ratios.push_back(rate_priority / rate_full);
+    visited_ratios.push_back(visited_rate_priority / (full_visited / t_full));
   }
   std::sort(ratios.begin(), ratios.end());
+  std::sort(visited_ratios.begin(), visited_ratios.end());
+  state.counters["visited_ratio_median"] = visited_ratios[visited_ratios.size() / 2];
+  state.counters["full_visited_per_split"] = full_visited / static_cast<double>(full_splits);
+  state.counters["priority_visited_per_split"] = priority_visited / priority_splits;
   state.counters["threads"] = e.threads();
   state.counters["ratio_median"] = ratios[ratios.size() / 2];
   state.counters["priority_Msplits_s"] = priority_splits / priority_seconds / 1e6;
