@@ -1,8 +1,10 @@
 // prefault(): the pages of a large buffer are mapped by one call, before the first write; small
-// buffers and kernels without MADV_POPULATE_WRITE are left alone.
+// buffers and kernels without MADV_POPULATE_WRITE are left alone. release_in_parts(): the pages
+// of a buffer about to be freed handed back by slices.
 
 #include <progiso/core/base/detail/prefault.hpp>
 
+#include <algorithm>
 #include <cerrno>
 #include <cstddef>
 #include <cstdint>
@@ -122,6 +124,58 @@ TEST(Prefault, in_parts_maps_every_page_in_slices_of_at_least_the_minimum_throug
   detail::prefault_in_parts(loop, 1, one.p, bytes);
   EXPECT_EQ(calls, 1u);
   EXPECT_EQ(resident_pages(one.p, bytes), bytes / page);
+}
+
+TEST(Prefault, release_in_parts_frees_the_whole_pages_inside_the_range_in_slices_and_keeps_the_rest) {
+  const auto page = static_cast<std::size_t>(sysconf(_SC_PAGESIZE));
+  // 5.5 MiB plus a page, released from the middle of its first page to the middle of its last:
+  // the whole pages between go, in 5 slices through the loop (a slice is at least 1 MiB).
+  const std::size_t bytes = 5 * detail::prefault_min_bytes + detail::prefault_min_bytes / 2 + page;
+  fresh_mapping m(bytes);
+  ASSERT_NE(m.p, MAP_FAILED);
+  auto* base = static_cast<unsigned char*>(m.p);
+  std::fill(base, base + bytes, std::uint8_t{0xab});
+  const std::size_t pages = bytes / page;
+  ASSERT_EQ(resident_pages(m.p, bytes), pages);
+  std::mutex mutex;
+  std::set<std::size_t> bodies;
+  std::size_t calls = 0;
+  const parallel_loop loop = [&](std::size_t n, const std::function<void(std::size_t)>& body) {
+    {
+      const std::lock_guard lock(mutex);
+      ++calls;
+    }
+    std::vector<std::thread> threads;
+    for (std::size_t k = 0; k < n; ++k) {
+      threads.emplace_back([&, k] {
+        body(k);
+        const std::lock_guard lock(mutex);
+        bodies.insert(k);
+      });
+    }
+    for (auto& t : threads) t.join();
+  };
+  detail::release_in_parts(loop, 8, base + page / 2, bytes - page);
+  EXPECT_EQ(calls, 1u);
+  EXPECT_EQ(bodies.size(), 5u);
+  std::vector<unsigned char> in(pages);
+  ASSERT_EQ(mincore(m.p, bytes, in.data()), 0);
+  EXPECT_EQ(in[0] & 1u, 1u);          // partly outside the range: kept
+  EXPECT_EQ(in[pages - 1] & 1u, 1u);  // likewise
+  for (std::size_t i = 1; i + 1 < pages; ++i) EXPECT_EQ(in[i] & 1u, 0u) << "page " << i;
+  // The kept pages keep their bytes, inside the range too; the freed ones read as zeros.
+  EXPECT_EQ(base[0], 0xab);
+  EXPECT_EQ(base[page - 1], 0xab);
+  EXPECT_EQ(base[bytes - 1], 0xab);
+  EXPECT_EQ(base[bytes - page], 0xab);
+  for (std::size_t i = page; i + page < bytes; i += page / 2) ASSERT_EQ(base[i], 0) << i;
+  // One part: nothing is released (a single thread gains nothing over free()), the loop unused.
+  fresh_mapping one(bytes);
+  ASSERT_NE(one.p, MAP_FAILED);
+  std::fill_n(static_cast<unsigned char*>(one.p), bytes, std::uint8_t{0xab});
+  detail::release_in_parts(loop, 1, one.p, bytes);
+  EXPECT_EQ(calls, 1u);
+  EXPECT_EQ(resident_pages(one.p, bytes), pages);
 }
 
 TEST(Prefault, reserve_prefaulted_reserves_and_keeps_the_elements) {

@@ -295,6 +295,9 @@ class finest_mesher {
                  }
                });
     });
+    // The corner bytes are read no more: their pages freed by slices over the threads, not
+    // one by one on this thread by the destructor (release_in_parts()).
+    detail::release_in_parts(loop, parts, corners_.get(), static_cast<std::size_t>(nx_) * rows_);
     if (progress.active()) progress.finish();
     return mesh;
   }

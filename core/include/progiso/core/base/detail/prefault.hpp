@@ -70,6 +70,39 @@ inline void prefault_in_parts(const parallel_loop& run, std::size_t parts, const
   });
 }
 
+/// Hands the whole pages of [p, p + bytes) back to the kernel (MADV_DONTNEED), in up to `parts`
+/// slices through `run`, for a buffer that is about to be freed and will not be read again
+/// (reads would find zeros). Freeing a large buffer unmaps its pages one by one on the freeing
+/// thread: a 512³ grid's 134 MB of corner bytes took 8 ms at the end of every finest surface,
+/// on one thread whatever the thread count; released in slices, each thread frees its own, and
+/// the free() after it finds nothing left to unmap. Only pages wholly inside the range go, so
+/// the allocator's own words around a block are untouched. A no-op below prefault_min_bytes a
+/// slice or off Linux.
+inline void release_in_parts(const parallel_loop& run, std::size_t parts, void* p,
+                             std::size_t bytes) {
+#if defined(__linux__)
+  const std::size_t slices = std::min(parts, bytes / prefault_min_bytes);
+  if (p == nullptr || slices <= 1) return;
+  static const auto page = static_cast<std::uintptr_t>(sysconf(_SC_PAGESIZE));
+  const auto begin = reinterpret_cast<std::uintptr_t>(p);
+  const std::uintptr_t first = (begin + page - 1) & ~(page - 1);
+  const std::uintptr_t last = (begin + bytes) & ~(page - 1);
+  if (last <= first) return;
+  const std::uintptr_t slice = ((last - first) / slices + page - 1) & ~(page - 1);
+  run_loop(run, slices, [&](std::size_t k) {
+    const std::uintptr_t lo = std::min(last, first + k * slice);
+    const std::uintptr_t hi = std::min(last, lo + slice);
+    // Advice only: a failure leaves the pages to the free() that follows.
+    if (hi > lo) (void)madvise(reinterpret_cast<void*>(lo), hi - lo, MADV_DONTNEED);
+  });
+#else
+  (void)run;
+  (void)parts;
+  (void)p;
+  (void)bytes;
+#endif
+}
+
 /// v.reserve(n), with the new buffer's pages mapped at once when it is freshly allocated.
 template <class Vector>
 void reserve_prefaulted(Vector& v, std::size_t n) {
