@@ -126,7 +126,8 @@ TEST(Prefault, in_parts_maps_every_page_in_slices_of_at_least_the_minimum_throug
   EXPECT_EQ(resident_pages(one.p, bytes), bytes / page);
 }
 
-TEST(Prefault, release_in_parts_frees_the_whole_pages_inside_the_range_in_slices_and_keeps_the_rest) {
+TEST(Prefault,
+     release_in_parts_frees_the_whole_pages_inside_the_range_in_slices_and_keeps_the_rest) {
   const auto page = static_cast<std::size_t>(sysconf(_SC_PAGESIZE));
   // 5.5 MiB plus a page, released from the middle of its first page to the middle of its last:
   // the whole pages between go, in 5 slices through the loop (a slice is at least 1 MiB).
