@@ -43,6 +43,29 @@ struct fresh_mapping {
   void* p;
 };
 
+// A loop that runs each body on its own thread, as the engine's would on several, counting its
+// calls and the bodies run.
+struct threads_per_body {
+  std::mutex mutex;
+  std::set<std::size_t> bodies;
+  std::size_t calls = 0;
+  const parallel_loop run = [this](std::size_t n, const std::function<void(std::size_t)>& body) {
+    {
+      const std::lock_guard lock(mutex);
+      ++calls;
+    }
+    std::vector<std::thread> threads;
+    for (std::size_t k = 0; k < n; ++k) {
+      threads.emplace_back([this, &body, k] {
+        body(k);
+        const std::lock_guard lock(mutex);
+        bodies.insert(k);
+      });
+    }
+    for (auto& t : threads) t.join();
+  };
+};
+
 bool kernel_populates() {
   fresh_mapping probe(4096);
   return probe.p != MAP_FAILED && madvise(probe.p, 4096, 23 /* MADV_POPULATE_WRITE */) == 0;
@@ -95,34 +118,16 @@ TEST(Prefault, in_parts_maps_every_page_in_slices_of_at_least_the_minimum_throug
   const std::size_t bytes = 5 * detail::prefault_min_bytes + detail::prefault_min_bytes / 2;
   fresh_mapping m(bytes);
   ASSERT_NE(m.p, MAP_FAILED);
-  std::mutex mutex;
-  std::set<std::size_t> bodies;
-  std::size_t calls = 0;
-  // A loop that runs each body on its own thread, as the engine's would on several.
-  const parallel_loop loop = [&](std::size_t n, const std::function<void(std::size_t)>& body) {
-    {
-      const std::lock_guard lock(mutex);
-      ++calls;
-    }
-    std::vector<std::thread> threads;
-    for (std::size_t k = 0; k < n; ++k) {
-      threads.emplace_back([&, k] {
-        body(k);
-        const std::lock_guard lock(mutex);
-        bodies.insert(k);
-      });
-    }
-    for (auto& t : threads) t.join();
-  };
-  detail::prefault_in_parts(loop, 8, m.p, bytes);
-  EXPECT_EQ(calls, 1u);
-  EXPECT_EQ(bodies.size(), 5u);
+  threads_per_body loop;
+  detail::prefault_in_parts(loop.run, 8, m.p, bytes);
+  EXPECT_EQ(loop.calls, 1u);
+  EXPECT_EQ(loop.bodies.size(), 5u);
   EXPECT_EQ(resident_pages(m.p, bytes), bytes / page);
   // One part: one call on this thread, the loop untouched; the whole range mapped all the same.
   fresh_mapping one(bytes);
   ASSERT_NE(one.p, MAP_FAILED);
-  detail::prefault_in_parts(loop, 1, one.p, bytes);
-  EXPECT_EQ(calls, 1u);
+  detail::prefault_in_parts(loop.run, 1, one.p, bytes);
+  EXPECT_EQ(loop.calls, 1u);
   EXPECT_EQ(resident_pages(one.p, bytes), bytes / page);
 }
 
@@ -138,27 +143,10 @@ TEST(Prefault,
   std::fill(base, base + bytes, std::uint8_t{0xab});
   const std::size_t pages = bytes / page;
   ASSERT_EQ(resident_pages(m.p, bytes), pages);
-  std::mutex mutex;
-  std::set<std::size_t> bodies;
-  std::size_t calls = 0;
-  const parallel_loop loop = [&](std::size_t n, const std::function<void(std::size_t)>& body) {
-    {
-      const std::lock_guard lock(mutex);
-      ++calls;
-    }
-    std::vector<std::thread> threads;
-    for (std::size_t k = 0; k < n; ++k) {
-      threads.emplace_back([&, k] {
-        body(k);
-        const std::lock_guard lock(mutex);
-        bodies.insert(k);
-      });
-    }
-    for (auto& t : threads) t.join();
-  };
-  detail::release_in_parts(loop, 8, base + page / 2, bytes - page);
-  EXPECT_EQ(calls, 1u);
-  EXPECT_EQ(bodies.size(), 5u);
+  threads_per_body loop;
+  detail::release_in_parts(loop.run, 8, base + page / 2, bytes - page);
+  EXPECT_EQ(loop.calls, 1u);
+  EXPECT_EQ(loop.bodies.size(), 5u);
   std::vector<unsigned char> in(pages);
   ASSERT_EQ(mincore(m.p, bytes, in.data()), 0);
   EXPECT_EQ(in[0] & 1u, 1u);          // partly outside the range: kept
@@ -174,8 +162,8 @@ TEST(Prefault,
   fresh_mapping one(bytes);
   ASSERT_NE(one.p, MAP_FAILED);
   std::fill_n(static_cast<unsigned char*>(one.p), bytes, std::uint8_t{0xab});
-  detail::release_in_parts(loop, 1, one.p, bytes);
-  EXPECT_EQ(calls, 1u);
+  detail::release_in_parts(loop.run, 1, one.p, bytes);
+  EXPECT_EQ(loop.calls, 1u);
   EXPECT_EQ(resident_pages(one.p, bytes), pages);
 }
 
