@@ -134,9 +134,9 @@ TEST(Prefault, in_parts_maps_every_page_in_slices_of_at_least_the_minimum_throug
 TEST(Prefault,
      release_in_parts_frees_the_whole_pages_inside_the_range_in_slices_and_keeps_the_rest) {
   const auto page = static_cast<std::size_t>(sysconf(_SC_PAGESIZE));
-  // 5.5 MiB plus a page, released from the middle of its first page to the middle of its last:
-  // the whole pages between go, in 5 slices through the loop (a slice is at least 1 MiB).
-  const std::size_t bytes = 5 * detail::prefault_min_bytes + detail::prefault_min_bytes / 2 + page;
+  // The minimum plus half a MiB and a page, released from the middle of its first page to the
+  // middle of its last: the whole pages between go, in 8 slices through the loop.
+  const std::size_t bytes = detail::release_min_bytes + detail::prefault_min_bytes / 2 + page;
   fresh_mapping m(bytes);
   ASSERT_NE(m.p, MAP_FAILED);
   auto* base = static_cast<unsigned char*>(m.p);
@@ -146,12 +146,12 @@ TEST(Prefault,
   threads_per_body loop;
   detail::release_in_parts(loop.run, 8, base + page / 2, bytes - page);
   EXPECT_EQ(loop.calls, 1u);
-  EXPECT_EQ(loop.bodies.size(), 5u);
+  EXPECT_EQ(loop.bodies.size(), 8u);
   std::vector<unsigned char> in(pages);
   ASSERT_EQ(mincore(m.p, bytes, in.data()), 0);
   EXPECT_EQ(in[0] & 1u, 1u);          // partly outside the range: kept
   EXPECT_EQ(in[pages - 1] & 1u, 1u);  // likewise
-  for (std::size_t i = 1; i + 1 < pages; ++i) EXPECT_EQ(in[i] & 1u, 0u) << "page " << i;
+  for (std::size_t i = 1; i + 1 < pages; ++i) ASSERT_EQ(in[i] & 1u, 0u) << "page " << i;
   // The kept pages keep their bytes, inside the range too; the freed ones read as zeros.
   EXPECT_EQ(base[0], 0xab);
   EXPECT_EQ(base[page - 1], 0xab);
@@ -165,6 +165,21 @@ TEST(Prefault,
   detail::release_in_parts(loop.run, 1, one.p, bytes);
   EXPECT_EQ(loop.calls, 1u);
   EXPECT_EQ(resident_pages(one.p, bytes), pages);
+}
+
+TEST(Prefault, release_in_parts_leaves_a_buffer_below_the_minimum_to_the_allocator) {
+  // Below release_min_bytes a block may sit in malloc's heap, whose pages the next allocation
+  // reuses: they stay mapped.
+  const auto page = static_cast<std::size_t>(sysconf(_SC_PAGESIZE));
+  const std::size_t bytes = detail::release_min_bytes - page;
+  fresh_mapping m(bytes);
+  ASSERT_NE(m.p, MAP_FAILED);
+  std::fill_n(static_cast<unsigned char*>(m.p), bytes, std::uint8_t{0xab});
+  threads_per_body loop;
+  detail::release_in_parts(loop.run, 8, m.p, bytes);
+  EXPECT_EQ(loop.calls, 0u);
+  EXPECT_EQ(resident_pages(m.p, bytes), bytes / page);
+  EXPECT_EQ(static_cast<unsigned char*>(m.p)[bytes / 2], 0xab);
 }
 
 TEST(Prefault, reserve_prefaulted_reserves_and_keeps_the_elements) {

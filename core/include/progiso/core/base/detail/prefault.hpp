@@ -70,19 +70,28 @@ inline void prefault_in_parts(const parallel_loop& run, std::size_t parts, const
   });
 }
 
+/// The smallest buffer release_in_parts() hands back: glibc's largest mmap threshold (32 MiB on
+/// 64-bit), above which malloc always maps a block on its own and free() unmaps it. A smaller
+/// block may sit in the heap, where free() keeps its pages for the next allocation: releasing
+/// them would make that allocation fault them again. Measured so (2026-11-29): with the 257³
+/// grid's 17 MB of corner bytes released, the next runs in the process (Flying Edges' and
+/// ours, the benchmark's allocator keeping freed memory) took 17.1 → 20.1–20.9 ms and 44 →
+/// 45–46 ms, three alternations each.
+inline constexpr std::size_t release_min_bytes = std::size_t{32} << 20;
+
 /// Hands the whole pages of [p, p + bytes) back to the kernel (MADV_DONTNEED), in up to `parts`
 /// slices through `run`, for a buffer that is about to be freed and will not be read again
-/// (reads would find zeros). Freeing a large buffer unmaps its pages one by one on the freeing
+/// (reads would find zeros). free() unmaps a large block's pages one by one on the freeing
 /// thread: a 512³ grid's 134 MB of corner bytes took 8 ms at the end of every finest surface,
 /// on one thread whatever the thread count; released in slices, each thread frees its own, and
-/// the free() after it finds nothing left to unmap. Only pages wholly inside the range go, so
-/// the allocator's own words around a block are untouched. A no-op below prefault_min_bytes a
-/// slice or off Linux.
+/// free() finds nothing left to unmap. Only pages wholly inside the range go, so the
+/// allocator's own words around a block are untouched. A no-op below release_min_bytes, for
+/// slices below prefault_min_bytes (one part), and off Linux.
 inline void release_in_parts(const parallel_loop& run, std::size_t parts, void* p,
                              std::size_t bytes) {
 #if defined(__linux__)
   const std::size_t slices = std::min(parts, bytes / prefault_min_bytes);
-  if (p == nullptr || slices <= 1) return;
+  if (p == nullptr || bytes < release_min_bytes || slices <= 1) return;
   static const auto page = static_cast<std::uintptr_t>(sysconf(_SC_PAGESIZE));
   const auto begin = reinterpret_cast<std::uintptr_t>(p);
   const std::uintptr_t first = (begin + page - 1) & ~(page - 1);
