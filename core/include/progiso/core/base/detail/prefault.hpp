@@ -106,7 +106,12 @@ inline void release_in_parts(const parallel_loop& run, std::size_t parts, void* 
 #if defined(__linux__)
   const std::size_t slices = std::min(parts, bytes / prefault_min_bytes);
   if (p == nullptr || bytes < release_min_bytes || slices <= 1) return;
-  const auto [first, last, page] = inner_pages(p, bytes);
+  // Named fields, not a structured binding: the lambda below reads them (C++20 allows capturing
+  // bindings, clang 14 does not).
+  const page_span pages = inner_pages(p, bytes);
+  const std::uintptr_t first = pages.first;
+  const std::uintptr_t last = pages.last;
+  const std::uintptr_t page = pages.page;
   if (last == first) return;
   const std::uintptr_t slice = ((last - first) / slices + page - 1) & ~(page - 1);
   run_loop(run, slices, [&](std::size_t k) {
