@@ -4,7 +4,7 @@
 //   build/release/bench/progiso_contour_bench --benchmark_counters_tabular=true
 #include <progiso/core/base/error.hpp>
 #include <progiso/core/contour/contour_refiner.hpp>
-#include <progiso/core/io/image_io.hpp>
+#include <progiso/io/image_io.hpp>
 #include <progiso/scheduler/contour_engine.hpp>
 
 #include <algorithm>

@@ -19,9 +19,9 @@
 //   build/release/bench/progiso_peer_bench --benchmark_counters_tabular=true
 #include <progiso/core/contour/contour_refiner.hpp>
 #include <progiso/core/field/analytic.hpp>
-#include <progiso/core/io/image_io.hpp>
-#include <progiso/core/io/volume_io.hpp>
 #include <progiso/core/refine/refiner.hpp>
+#include <progiso/io/image_io.hpp>
+#include <progiso/io/volume_io.hpp>
 #include <progiso/scheduler/engine.hpp>
 #include <progiso/scheduler/tbb_environment.hpp>
 
@@ -202,12 +202,12 @@ volume_case volume_setup(benchmark::State& state) {
 // (range data, full refinement, extraction of the cut), the same surface.
 void peer_volume(benchmark::State& state, bool finest_direct) {
   auto [in, vol, threads, fe] = volume_setup(state);
-  extract_options options;  // full
-  options.finest_direct = finest_direct;
+  const extract_options options;  // full
   pair_stats s;
   run_pairs(state, *fe, s, [&] {
     const auto t0 = clock_type::now();
-    const extract_result r = extract_isosurface_parallel(vol, in.isovalue, options, threads);
+    const extract_result r = progiso::detail::extract_isosurface_parallel(
+        vol, in.isovalue, options, threads, progiso::detail::path_choice{finest_direct});
     const double ms = ms_since(t0);
     s.range.push_back(r.range_build_seconds * 1e3);
     s.refine.push_back(r.refine_seconds * 1e3);
@@ -345,8 +345,7 @@ void BM_deadline_quality(benchmark::State& state) {
       for (int k = 0; k < 6; ++k) {
         const bool ladder = (k % 2 == 0) == (k % 4 < 2);
         extract_options o;
-        o.mode = extract_mode::time;
-        o.time_budget = std::chrono::duration<double, std::milli>(fe_full / d);
+        o.goal = refine_goal::within(std::chrono::duration<double, std::milli>(fe_full / d));
         o.deadline_ladder = ladder;
         const extract_result r = extract_isosurface_parallel(vol, in.isovalue, o, threads);
         const std::size_t j = ladder ? 0 : 1;

@@ -23,8 +23,8 @@
 #include <progiso/core/contour/contour_refiner.hpp>
 #include <progiso/core/field/detail/subdivision.hpp>
 #include <progiso/core/field/smoothing.hpp>
-#include <progiso/core/io/image_io.hpp>
-#include <progiso/core/io/volume_io.hpp>
+#include <progiso/io/image_io.hpp>
+#include <progiso/io/volume_io.hpp>
 #include <progiso/scheduler/engine.hpp>
 
 #include <algorithm>

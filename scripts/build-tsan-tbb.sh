@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # Builds oneTBB instrumented for ThreadSanitizer from Debian's own source package, for the `tsan`
-# preset (DESIGN.md §5). Debian's libtbb is not instrumented, so TSan reports false races inside
+# preset (docs/ARCHITECTURE.md, "Tests"). Debian's libtbb is not instrumented, so TSan reports false races inside
 # TBB and in objects handed from one task to another; linking this build instead removes them.
 # Run from anywhere (paths are relative to the repository root), as root or with sudo available:
 #

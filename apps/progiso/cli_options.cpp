@@ -6,8 +6,8 @@
 #include <system_error>
 
 #include <progiso/core/base/error.hpp>
-#include <progiso/core/io/detail/file_input.hpp>
-#include <progiso/core/io/detail/file_output.hpp>
+#include <progiso/io/detail/file_input.hpp>
+#include <progiso/io/detail/file_output.hpp>
 
 namespace progiso::cli {
 
@@ -154,34 +154,52 @@ std::uint64_t parse_count(const std::string& flag, const std::string& text) {
 
 namespace {
 
-/// The mode options shared by both commands: --full, --error E, the budget flag (--max-triangles
-/// or --max-segments) K, --time-ms T. Returns false when `f` is none of them; counts the modes
-/// given in `modes`. The modes enums share their order: full, error, budget, time.
-template <class Options, class Value>
-bool parse_mode(const std::string& f, const Value& value, const char* budget_flag,
-                std::uint64_t Options::*budget, Options& o, int& modes) {
-  using mode = decltype(o.mode);
+/// The goal options shared by both commands (core/refine/goal.hpp): --full, --error E, the
+/// budget flag (--max-triangles or --max-segments) K, --time-ms T. Returns false when `f` is
+/// none of them; counts the goals given in `modes`. A deadline's clock starts when the input is
+/// in memory: the duration waits in `time_budget` until then (start_deadline()).
+template <class Arguments, class Value>
+bool parse_goal(const std::string& f, const Value& value, const char* budget_flag, Arguments& a,
+                int& modes) {
+  refine_goal& goal = a.options.goal;
   if (f == "--full") {
-    o.mode = static_cast<mode>(0);
+    goal = refine_goal::full();
   } else if (f == "--error") {
-    o.mode = static_cast<mode>(1);
-    o.max_error = parse_number(f, value());
-    if (o.max_error < 0) throw error("--error: expected a non-negative number");
+    const double e = parse_number(f, value());
+    if (e < 0) throw error("--error: expected a non-negative number");
+    goal = refine_goal::error(e);
   } else if (f == budget_flag) {
-    o.mode = static_cast<mode>(2);
-    o.*budget = parse_count(f, value());
+    goal = refine_goal::triangles(parse_count(f, value()));
   } else if (f == "--time-ms") {
-    o.mode = static_cast<mode>(3);
     const double ms = parse_number(f, value());
     if (ms < 0) throw error("--time-ms: expected a non-negative number of milliseconds");
     // Budgets beyond the clock's range saturate (deadline_after): no deadline at all.
-    o.time_budget = std::chrono::duration<double>(ms / 1000.0);
+    a.time_budget = std::chrono::duration<double>(ms / 1000.0);
+    goal = refine_goal::until({});
   } else {
     return false;
   }
   ++modes;
   return true;
 }
+
+}  // namespace
+
+const char* goal_name(const refine_goal& goal, const char* budget_name) noexcept {
+  switch (goal.what) {
+    case refine_goal::kind::full:
+      return "full";
+    case refine_goal::kind::error:
+      return "error";
+    case refine_goal::kind::budget:
+      return budget_name;
+    case refine_goal::kind::deadline:
+      return "time";
+  }
+  return "full";
+}
+
+namespace {
 
 /// What both commands do with any other argument: -h/--help (returns false: stop parsing), an
 /// unknown option (throws), the one INPUT (throws for a second one).
@@ -195,11 +213,6 @@ bool take_other(const std::string& f, bool& help, std::optional<std::string>& in
   input = f;
   return true;
 }
-
-static_assert(static_cast<int>(extract_mode::triangles) == 2 &&
-              static_cast<int>(extract_mode::time) == 3 &&
-              static_cast<int>(contour_mode::segments) == 2 &&
-              static_cast<int>(contour_mode::time) == 3);
 
 /// The smoothing options shared by both commands: --smooth S, --smooth-from K,
 /// --smooth-region (2·axes integers: lows then highs), --alpha A. Returns false when `f` is none
@@ -270,8 +283,7 @@ extract_arguments parse_extract(const std::vector<std::string>& args) {
   for (std::size_t i = 1; i < args.size(); ++i) {
     const std::string& f = args[i];
     const auto value = [&] { return next_value(args, i, f); };
-    if (parse_mode(f, value, "--max-triangles", &extract_options::max_triangles, a.options,
-                   modes) ||
+    if (parse_goal(f, value, "--max-triangles", a, modes) ||
         parse_smoothing(f, value, a.smooth, 3)) {
       continue;
     }
@@ -339,7 +351,7 @@ extract_arguments parse_extract(const std::vector<std::string>& args) {
     }
   }
   if (modes > 1) throw error("choose at most one of --full, --error, --max-triangles, --time-ms");
-  if (by_priority && a.options.mode != extract_mode::time) {
+  if (by_priority && a.options.goal.what != refine_goal::kind::deadline) {
     throw error("--by-priority applies to --time-ms (the other modes choose their own order)");
   }
   if (a.demo && a.input) throw error("--demo takes no INPUT");
@@ -384,7 +396,7 @@ contour_arguments parse_contour(const std::vector<std::string>& args) {
   for (std::size_t i = 1; i < args.size(); ++i) {
     const std::string& f = args[i];
     const auto value = [&] { return next_value(args, i, f); };
-    if (parse_mode(f, value, "--max-segments", &contour_options::max_segments, a.options, modes) ||
+    if (parse_goal(f, value, "--max-segments", a, modes) ||
         parse_smoothing(f, value, a.smooth, 2)) {
       continue;
     }

@@ -5,6 +5,7 @@
 #pragma once
 
 #include <array>
+#include <chrono>
 #include <cstdint>
 #include <optional>
 #include <string>
@@ -13,6 +14,7 @@
 #include <progiso/core/contour/contour_refiner.hpp>
 #include <progiso/core/field/smoothing.hpp>
 #include <progiso/core/field/volume.hpp>
+#include <progiso/core/refine/goal.hpp>
 #include <progiso/core/refine/refiner.hpp>
 
 namespace progiso::cli {
@@ -43,6 +45,7 @@ struct extract_arguments {
   std::optional<std::string> series;   // --series: which series of a DICOM directory
   std::optional<std::int64_t> volume;  // --volume: which volume of a NIfTI time series
   extract_options options;
+  std::chrono::duration<double> time_budget{0.0};  // --time-ms, until the volume is in memory
   std::optional<std::string> stats_json;
   unsigned threads = 0;  // 0: all cores
   smoothing smooth;
@@ -54,10 +57,23 @@ struct contour_arguments {
   std::optional<std::string> output;
   std::vector<double> isovalues;
   contour_options options;
+  std::chrono::duration<double> time_budget{0.0};  // --time-ms, until the image is in memory
   std::optional<std::string> frames;
   std::optional<std::string> stats_json;
   smoothing smooth;  // region: X0, Y0, 0, X1, Y1, 0
 };
+
+/// A --time-ms goal's deadline, counted from now (the input is in memory); other goals as they
+/// are.
+template <class Arguments>
+void start_deadline(Arguments& a) {
+  if (a.options.goal.what == refine_goal::kind::deadline) {
+    a.options.goal = refine_goal::within(a.time_budget);
+  }
+}
+
+/// The goal's name in --stats-json: "full", "error", `budget_name`, "time".
+[[nodiscard]] const char* goal_name(const refine_goal& goal, const char* budget_name) noexcept;
 
 /// `args` is argv without the program name, starting with "extract". Throws progiso::error.
 [[nodiscard]] extract_arguments parse_extract(const std::vector<std::string>& args);

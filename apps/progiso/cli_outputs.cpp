@@ -7,7 +7,7 @@
 #include <system_error>
 
 #include <progiso/core/base/error.hpp>
-#include <progiso/core/io/detail/file_output.hpp>
+#include <progiso/io/detail/file_output.hpp>
 
 namespace progiso::cli {
 

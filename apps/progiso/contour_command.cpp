@@ -20,9 +20,9 @@
 #include <progiso/core/base/error.hpp>
 #include <progiso/core/contour/contour_refiner.hpp>
 #include <progiso/core/field/smoothing.hpp>
-#include <progiso/core/io/contour_io.hpp>
-#include <progiso/core/io/detail/file_output.hpp>
-#include <progiso/core/io/image_io.hpp>
+#include <progiso/io/contour_io.hpp>
+#include <progiso/io/detail/file_output.hpp>
+#include <progiso/io/image_io.hpp>
 
 #include "cli_common.hpp"
 #include "cli_options.hpp"
@@ -37,7 +37,6 @@ namespace fs = std::filesystem;
 std::string contour_stats_json(const contour_arguments& a, const progiso::volume& img,
                                const progiso::volume& field, const progiso::contour_result& r,
                                std::size_t polylines, std::size_t segments, std::size_t closed) {
-  const char* mode_names[] = {"full", "error", "segments", "time"};
   std::uint64_t splits = 0, visited = 0, culled = 0;
   std::array<std::uint64_t, progiso::contour_case_count> cases{};
   std::array<std::uint64_t, progiso::contour_primitive_count> prims{};
@@ -55,7 +54,7 @@ std::string contour_stats_json(const contour_arguments& a, const progiso::volume
   for (std::size_t i = 0; i < a.isovalues.size(); ++i) {
     o << (i ? ", " : "") << json_number(a.isovalues[i]);
   }
-  o << "],\n  \"mode\": \"" << mode_names[static_cast<int>(a.options.mode)] << "\",\n";
+  o << "],\n  \"mode\": \"" << goal_name(a.options.goal, "segments") << "\",\n";
   // "finest": full contours from two passes over the pixels, not from refinement.
   o << "  \"path\": \"" << (r.finest_direct ? "finest" : "refinement") << "\",\n";
   o << "  \"splits\": " << splits << ",\n  \"diamonds_visited\": " << visited
@@ -147,6 +146,7 @@ int run_contour(const std::vector<std::string>& args) {
     segments += c.segment_count();
     for (const auto& p : c.polylines) closed += p.closed ? 1 : 0;
   };
+  start_deadline(a);  // the image is in memory
   const progiso::contour_result r = progiso::extract_contours(*field, a.isovalues, a.options);
   const auto [lo, hi] = field->value_range();
   for (const double w : a.isovalues) {

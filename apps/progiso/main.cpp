@@ -1,12 +1,18 @@
-// progiso — command-line front end: progressive isosurface extraction from volumes.
+// progiso — command-line front end: progressive isosurfaces of volumes, isocontours of images.
 //
 //   progiso extract INPUT -o OUT.ply|OUT.obj|OUT.stl --iso W
 //           [--dims NX,NY,NZ --type u8|i8|u16|i16|u32|i32|f32|f64 [--big-endian]]
-//           [--spacing SX,SY,SZ] [--full | --error E | --max-triangles K | --time-ms T]
-//           [--stats-json FILE] [--threads N]
+//           [--spacing SX,SY,SZ | --world] [--series N|UID] [--volume K]
+//           [--full | --error E | --max-triangles K | --time-ms T [--by-priority]]
+//           [--stats-json FILE] [--threads N] [--normals]
 //           [--smooth S] [--smooth-from K] [--smooth-region X0,Y0,Z0,X1,Y1,Z1] [--alpha A]
-//   progiso extract --demo -o OUT.ply [--iso W] [--threads N]
+//   progiso extract --demo -o OUT.ply [--iso W] [--threads N] [--normals]
+//   progiso contour INPUT.pgm|INPUT.png -o OUT.obj|OUT.svg --iso W[,W2,...]
+//           [--full | --error E | --max-segments K | --time-ms T] [--frames DIR]
+//           [--stats-json FILE]
+//           [--smooth S] [--smooth-from K] [--smooth-region X0,Y0,X1,Y1] [--alpha A]
 //
+// The full text of `progiso --help` is cli_options.cpp's usage_text.
 // Exit status: 0 on success, 2 on bad input or usage (one line on stderr, no output file).
 #include <unistd.h>
 
@@ -28,11 +34,11 @@
 #include <progiso/core/base/error.hpp>
 #include <progiso/core/field/analytic.hpp>
 #include <progiso/core/field/smoothing.hpp>
-#include <progiso/core/io/detail/file_output.hpp>
-#include <progiso/core/io/detail/writers.hpp>
-#include <progiso/core/io/mesh_io.hpp>
-#include <progiso/core/io/volume_io.hpp>
 #include <progiso/core/refine/refiner.hpp>
+#include <progiso/io/detail/file_output.hpp>
+#include <progiso/io/detail/writers.hpp>
+#include <progiso/io/mesh_io.hpp>
+#include <progiso/io/volume_io.hpp>
 #include <progiso/scheduler/engine.hpp>
 #include <progiso/scheduler/tbb_environment.hpp>
 
@@ -59,14 +65,13 @@ std::vector<std::string> argument_list(int argc, char** argv) {
 std::string stats_json(const arguments& a, const std::string& input, double iso,
                        const progiso::volume& data, const progiso::volume& vol,
                        const progiso::extract_result& r) {
-  const char* mode_names[] = {"full", "error", "triangles", "time"};
   std::ostringstream o;
   o << "{\n";
   o << "  \"input\": \"" << json_escape(input) << "\",\n";
   if (a.volume) o << "  \"volume\": " << *a.volume << ",\n";
   o << "  \"dims\": [" << vol.dims()[0] << ", " << vol.dims()[1] << ", " << vol.dims()[2] << "],\n";
   o << "  \"isovalue\": " << json_number(iso) << ",\n";
-  o << "  \"mode\": \"" << mode_names[static_cast<int>(a.options.mode)] << "\",\n";
+  o << "  \"mode\": \"" << goal_name(a.options.goal, "triangles") << "\",\n";
   const auto available = static_cast<unsigned>(progiso::scheduler::default_concurrency());
   o << "  \"threads\": " << (a.threads == 0 ? available : std::min(a.threads, available)) << ",\n";
   // "finest": the full surface came from two passes over the samples, not from refinement;
@@ -308,6 +313,7 @@ int run(const std::vector<std::string>& args) {
   std::cerr << "\n";
   progress_bar bar;
   a.options.progress = [&bar](const progiso::extract_progress& p) { bar.update(p); };
+  start_deadline(a);  // the volume is in memory
   progiso::extract_result r = progiso::extract_isosurface_parallel(*vol, iso, a.options, a.threads);
   bar.finish();
   if (r.isovalue_outside_data) {

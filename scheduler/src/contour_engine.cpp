@@ -32,8 +32,9 @@ namespace progiso::detail {
 namespace {
 
 constexpr std::uint64_t contour_root_alive = 0x70726f67636f6e31;  // "progcon1"
-// Splits between publications: readers see progress at least this often (a split is ~0.1–0.3
-// µs), and the release store and counter updates stay off the per-split path.
+// Splits between publications: readers see progress at least this often (a 2D split is cheap,
+// so this many is still a short lag), and the release store and counter updates stay off the
+// per-split path.
 constexpr std::uint64_t publish_every = 64;
 // The most segments one split's record holds: two triangles become four, one segment each.
 constexpr std::uint32_t max_record_segments = 8;
@@ -222,7 +223,7 @@ struct contour_engine_impl : run_control {
           compute_placed_contour_split(hier, image, r->isovalue, d, scratch);
       const std::uint64_t after = r->cut_segments + static_cast<std::uint64_t>(s.added_segments) -
                                   static_cast<std::uint64_t>(s.removed_segments);
-      if (goal.what == refine_goal::kind::triangles && after > goal.max_triangles) {
+      if (goal.what == refine_goal::kind::budget && after > goal.max_elements) {
         budget_hit = true;
         break;
       }
@@ -263,7 +264,7 @@ struct contour_engine_impl : run_control {
       case refine_goal::kind::error:
         reached = r->queue.empty() || !(r->queue.top().error > goal.max_error);
         break;
-      case refine_goal::kind::triangles:
+      case refine_goal::kind::budget:
         reached = budget_hit || r->queue.empty();
         break;
     }
@@ -354,7 +355,7 @@ const detail::cut_index& contour_snapshot::split_bits() const {
   if (const auto* b = split_bits_.load(std::memory_order_acquire)) return *b;
   auto made = std::make_unique<detail::cut_index>(
       detail::cut_index::dense(owner_->hierarchy_of().vertex_count()));
-  for (std::uint64_t r = 1; r < published_; ++r) made->add_alone(root_->records[r].diamond);
+  for (std::uint64_t r = 1; r < published_; ++r) made->add_on_one_thread(root_->records[r].diamond);
   const detail::cut_index* expected = nullptr;
   // acq_rel: releases this thread's index to later loads (the acquire above) and, when another
   // call won, acquires that one's. Partner: this same exchange in a concurrent first call.
@@ -387,7 +388,7 @@ contour_set contour_snapshot::build(InCut&& in_cut) const {
   detail::cut_index cut;
   if (selected.size() > vertices / 4096) {
     cut = detail::cut_index::dense(vertices);
-    for (const std::uint64_t r : selected) cut.add_alone(root_->records[r].diamond);
+    for (const std::uint64_t r : selected) cut.add_on_one_thread(root_->records[r].diamond);
     cut.finish({}, 1);
   } else {
     std::vector<std::uint64_t> diamonds;

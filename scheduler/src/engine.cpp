@@ -159,6 +159,12 @@ bool engine::ranges_built() const noexcept {
 
 extract_result extract_isosurface_parallel(const volume& vol, double isovalue,
                                            const extract_options& options, unsigned threads) {
+  return detail::extract_isosurface_parallel(vol, isovalue, options, threads, {});
+}
+
+extract_result detail::extract_isosurface_parallel(const volume& vol, double isovalue,
+                                                   const extract_options& options, unsigned threads,
+                                                   path_choice path) {
   using clock = std::chrono::steady_clock;
   const auto seconds = [](clock::duration d) { return std::chrono::duration<double>(d).count(); };
   check_extract_inputs(isovalue, options);
@@ -193,17 +199,18 @@ extract_result extract_isosurface_parallel(const volume& vol, double isovalue,
     }
   };
   // A 2D field has no coarser uniform cut than its finest: it refines by priority.
+  using kind = refine_goal::kind;
   const bool ladder =
-      options.mode == extract_mode::time && options.deadline_ladder && vol.dims()[2] >= 2;
-  if ((options.mode == extract_mode::full && options.finest_direct) || ladder) {
+      options.goal.what == kind::deadline && options.deadline_ladder && vol.dims()[2] >= 2;
+  if ((options.goal.what == kind::full && path.finest_direct) || ladder) {
     // The finest cut is all a full run returns: two streaming passes over the samples give it
     // (finest_surface()), without range data, splits or records. A deadline run on the ladder
     // makes uniform cuts the same way, coarse to fine, until the deadline (ladder_surface()).
     if (ladder) {
-      const auto deadline = deadline_after(t0, options.time_budget);
       const ladder_progress progress = ladder_direct_progress(options, max_depth);
       direct([&](const parallel_loop& loop, std::size_t parts) {
-        ladder_result l = ladder_surface(vol, isovalue, deadline, loop, parts, progress);
+        ladder_result l =
+            ladder_surface(vol, isovalue, options.goal.deadline, loop, parts, progress);
         res.mesh = std::move(l.mesh);
         res.ladder_stride = l.stride;
       });
@@ -227,22 +234,11 @@ extract_result extract_isosurface_parallel(const volume& vol, double isovalue,
     res.isovalue_outside_data = !(lo <= isovalue && isovalue < hi);
     return res;
   }
-  switch (options.mode) {
-    case extract_mode::full:
-      eng.refine_full();
-      break;
-    case extract_mode::error:
-      // Nothing reads the cuts on the way: the same split set by plane, sooner.
-      eng.refine(refine_goal::error_in_any_order(options.max_error));
-      break;
-    case extract_mode::triangles:
-      eng.refine(refine_goal::triangles(options.max_triangles));
-      break;
-    case extract_mode::time:
-      // The budget counts from the volume in memory: the range data is built inside it.
-      eng.refine(refine_goal::until(deadline_after(t0, options.time_budget)));
-      break;
-  }
+  // Nothing reads the cuts on the way: an error target's split set by plane, sooner. A
+  // deadline's range data is built inside it.
+  refine_goal goal = options.goal;
+  if (goal.what == kind::error) goal.any_order = true;
+  eng.refine(goal);
   const auto t2 = clock::now();
   // The first run built the range data (in parallel); refinement is the rest of the run.
   res.range_build_seconds = eng.range_build_seconds();

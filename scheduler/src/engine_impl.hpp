@@ -1,10 +1,12 @@
 // scheduler/src/engine_impl.hpp — the engine's inside, shared by the files that implement it.
 //
 // Not installed. One role per file: root.cpp (a root: its surface, its seeding, its per-vertex
-// arrays), range_build.cpp (the pruning data, built in slices), refinement_graph.cpp (the
-// compute and commit nodes: how splits are made and published), run_control.cpp (the driver
-// thread of a run, stop requests, the progress callback), snapshot.cpp (readers: snapshots and
-// their meshes) and engine.cpp (the public engine: construction, control calls, statistics).
+// arrays), range_build.cpp (the pruning data, built in slices), refinement_graph.cpp
+// (run_graph(), which picks each run's schedule, and the flow graph's compute and commit
+// nodes), serial_refinement.cpp (any goal on one thread), full_refinement.cpp (tasks over the
+// volume's planes or subtrees on more threads), run_control.cpp (the driver thread of a run,
+// stop requests, the progress callback), snapshot.cpp (readers: snapshots and their meshes)
+// and engine.cpp (the public engine: construction, control calls, statistics).
 #pragma once
 
 #include <algorithm>
@@ -134,29 +136,30 @@ struct engine_root : epoch_object {
   // surface needs none, so it is published before any pass over the volume. Commit step only.
   std::vector<ipoint> root_centres;
   bool seeded = false;
-  // Some queued diamond is keyed by placeholder (unranged_error): made ready without the range
+  // Some queued diamond is keyed by placeholder (placeholder_key): made ready without the range
   // data (a deadline run before it was built: never culled), or by full refinement, which
   // needs no errors (culled by a straddle test that stops at the first samples on both sides).
   // The driver re-queues them by their ranges before the next run (requeue_by_ranges).
   // Commit step and driver.
-  bool unranged = false;
+  bool placeholder_keys = false;
   // Some queued diamond was keyed by an error bound (hi − lo: the range data's error pass was
   // not done); re-keyed by the exact errors once they exist. Commit step and driver.
-  bool bounded = false;
+  bool bound_keys = false;
 
   // Commit step only. The packed groups of the published records (each record's in one piece;
   // records point into the chunks, which never move).
   detail::chunked_store<packed_group> groups;
   detail::ready_queue<ready_item> queue{queue_discipline::largest_error};
   // Ready diamonds a deadline left on the tasks' stacks, not yet in `queue`: queued by the next
-  // run on this root (settle_leftover), so that the run returns at its deadline instead of
-  // queueing them one by one (tens of thousands on 257³: ~0.5 ms); a root retired by an
-  // isovalue change never queues them. Commit step and driver.
+  // run on this root (queue_deadline_leftovers), so that the run returns at its deadline instead of
+  // queueing them one by one (a deadline can leave so many that queueing them would push the
+  // return past it; bench/README.md); a root retired by an isovalue change never queues them.
+  // Commit step and driver.
   std::vector<std::vector<ready_item>> leftover;
   std::size_t leftover_items = 0;
   // Records a deadline's last publications made without counting their children as split
-  // parents (each child's count and readiness test: ~0.75 µs a record), counted by the next
-  // run on this root (settle_leftover) for the same reason. Commit step and driver (tasks
+  // parents (each child's count and readiness test adds up over many records), counted by the next
+  // run on this root (queue_deadline_leftovers) for the same reason. Commit step and driver (tasks
   // append under publish_mutex).
   std::vector<std::uint32_t> uncounted;
   std::uint64_t cut_triangles = 0;
@@ -314,7 +317,7 @@ struct engine_impl : run_control {
   }
   // The queue key of a diamond made ready without its error: above every error the data can
   // have, halving with depth, so that coarse diamonds go first.
-  static double unranged_error(int depth) noexcept {
+  static double placeholder_key(int depth) noexcept {
     // A table: full refinement keys every child this way (ldexp was a library call each).
     static constexpr std::array<double, 61> keys = [] {
       std::array<double, 61> k{};
@@ -335,7 +338,7 @@ struct engine_impl : run_control {
   // The same when the diamond's centre (hier.point(index)) is at hand.
   [[nodiscard]] ready_item full_item(std::uint64_t index, const ipoint& centre) const noexcept {
     const int depth = hier.depth_of(centre);
-    return {unranged_error(depth), depth, index};
+    return {placeholder_key(depth), depth, index};
   }
   // Empties `planes` and shapes them for this grid (one list per z plane).
   void reset_planes(plane_lists& planes) const {
@@ -357,8 +360,8 @@ struct engine_impl : run_control {
 
   // Marks the root when keys made with `rd` are error bounds (the error pass not done): once per
   // batch, not per queued diamond (an acquire load and a pointer chase on the commit path).
-  static void note_keys(engine_root& r, const range_data* rd) noexcept {
-    if (rd != nullptr && !rd->errors_exact()) r.bounded = true;
+  static void mark_if_keys_are_bounds(engine_root& r, const range_data* rd) noexcept {
+    if (rd != nullptr && !rd->errors_exact()) r.bound_keys = true;
   }
 
   // Queues the diamond centred at c (scale h) if it straddles: by its error, or by placeholder
@@ -414,16 +417,16 @@ struct engine_impl : run_control {
 
   // A published split (centre, scale, depth; its surface `groups`) counted as a parent of each of
   // its children; the children it completes are queued (or culled). The one thread of the root's
-  // run: the one-thread loop, or the driver between task runs (settle_leftover).
-  void count_children_alone(engine_root& r, const ipoint& centre, std::int32_t scale, int depth,
-                            const packed_group* groups, std::size_t count, const range_data* rd,
-                            split_tally& tally) const;
+  // run: the one-thread loop, or the driver between task runs (queue_deadline_leftovers).
+  void count_children_on_one_thread(engine_root& r, const ipoint& centre, std::int32_t scale,
+                                    int depth, const packed_group* groups, std::size_t count,
+                                    const range_data* rd, split_tally& tally) const;
   // count_children()'s sink that queues a ready child in the root's queue (keyed by placeholder
   // while `rd` is null). The one thread of the root's run.
   [[nodiscard]] static auto queue_sink(engine_root& r, const range_data* rd) noexcept {
     return [&r, rd](const ready_item& child) {
       r.queue.push(child);
-      if (rd == nullptr) r.unranged = true;
+      if (rd == nullptr) r.placeholder_keys = true;
     };
   }
   // The same with the children listed, handing each child made ready (and not culled) to
@@ -457,7 +460,7 @@ struct engine_impl : run_control {
 
   // Driver: counts the children of what a deadline published last (engine_root::uncounted)
   // and queues what it left (engine_root::leftover). Before anything reads the queue in a run.
-  void settle_leftover(engine_root& r);
+  void queue_deadline_leftovers(engine_root& r);
   // Ready diamonds queued or left, and records whose children are not counted yet: the root's
   // `remaining` (0 only when nothing is left to split).
   [[nodiscard]] static std::size_t ready_count(const engine_root& r) noexcept {
@@ -481,8 +484,8 @@ struct engine_impl : run_control {
 
   // Retired roots are destroyed on a thread of the engine's own (`reclaimer`), so that
   // set_isovalue() returns without freeing the old root's records and groups or clearing its
-  // per-vertex arrays (up to 3 ms of the call on Marschner–Lobb 257³ at two threads, where the
-  // new root's surface takes 0.04 ms). hand_over() queues a root for it (control thread, from
+  // per-vertex arrays (which would take far longer than making the new root's surface;
+  // bench/README.md). hand_over() queues a root for it (control thread, from
   // the domain's flush); it refuses while two are queued, and the caller then destroys the root
   // itself, so retired memory stays bounded however fast the isovalue moves.
   [[nodiscard]] bool hand_over(engine_root* r) noexcept;
@@ -505,8 +508,9 @@ struct engine_impl : run_control {
   // by straddles() (stops at the first samples on both sides), and queued by placeholder.
   [[nodiscard]] bool errors_needed() const noexcept { return goal.what != refine_goal::kind::full; }
   // Goals whose split set does not depend on the order (full refinement, an error target taken
-  // in any order) run by grid plane (sweep_alone(), the tasks' plane lists), not by the queue.
-  [[nodiscard]] bool swept_goal() const noexcept {
+  // in any order) run by grid plane (sweep_on_one_thread(), the tasks' plane lists), not by the
+  // queue.
+  [[nodiscard]] bool goal_runs_by_plane() const noexcept {
     return goal.what == refine_goal::kind::full ||
            (goal.what == refine_goal::kind::error && goal.any_order);
   }
@@ -523,6 +527,11 @@ struct engine_impl : run_control {
     if (r.queue.empty()) return false;
     if (goal.what == refine_goal::kind::error) return r.queue.top().error > goal.max_error;
     return true;
+  }
+  // Whether the goal lets a split leave the cut with `triangles_after` triangles: the one
+  // admission test of every schedule (serial, tasks, flow graph), at the commit step.
+  [[nodiscard]] bool goal_admits(std::uint64_t triangles_after) const noexcept {
+    return goal.what != refine_goal::kind::budget || triangles_after <= goal.max_elements;
   }
   [[nodiscard]] bool past_deadline() const noexcept {
     return goal.what == refine_goal::kind::deadline && clock::now() >= slice_end;
@@ -570,12 +579,13 @@ struct engine_impl : run_control {
   // `ready`; `take()` is called once the split is kept. False, with nothing changed, when a
   // triangle budget refuses the split.
   template <class Take, class Sink>
-  bool split_alone(engine_root& r, const ready_item& item, const ipoint& centre,
-                   const range_data* rd, split_tally& tally, Take&& take, Sink&& ready);
-  // refine_serially()'s swept goals (swept_goal()): the ready diamonds taken by grid plane,
-  // lowest first (serial_refinement.cpp), from sweep_planes.
+  bool split_on_one_thread(engine_root& r, const ready_item& item, const ipoint& centre,
+                           const range_data* rd, split_tally& tally, Take&& take, Sink&& ready);
+  // refine_serially()'s goals that run by grid plane (goal_runs_by_plane()): the ready diamonds
+  // taken by grid plane, lowest first (serial_refinement.cpp), from sweep_planes.
   template <class Publish>
-  void sweep_alone(engine_root& r, const range_data* rd, split_tally& tally, Publish&& publish);
+  void sweep_on_one_thread(engine_root& r, const range_data* rd, split_tally& tally,
+                           Publish&& publish);
 
   // A run on more than one thread (full_refinement.cpp): tasks over subtrees, each a
   // depth-first loop like refine_serially()'s, publishing its splits every 64 (up to 256 while
@@ -618,9 +628,8 @@ struct engine_impl : run_control {
   // all, which has no estimate, can overrun a deadline (by one slab per thread). Deadlines shorter
   // than a step refine without building: the data is then built by the first run with time for it,
   // or by any other kind of run. Why the build goes first whenever it fits: refinement culled by
-  // the data buys far more surface per millisecond than refinement without it (brainsmall, 1
-  // thread: 40 ms gave 118 K triangles with the data built after 10.5 ms; 20 ms spent half on each
-  // gave 5 K).
+  // the data buys far more surface per unit of time than refinement without it, enough to make
+  // up for the time the build takes (bench/README.md).
   void drive_unranged(engine_root* r);
 
   // The driver thread of one run.
@@ -693,7 +702,8 @@ struct engine_impl : run_control {
   int last_depth = 0;
   // The split groups of refine_serially()'s current diamond (the driver's; kept for capacity).
   std::vector<packed_group> serial_groups;
-  // sweep_alone()'s ready diamonds (the driver's; empty between runs, kept for their capacity).
+  // sweep_on_one_thread()'s ready diamonds (the driver's; empty between runs, kept for their
+  // capacity).
   plane_lists sweep_planes;
   // Full runs in tasks: the reservation of records' and groups' places, the watermark, the
   // root's counters, last_depth, since_progress and the progress callback are one task at a

@@ -29,9 +29,8 @@
 // band is taken once, and the order is the one-thread loop's up to the order inside a band. The
 // flow graph (refinement_schedule::flow_graph: compute tasks feeding a serial commit node that
 // makes every child ready) runs priority refinement at about the same splits per second on two
-// threads (Marschner–Lobb 257³: 0.55–0.66× full refinement's, these tasks 0.59–0.69×), but from a
-// fresh engine it publishes two to three times fewer splits by a deadline (15–31 k against 57–92
-// k in 28 ms), and a deadline buys correspondingly less surface (docs/ARCHITECTURE.md).
+// threads, but from a fresh engine it publishes far fewer splits by a deadline, and a deadline
+// buys correspondingly less surface (docs/ARCHITECTURE.md, bench/README.md).
 
 #include "engine_impl.hpp"
 
@@ -74,8 +73,8 @@ struct pending_split {
   packed_group* dest;
   // The split's children, found when it is computed: their words in record_of are requested
   // then, so that publication's counting, up to 256 splits later, finds them in cache (the
-  // locked decrement waits for its line; without the request it was a third of publication's
-  // time on two threads).
+  // locked decrement waits for its line; without the request it was a large part of
+  // publication's time on two threads).
   child_list children;
 };
 
@@ -102,8 +101,8 @@ struct engine_impl::full_run {
   // of them just below it).
   std::uint64_t hold_base = 0;
   // Ready diamonds taken by grid plane (plane_lists), volume cut into slabs: full refinement
-  // and an error target in any order (engine_impl::swept_goal()). Otherwise a stack.
-  bool swept = false;
+  // and an error target in any order (engine_impl::goal_runs_by_plane()). Otherwise a stack.
+  bool by_plane = false;
   // Tasks running or spawned: a hint for sharing work (relaxed; a stale value only shares a
   // little early or late).
   std::atomic<unsigned> active{0};
@@ -180,9 +179,9 @@ void engine_impl::refine_in_tasks(engine_root& r) {
   const range_data* rd = built_ranges();
   const bool banded = goal.what != refine_goal::kind::full;
   // By grid plane: one run over every eligible diamond; an error target's queue keeps the rest.
-  const bool swept = swept_goal() && rd != nullptr;
+  const bool by_plane = goal_runs_by_plane() && rd != nullptr;
   PROGISO_ASSERT(banded || rd != nullptr);  // drive() builds the ranges before a full run
-  note_keys(r, rd);
+  mark_if_keys_are_bounds(r, rd);
   while (!stopping() && eligible(r)) {
     if (past_deadline()) {
       request_stop();
@@ -193,7 +192,7 @@ void engine_impl::refine_in_tasks(engine_root& r) {
     std::vector<ready_item> items;
     std::uint64_t floor = 0;
     full_run run;
-    if (!swept) {
+    if (!by_plane) {
       floor = r.queue.top_rank();
       items = r.queue.take_top_band();
     } else {
@@ -214,13 +213,13 @@ void engine_impl::refine_in_tasks(engine_root& r) {
     run.ranges = rd;
     run.banded = banded;
     run.floor = floor;
-    if (!swept) run.hold_base = floor;
-    run.swept = swept;
+    if (!by_plane) run.hold_base = floor;
+    run.by_plane = by_plane;
     run.outstanding.store(static_cast<std::int64_t>(items.size()), std::memory_order_relaxed);
     arena.execute([&] {
       tbb::task_group group;
       run.group = &group;
-      if (!swept) {
+      if (!by_plane) {
         // A band: its diamonds in queue order, cut into one run of consecutive ones per thread.
         const std::size_t tasks = std::min<std::size_t>(threads, items.size());
         for (std::size_t k = 0; k < tasks; ++k) {
@@ -266,11 +265,11 @@ void engine_impl::refine_in_tasks(engine_root& r) {
         r.queue.push_band(part.rank, std::move(part.items));
     }
     // Left by a stopped run by plane: keyed by placeholder (full_item()).
-    if (swept && !run.left.empty()) r.unranged = true;
-    if (swept) break;  // one run over everything eligible
+    if (by_plane && !run.left.empty()) r.placeholder_keys = true;
+    if (by_plane) break;  // one run over everything eligible
   }
   // Queued by placeholder: full refinement's children, or any before the range data exists.
-  if (ready_count(r) != 0 && (!banded || rd == nullptr)) r.unranged = true;
+  if (ready_count(r) != 0 && (!banded || rd == nullptr)) r.placeholder_keys = true;
   r.remaining.set(ready_count(r));
 }
 
@@ -280,8 +279,8 @@ void engine_impl::run_full_task(full_task& t) {
   const double w = r.isovalue;
   const bool prefetch = vol.byte_size() > prefetch_min_bytes;
   const bool deadline = goal.what == refine_goal::kind::deadline;
-  const bool budget = goal.what == refine_goal::kind::triangles;
-  const bool swept = run.swept;  // by grid plane (plane_lists)
+  const bool budget = goal.what == refine_goal::kind::budget;
+  const bool by_plane = run.by_plane;  // by grid plane (plane_lists)
   if (t.band != nullptr) {
     t.stack.assign(t.band->begin() + static_cast<std::ptrdiff_t>(t.band_lo),
                    t.band->begin() + static_cast<std::ptrdiff_t>(t.band_hi));
@@ -289,14 +288,14 @@ void engine_impl::run_full_task(full_task& t) {
   }
   std::size_t n = 0;
   for (;;) {
-    while (!(swept ? t.planes.empty() : t.stack.empty()) && !stopping()) {
+    while (!(by_plane ? t.planes.empty() : t.stack.empty()) && !stopping()) {
       if (deadline && n++ % task_clock_step == 0 && past_deadline()) {
         request_stop();
         break;
       }
       ready_item item;
       ipoint centre;
-      if (swept) {
+      if (by_plane) {
         const std::uint64_t index = t.planes.pop();
         centre = hier.point(index);
         item = full_item(index, centre);
@@ -315,7 +314,7 @@ void engine_impl::run_full_task(full_task& t) {
       const split_summary s = compute_split(hier, vol, w, centre, scale, t.groups);
       // Filled field by field in the vector: a pending split assembled on the stack and then
       // copied over waited on its own narrow stores at every wide load of the copy (a failed
-      // store-to-load forwarding per field, a third of this loop's samples on one thread).
+      // store-to-load forwarding per field, a large share of this loop's profile on one thread).
       pending_split& p = t.pending.emplace_back();
       p.item = item;
       p.scale = scale;
@@ -331,7 +330,7 @@ void engine_impl::run_full_task(full_task& t) {
       t.pending_delta += s.added_triangles - s.removed_triangles;
       if (budget) t.summaries.push_back(s);
       // Every 64 splits when the mutex is free; a task that finds it taken goes on computing
-      // (waiting for it was a tenth of the time on two threads), up to 256.
+      // (waiting for it was a sizeable part of the time on two threads), up to 256.
       if (t.pending.size() >= task_publish_step && (t.pending.size() % task_publish_step) == 0) {
         (void)publish_full_task(t, t.pending.size() >= task_publish_most);
       }
@@ -367,7 +366,7 @@ bool engine_impl::publish_full_task(full_task& t, bool wait, bool stopped) {
   // places follow from them below, without it). Pending groups are at most 256 × 16, within
   // a chunk of the store.
   const bool whole =
-      goal.what != refine_goal::kind::triangles && t.groups.size() <= r.groups.chunk_size();
+      goal.what != refine_goal::kind::budget && t.groups.size() <= r.groups.chunk_size();
   std::uint64_t triangles_before = 0;
   packed_group* groups_at = nullptr;
   // 1. Under the mutex: the records' places in the log and the groups' in the root's store
@@ -390,7 +389,7 @@ bool engine_impl::publish_full_task(full_task& t, bool wait, bool stopped) {
       pending_split& p = t.pending[i];
       const std::uint64_t after =
           r.cut_triangles + static_cast<unsigned>(p.added) - static_cast<unsigned>(p.removed);
-      if (goal.what == refine_goal::kind::triangles && after > goal.max_triangles) {
+      if (!goal_admits(after)) {
         // The budget: this split and the task's later ones stay ready (computed, discarded).
         budget_hit = true;
         request_stop();
@@ -440,8 +439,8 @@ bool engine_impl::publish_full_task(full_task& t, bool wait, bool stopped) {
   //    passes no range that is not filled yet. Counting before filling keeps the locked
   //    decrements clear of the fill's stores to fresh pages, which each of them would otherwise
   //    wait for (x86 drains its store buffer at a locked instruction). A deadline that passes
-  //    meanwhile leaves the rest to the next run (engine_root::uncounted): up to 256 records
-  //    here are ~0.2 ms.
+  //    meanwhile leaves the rest to the next run (engine_root::uncounted): counting up to 256
+  //    records here would take long enough to push the return past it.
   const std::int64_t pushed = stopped ? 0 : count_full_task_children(t, first_record);
   // 3. Without it: the records, their groups and the diamonds' record indices, into the places
   //    reserved (the pages these first touch fault in here, on every task at once).
@@ -501,7 +500,7 @@ bool engine_impl::publish_full_task(full_task& t, bool wait, bool stopped) {
   if ((t.planes.size() >= 2 || t.stack.size() >= 2) &&
       run.active.load(std::memory_order_relaxed) < threads) {
     auto part = std::make_shared<full_task>();
-    if (run.swept) {
+    if (run.by_plane) {
       t.planes.give_upper_half(part->planes);
     } else {
       const auto half = static_cast<std::ptrdiff_t>(t.stack.size() / 2);
@@ -550,7 +549,7 @@ std::int64_t engine_impl::count_full_task_children(full_task& t, std::size_t fir
       } else if (const std::uint64_t rank = run.banded ? r.queue.rank(child->error) : run.floor;
                  rank < run.floor) {
         t.hold_below(run.hold_base, rank, *child);  // a later band's, or below the target
-      } else if (run.swept) {
+      } else if (run.by_plane) {
         t.planes.push(ci);  // by grid plane
         ++pushed;
       } else {

@@ -8,7 +8,7 @@
 namespace progiso::detail {
 
 // The engine. Nothing here touches the arena: oneTBB's first use in a process (its scheduler,
-// allocator library and worker threads) costs 0.4–0.9 ms, more than the root surface, so it
+// allocator library and worker threads) costs more than the root surface, so it
 // waits for the first run, after the first surface (see make_graph()).
 engine_impl::engine_impl(std::shared_ptr<const volume> owned, const volume& v, engine_options o)
     : run_control("engine"),
@@ -64,7 +64,7 @@ batch* engine_impl::compute_batch(batch* b) {
   const double w = b->root->isovalue;
   const range_data* rd = built_ranges();
   for (std::size_t j = 0; j < b->items.size(); ++j) {
-    // The clock every fourth split (~2 µs): a clock read costs ~4% of a split.
+    // The clock every fourth split: a clock read costs a noticeable part of a split.
     if (stopping() || (j % 4 == 0 && past_deadline())) break;
     batch_item& it = b->items[j];
     const ipoint centre = hier.point(it.item.index);
@@ -121,7 +121,7 @@ void engine_impl::commit_batch(batch* b) {
     return;
   }
   const range_data* rd = built_ranges();
-  note_keys(r, rd);
+  mark_if_keys_are_bounds(r, rd);
   --inflight;
   inflight_items -= b->items.size();
   std::size_t published = 0;
@@ -138,13 +138,13 @@ void engine_impl::commit_batch(batch* b) {
     }
     for (std::size_t i = 0; i < b->computed; ++i) {
       const batch_item& it = b->items[i];
-      if (i % 8 == 0 && past_deadline()) {  // every eighth record (~1 µs), as in compute
+      if (i % 8 == 0 && past_deadline()) {  // every eighth record, as in compute
         request_stop();
         break;
       }
       const std::uint64_t after =
           r.cut_triangles + static_cast<unsigned>(it.added) - static_cast<unsigned>(it.removed);
-      if (goal.what == refine_goal::kind::triangles && after > goal.max_triangles) {
+      if (!goal_admits(after)) {
         budget_hit = true;
         request_stop();
         break;
@@ -188,7 +188,7 @@ void engine_impl::commit_batch(batch* b) {
       ++published;
     }
     r.records.publish();
-    if (!errors_needed()) r.unranged = true;  // children queued by placeholder
+    if (!errors_needed()) r.placeholder_keys = true;  // children queued by placeholder
     r.triangles.set(r.cut_triangles);
   }
   // What was not published goes back to the queue: still ready, never lost.
@@ -216,7 +216,7 @@ void engine_impl::report_progress(engine_root& r, const range_data* rd, std::uin
 }
 
 void engine_impl::run_graph(engine_root* r) {
-  settle_leftover(*r);
+  queue_deadline_leftovers(*r);
   if (threads == 1) {
     refine_serially(*r);
     return;
@@ -238,7 +238,7 @@ void engine_impl::run_graph(engine_root* r) {
 double engine_impl::next_error(const engine_root& r, const range_data* rd) const {
   if (r.queue.empty()) return 0.0;
   const ready_item& top = r.queue.top();
-  if (top.error < unranged_error(60) || rd == nullptr) return top.error;
+  if (top.error < placeholder_key(60) || rd == nullptr) return top.error;
   const ipoint c = hier.point(top.index);
   return rd->get(c, hier.scale_of(c)).error;
 }

@@ -35,7 +35,7 @@ void engine_impl::seed_roots(engine_root& r) {
   r.seeded = true;
   std::uint64_t culled = 0;
   const range_data* rd = built_ranges();
-  note_keys(r, rd);
+  mark_if_keys_are_bounds(r, rd);
   for (const ipoint& c : r.root_centres) {
     if (!queue_if_straddles(r, c, hier.scale_of(c), hier.depth_of(c), hier.index(c), rd)) {
       ++culled;
@@ -50,13 +50,13 @@ std::optional<ready_item> engine_impl::ready_child(const engine_root& r, const i
                                                    const range_data* rd, bool owns_surface) const {
   if (rd == nullptr) {
     if (ranges_for_empty().empty(c, h)) return std::nullopt;
-    return ready_item{unranged_error(depth), depth, index};
+    return ready_item{placeholder_key(depth), depth, index};
   }
   // An error target in any order asks only whether an error exceeds it (error_bound()).
   const detail::readiness ready =
       ready_rule(*rd, c, h, owns_surface, errors_needed(), r.isovalue, r.threshold, error_bound());
   if (!ready.keep) return std::nullopt;
-  return ready_item{errors_needed() ? ready.error : unranged_error(depth), depth, index};
+  return ready_item{errors_needed() ? ready.error : placeholder_key(depth), depth, index};
 }
 
 bool engine_impl::queue_if_straddles(engine_root& r, const ipoint& c, std::int32_t h, int depth,
@@ -64,27 +64,28 @@ bool engine_impl::queue_if_straddles(engine_root& r, const ipoint& c, std::int32
   const std::optional<ready_item> item = ready_child(r, c, h, depth, index, rd, false);
   if (!item) return false;
   r.queue.push(*item);
-  if (rd == nullptr || !errors_needed()) r.unranged = true;
+  if (rd == nullptr || !errors_needed()) r.placeholder_keys = true;
   return true;
 }
 
-void engine_impl::count_children_alone(engine_root& r, const ipoint& centre, std::int32_t scale,
-                                       int depth, const packed_group* groups, std::size_t count,
-                                       const range_data* rd, split_tally& tally) const {
+void engine_impl::count_children_on_one_thread(engine_root& r, const ipoint& centre,
+                                               std::int32_t scale, int depth,
+                                               const packed_group* groups, std::size_t count,
+                                               const range_data* rd, split_tally& tally) const {
   count_children(r, hier.children_of(centre, scale, hierarchy::type_of(centre, scale)),
                  hier.index(centre), scale, depth, groups, count, rd, tally, queue_sink(r, rd));
 }
 
-void engine_impl::settle_leftover(engine_root& r) {
+void engine_impl::queue_deadline_leftovers(engine_root& r) {
   if (!r.uncounted.empty()) {
     const range_data* rd = built_ranges();
     split_tally tally;
     for (const std::uint32_t i : r.uncounted) {
       const engine_record& rec = r.records[i];
-      count_children_alone(r, hier.point(rec.diamond), rec.scale, rec.depth, rec.groups, rec.count,
-                           rd, tally);
+      count_children_on_one_thread(r, hier.point(rec.diamond), rec.scale, rec.depth, rec.groups,
+                                   rec.count, rd, tally);
     }
-    if (!errors_needed() && !r.queue.empty()) r.unranged = true;  // queued by placeholder
+    if (!errors_needed() && !r.queue.empty()) r.placeholder_keys = true;  // queued by placeholder
     r.uncounted.clear();
     tally.add_to(r);
   }
@@ -96,10 +97,10 @@ void engine_impl::settle_leftover(engine_root& r) {
 }
 
 void engine_impl::requeue_by_ranges(engine_root& r) {
-  settle_leftover(r);
+  queue_deadline_leftovers(r);
   const range_data* rd = built_ranges();
   PROGISO_ASSERT(rd != nullptr);
-  if (!r.unranged && !(r.bounded && rd->errors_exact())) return;
+  if (!r.placeholder_keys && !(r.bound_keys && rd->errors_exact())) return;
   std::vector<ready_item> items;
   items.reserve(r.queue.size());
   while (!r.queue.empty()) {
@@ -107,12 +108,12 @@ void engine_impl::requeue_by_ranges(engine_root& r) {
     r.queue.pop();
   }
   std::uint64_t culled = 0;
-  const bool all = r.bounded && rd->errors_exact();
-  r.bounded = false;
-  r.unranged = false;  // set again by what is queued by placeholder below (full refinement)
-  note_keys(r, rd);
+  const bool all = r.bound_keys && rd->errors_exact();
+  r.bound_keys = false;
+  r.placeholder_keys = false;  // set again by what is queued by placeholder below (full refinement)
+  mark_if_keys_are_bounds(r, rd);
   for (const ready_item& it : items) {
-    if (!all && it.error < unranged_error(60)) {  // already by its range
+    if (!all && it.error < placeholder_key(60)) {  // already by its range
       r.queue.push(it);
       continue;
     }
@@ -170,7 +171,7 @@ void engine_impl::reclaim_loop() noexcept {
     }
     // First a fresh set for the next root, if there is none (mapped here, where waiting for the
     // address space's lock delays no caller; nothing is touched, so it costs no memory yet):
-    // clearing the old root's arrays takes milliseconds, and the next isovalue change may come
+    // clearing the old root's arrays takes a while, and the next isovalue change may come
     // sooner.
     if (need_fresh) {
       try {

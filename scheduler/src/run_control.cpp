@@ -169,8 +169,8 @@ void engine_impl::drive_unranged(engine_root* r) {
       const auto now = clock::now();
       const double left = std::chrono::duration<double>(goal.deadline - now).count();
       // The pieces left weighed by the planes they read (the first pieces built, padding
-      // mostly, read a quarter of the others), and finish() after them, about a tenth of the
-      // pieces' time (Marschner–Lobb 513³: 4.0–6.2 of 42–71 ms).
+      // mostly, read a quarter of the others), and finish() after them, allowed a tenth of the
+      // pieces' time since it is small beside them (bench/README.md).
       std::optional<double> estimate;
       if (min_max_work > 0) {
         estimate = 1.1 * seconds_per_work() *
@@ -225,7 +225,7 @@ void engine_impl::drive(engine_root* r) {
     case refine_goal::kind::error:
       reached = !eligible(*r);
       break;
-    case refine_goal::kind::triangles:
+    case refine_goal::kind::budget:
       reached = budget_hit || r->queue.empty();
       break;
     case refine_goal::kind::deadline:
@@ -245,8 +245,8 @@ void engine_impl::launch(std::unique_lock<std::mutex>& lock, const refine_goal& 
   stop.store(false, std::memory_order_relaxed);  // relaxed: the thread start orders it
   budget_hit = false;
   // An empty task asks oneTBB for the arena's workers now, before the driver thread starts:
-  // workers idle for more than a few milliseconds join new work 0.3–2 ms late, about the whole
-  // of a 257³ range build on two threads (docs/ARCHITECTURE.md, Performance).
+  // workers that have idled long enough to sleep join new work late, by as long as a whole
+  // range build of a mid-sized grid can take (bench/README.md).
   if (threads > 1) arena.enqueue([] {});
   begin_run([this, r] { drive(r); });
 }

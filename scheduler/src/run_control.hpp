@@ -211,11 +211,11 @@ bool refine_blocking(Impl& impl, const refine_goal& goal) {
 // `on_retire(old)`, the caller's accounting) and resumes the interrupted goal. The new root's
 // surface reads only the root cubes' (squares') corners and shares nothing with the run on the
 // old root, so where make_root() maps no memory (`can_publish_early()`: the engine holds a
-// reclaimed root's arrays) it is published first, and readers see it within make_root()'s time
-// (tens of microseconds), not after the run's workers have stopped, which on a loaded machine
-// can wait for a scheduler tick. Otherwise the run is stopped first: mapping memory while its
-// workers fault pages in waits for the address space's lock (up to 5 ms, 2 cores). The old root
-// is destroyed by the engine's reclaimer where it has one, not by this call.
+// reclaimed root's arrays) it is published first, and readers see it within make_root()'s time,
+// not after the run's workers have stopped, which on a loaded machine can wait for a scheduler
+// tick. Otherwise the run is stopped first: mapping memory while its workers fault pages in
+// waits for the address space's lock, which they take again and again (bench/README.md). The
+// old root is destroyed by the engine's reclaimer where it has one, not by this call.
 template <class Impl, class OnRetire>
 void swap_root(Impl& impl, double w, OnRetire&& on_retire) {
   require_finite_isovalue(w);

@@ -1,12 +1,12 @@
 // Refinement on one thread: the engine's records, publication rule, queue, goals and statistics,
 // without the flow graph. With one thread the graph has nothing to run in parallel, and its round
 // trip (a compute task writes each diamond's split and children into its batch, the commit step
-// reads them back) cost as much as the splits themselves (Marschner–Lobb 257³, full refinement:
-// 515 ms on the graph against the sequential refiner's 287 ms).
+// reads them back) cost about as much as the splits themselves, so a full refinement on the graph
+// is much slower than the sequential refiner (bench/README.md).
 //
 // A full goal, which splits every straddling diamond in any order, and an error target taken
-// in any order take the ready diamonds by grid plane instead of from the queue (sweep_alone):
-// see there.
+// in any order take the ready diamonds by grid plane instead of from the queue
+// (sweep_on_one_thread): see there.
 
 #include "engine_impl.hpp"
 
@@ -19,10 +19,11 @@ namespace progiso::detail {
 namespace {
 
 // Records published at a time: a reader's snapshot lags the run by at most this many splits
-// (about 15 µs), and the watermark's release store and the counters are paid once per step.
+// (a lag too short for a viewer to notice), and the watermark's release store and the counters
+// are paid once per step.
 constexpr std::size_t serial_publish_step = 64;
-// A deadline is checked every this many splits (a clock read costs ~4% of a split), as the
-// commit step does; a sweep checks for a stop request as often.
+// A deadline is checked every this many splits (a clock read costs a noticeable part of a
+// split), as the commit step does; a sweep checks for a stop request as often.
 constexpr std::size_t serial_clock_step = 8;
 // Volumes larger than the cache only: when the loop takes a cold item of the queue (one that
 // was in its bucket when the bucket became the top, ready_queue::top_is_cold), the data of the
@@ -30,15 +31,16 @@ constexpr std::size_t serial_clock_step = 8;
 // the last splits' children, are taken first and are near data already in the cache; the cold
 // ones lie anywhere in the grid, and their order is known however many are pushed meanwhile.
 // (The sequential refiner's request of the item eight places ahead mostly named an item that
-// the depth-first order takes much later.) Marschner–Lobb 257³, one thread, an error target of
-// 670 k splits, eight alternations: 2.52–2.96 → 2.91–3.26 M splits a second.
+// the depth-first order takes much later.) Asking this way raises the splits a second of an
+// error target on one thread (bench/README.md).
 constexpr std::size_t serial_cold_prefetch_distance = 2;
 
 }  // namespace
 
 template <class Take, class Sink>
-bool engine_impl::split_alone(engine_root& r, const ready_item& item, const ipoint& centre,
-                              const range_data* rd, split_tally& tally, Take&& take, Sink&& ready) {
+bool engine_impl::split_on_one_thread(engine_root& r, const ready_item& item, const ipoint& centre,
+                                      const range_data* rd, split_tally& tally, Take&& take,
+                                      Sink&& ready) {
   const std::int32_t scale = hier.scale_of(centre);
   // The children's words are counted after the split: asked for now, their cache misses
   // overlap the split's work.
@@ -48,7 +50,7 @@ bool engine_impl::split_alone(engine_root& r, const ready_item& item, const ipoi
   const split_summary s = compute_split(hier, vol, r.isovalue, centre, scale, groups);
   const std::uint64_t after = r.cut_triangles + static_cast<unsigned>(s.added_triangles) -
                               static_cast<unsigned>(s.removed_triangles);
-  if (goal.what == refine_goal::kind::triangles && after > goal.max_triangles) {
+  if (!goal_admits(after)) {
     budget_hit = true;
     ++tally.discarded;  // computed, not published; it stays queued
     return false;
@@ -74,23 +76,23 @@ bool engine_impl::split_alone(engine_root& r, const ready_item& item, const ipoi
 void engine_impl::refine_serially(engine_root& r) {
   seed_roots(r);  // a no-op once seeded
   const range_data* rd = built_ranges();
-  note_keys(r, rd);
+  mark_if_keys_are_bounds(r, rd);
   const bool prefetch = vol.byte_size() > prefetch_min_bytes;
   split_tally tally;
 
   const auto publish = [&] {
     r.records.publish();
-    if (!errors_needed()) r.unranged = true;  // children queued by placeholder
+    if (!errors_needed()) r.placeholder_keys = true;  // children queued by placeholder
     r.triangles.set(r.cut_triangles);
     const std::uint64_t published = tally.splits;
     tally.add_to(r);
     r.batches.add(1);
-    r.remaining.set(r.queue.size() + sweep_planes.size());  // sweep_alone's ready diamonds
+    r.remaining.set(r.queue.size() + sweep_planes.size());  // sweep_on_one_thread's ready diamonds
     report_progress(r, rd, published);
   };
 
-  if (swept_goal() && rd != nullptr) {
-    sweep_alone(r, rd, tally, publish);
+  if (goal_runs_by_plane() && rd != nullptr) {
+    sweep_on_one_thread(r, rd, tally, publish);
     publish();
     return;
   }
@@ -107,7 +109,7 @@ void engine_impl::refine_serially(engine_root& r) {
         request_diamond(r, ahead->index);
       }
     }
-    if (!split_alone(
+    if (!split_on_one_thread(
             r, item, hier.point(item.index), rd, tally, [&r] { r.queue.pop(); }, push)) {
       request_stop();
       break;
@@ -130,14 +132,14 @@ void engine_impl::refine_serially(engine_root& r) {
 // error > ε go to the planes and the others to the queue, keyed by their errors as the queue
 // loop keys them, for a later goal. Only the order differs from the queue loop's: the errors
 // are computed all the same, but in plane order their samples are near the last splits' in the
-// cache (Marschner–Lobb 257³, an error target of 715 k splits, one thread: 0.50–0.51 of full
-// refinement's splits per second by priority, 0.67–0.68 by plane).
+// cache, so a target taken by plane splits markedly faster than one taken by priority
+// (bench/README.md).
 //
 // A stopped sweep hands what is left back to the queue, keyed by placeholder as a full run keys
-// it (`unranged`: the next run keys them again by their ranges, requeue_by_ranges()).
+// it (`placeholder_keys`: the next run keys them again by their ranges, requeue_by_ranges()).
 template <class Publish>
-void engine_impl::sweep_alone(engine_root& r, const range_data* rd, split_tally& tally,
-                              Publish&& publish) {
+void engine_impl::sweep_on_one_thread(engine_root& r, const range_data* rd, split_tally& tally,
+                                      Publish&& publish) {
   plane_lists& planes = sweep_planes;
   reset_planes(planes);
   const bool full = goal.what == refine_goal::kind::full;
@@ -158,12 +160,12 @@ void engine_impl::sweep_alone(engine_root& r, const range_data* rd, split_tally&
     if (n % serial_clock_step == 0 && stopping()) break;
     const std::uint64_t index = planes.pop();
     const ipoint centre = hier.point(index);
-    (void)split_alone(
+    (void)split_on_one_thread(
         r, full_item(index, centre), centre, rd, tally, [] {}, mark);
     if (tally.splits == serial_publish_step) publish();
   }
   // Stopped: what is ready goes back to the queue, keyed by placeholder as a full run queues.
-  if (!planes.empty() && !full) r.unranged = true;
+  if (!planes.empty() && !full) r.placeholder_keys = true;
   planes.drain([&](std::uint64_t index) { r.queue.push(full_item(index)); });
 }
 

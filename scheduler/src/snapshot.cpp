@@ -79,11 +79,11 @@ struct snapshot_cut {
 // The mesh of the cut made of the published records r with keep(r), by cut_mesher (no vertex
 // hashing): the records in canonical order (diamond order), cut into consecutive parts, one per
 // 2 K records, up to 8 per thread (the records gather where the surface is, so parts of equal
-// rank ranges differ in work), on the engine's thread count. With one part per 16 K records a
-// cut of brainsmall's size (275 K records) had 16 parts on 16 threads, one each, and waited for
-// the largest: 16.3–19.2 ms for the mesh, 9.8–10.2 with 128 parts. The same mesh, vertex for
-// vertex, for every thread count. A fresh arena per call: the caller (any thread) takes its
-// reserved slot at once, whatever the engine's own arena is doing.
+// rank ranges differ in work), on the engine's thread count. With parts eight times larger, a
+// cut of a small data set had about one part per thread and waited for the largest; many
+// smaller parts balance the threads and make the mesh markedly faster (bench/README.md). The
+// same mesh, vertex for vertex, for every thread count. A fresh arena per call: the caller (any
+// thread) takes its reserved slot at once, whatever the engine's own arena is doing.
 template <class Keep>
 triangle_mesh surface_snapshot::build(Keep&& keep) const {
   const engine& e = *owner_;

@@ -1,7 +1,7 @@
 // The progiso command as a user runs it: success paths write a readable mesh and statistics;
 // every kind of bad input prints one error line naming the problem, exits with status 2 and
 // leaves no output file behind.
-#include <progiso/core/io/mesh_io.hpp>
+#include <progiso/io/mesh_io.hpp>
 
 #include <sys/wait.h>
 

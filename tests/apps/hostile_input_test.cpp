@@ -24,8 +24,8 @@
 #include <gtest/gtest.h>
 #include <zlib.h>
 
-#include <progiso/core/io/contour_io.hpp>
-#include <progiso/core/io/mesh_io.hpp>
+#include <progiso/io/contour_io.hpp>
+#include <progiso/io/mesh_io.hpp>
 
 #include "support/bounded_run.hpp"
 #include "support/dicom_files.hpp"

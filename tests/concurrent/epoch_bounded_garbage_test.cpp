@@ -1,6 +1,6 @@
-// Bounded garbage with a stalled reader (DESIGN.md §4, invariant 5): a reader pins, protects
-// the current version of one pointer and stalls inside its guard while a writer publishes and
-// retires 100 000 newer versions. The bound of progiso/concurrent/epoch.hpp for one retiring
+// Bounded garbage with a stalled reader (invariant 5, docs/ARCHITECTURE.md): a reader pins,
+// protects the current version of one pointer and stalls inside its guard while a writer publishes
+// and retires 100 000 newer versions. The bound of progiso/concurrent/epoch.hpp for one retiring
 // participant and a stalled reservation [L, U] is
 //     pending ≤ (U − L + 1) · F + 1 + (T − 1)
 // (retired while the clock was in [L, U], plus the one version alive when it left U, plus what

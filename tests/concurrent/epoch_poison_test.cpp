@@ -1,4 +1,4 @@
-// Poison-on-retire stress (DESIGN.md §4, invariant 5: no use-after-free). Writers replace a
+// Poison-on-retire stress (invariant 5, docs/ARCHITECTURE.md: no use-after-free). Writers replace a
 // shared root and the leaf inside it, retiring what they unlink; the deleter poisons every
 // field and parks the node in a per-thread quarantine before freeing it, so a reader that
 // touched reclaimed memory reads the poison (and ASan reports the access once the quarantine

@@ -327,18 +327,15 @@ TEST(ContourRefiner, several_isovalues_in_one_run_each_equal_their_own_contours)
 TEST(ContourRefiner, budgets_and_deadlines_are_respected) {
   const volume img = make_image(64, 40, waves);
   contour_options o;
-  o.mode = contour_mode::segments;
-  o.max_segments = 150;
+  o.goal = refine_goal::segments(150);
   const contour_result seg = extract_contours(img, {0.1, 0.5}, o);
   std::uint64_t total = 0;
   for (const auto& s : seg.stats) total += s.segments;
   EXPECT_LE(total, 150u);
-  o.mode = contour_mode::time;
-  o.time_budget = std::chrono::duration<double>(0.0);
+  o.goal = refine_goal::within(std::chrono::duration<double>(0.0));
   const contour_result zero = extract_contours(img, {0.1}, o);
   EXPECT_EQ(zero.stats[0].splits, 0u);
-  o.mode = contour_mode::error;
-  o.max_error = 0.2;
+  o.goal = refine_goal::error(0.2);
   int frames = 0;
   o.frame = [&](const contour_set& c, int stage) {
     EXPECT_EQ(stage, frames);

@@ -11,7 +11,7 @@
 
 #include <progiso/core/contour/contour_refiner.hpp>
 #include <progiso/core/contour/detail/contour_frontier.hpp>
-#include <progiso/core/ranges/range_data2d.hpp>
+#include <progiso/core/contour/range_data2d.hpp>
 
 #include <gtest/gtest.h>
 

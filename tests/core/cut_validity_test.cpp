@@ -1,7 +1,7 @@
-// Invariant 2: every cut is a valid surface — edge-manifold, watertight away from the data box,
-// consistently oriented, no degenerate triangle, no self-intersection (CGAL exact predicates) —
-// for many random budgets and thresholds; and a cut's surface is exactly the marching-tetrahedra
-// surface of the conforming bisection mesh that the cut defines.
+// Invariant 2 (docs/ARCHITECTURE.md): every cut is a valid surface — edge-manifold, watertight away
+// from the data box, consistently oriented, no degenerate triangle, no self-intersection (CGAL
+// exact predicates) — for many random budgets and thresholds; and a cut's surface is exactly the
+// marching-tetrahedra surface of the conforming bisection mesh that the cut defines.
 #include <progiso/core/field/analytic.hpp>
 #include <progiso/core/refine/refiner.hpp>
 #include <progiso/core/surface/marching.hpp>

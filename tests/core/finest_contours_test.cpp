@@ -16,8 +16,9 @@
 
 #include <progiso/core/base/error.hpp>
 #include <progiso/core/contour/contour_refiner.hpp>
-#include <progiso/core/hierarchy/hierarchy2d.hpp>
-#include <progiso/core/ranges/range_data2d.hpp>
+#include <progiso/core/contour/hierarchy2d.hpp>
+#include <progiso/core/contour/range_data2d.hpp>
+#include <progiso/core/refine/detail/path_choice.hpp>
 
 #include "support/contour_checks.hpp"
 #include "support/reference_mtri.hpp"
@@ -106,8 +107,8 @@ TEST(FinestContours, extract_contours_full_takes_the_direct_path_unless_told_oth
   ASSERT_EQ(direct.stats.size(), 2u);
   EXPECT_EQ(direct.stats[0].splits, 0u);
   EXPECT_EQ(direct.stats[0].segments + direct.stats[1].segments, direct.contours.segment_count());
-  full.finest_direct = false;
-  const contour_result refined = extract_contours(img, {0.1, -0.3}, full);
+  const contour_result refined =
+      detail::extract_contours(img, {0.1, -0.3}, full, detail::path_choice{false});
   EXPECT_FALSE(refined.finest_direct);
   EXPECT_GT(refined.stats[0].splits, 0u);
   EXPECT_TRUE(chains(direct.contours) == chains(refined.contours));

@@ -1,6 +1,6 @@
-// Invariant 1: the fully refined progressive surface equals plain marching tetrahedra on the
-// finest mesh (the independent reference in tests/support), triangle for triangle and vertex for
-// vertex, on analytic fields and on every shared volume at its suggested isovalues.
+// Invariant 1 (docs/ARCHITECTURE.md): the fully refined progressive surface equals plain marching
+// tetrahedra on the finest mesh (the independent reference in tests/support), triangle for triangle
+// and vertex for vertex, on analytic fields and on every shared volume at its suggested isovalues.
 #include <progiso/core/field/analytic.hpp>
 #include <progiso/core/refine/refiner.hpp>
 

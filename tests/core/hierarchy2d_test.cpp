@@ -2,7 +2,7 @@
 // uniformly bisect the root squares, group the triangles split at each step by the midpoint of
 // their longest edge, and compare with what hierarchy2d computes from the centre alone.
 #include <progiso/core/base/error.hpp>
-#include <progiso/core/hierarchy/hierarchy2d.hpp>
+#include <progiso/core/contour/hierarchy2d.hpp>
 
 #include <algorithm>
 #include <map>

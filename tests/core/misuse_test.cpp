@@ -21,15 +21,15 @@
 #include <gtest/gtest.h>
 
 #include <progiso/core/contour/contour_refiner.hpp>
+#include <progiso/core/contour/range_data2d.hpp>
 #include <progiso/core/field/analytic.hpp>
-#include <progiso/core/io/contour_io.hpp>
-#include <progiso/core/io/detail/file_input.hpp>
-#include <progiso/core/io/detail/file_output.hpp>
-#include <progiso/core/io/image_io.hpp>
-#include <progiso/core/io/mesh_io.hpp>
-#include <progiso/core/ranges/range_data2d.hpp>
 #include <progiso/core/refine/deadline.hpp>
 #include <progiso/core/refine/refiner.hpp>
+#include <progiso/io/contour_io.hpp>
+#include <progiso/io/detail/file_input.hpp>
+#include <progiso/io/detail/file_output.hpp>
+#include <progiso/io/image_io.hpp>
+#include <progiso/io/mesh_io.hpp>
 
 #include "support/contour_checks.hpp"
 #include "support/io_test_helpers.hpp"
@@ -95,10 +95,9 @@ TEST(Misuse, deadlines_beyond_the_clock_range_saturate) {
 TEST(Misuse, a_time_budget_of_centuries_refines_fully) {
   const volume v = make_marschner_lobb({17, 17, 17});
   extract_options o;
-  o.mode = extract_mode::time;
-  o.time_budget = std::chrono::duration<double>(9.3e9);
+  o.goal = refine_goal::within(std::chrono::duration<double>(9.3e9));
   const extract_result timed = extract_isosurface(v, 0.5, o);
-  o.mode = extract_mode::full;
+  o.goal = refine_goal::full();
   const extract_result full = extract_isosurface(v, 0.5, o);
   EXPECT_EQ(timed.mesh.triangles.size(), full.mesh.triangles.size());
 }
@@ -176,12 +175,11 @@ TEST(Misuse, library_errors_speak_in_library_terms_not_command_line_flags) {
   extract_options o;
   std::vector<std::string> messages;
   messages.push_back(error_of([&] { (void)extract_isosurface(v, std::nan(""), o); }));
-  o.mode = extract_mode::error;
-  o.max_error = -1.0;
+  o.goal = refine_goal::error(-1.0);
   messages.push_back(error_of([&] { (void)extract_isosurface(v, 0.5, o); }));
-  o.mode = extract_mode::time;
-  o.time_budget = std::chrono::duration<double>(-1.0);
-  messages.push_back(error_of([&] { (void)extract_isosurface(v, 0.5, o); }));
+  contour_options c;
+  c.goal = refine_goal::error(std::nan(""));
+  messages.push_back(error_of([&] { (void)extract_contours(wave_image(9, 9), {0.5}, c); }));
   const volume img = wave_image(9, 9);
   messages.push_back(error_of([&] { (void)extract_contours(img, {}, {}); }));
   messages.push_back(error_of([&] { (void)extract_contours(img, {std::nan("")}, {}); }));
@@ -326,8 +324,7 @@ TEST(Misuse, contours_are_handed_out_one_isovalue_at_a_time_in_order) {
 TEST(Misuse, a_segment_budget_and_a_deadline_are_shared_by_the_isovalues) {
   const volume img = wave_image(60, 45);
   contour_options o;
-  o.mode = contour_mode::segments;
-  o.max_segments = 400;
+  o.goal = refine_goal::segments(400);
   const contour_result r = extract_contours(img, {40.5, 100.5, 160.5, 220.5}, o);
   std::uint64_t total = 0;
   for (const auto& s : r.stats) {
@@ -335,8 +332,7 @@ TEST(Misuse, a_segment_budget_and_a_deadline_are_shared_by_the_isovalues) {
     EXPECT_GT(s.splits, 0u) << "every isovalue gets its share";
   }
   EXPECT_LE(total, 400u);
-  o.mode = contour_mode::time;
-  o.time_budget = std::chrono::duration<double>(9.3e9);  // centuries: no deadline at all
+  o.goal = refine_goal::within(std::chrono::duration<double>(9.3e9));  // centuries: none
   const contour_result t = extract_contours(img, {40.5, 100.5}, o);
   for (std::size_t k = 0; k < 2; ++k) {
     EXPECT_TRUE(test::same_segments(

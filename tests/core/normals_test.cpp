@@ -52,11 +52,9 @@ volume sampled(index3 dims, std::array<double, 3> spacing, std::array<double, 3>
   return volume(dims, sample_type::f64, std::move(bytes), spacing, origin);
 }
 
-extract_result extract(const volume& v, double w, extract_mode mode = extract_mode::full,
-                       std::uint64_t max_triangles = 0) {
+extract_result extract(const volume& v, double w, refine_goal goal = refine_goal::full()) {
   extract_options o;
-  o.mode = mode;
-  o.max_triangles = max_triangles;
+  o.goal = goal;
   o.normals = true;
   return extract_isosurface(v, w, o);
 }
@@ -90,7 +88,7 @@ TEST(Normals, a_linear_field_gives_minus_its_physical_gradient_at_every_vertex_o
   for (const double w : {1.0, 10.0, -15.5}) {
     for (const std::uint64_t budget : {std::uint64_t{0}, std::uint64_t{40}, std::uint64_t{400}}) {
       const extract_result r =
-          budget == 0 ? extract(v, w) : extract(v, w, extract_mode::triangles, budget);
+          budget == 0 ? extract(v, w) : extract(v, w, refine_goal::triangles(budget));
       ASSERT_FALSE(r.mesh.empty()) << "w " << w << " budget " << budget;
       ASSERT_EQ(r.mesh.normals.size(), r.mesh.vertices.size());
       for (const vec3& n : r.mesh.normals) {

@@ -2,8 +2,8 @@
 // the diamond's subtree, nested split error, rounded up only where stored), nested, empty beyond
 // the subtree reach, and never larger than the image itself.
 #include <progiso/core/base/error.hpp>
-#include <progiso/core/hierarchy/hierarchy2d.hpp>
-#include <progiso/core/ranges/range_data2d.hpp>
+#include <progiso/core/contour/hierarchy2d.hpp>
+#include <progiso/core/contour/range_data2d.hpp>
 
 #include <algorithm>
 #include <cmath>

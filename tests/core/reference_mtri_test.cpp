@@ -2,7 +2,7 @@
 // orientation, open chains ending on the border, vertices on their edges, no degenerate
 // segments when samples equal the isovalue, and valid contours on the shared images.
 #include <progiso/core/base/error.hpp>
-#include <progiso/core/hierarchy/hierarchy2d.hpp>
+#include <progiso/core/contour/hierarchy2d.hpp>
 
 #include <cmath>
 #include <cstring>

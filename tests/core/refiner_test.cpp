@@ -1,6 +1,7 @@
 // The refiner's modes, statistics, output sensitivity and determinism.
 #include <progiso/core/base/error.hpp>
 #include <progiso/core/field/analytic.hpp>
+#include <progiso/core/refine/detail/path_choice.hpp>
 #include <progiso/core/refine/detail/ready_queue.hpp>
 #include <progiso/core/refine/refiner.hpp>
 
@@ -208,13 +209,12 @@ TEST(Refiner, one_shot_full_extraction_gives_the_refined_surface_in_two_passes) 
   EXPECT_EQ(direct_reports.back().rows_total, 2U * 45U * 47U);
   EXPECT_EQ(direct_reports.back().depth, hierarchy(v.dims()).max_depth());
 
-  o.finest_direct = false;
   std::uint64_t refined_reports = 0;
   o.progress = [&](const extract_progress& p) {
     ++refined_reports;
     EXPECT_EQ(p.rows_total, 0U);  // splits and depths on the hierarchy's path
   };
-  const extract_result refined = extract_isosurface(v, 0.5, o);
+  const extract_result refined = detail::extract_isosurface(v, 0.5, o, detail::path_choice{false});
   EXPECT_FALSE(refined.finest_direct);
   EXPECT_GT(refined.stats.splits, 0U);
   EXPECT_GT(refined_reports, 0U);

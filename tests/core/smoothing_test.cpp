@@ -410,9 +410,7 @@ TEST(Smoothing, bad_parameters_are_refused_with_the_parameter_named) {
 // ---- Surfaces -----------------------------------------------------------------------------------
 
 triangle_mesh full_surface(const volume& v, double w) {
-  extract_options o;
-  o.mode = extract_mode::full;
-  return extract_isosurface(v, w, o).mesh;
+  return extract_isosurface(v, w, extract_options{}).mesh;
 }
 
 void expect_full_equals_reference_mt(const std::shared_ptr<const volume>& data, double w,

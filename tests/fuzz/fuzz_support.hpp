@@ -21,7 +21,7 @@
 #include <system_error>
 
 #include <progiso/core/base/error.hpp>
-#include <progiso/core/io/volume_io.hpp>
+#include <progiso/io/volume_io.hpp>
 
 namespace progiso::fuzz {
 

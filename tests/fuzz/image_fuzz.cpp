@@ -3,7 +3,7 @@
 #include <cstdint>
 
 #include <progiso/core/base/error.hpp>
-#include <progiso/core/io/image_io.hpp>
+#include <progiso/io/image_io.hpp>
 
 #include "fuzz_support.hpp"
 

@@ -1,13 +1,14 @@
-// Fuzz harness: the lossless JPEG decoder alone (core/io/detail/jpeg_lossless.hpp), faster than
-// through DICOM files. Input layout: rows and columns (one byte each, 1 to 256), the maximum
-// precision (one byte: 8 or 16 by its low bit), then the stream, decoded from its first byte.
+// Fuzz harness: lossless JPEG frames alone (io/detail/jpeg_lossless.hpp: our header checks, then
+// DCMTK's decoder), faster than through DICOM files. Input layout: rows and columns (one byte
+// each, 1 to 256), the maximum precision (one byte: 8 or 16 by its low bit), then the stream,
+// decoded from its first byte.
 #include <cstddef>
 #include <cstdint>
 #include <span>
 #include <vector>
 
 #include <progiso/core/base/error.hpp>
-#include <progiso/core/io/detail/jpeg_lossless.hpp>
+#include <progiso/io/detail/jpeg_lossless.hpp>
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
   if (size < 3) return 0;

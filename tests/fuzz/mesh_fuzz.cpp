@@ -3,8 +3,8 @@
 #include <cstdint>
 
 #include <progiso/core/base/error.hpp>
-#include <progiso/core/io/contour_io.hpp>
-#include <progiso/core/io/mesh_io.hpp>
+#include <progiso/io/contour_io.hpp>
+#include <progiso/io/mesh_io.hpp>
 
 #include "fuzz_support.hpp"
 

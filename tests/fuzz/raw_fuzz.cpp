@@ -12,8 +12,8 @@
 
 #include <progiso/core/base/error.hpp>
 #include <progiso/core/contour/contour_refiner.hpp>
-#include <progiso/core/io/volume_io.hpp>
 #include <progiso/core/refine/refiner.hpp>
+#include <progiso/io/volume_io.hpp>
 
 #include "fuzz_support.hpp"
 
@@ -51,9 +51,10 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
       const auto [lo, hi] = img.value_range();
       const double w = lo + (hi - lo) * (data[5] / 255.0);
       contour_options o;
-      o.mode = static_cast<contour_mode>(data[5] % 3);  // full, error, segments
-      o.max_error = data[5] * 0.5;
-      o.max_segments = data[5];
+      // full, error, segments
+      const refine_goal goals[] = {refine_goal::full(), refine_goal::error(data[5] * 0.5),
+                                   refine_goal::segments(data[5])};
+      o.goal = goals[data[5] % 3];
       (void)extract_contours(img, {w, w + 1.0}, o);
     } catch (const progiso::error&) {
     }
@@ -68,9 +69,10 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
     const double w = lo + (hi - lo) * (data[5] / 255.0);
     if (v.dims()[2] >= 2 && v.voxel_count() <= 4096) {
       extract_options o;
-      o.mode = static_cast<extract_mode>(data[5] % 3);  // full, error, triangles
-      o.max_error = data[5] * 0.01;
-      o.max_triangles = data[5];
+      // full, error, triangles
+      const refine_goal goals[] = {refine_goal::full(), refine_goal::error(data[5] * 0.01),
+                                   refine_goal::triangles(data[5])};
+      o.goal = goals[data[5] % 3];
       const extract_result r = extract_isosurface(v, w, o);
       for (const auto& t : r.mesh.triangles) {
         for (const std::uint32_t i : t) {

@@ -109,10 +109,9 @@ TEST(EngineMisuse, a_budget_beyond_the_clock_range_refines_fully) {
   EXPECT_TRUE(e.refine_for(std::chrono::steady_clock::duration::max()));
   EXPECT_TRUE(e.done());
   extract_options o;
-  o.mode = extract_mode::time;
-  o.time_budget = std::chrono::duration<double>(9.3e9);  // 295 years: overflowed before
+  o.goal = refine_goal::within(std::chrono::duration<double>(9.3e9));  // 295 years
   const extract_result timed = extract_isosurface_parallel(v, 0.5, o, 2);
-  o.mode = extract_mode::full;
+  o.goal = refine_goal::full();
   const extract_result full = extract_isosurface_parallel(v, 0.5, o, 2);
   EXPECT_EQ(timed.mesh.triangles.size(), full.mesh.triangles.size());
 }

@@ -228,9 +228,10 @@ TEST(Engine, render_buffers_take_the_gradient_normals_of_the_cut_when_asked) {
 
   extract_options o;
   o.normals = true;
-  o.finest_direct = false;  // the hierarchy's cut, numbered as the sequential path numbers it
-  const extract_result seq = extract_isosurface(v, 0.5, o);
-  const extract_result par = extract_isosurface_parallel(v, 0.5, o, 2);
+  // The hierarchy's cut, numbered as the sequential path numbers it.
+  const detail::path_choice hierarchy_path{false};
+  const extract_result seq = detail::extract_isosurface(v, 0.5, o, hierarchy_path);
+  const extract_result par = detail::extract_isosurface_parallel(v, 0.5, o, 2, hierarchy_path);
   ASSERT_EQ(seq.mesh.vertices, par.mesh.vertices);
   EXPECT_EQ(seq.mesh.normals, par.mesh.normals);
   EXPECT_EQ(par.mesh.normals, m.normals);
@@ -595,7 +596,6 @@ TEST(Engine, one_shot_deadline_runs_climb_uniform_cuts_or_refine_by_priority_whe
   const auto box = test::data_box(v);
   const test::reference_surface full = test::reference_marching_tetrahedra(v, 0.5);
   extract_options o;
-  o.mode = extract_mode::time;
   const auto both = [&v](const extract_options& opt, unsigned threads) {
     return threads == 0 ? extract_isosurface(v, 0.5, opt)
                         : extract_isosurface_parallel(v, 0.5, opt, threads);
@@ -603,7 +603,7 @@ TEST(Engine, one_shot_deadline_runs_climb_uniform_cuts_or_refine_by_priority_whe
   for (const unsigned threads : {0u, 1u, 2u}) {
     SCOPED_TRACE(threads);
     o.deadline_ladder = true;
-    o.time_budget = std::chrono::hours(1);
+    o.goal = refine_goal::within(std::chrono::hours(1));
     // Progress names each cut's stride, coarse to fine (calls never overlap: see
     // finest_progress).
     std::vector<std::int32_t> strides;
@@ -616,14 +616,14 @@ TEST(Engine, one_shot_deadline_runs_climb_uniform_cuts_or_refine_by_priority_whe
     EXPECT_EQ(far.ladder_stride, 1);
     EXPECT_EQ(far.stats.splits, 0u);
     EXPECT_TRUE(test::same_surface(far.mesh, full.mesh));
-    o.time_budget = std::chrono::duration<double>(0.0);
+    o.goal = refine_goal::within(std::chrono::duration<double>(0.0));
     const extract_result spent = both(o, threads);
     EXPECT_EQ(spent.ladder_stride, 8);
     EXPECT_TRUE(test::same_surface(spent.mesh, uniform_surface(v, 0.5, 8)));
     EXPECT_TRUE(test::check_valid_cut(spent.mesh, box[0], box[1]));
     EXPECT_LE(spent.first_surface_seconds, spent.pipeline_seconds);
     o.deadline_ladder = false;
-    o.time_budget = std::chrono::milliseconds(200);
+    o.goal = refine_goal::within(std::chrono::milliseconds(200));
     const extract_result priority = both(o, threads);
     EXPECT_EQ(priority.ladder_stride, 0);
     EXPECT_GT(priority.stats.splits, 0u);
@@ -694,7 +694,7 @@ TEST(Engine, cancel_during_a_deadline_runs_range_build_stops_the_build) {
 
 TEST(Engine, a_full_run_stopped_mid_sweep_hands_every_ready_diamond_back) {
   // A full goal's ready diamonds are taken by grid plane (plane_lists), not from the queue: by
-  // the one-thread loop (sweep_alone) and by each task on more threads; stopped, they are
+  // the one-thread loop (sweep_on_one_thread) and by each task on more threads; stopped, they are
   // handed back to the queue, keyed as a full run keys them. A run to ε from there must split
   // exactly the straddling diamonds of error > ε not yet split (their ancestors straddle with
   // larger errors: nested ranges), so the final split set is the stopped cut's plus those: a
@@ -1119,22 +1119,21 @@ TEST(Engine, parallel_extraction_matches_the_sequential_one_in_every_mode) {
   EXPECT_TRUE(par.finest_direct);
   EXPECT_EQ(seq.mesh.vertices, par.mesh.vertices);
   EXPECT_EQ(seq.mesh.triangles, par.mesh.triangles);
-  full.finest_direct = false;  // the hierarchy's path: the same splits on both
-  const extract_result seq_refined = extract_isosurface(v, 0.5, full);
-  const extract_result refined = extract_isosurface_parallel(v, 0.5, full, 2);
+  const detail::path_choice hierarchy_path{false};  // the same splits on both
+  const extract_result seq_refined = detail::extract_isosurface(v, 0.5, full, hierarchy_path);
+  const extract_result refined =
+      detail::extract_isosurface_parallel(v, 0.5, full, 2, hierarchy_path);
   EXPECT_FALSE(seq_refined.finest_direct);
   EXPECT_TRUE(test::same_surface(seq.mesh, seq_refined.mesh));
   EXPECT_TRUE(test::same_surface(seq.mesh, refined.mesh));
   EXPECT_GT(refined.stats.splits, 0U);
   EXPECT_EQ(seq_refined.stats.splits, refined.stats.splits);
   extract_options err;
-  err.mode = extract_mode::error;
-  err.max_error = 0.05;
+  err.goal = refine_goal::error(0.05);
   EXPECT_TRUE(test::same_surface(extract_isosurface(v, 0.5, err).mesh,
                                  extract_isosurface_parallel(v, 0.5, err, 2).mesh));
   extract_options bad;
-  bad.mode = extract_mode::error;
-  bad.max_error = -1.0;
+  bad.goal = refine_goal::error(-1.0);
   EXPECT_THROW((void)extract_isosurface_parallel(v, 0.5, bad, 2), error);
 }
 
@@ -1197,9 +1196,8 @@ TEST(Engine, root_surface_is_published_before_any_pass_over_the_volume) {
 
 TEST(Engine, pipeline_reports_the_first_surface_before_the_range_data) {
   const volume v = make_marschner_lobb({65, 65, 65});
-  extract_options refined;
-  refined.finest_direct = false;
-  const extract_result r = extract_isosurface_parallel(v, 0.5, refined, 2);
+  const extract_result r =
+      detail::extract_isosurface_parallel(v, 0.5, extract_options{}, 2, detail::path_choice{false});
   EXPECT_FALSE(r.finest_direct);
   EXPECT_GT(r.range_build_seconds, 0.0);
   EXPECT_LE(r.first_surface_seconds + r.range_build_seconds + r.refine_seconds + r.extract_seconds,
@@ -1225,9 +1223,8 @@ TEST(Engine, full_pipeline_gives_the_finest_surface_by_two_passes_the_same_for_e
     EXPECT_EQ(r.mesh.vertices, one.mesh.vertices) << threads;
     EXPECT_EQ(r.mesh.triangles, one.mesh.triangles) << threads;
   }
-  extract_options refined;
-  refined.finest_direct = false;
-  const extract_result by_splits = extract_isosurface_parallel(v, 0.5, refined, 2);
+  const extract_result by_splits =
+      detail::extract_isosurface_parallel(v, 0.5, extract_options{}, 2, detail::path_choice{false});
   EXPECT_GT(by_splits.stats.splits, 0u);
   EXPECT_EQ(by_splits.mesh.vertices.size(), one.mesh.vertices.size());
   EXPECT_TRUE(test::same_surface(by_splits.mesh, one.mesh));
@@ -1235,8 +1232,8 @@ TEST(Engine, full_pipeline_gives_the_finest_surface_by_two_passes_the_same_for_e
   extract_options normals;
   normals.normals = true;
   const extract_result shaded = extract_isosurface_parallel(v, 0.5, normals, 2);
-  refined.normals = true;
-  const extract_result shaded_refined = extract_isosurface_parallel(v, 0.5, refined, 2);
+  const extract_result shaded_refined =
+      detail::extract_isosurface_parallel(v, 0.5, normals, 2, detail::path_choice{false});
   std::map<vec3, vec3> by_position;
   for (std::size_t i = 0; i < shaded_refined.mesh.vertices.size(); ++i) {
     by_position[shaded_refined.mesh.vertices[i]] = shaded_refined.mesh.normals[i];

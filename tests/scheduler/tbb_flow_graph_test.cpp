@@ -2,7 +2,8 @@
 // worker threads, handed as heap objects to a serial node, with a limiter bounding the items in
 // flight. Under the tsan preset this runs against the instrumented oneTBB of
 // scripts/build-tsan-tbb.sh; against Debian's uninstrumented libtbb, TSan cannot see the
-// synchronisation inside TBB and reports every such handoff as a race (DESIGN.md §5).
+// synchronisation inside TBB and reports every such handoff as a race (docs/ARCHITECTURE.md,
+// "Tests").
 #include <progiso/scheduler/tbb_environment.hpp>
 
 #include <algorithm>

@@ -1,4 +1,5 @@
-// tests/support/contour_checks.hpp — validity checks of extracted 2D contours (invariant 2).
+// tests/support/contour_checks.hpp — validity checks of extracted 2D contours (invariant 2,
+// docs/ARCHITECTURE.md).
 //
 // Each check takes a contour_set and returns a contour_check: whether the property holds and,
 // when it does not, a one-line description of the first violation (polyline, vertex indices and

@@ -1,4 +1,5 @@
-// tests/support/mesh_checks.hpp — validity checks of extracted surfaces (invariant 2).
+// tests/support/mesh_checks.hpp — validity checks of extracted surfaces (invariant 2,
+// docs/ARCHITECTURE.md).
 //
 // Each check takes a triangle_mesh and returns a check_result: whether the property holds and,
 // when it does not, a one-line description of the first violation (triangle and vertex indices

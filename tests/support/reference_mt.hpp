@@ -1,8 +1,9 @@
-// tests/support/reference_mt.hpp — the independent reference extractor (oracle of invariant 1).
+// tests/support/reference_mt.hpp — the independent reference extractor (oracle of
+// invariant 1, docs/ARCHITECTURE.md).
 //
 // Plain marching tetrahedra over the finest mesh of the longest-edge bisection hierarchy: every
 // unit cell inside the data box is cut into 6 tetrahedra around the diagonal that joins its
-// all-even corner to its all-odd corner (DESIGN.md §2, checked by diamond_check.py), and each
+// all-even corner to its all-odd corner (docs/ARCHITECTURE.md, "The hierarchy"), and each
 // tetrahedron is marched on its own. The rules for colours, vertex positions, quad diagonals and
 // orientation are those stated in progiso/core/surface/marching.hpp, re-implemented here from that
 // text alone: nothing of progiso's extraction code is called, so a bug there cannot hide in the

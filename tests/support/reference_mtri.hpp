@@ -3,7 +3,7 @@
 //
 // Plain marching triangles over the finest mesh of the 2D longest-edge bisection hierarchy:
 // every unit square [i, i+1] × [j, j+1] inside the image is cut into 2 triangles by the diagonal
-// that joins its all-even corner to its all-odd corner (DESIGN.md §2, diamond_check_2d.py), and
+// that joins its all-even corner to its all-odd corner (docs/ARCHITECTURE.md, "The hierarchy"), and
 // each triangle is marched on its own. The rules, re-implemented here from their statement
 // alone (nothing of progiso's hierarchy or extraction code is called):
 //

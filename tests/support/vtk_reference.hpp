@@ -1,5 +1,5 @@
 // tests/support/vtk_reference.hpp — VTK's own readers and writer behind a plain interface, the
-// references of vtk_vs_vtk_test.cpp: vtkStructuredPointsReader (legacy .vtk), and
+// references of readers_vs_vtk_test.cpp: vtkStructuredPointsReader (legacy .vtk), and
 // vtkXMLImageDataWriter and vtkXMLImageDataReader (.vti). VTK 9.1's headers do not compile as
 // C++20, so its side is a C++17 library (vtk_reference.cpp), built where VTK is installed.
 #pragma once

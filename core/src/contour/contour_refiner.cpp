@@ -11,6 +11,7 @@
 #include <progiso/core/base/detail/cut_index.hpp>
 #include <progiso/core/base/error.hpp>
 #include <progiso/core/refine/deadline.hpp>
+#include <progiso/core/refine/detail/path_choice.hpp>
 #include <progiso/core/refine/detail/ready_queue.hpp>
 
 namespace progiso {
@@ -134,7 +135,7 @@ const contour_statistics& contour_refiner::statistics() const noexcept {
 contour_split_summary contour_refiner::last_split() const {
   if (last_index_ == no_owner2) return {};
   // Made again from the image: a split's sequence with its keys is wanted rarely, and making it
-  // for every split cost a tenth of the split.
+  // for every split cost a noticeable part of the split.
   const ipoint2 c = hier_.point(last_index_);
   std::vector<owned_segment> unused;
   return compute_contour_split(hier_, image_, isovalue_, hier_.make_diamond(c), unused);
@@ -190,7 +191,7 @@ contour_set contour_refiner::build(InCut&& in_cut) const {
     if (!in_cut(r.diamond, r.error)) continue;
     taken[i] = 1;
     if (dense) {
-      cut.add_alone(r.diamond);
+      cut.add_on_one_thread(r.diamond);
     } else {
       selected.push_back(r.diamond);
     }
@@ -232,6 +233,11 @@ contour_set contour_refiner::extract_region(double x0, double y0, double x1, dou
 
 contour_result extract_contours(const volume& image, const std::vector<double>& isovalues,
                                 const contour_options& options) {
+  return detail::extract_contours(image, isovalues, options, {});
+}
+
+contour_result detail::extract_contours(const volume& image, const std::vector<double>& isovalues,
+                                        const contour_options& options, path_choice path) {
   using clock = std::chrono::steady_clock;
   const auto seconds = [](clock::duration d) { return std::chrono::duration<double>(d).count(); };
   if (image.dims()[2] != 1) {
@@ -242,15 +248,12 @@ contour_result extract_contours(const volume& image, const std::vector<double>& 
   for (const double w : isovalues) {
     if (!std::isfinite(w)) throw error("isovalues: expected finite numbers");
   }
-  if (options.mode == contour_mode::error && !(options.max_error >= 0.0)) {
-    throw error("error threshold: expected a non-negative number");
-  }
-  if (options.mode == contour_mode::time && !(options.time_budget.count() >= 0.0)) {
-    throw error("time budget: expected a non-negative duration");
-  }
+  using kind = refine_goal::kind;
+  const refine_goal& goal = options.goal;
+  check_goal(goal);
   contour_result res;
   const auto t0 = clock::now();
-  if (options.mode == contour_mode::full && !options.frame && options.finest_direct) {
+  if (goal.what == kind::full && !options.frame && path.finest_direct) {
     // Only the finest cut is asked for: two passes over the pixels give it (finest_contours()),
     // without range data or splits. The first contour is the first isovalue's finest one.
     clock::duration in_sink{};
@@ -287,10 +290,10 @@ contour_result extract_contours(const volume& image, const std::vector<double>& 
   const auto t1 = clock::now();
   res.range_build_seconds = seconds(t1 - t0);
   res.range_bytes = ranges.byte_size();
-  const contour_order order = options.mode == contour_mode::full
-                                  ? contour_order::breadth_first
-                                  : contour_order::largest_error_first;
-  const clock::time_point deadline = deadline_after(t1, options.time_budget);
+  const contour_order order =
+      goal.what == kind::full ? contour_order::breadth_first : contour_order::largest_error_first;
+  const clock::time_point deadline =
+      goal.what == kind::deadline ? goal.deadline : clock::time_point::max();
 
   // Isovalues are refined one at a time, in the order given, and each one's contours go to the
   // sink (or into the result) before the next starts: memory holds one refiner, whatever the
@@ -324,11 +327,11 @@ contour_result extract_contours(const volume& image, const std::vector<double>& 
       while (next_frame <= splits) next_frame *= 2;
     }
   };
-  std::uint64_t segments_left = options.max_segments;
+  std::uint64_t segments_left = goal.max_elements;
   const std::size_t n = isovalues.size();
   for (std::size_t k = 0; k < n; ++k) {
     contour_refiner r(image, hier, ranges, isovalues[k], order);
-    if (options.mode == contour_mode::error) r.aim_at_error(options.max_error);
+    if (goal.what == kind::error) r.aim_at_error(goal.max_error);
     if (k == 0) res.first_contour_seconds = seconds(clock::now() - t1);
     if (k == 0) frame(&r, false);
     const std::uint64_t share = segments_left / (n - k);
@@ -338,9 +341,9 @@ contour_result extract_contours(const volume& image, const std::vector<double>& 
                                               : now + (deadline - now) / static_cast<long>(n - k);
     for (;;) {
       if (r.done()) break;
-      if (options.mode == contour_mode::error && !(r.next_error() > options.max_error)) break;
-      if (options.mode == contour_mode::time && clock::now() >= my_deadline) break;
-      if (options.mode == contour_mode::segments) {
+      if (goal.what == kind::error && !(r.next_error() > goal.max_error)) break;
+      if (goal.what == kind::deadline && clock::now() >= my_deadline) break;
+      if (goal.what == kind::budget) {
         if (!r.split_next(share)) break;
       } else {
         r.split_next();
@@ -348,8 +351,7 @@ contour_result extract_contours(const volume& image, const std::vector<double>& 
       ++splits;
       frame(&r, false);
     }
-    if (options.mode == contour_mode::segments)
-      segments_left -= std::min(segments_left, r.segment_count());
+    if (goal.what == kind::budget) segments_left -= std::min(segments_left, r.segment_count());
     contour_set c = r.extract();
     res.stats.push_back(r.statistics());
     if (options.frame) finished.push_back(c);

@@ -11,8 +11,8 @@
 
 #include <progiso/core/base/error.hpp>
 #include <progiso/core/contour/contour_split.hpp>
+#include <progiso/core/contour/hierarchy2d.hpp>
 #include <progiso/core/field/detail/subdivision.hpp>
-#include <progiso/core/hierarchy/hierarchy2d.hpp>
 
 namespace progiso {
 namespace {

@@ -221,7 +221,8 @@ int hierarchy::children_at(const ipoint& c, std::int32_t h, int type,
   return n;
 }
 
-// Parent counts from the parent's side (DESIGN.md §2 facts, as parent_count() applies them):
+// Parent counts from the parent's side (the hierarchy's facts in docs/ARCHITECTURE.md, as
+// parent_count() applies them):
 //  * type 0 at c (scale h) has the face centres f = c ± h e_q (type 1, scale h). A face centre's
 //    parents lie at f ± h along its one even axis q: c itself and c ± 2h e_q.
 //  * type 1 at c (scale h, even axis q0) has the edge midpoints e = c ± h e_q on its odd axes

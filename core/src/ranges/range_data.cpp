@@ -98,8 +98,8 @@ using detail::quantize_error;
 // The shape of a stencil: the subtree of the diamond centred at c, every vertex of every
 // descendant's tetrahedra and every descendant's split (centre, spine ends), as grid offsets
 // from c, sorted, without repeats. It depends only on c modulo 4, not on the volume, so it is found
-// once per process by walking the subtree in a probe hierarchy (the walk costs milliseconds; every
-// range_data used to repeat it).
+// once per process by walking the subtree in a probe hierarchy (the walk is costly beside a
+// range build; every range_data used to repeat it).
 struct stencil_shape {
   bool used = false;
   std::vector<ipoint> points;
@@ -211,8 +211,8 @@ class typed_range_data final : public range_data::impl {
   };
   // Level 0's bricks are left uninitialised: build_minmax_slab() writes every brick's lo and hi,
   // build_error_slab() every brick's error (read only once errors_exact is set). A zero-filled
-  // vector would fault its pages (3.3 MB on 257³: ~800 pages at ~2 µs) on one thread before the
-  // parallel slabs start; left to the slabs, each thread faults its own.
+  // vector would fault its pages, one by one, on one thread before the parallel slabs start;
+  // left to the slabs, each thread faults its own.
   template <class U>
   struct uninitialised_allocator : std::allocator<U> {
     template <class V>
@@ -499,8 +499,8 @@ class typed_range_data final : public range_data::impl {
 
  public:
   // The coarser levels, each from the one below it, one plane of bricks per item of `run`
-  // (every plane of a level is independent; 5 ms on one thread for Marschner–Lobb 513³'s 2.2 M
-  // level-0 bricks, a third of the whole build at 16 threads when it ran alone).
+  // (every plane of a level is independent; run alone on one thread it was a large part of the
+  // whole build at many threads; bench/README.md).
   void finish(const range_data::parallel_loop& run) override {
     PROGISO_ASSERT(levels_.size() == 1);
     while (levels_.back().n[0] > 1 || levels_.back().n[1] > 1 || levels_.back().n[2] > 1) {

@@ -8,6 +8,7 @@
 
 #include <progiso/core/base/error.hpp>
 #include <progiso/core/refine/deadline.hpp>
+#include <progiso/core/refine/detail/path_choice.hpp>
 #include <progiso/core/refine/detail/prefetch.hpp>
 #include <progiso/core/refine/detail/readiness.hpp>
 #include <progiso/core/refine/detail/ready_queue.hpp>
@@ -259,13 +260,7 @@ void check_extract_inputs(double isovalue, const extract_options& options) {
   if (!std::isfinite(isovalue)) {
     throw error("isovalue: expected a finite number, found " + std::to_string(isovalue));
   }
-  if (options.mode == extract_mode::error && !(options.max_error >= 0.0)) {
-    throw error("error threshold: expected a non-negative number, found " +
-                std::to_string(options.max_error));
-  }
-  if (options.mode == extract_mode::time && !(options.time_budget.count() >= 0.0)) {
-    throw error("time budget: expected a non-negative duration");
-  }
+  check_goal(options.goal);
 }
 
 ladder_progress ladder_direct_progress(const extract_options& options, int max_depth) {
@@ -290,16 +285,22 @@ finest_progress direct_progress(const extract_options& options, int max_depth) {
 
 extract_result extract_isosurface(const volume& vol, double isovalue,
                                   const extract_options& options) {
+  return detail::extract_isosurface(vol, isovalue, options, {});
+}
+
+extract_result detail::extract_isosurface(const volume& vol, double isovalue,
+                                          const extract_options& options, path_choice path) {
   using clock = std::chrono::steady_clock;
   const auto seconds = [](clock::duration d) { return std::chrono::duration<double>(d).count(); };
   check_extract_inputs(isovalue, options);
   extract_result res;
   const auto t0 = clock::now();
-  const bool finest = options.mode == extract_mode::full && options.finest_direct;
+  using kind = refine_goal::kind;
+  const refine_goal& goal = options.goal;
+  const bool finest = goal.what == kind::full && path.finest_direct;
   // Uniform cuts, coarse to fine, until the deadline (the engine's entry does the same after
   // its root surface); the first is always made, so it is the first surface.
-  const bool ladder =
-      options.mode == extract_mode::time && options.deadline_ladder && vol.dims()[2] >= 2;
+  const bool ladder = goal.what == kind::deadline && options.deadline_ladder && vol.dims()[2] >= 2;
   if (finest || ladder) {
     // No range data or splits: the finest cut alone by two passes over the samples, or the
     // ladder's uniform cuts by the same passes (the engine's entry does the same after its
@@ -309,8 +310,8 @@ extract_result extract_isosurface(const volume& vol, double isovalue,
       res.mesh = finest_surface(vol, isovalue, {}, 1, direct_progress(options, max_depth));
       res.finest_direct = true;
     } else {
-      ladder_result l = ladder_surface(vol, isovalue, deadline_after(t0, options.time_budget), {},
-                                       1, ladder_direct_progress(options, max_depth));
+      ladder_result l = ladder_surface(vol, isovalue, goal.deadline, {}, 1,
+                                       ladder_direct_progress(options, max_depth));
       res.mesh = std::move(l.mesh);
       res.ladder_stride = l.stride;
       res.first_surface_seconds = l.first_seconds;
@@ -335,14 +336,13 @@ extract_result extract_isosurface(const volume& vol, double isovalue,
   res.range_build_seconds = seconds(t1 - t0);
   res.range_bytes = ranges.byte_size();
 
-  const refine_order order = options.mode == extract_mode::full ? refine_order::breadth_first
-                                                                : refine_order::largest_error_first;
+  const refine_order order =
+      goal.what == kind::full ? refine_order::breadth_first : refine_order::largest_error_first;
   refiner ref(vol, hier, ranges, isovalue, order);
   {
     const triangle_mesh first = ref.extract();
     res.first_surface_seconds = seconds(clock::now() - t1);
   }
-  const auto deadline = deadline_after(t1, options.time_budget);
   extract_progress prog;
   prog.max_depth = hier.max_depth();
   std::uint64_t since = 0;
@@ -354,22 +354,22 @@ extract_result extract_isosurface(const volume& vol, double isovalue,
     prog.depth = ref.next_depth();
     options.progress(prog);
   };
-  switch (options.mode) {
-    case extract_mode::full:
+  switch (goal.what) {
+    case kind::full:
       while (ref.split_next()) report();
       break;
-    case extract_mode::error:
-      ref.aim_at_error(options.max_error);
-      while (!ref.done() && ref.next_error() > options.max_error) {
+    case kind::error:
+      ref.aim_at_error(goal.max_error);
+      while (!ref.done() && ref.next_error() > goal.max_error) {
         ref.split_next();
         report();
       }
       break;
-    case extract_mode::triangles:
-      while (ref.split_next_within(options.max_triangles)) report();
+    case kind::budget:
+      while (ref.split_next_within(goal.max_elements)) report();
       break;
-    case extract_mode::time:
-      while (!ref.done() && clock::now() < deadline) {
+    case kind::deadline:
+      while (!ref.done() && clock::now() < goal.deadline) {
         ref.split_next();
         report();
       }

@@ -57,7 +57,7 @@ struct cube_case {
 
 struct tables {
   std::array<std::array<cube_case, 256>, 8> cases{};
-  /// cases[…][…].count alone: the first pass reads only these (2 KB, not 75).
+  /// cases[…][…].count alone: the first pass reads only these, a small fraction of `cases`.
   std::array<std::array<std::uint8_t, 256>, 8> counts{};
   /// The owned edges a point crosses, from its cube's corner colours (corners beyond the data
   /// box as white; the caller masks the slots whose ends are not there).
@@ -227,7 +227,8 @@ class finest_mesher {
       }
     };
     // The corner bytes' pages mapped before the first pass writes them all (prefault.hpp); not
-    // when the caller polls: a 512³ grid's 134 MB would be tens of ms without a poll.
+    // when the caller polls: mapping a large grid's corner bytes in one go would keep the poll
+    // waiting too long.
     if (!stop.poll) {
       detail::prefault_in_parts(loop, parts, corners_.get(), static_cast<std::size_t>(nx_) * rows_);
     }
@@ -249,10 +250,10 @@ class finest_mesher {
     }
     if (stop.sized) stop.sized(v, t);
     // The two arrays are sized into capacity whose pages are mapped first (prefault.hpp): a
-    // std::vector zeroes what it sizes, and zeroing fresh pages took a fault per 4 KiB page, one
-    // array per thread (a 512³ field's 317 MB took 127–136 ms on one thread and up to 400 ms on
-    // two on this machine). Mapped in slices over the threads, then zeroed side by side. In steps
-    // of 1 M elements, each mapped then zeroed, when the caller polls between them.
+    // std::vector zeroes what it sizes, and zeroing fresh pages took a fault per page, one array
+    // per thread, which made sizing a large field's output a long step, slower still on two
+    // threads (bench/README.md). Mapped in slices over the threads, then zeroed side by side. In
+    // steps of 1 M elements, each mapped then zeroed, when the caller polls between them.
     triangle_mesh mesh;
     const std::uint64_t nv = row_vertices_[rows_];
     const std::uint64_t nt = row_triangles_[rows_];
@@ -685,8 +686,8 @@ ladder_result ladder_surface(const volume& field, double isovalue,
   // fills the volume (noise): the last two cuts' ratio, within [4, 8], says which. Its exact
   // size is known after its first pass; the rest is then begun only if half as long again
   // would still end in time, because giving it up is not free: the output sized so far is
-  // returned to the system before the call returns (a 400³ noise volume's stride-2 cut, 88 M
-  // vertices and triangles, took 1.5 × its predicted rest, and dropping it 90 ms). While the
+  // returned to the system before the call returns (a large cut's rest can run well past its
+  // prediction, and dropping it takes time of its own; bench/README.md). While the
   // output is sized, its own rate so far and the last cut's second pass per output element
   // say when the cut would end; it is dropped as soon as that is past the deadline, with
   // little of the output touched (fresh pages cost what the machine's memory makes them).

@@ -175,7 +175,7 @@ void add_vertex_normals(triangle_mesh& mesh, const volume& field, const parallel
       const std::size_t end = std::min(count, (k + 1) * piece_vertices);
       // The gradients first, then their lengths in a loop of their own: a square root and a
       // division per vertex, independent from one vertex to the next, overlap there, where
-      // behind each vertex's sample loads they took a quarter of the pass.
+      // behind each vertex's sample loads they took a large part of the pass.
       for (std::size_t i = begin; i < end; ++i) {
         mesh.normals[i] = descent_at(samples, frame, mesh.vertices[i]);
       }

@@ -60,7 +60,7 @@ class append_log {
   /// A log on a chunk directory of MaxChunks null pointers: a fresh one, or one that another
   /// log handed back (release_directory()), so that the new log maps no memory (the directory
   /// is a mapping of 8 MiB, and mapping waits for the address space's lock, which threads
-  /// faulting pages in hold: up to 5 ms on a loaded 2-core machine).
+  /// faulting pages in hold, for long on a loaded machine; bench/README.md).
   explicit append_log(zeroed_array<T*>&& directory) : chunks_(std::move(directory)) {
     if (chunks_.size() != MaxChunks) {
       throw std::invalid_argument("append_log: a chunk directory of the wrong size");

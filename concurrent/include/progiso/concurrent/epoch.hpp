@@ -34,12 +34,12 @@
 // plus, until the next flush() of any participant, what exited participants left behind.
 // Example (tests/concurrent/epoch_bounded_garbage_test.cpp): one writer publishes and retires
 // 100 000 versions of one pointer while a reader that pinned and protected the first one
-// stalls (U = L, live = 1): pending ≤ F + 1 + T − 1 = T + F (80 with the defaults; measured: 80,
-// the bound is tight), and after the reader resumes everything is reclaimed. Plain EBR
-// (interval_based = false) kept all 100 000 versions retired during the stall. The bound assumes
-// the stalled thread is not preempted inside protect()'s fallback (two loads long, entered only
-// after the clock moved protect_attempts + 1 times during one call), where its reservation
-// briefly covers every era.
+// stalls (U = L, live = 1): pending ≤ F + 1 + T − 1 = T + F (80 with the defaults; the test
+// reaches it, so the bound is tight), and after the reader resumes everything is reclaimed.
+// Plain EBR (interval_based = false) kept all 100 000 versions retired during the stall. The
+// bound assumes the stalled thread is not preempted inside protect()'s fallback (two loads long,
+// entered only after the clock moved protect_attempts + 1 times during one call), where its
+// reservation briefly covers every era.
 //
 // Thread safety: an epoch_domain is shared by all threads. An epoch_participant and its guards
 // belong to one thread at a time (one participant per thread per domain); pin(), protect(),

@@ -27,8 +27,8 @@
 // The cut is exactly the first W records; a snapshot holds one isovalue and one parent-closed
 // cut. An isovalue change swaps the root and retires the old one through the epoch domain.
 //
-// Threads. A contour run is one thread: the driver splits in a loop (a split is ~0.1–0.3 µs,
-// and a whole 512² image refines in milliseconds, less than the cost of spreading the work).
+// Threads. A contour run is one thread: the driver splits in a loop (a 2D split is cheap, and a
+// whole image refines in less time than spreading the work would cost; bench/README.md).
 // Readers may be any number of other threads.
 //
 // Thread safety: as engine.hpp. Every member function may be called from any thread; control
@@ -47,9 +47,9 @@
 #include <progiso/core/base/config.hpp>
 #include <progiso/core/contour/contour.hpp>
 #include <progiso/core/contour/contour_refiner.hpp>
+#include <progiso/core/contour/hierarchy2d.hpp>
+#include <progiso/core/contour/range_data2d.hpp>
 #include <progiso/core/field/volume.hpp>
-#include <progiso/core/hierarchy/hierarchy2d.hpp>
-#include <progiso/core/ranges/range_data2d.hpp>
 #include <progiso/scheduler/engine.hpp>
 
 namespace progiso {

@@ -4,14 +4,15 @@
 // the first run, independent of the isovalue; the root surface published at construction needs
 // none) and the progressive surface of the current isovalue. Split records of ready diamonds
 // (all parents split; compute_split() is pure) are published in dependency order, every record
-// after its parents'. On one thread a run is a loop in its driver. On more, a full run is oneTBB
-// tasks over subtrees, each depth first from its own stack, publishing every 64 splits and
-// making children ready by atomic parent counts after publication; error, budget and deadline
-// runs the same tasks band by band of the priority queue (a quarter octave of nested errors each,
-// largest first; a child below the band waits for its own). engine_options::schedule selects a
-// oneTBB flow graph for those instead: splits computed in parallel in batches, a serial commit
-// step that publishes them and keeps the priority queue, at most `tasks_per_thread × threads`
-// batches in flight (slower: its commit step is serial).
+// after its parents'. On one thread a run is a loop in its driver. On more, a full run (and an
+// error target in any order) is oneTBB tasks over slabs of the volume's grid planes, each
+// taking its ready diamonds plane by plane, publishing in batches and making children ready by
+// atomic parent counts after publication; error, budget and deadline runs are tasks over
+// subtrees, each depth first from its own stack, band by band of the priority queue (a quarter
+// octave of nested errors each, largest first; a child below the band waits for its own).
+// engine_options::schedule selects a oneTBB flow graph for those instead: splits computed in
+// parallel in batches, a serial commit step that publishes them and keeps the priority queue, at
+// most `tasks_per_thread × threads` batches in flight (slower: its commit step is serial).
 //
 // The four scenarios of the paper (§1):
 //  - quality-driven:  refine_until(ε) splits until every remaining error is ≤ ε;
@@ -58,6 +59,8 @@
 #include <progiso/core/hierarchy/hierarchy.hpp>
 #include <progiso/core/ranges/range_data.hpp>
 #include <progiso/core/refine/deadline.hpp>
+#include <progiso/core/refine/detail/path_choice.hpp>
+#include <progiso/core/refine/goal.hpp>
 #include <progiso/core/refine/refiner.hpp>
 #include <progiso/core/surface/mesh.hpp>
 #include <progiso/core/surface/normals.hpp>
@@ -86,9 +89,9 @@ struct engine_progress {
 /// How runs by priority (error, budget, deadline) share more than one thread. Full runs always
 /// use tasks; one thread always runs a loop in the driver.
 enum class refinement_schedule {
-  /// Tasks over subtrees, band by band of the priority queue (the default: on Marschner–Lobb
-  /// 257³ at 2 threads a deadline of Flying Edges' time buys 0.68–0.72 of the surface within a
-  /// voxel, against 0.39–0.44 on the flow graph).
+  /// Tasks over subtrees, band by band of the priority queue (the default: a deadline buys
+  /// markedly more of the surface within a voxel this way than on the flow graph;
+  /// bench/README.md).
   tasks,
   /// A oneTBB flow graph: compute tasks in batches feeding a serial commit node.
   flow_graph,
@@ -99,8 +102,9 @@ struct engine_options {
   unsigned threads = 0;
   /// See refinement_schedule.
   refinement_schedule schedule = refinement_schedule::tasks;
-  /// Diamonds per compute task of the flow graph (refinement_schedule::flow_graph; TBB costs
-  /// ~150–200 ns per task, a split ~0.2–1 µs).
+  /// Diamonds per compute task of the flow graph (refinement_schedule::flow_graph; a TBB task
+  /// costs about as much as a split, so a task of one diamond would spend most of its time on
+  /// scheduling; bench/README.md).
   std::size_t batch = 32;
   /// In-flight batches per thread of the flow graph: bounds what a cancel must drain.
   std::size_t tasks_per_thread = 4;
@@ -125,31 +129,7 @@ struct engine_options {
   smoothing smooth;
 };
 
-/// What a run refines towards.
-struct refine_goal {
-  enum class kind { full, error, triangles, deadline };
-  kind what = kind::full;
-  double max_error = 0.0;                            ///< kind::error
-  std::uint64_t max_triangles = 0;                   ///< kind::triangles
-  std::chrono::steady_clock::time_point deadline{};  ///< kind::deadline
-  /// kind::error: split the diamonds of error > max_error by grid plane, as a full run splits
-  /// every straddling one, instead of largest error first. An error target fixes its split set,
-  /// so the cut it ends on is the same either way; in any order it comes sooner (Marschner–Lobb
-  /// 257³, half of the full splits: 0.68–0.71× full refinement's splits per second against
-  /// 0.51–0.53 by priority at one thread, 0.72–0.79 against 0.58 at two), but the cuts
-  /// published on the way are refined plane by plane, not the best of their size: for a caller
-  /// that waits for the goal (a one-shot extraction), not for one that shows or interrupts the
-  /// run. The contour engine (2D) takes its targets by priority either way.
-  bool any_order = false;
-
-  static refine_goal full() { return {}; }
-  static refine_goal error(double e) { return {kind::error, e, 0, {}}; }
-  static refine_goal error_in_any_order(double e) { return {kind::error, e, 0, {}, true}; }
-  static refine_goal triangles(std::uint64_t k) { return {kind::triangles, 0.0, k, {}}; }
-  static refine_goal until(std::chrono::steady_clock::time_point t) {
-    return {kind::deadline, 0.0, 0, t};
-  }
-};
+// What a run refines towards: refine_goal (core/refine/goal.hpp).
 
 /// Counters of the current isovalue's refinement (and of the engine's life). Readable while
 /// running: each counter is exact at some moment of the run, not all at the same moment.
@@ -304,7 +284,8 @@ class engine {
   /// deadline shorter than the build still buys surface. Deadline and full runs need no exact
   /// errors: they order by error bounds (hi − lo; full refinement splits the same set either
   /// way) until an error or budget run, ranges() or mesh_cut() makes the exact errors (a second
-  /// pass, about 4× the first); full refinement tests children by their ranges alone.
+  /// pass, several times costlier than the first); full refinement tests children by their
+  /// ranges alone.
   /// Any thread.
   [[nodiscard]] bool ranges_built() const noexcept;
   /// Whether the range data's exact errors exist (ranges(), error and budget runs make them).
@@ -321,10 +302,18 @@ class engine {
 };
 
 /// extract_isosurface() through the engine with `threads` workers (0: all cores): the
-/// command-line tool's path. Full mode gives the same mesh for every thread count; time mode
-/// returns the surface published by the deadline.
+/// command-line tool's path. A full goal gives the same mesh for every thread count; a
+/// deadline returns the surface made by it.
 [[nodiscard]] extract_result extract_isosurface_parallel(const volume& vol, double isovalue,
                                                          const extract_options& options,
                                                          unsigned threads);
+
+namespace detail {
+/// extract_isosurface_parallel() on the chosen path (benchmarks and tests that compare the
+/// two: core/refine/detail/path_choice.hpp).
+[[nodiscard]] extract_result extract_isosurface_parallel(const volume& vol, double isovalue,
+                                                         const extract_options& options,
+                                                         unsigned threads, path_choice path);
+}  // namespace detail
 
 }  // namespace progiso

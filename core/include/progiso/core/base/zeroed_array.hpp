@@ -4,11 +4,11 @@
 //
 // The refiners keep a few bytes per grid vertex but touch only the vertices near the surface.
 // calloc() zero-fills eagerly once glibc has raised its mmap threshold (it does after large frees),
-// which costs milliseconds for a 257³ grid and would spoil the time to first surface; an
+// which costs time in proportion to the whole grid and would spoil the time to first surface; an
 // anonymous mapping is zeroed lazily by the kernel, page by page, on first touch. Small arrays
-// (up to 4 MiB) come from calloc() all the same: zeroing them costs tens of microseconds, while
-// the page faults of a fresh mapping, which a refinement touching most pages pays on every run,
-// cost about a microsecond per 4 KiB page. A page first read, then written, costs more: the read
+// (up to 4 MiB) come from calloc() all the same: zeroing them is cheap, while the page faults of
+// a fresh mapping, which a refinement touching most pages pays on every run, cost more than the
+// zeroing would (bench/README.md). A page first read, then written, costs more: the read
 // maps the shared zero page and the write replaces it, which flushes the TLB of every core running
 // the process (an interrupt each). Owners that touch many pages on every use keep the array and
 // zero() it, or clear what they wrote, instead of mapping a fresh one. Not thread-safe to create or
@@ -104,8 +104,9 @@ class zeroed_array {
 /// of every core running one of the process's threads (an interrupt to each; on a virtual
 /// machine an exit each). A refiner counting parents in per-vertex words touches every page of
 /// them this way; while a second thread of the process was busy (the engine's reclaimer clearing
-/// a fully refined root after an isovalue change), the interrupts left a one-thread run of 16 ms
-/// 0.9–1.2 k splits where it makes about 40 k (bench/engine_bench.cpp, BM_deadline_after_full).
+/// a fully refined root after an isovalue change), the interrupts left a short one-thread
+/// deadline run a small fraction of the splits it makes otherwise (bench/engine_bench.cpp,
+/// BM_deadline_after_full; bench/README.md).
 /// Not an atomic read-modify-write: the caller must be the word's only writer. Relaxed atomic
 /// loads of the word from other threads read the old or the new value (one aligned access); under
 /// ThreadSanitizer the add is an atomic_ref load and store instead, which the tool sees.

@@ -31,9 +31,10 @@
 #include <progiso/core/contour/contour.hpp>
 #include <progiso/core/contour/contour_split.hpp>
 #include <progiso/core/contour/detail/contour_frontier.hpp>
+#include <progiso/core/contour/hierarchy2d.hpp>
+#include <progiso/core/contour/range_data2d.hpp>
 #include <progiso/core/field/volume.hpp>
-#include <progiso/core/hierarchy/hierarchy2d.hpp>
-#include <progiso/core/ranges/range_data2d.hpp>
+#include <progiso/core/refine/goal.hpp>
 
 namespace progiso {
 
@@ -127,18 +128,18 @@ class contour_refiner {
 // -------------------------------------------------------------------------------------------
 // One-shot contouring of several isovalues (what `progiso contour` runs).
 
-enum class contour_mode { full, error, segments, time };
-
-/// Isovalues are refined one after the other, in the order given, each to the mode's goal, and
+/// Isovalues are refined one after the other, in the order given, each to the goal, and
 /// each one's contours are handed to `sink` (or gathered into contour_result::contours) before
 /// the next starts, so memory holds one isovalue's refinement at a time: the image, its range
 /// data and one refiner, however many isovalues there are. A segment budget or a deadline is
 /// shared: each isovalue gets an equal part of what the isovalues before it left over.
 struct contour_options {
-  contour_mode mode = contour_mode::full;
-  double max_error = 0.0;
-  std::uint64_t max_segments = 0;                  ///< over all isovalues together
-  std::chrono::duration<double> time_budget{0.0};  ///< over all isovalues together
+  /// What to refine towards (core/refine/goal.hpp): a budget counts segments over all
+  /// isovalues together, a deadline ends them all. kind::full without frames gives each
+  /// isovalue's finest cut by finest_contours() (contour/finest_contours.hpp), two passes over
+  /// the pixels, rather than by refining the hierarchy to the end: the same contours, numbered
+  /// in grid order.
+  refine_goal goal;
   /// Called with the current contours at each refinement stage (for --frames): after 0, 1, 2,
   /// 4, 8, … splits in all and at the end; each frame holds the isovalues finished so far and
   /// the current one's cut (so with frames, the finished contours stay in memory).
@@ -146,11 +147,6 @@ struct contour_options {
   /// Called with each isovalue's contours (and its index in the list) as soon as it is
   /// finished. When set, contour_result::contours stays empty.
   std::function<void(const contour_set&, std::size_t index)> sink;
-  /// contour_mode::full without frames: each isovalue's finest cut by finest_contours()
-  /// (contour/finest_contours.hpp), two passes over the pixels, rather than by refining the
-  /// hierarchy to the end. The same contours, numbered in grid order. False: the hierarchy's
-  /// path (to compare the two, or for its split statistics).
-  bool finest_direct = true;
 };
 
 struct contour_result {
@@ -164,13 +160,13 @@ struct contour_result {
   /// in the frame and sink callbacks (writing files).
   double pipeline_seconds = 0.0;
   std::size_t range_bytes = 0;
-  /// The contours came from finest_contours() (contour_options::finest_direct): no range data,
-  /// no splits; refine_seconds is the passes' time.
+  /// The contours came from finest_contours(): no range data, no splits; refine_seconds is the
+  /// passes' time.
   bool finest_direct = false;
 };
 
 /// Contours of `image` (dims w, h, 1) at each isovalue. Throws progiso::error on bad input
-/// (not an image, no isovalue, a non-finite isovalue, a negative error or time budget), and
+/// (not an image, no isovalue, a non-finite isovalue, a negative error target), and
 /// whatever the callbacks throw.
 [[nodiscard]] contour_result extract_contours(const volume& image,
                                               const std::vector<double>& isovalues,

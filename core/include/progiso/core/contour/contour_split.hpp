@@ -45,8 +45,8 @@
 #include <progiso/core/base/config.hpp>
 #include <progiso/core/base/error.hpp>
 #include <progiso/core/contour/contour.hpp>
+#include <progiso/core/contour/hierarchy2d.hpp>
 #include <progiso/core/field/volume.hpp>
-#include <progiso/core/hierarchy/hierarchy2d.hpp>
 #include <progiso/core/surface/marching.hpp>
 
 namespace progiso {

@@ -15,8 +15,8 @@
 // the same seed gives the same centres, widths and heights on every platform; the samples then
 // agree up to the last bit of the platform's std::exp.
 //
-// Cost: one evaluation per voxel (Marschner–Lobb at 129^3 takes a few tens of milliseconds),
-// 4 bytes of memory per voxel. Invalid arguments throw progiso::error.
+// Cost: one evaluation per voxel, 4 bytes of memory per voxel. Invalid arguments throw
+// progiso::error.
 #pragma once
 
 #include <array>

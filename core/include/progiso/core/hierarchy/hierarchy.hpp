@@ -2,9 +2,10 @@
 // hierarchy.
 //
 // The grid of a volume is embedded in a forest of root cubes of side N = 2^L (paper §4;
-// DESIGN.md §2). Every grid vertex that is not a root-cube corner is the centre of exactly one
-// diamond: the tetrahedra that share the diamond's spine and are bisected together. Everything
-// about a diamond follows from its centre c by integer arithmetic, nothing is stored:
+// docs/ARCHITECTURE.md, "The hierarchy"). Every grid vertex that is not a root-cube corner is the
+// centre of exactly one diamond: the tetrahedra that share the diamond's spine and are bisected
+// together. Everything about a diamond follows from its centre c by integer arithmetic, nothing is
+// stored:
 //
 //  * scale h = 2^min(tz(c_q)) with tz capped at L; odd axes are those where c_q / h is odd;
 //    type = 3 - #odd axes (0: cube centre, 1: face centre, 2: edge midpoint).
@@ -24,7 +25,7 @@
 // up to whole root cubes) has at most 1.25 times the vertices of the tightest padded grid with
 // roots of side 8 or more. Padding vertices take the value of the nearest data vertex. For
 // 2^L + 1 samples per axis this is N = 2^L with no padding; for 68³ samples it is N = 8 (a 72³
-// grid) rather than N = 64 (a 128³ grid: 6.7 times the vertices, all of them refinement state
+// grid) rather than N = 64 (a 128³ grid: several times the vertices, all of them refinement state
 // and boundary diamonds). Roots below 8 are not chosen (unless the volume is smaller): the
 // coarsest cut would then be nearly the finest.
 #pragma once

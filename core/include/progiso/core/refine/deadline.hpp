@@ -63,8 +63,8 @@ struct deadline_build_step {
 /// left. Committing pays whenever the build ends with time to spare, since culled refinement
 /// buys several times the surface per millisecond of unculled refinement; but a build that runs
 /// into the deadline leaves the root surface alone: with the estimate alone (no margin, no cap)
-/// a deadline of 1/8 of Flying Edges' time on the 512³ wavelet, one thread, bought 2 k
-/// triangles (0.05 of the area) where two threads, which never committed, bought 56 k (0.47).
+/// a short deadline on one thread bought a small fraction of the surface that two threads,
+/// which never committed, bought (bench/README.md).
 [[nodiscard]] inline deadline_build_step plan_deadline_build(std::optional<double> estimate,
                                                              double left, double slice) noexcept {
   left = std::max(left, 0.0);

@@ -40,6 +40,7 @@
 #include <progiso/core/field/volume.hpp>
 #include <progiso/core/hierarchy/hierarchy.hpp>
 #include <progiso/core/ranges/range_data.hpp>
+#include <progiso/core/refine/goal.hpp>
 #include <progiso/core/surface/finest_surface.hpp>
 #include <progiso/core/surface/mesh.hpp>
 #include <progiso/core/surface/split_record.hpp>
@@ -176,10 +177,8 @@ class refiner {
 // -------------------------------------------------------------------------------------------
 // One-shot extraction (what the command-line tool runs).
 
-enum class extract_mode { full, error, triangles, time };
-
 /// Progress of a running extraction. On the hierarchy's path: splits, triangles and depths;
-/// on the direct path (extract_options::finest_direct): the rows of grid points its two passes
+/// on the direct path (the finest cut by finest_surface()): the rows of grid points its two passes
 /// have done (finest_progress, surface/finest_surface.hpp) and depth == max_depth.
 struct extract_progress {
   std::uint64_t splits = 0;
@@ -197,30 +196,25 @@ struct extract_progress {
 };
 
 struct extract_options {
-  extract_mode mode = extract_mode::full;
-  double max_error = 0.0;           ///< extract_mode::error
-  std::uint64_t max_triangles = 0;  ///< extract_mode::triangles
-  /// extract_mode::time: from the volume in memory (the engine's path, and the ladder of
-  /// uniform cuts on either entry) or from the start of refinement, after the range data
-  /// (extract_isosurface() refining by priority).
-  std::chrono::duration<double> time_budget{0.0};
+  /// What to refine towards (core/refine/goal.hpp). kind::full gives the finest cut by
+  /// finest_surface() (surface/finest_surface.hpp), two streaming passes over the samples,
+  /// rather than by refining the hierarchy to the end: the same surface, its vertices and
+  /// triangles numbered in grid order. kind::deadline counts to goal.deadline, so the caller
+  /// says when the clock starts (refine_goal::within() from the moment the volume is in memory).
+  refine_goal goal;
   /// Called about every 4096 splits; on the direct path every 64 rows of a pass (one call at a
   /// time, from any of the run's threads).
   std::function<void(const extract_progress&)> progress;
   /// Give the mesh vertex normals from the field's gradient (add_vertex_normals(),
   /// surface/normals.hpp), after the pipeline: timed as normals_seconds.
   bool normals = false;
-  /// extract_mode::full: give the finest cut by finest_surface() (surface/finest_surface.hpp),
-  /// two streaming passes over the samples, rather than by refining the hierarchy to the end
-  /// and extracting its cut. The same surface; its vertices and triangles numbered in grid
-  /// order. False: the hierarchy's path (to compare the two, or for its split statistics).
-  bool finest_direct = true;
-  /// extract_mode::time: spend the budget on uniform cuts, coarse to fine (ladder_surface(),
+  /// kind::deadline: spend the time on uniform cuts, coarse to fine (ladder_surface(),
   /// surface/finest_surface.hpp): each a few streaming passes over every stride-th sample, the
   /// finest one done by the deadline returned. False: refine the hierarchy by priority (largest
   /// error first) until the deadline, which adapts to the field but splits diamonds at a
-  /// fraction of the passes' speed (docs/ARCHITECTURE.md, "What a deadline buys"). A 2D field
-  /// (dims[2] == 1) has no coarser uniform cut: it refines by priority either way.
+  /// fraction of the passes' speed (bench/README.md, "What a deadline buys"). A 2D field
+  /// (dims[2] == 1) has no coarser uniform cut: it refines by priority either way. Public
+  /// because the command's --by-priority chooses it.
   bool deadline_ladder = true;
 };
 
@@ -242,18 +236,19 @@ struct extract_result {
   double normals_seconds = 0.0;
   std::size_t range_bytes = 0;
   bool isovalue_outside_data = false;  ///< empty because the isovalue misses the data range
-  /// The mesh came from finest_surface() (extract_options::finest_direct): no range data, no
-  /// splits; extract_seconds is its two passes.
+  /// The mesh came from finest_surface(): no range data, no splits; extract_seconds is its two
+  /// passes.
   bool finest_direct = false;
   /// The mesh is a uniform cut of the ladder (extract_options::deadline_ladder): its stride (1:
   /// the finest cut); 0 otherwise. No range data, no splits; extract_seconds is its cuts' time.
   std::int32_t ladder_stride = 0;
 };
 
-/// Throws progiso::error for a non-finite isovalue or invalid options (shared by every entry).
+/// Throws progiso::error for a non-finite isovalue or an invalid goal (check_goal(); shared by
+/// every entry).
 void check_extract_inputs(double isovalue, const extract_options& options);
 
-/// What the direct path (extract_options::finest_direct) passes to finest_surface() to tell
+/// What the direct path passes to finest_surface() to tell
 /// `options.progress` of its rows (an empty callback when `options.progress` is; shared by
 /// every entry): depth and max_depth both `max_depth`.
 [[nodiscard]] finest_progress direct_progress(const extract_options& options, int max_depth);
@@ -261,9 +256,10 @@ void check_extract_inputs(double isovalue, const extract_options& options);
 /// stride.
 [[nodiscard]] ladder_progress ladder_direct_progress(const extract_options& options, int max_depth);
 
-/// Builds the hierarchy and range data, refines in the requested mode and extracts the cut; for
-/// extract_mode::full with extract_options::finest_direct (the default), finest_surface()
-/// instead, on this thread. Throws progiso::error for a non-finite isovalue or invalid options.
+/// Builds the hierarchy and range data, refines towards the goal and extracts the cut; for
+/// refine_goal::kind::full, finest_surface() instead (and for a deadline, unless
+/// deadline_ladder is false, ladder_surface()), on this thread. Throws progiso::error for a
+/// non-finite isovalue or an invalid goal.
 [[nodiscard]] extract_result extract_isosurface(const volume& vol, double isovalue,
                                                 const extract_options& options);
 

@@ -68,10 +68,9 @@ using finest_progress = std::function<void(std::uint64_t rows_done, std::uint64_
 /// surface (no crack, no self-intersection, open only on the box) that covers the whole box.
 /// Cost: the subsampled grid's samples copied (pieces of planes through `run`), then
 /// finest_surface() on them: between 1 / stride³ (the samples) and 1 / stride² (the output,
-/// which follows the surface's area) of the finest surface's; on Marschner–Lobb 257³ at one
-/// thread, 1/5 at stride 2 and 1/24 at stride 4. `progress` hears the rows of the subsampled
-/// grid. Throws progiso::error for a stride that is not a power of two in [1, 2^14], a 2D
-/// field (dims[2] == 1) with a stride above 1, and as finest_surface().
+/// which follows the surface's area) of the finest surface's (bench/README.md). `progress`
+/// hears the rows of the subsampled grid. Throws progiso::error for a stride that is not a power
+/// of two in [1, 2^14], a 2D field (dims[2] == 1) with a stride above 1, and as finest_surface().
 [[nodiscard]] triangle_mesh uniform_surface(const volume& field, double isovalue,
                                             std::int32_t stride, const parallel_loop& run = {},
                                             std::size_t parts = 1,
@@ -98,7 +97,7 @@ struct ladder_result {
 /// The time-critical scenario on uniform cuts: uniform_surface() at strides 2^k, 2^(k−1), …, 1,
 /// coarse to fine, until `deadline`; returns the finest one done. The first stride is the
 /// largest power of two that leaves at least 8 cells along the longest axis (at most 17 points
-/// along each axis: microseconds), and it is always made, whatever the deadline. Each later one
+/// along each axis, so it is cheap), and it is always made, whatever the deadline. Each later one
 /// is begun only if its predicted time (the last one's rates per grid point and per output
 /// element, its points and four times the last one's output) ends before the deadline, and is
 /// given up (its work dropped) when, after its first pass, its exact output no longer fits, or

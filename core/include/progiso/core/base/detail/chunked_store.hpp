@@ -22,9 +22,9 @@ namespace progiso::detail {
 template <class T>
 class chunked_store {
  public:
-  // Splits run to about a tenth of the voxels on the shared volumes and 257³ fields (0.08–0.24);
-  // a chunk of about a thirtieth keeps the number of chunks small without reserving much more
-  // than a small refinement uses.
+  // Splits run to a modest fraction of the voxels on the shared volumes and test fields
+  // (bench/README.md); a chunk of a thirty-second keeps the number of chunks small without
+  // reserving much more than a small refinement uses.
   [[nodiscard]] static int bits_for(std::uint64_t voxels) noexcept {
     const std::uint64_t want = voxels / 32;
     int bits = 12;

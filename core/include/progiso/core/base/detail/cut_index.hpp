@@ -43,7 +43,9 @@ class cut_index {
     return c;
   }
   /// Dense only: adds grid index v, for one writer (before finish()).
-  void add_alone(std::uint64_t v) noexcept { bits_[v >> 6] |= std::uint64_t{1} << (v & 63); }
+  void add_on_one_thread(std::uint64_t v) noexcept {
+    bits_[v >> 6] |= std::uint64_t{1} << (v & 63);
+  }
   /// Dense only: adds grid index v. Safe from several threads at once (before finish()).
   void add(std::uint64_t v) noexcept {
     std::atomic_ref<std::uint64_t>(bits_[v >> 6])

@@ -2,16 +2,15 @@
 // from end to end, in one call instead of one fault per page; and handing a large buffer's pages
 // back by slices over the threads before it is freed.
 //
-// A fresh anonymous page costs a fault on first touch: about 2 µs per 4 KiB page on the virtual
-// machines we measure on (128 MiB first written in 68–70 ms, written again in 5 ms), so a buffer of
-// 37 MB spends about 20 ms in the kernel before it holds anything. madvise(MADV_POPULATE_WRITE)
-// (Linux 5.14) maps a whole range at once: the same 128 MiB in 41 ms, 22–27 ms from two threads
-// (each taking half). Only for buffers that will be written everywhere (mesh arrays, the
+// A fresh anonymous page costs a fault on first touch, so a large buffer spends a noticeable part
+// of its first fill in the kernel before it holds anything, far more than writing it again costs.
+// madvise(MADV_POPULATE_WRITE) (Linux 5.14) maps a whole range at once, because one mapping call
+// costs less than a fault per page, and two threads each taking half map it faster still
+// (bench/README.md). Only for buffers that will be written everywhere (mesh arrays, the
 // extraction's per-split arrays): a buffer touched sparsely, like the per-grid-vertex arrays of a
-// coarse cut, would pay for pages it never uses. Huge pages (MADV_HUGEPAGE) were measured too and
-// left out: in a fresh process they cost more than they save (an extraction of Marschner–Lobb
-// 257³ took 328–404 ms against 200–222 with 4 KiB pages on its first run, 161–169 against
-// 200–204 on later ones), since the kernel takes them from memory the host has not backed yet.
+// coarse cut, would pay for pages it never uses. Huge pages (MADV_HUGEPAGE) were tried too and
+// left out: in a fresh process they cost more than they save, since the kernel takes them from
+// memory the host has not backed yet (bench/README.md).
 #pragma once
 
 #include <algorithm>
@@ -66,8 +65,9 @@ inline void prefault(const void* p, std::size_t bytes) noexcept {
 
 /// prefault() of [p, p + bytes) in up to `parts` slices through `run`, each of at least
 /// prefault_min_bytes (below it prefault() does nothing), so that a buffer of a few MiB still
-/// spreads over the threads: a fault per page costs about 2 µs on our virtual machines, a mapped
-/// range about 60% of that, and two threads populating halves take about half as long as one.
+/// spreads over the threads: a mapped range costs less per page than a fault per page, and
+/// threads populating their own slices finish sooner than one thread mapping it all
+/// (bench/README.md).
 inline void prefault_in_parts(const parallel_loop& run, std::size_t parts, const void* p,
                               std::size_t bytes) {
   const std::size_t slices = std::min(parts, bytes / prefault_min_bytes);
@@ -87,18 +87,16 @@ inline void prefault_in_parts(const parallel_loop& run, std::size_t parts, const
 /// The smallest buffer release_in_parts() hands back: glibc's largest mmap threshold (32 MiB on
 /// 64-bit), above which malloc always maps a block on its own and free() unmaps it. A smaller
 /// block may sit in the heap, where free() keeps its pages for the next allocation: releasing
-/// them would make that allocation fault them again. Measured so (2026-11-29): with the 257³
-/// grid's 17 MB of corner bytes released, the next runs in the process (Flying Edges' and
-/// ours, the benchmark's allocator keeping freed memory) took 17.1 → 20.1–20.9 ms and 44 →
-/// 45–46 ms, three alternations each.
+/// them would make that allocation fault them again, and the benchmarks show the next runs in
+/// the process slowing down when such a block is released (bench/README.md).
 inline constexpr std::size_t release_min_bytes = std::size_t{32} << 20;
 
 /// Hands the whole pages of [p, p + bytes) back to the kernel (MADV_DONTNEED), in up to `parts`
 /// slices through `run`, for a buffer that is about to be freed and will not be read again
 /// (reads would find zeros). free() unmaps a large block's pages one by one on the freeing
-/// thread: a 512³ grid's 134 MB of corner bytes took 8 ms at the end of every finest surface,
-/// on one thread whatever the thread count; released in slices, each thread frees its own, and
-/// free() finds nothing left to unmap. Only pages wholly inside the range go, so the
+/// thread, so a large grid's corner bytes cost a serial tail at the end of every finest surface
+/// whatever the thread count (bench/README.md); released in slices, each thread frees its own,
+/// and free() finds nothing left to unmap. Only pages wholly inside the range go, so the
 /// allocator's own words around a block are untouched. A no-op below release_min_bytes, for
 /// slices below prefault_min_bytes (one part), and off Linux.
 inline void release_in_parts(const parallel_loop& run, std::size_t parts, void* p,

@@ -20,9 +20,9 @@
 #include <progiso/core/base/zeroed_array.hpp>
 #include <progiso/core/contour/contour.hpp>
 #include <progiso/core/contour/contour_split.hpp>
+#include <progiso/core/contour/hierarchy2d.hpp>
+#include <progiso/core/contour/range_data2d.hpp>
 #include <progiso/core/field/volume.hpp>
-#include <progiso/core/hierarchy/hierarchy2d.hpp>
-#include <progiso/core/ranges/range_data2d.hpp>
 
 namespace progiso::detail {
 

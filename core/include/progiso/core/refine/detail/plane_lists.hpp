@@ -1,13 +1,13 @@
 // progiso/core/refine/detail/plane_lists.hpp — ready diamonds by grid plane: the order of the
-// engine's full refinement, on one thread (scheduler/src/serial_refinement.cpp, sweep_alone) and
-// in tasks (scheduler/src/full_refinement.cpp).
+// engine's full refinement, on one thread (scheduler/src/serial_refinement.cpp,
+// sweep_on_one_thread) and in tasks (scheduler/src/full_refinement.cpp).
 //
 // Full refinement splits every straddling diamond in any order that splits parents first. Taken
 // from the lowest plane (z) that holds any, last in first out within a plane, the fine levels,
 // which hold nearly all the splits, advance as one front through the volume: a split's children
 // lie at most its scale away, so the samples and per-vertex words a run touches at a time are
 // those of a few planes around the front, and they stay in the cache. The queue's depth-first
-// order jumps between subtrees instead and misses on a third of the children's words.
+// order jumps between subtrees instead and misses on many of the children's words.
 //
 // Diamonds are kept as grid indices (z-major: the plane is index / plane_size). Not thread-safe:
 // each list belongs to one thread at a time (the driver's sweep, or one task).

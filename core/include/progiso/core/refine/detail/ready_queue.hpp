@@ -10,9 +10,9 @@
 // largest first, and a bucket's items last in first out. A child's nested error is at most its
 // parent's, so the children of a split mostly land in the bucket being taken and are split next,
 // while their samples and per-vertex entries are still in cache: the order of a depth-first
-// refinement inside each band of errors. A binary heap spent ~30% of an error-driven refinement's
-// time in its sift-down (Marschner–Lobb 257³, 0.7 M splits: 19 levels, the deep ones cache misses)
-// and sent every split to a random place in the grid.
+// refinement inside each band of errors. A binary heap spent a large share of an error-driven
+// refinement's time in its sift-down (its deep levels are cache misses) and sent every split to a
+// random place in the grid (bench/README.md).
 //
 // An error target is exact all the same: aim_at(ε) ranks every item of error > ε above every
 // other, so `while (top().error > ε) pop-and-split` reaches exactly the diamonds of error > ε.
@@ -41,11 +41,9 @@ namespace progiso::detail {
 enum class queue_discipline { fifo, lifo, largest_error };
 
 /// Mantissa bits of an error key that choose its bucket: 2, four buckets per octave. Coarser
-/// buckets keep more children in their parent's bucket and so split faster (one per octave: an
-/// error-driven refinement of Marschner–Lobb 257³ at 0.65–0.73× the splits per second of a full
-/// one, against 0.56–0.65×), but order worse: what a deadline buys fell by a third to a half
-/// (area within one voxel of the full surface at Flying Edges' time, 1 thread, two runs each:
-/// Marschner–Lobb 257³ 0.74 / 0.69 → 0.49 / 0.44, headsq 0.65 / 0.46 → 0.30 / 0.33).
+/// buckets keep more children in their parent's bucket and so split somewhat faster (one per
+/// octave, say), but order worse, and what a deadline buys falls by much more than the speed
+/// gains (bench/README.md).
 inline constexpr int error_bucket_bits = 2;
 /// The widest and narrowest bucket, as the ratio of its bounds: [1, 1 + 2^-b) and [2 − 2^-b, 2)
 /// times a power of two.
@@ -299,8 +297,8 @@ class ready_queue {
   // fifo: the items in blocks, emptied blocks freed as the front advances, so memory follows
   // the items queued now (a breadth-first refinement's widest level) and growth copies nothing.
   // (A vector whose consumed front was dropped at half its size held up to twice that and
-  // copied it on every doubling. With this, 16-byte contour items and 32-byte contour records, a
-  // one-shot 2D full refinement of the 512² camera image touches 1864 fresh pages, not 2396.)
+  // copied it on every doubling. With this, a one-shot 2D full refinement touches markedly
+  // fewer fresh pages; bench/README.md.)
   std::deque<Item> fifo_;
   // lifo: the items.
   std::vector<Item> items_;

@@ -136,10 +136,10 @@ class cut_mesher {
   // Passes 3 to 5 and the join, with more than one part.
   void build_in_parts(const parallel_loop& run, const std::vector<std::uint64_t>& first_id) {
     run_loop(run, parts_, [&](std::size_t k) { number(k, first_id[k], false); });
-    // std::vector's resize writes every element on one thread (6 M vertices: ~23 ms, a tenth of
-    // the extraction on 16 cores), so it runs as one more item of the loop beside a pass that
-    // does not need the array: the vertex array's beside the triangles, the joined triangles'
-    // beside the vertex positions. Item 0, which the loop takes first.
+    // std::vector's resize writes every element on one thread (on a large mesh a sizeable part
+    // of a many-core extraction; bench/README.md), so it runs as one more item of the loop
+    // beside a pass that does not need the array: the vertex array's beside the triangles, the
+    // joined triangles' beside the vertex positions. Item 0, which the loop takes first.
     run_loop(run, parts_ + 1, [&](std::size_t k) {
       if (k == 0) {
         size_vertices(first_id[parts_]);

@@ -1,0 +1,413 @@
+#include <progiso/io/mesh_io.hpp>
+
+#include <algorithm>
+#include <bit>
+#include <cctype>
+#include <cerrno>
+#include <charconv>
+#include <cmath>
+#include <cstddef>
+#include <cstdint>
+#include <cstdio>
+#include <limits>
+#include <memory>
+#include <optional>
+#include <random>
+#include <span>
+#include <string>
+#include <string_view>
+#include <system_error>
+#include <vector>
+
+#include <progiso/core/base/assert.hpp>
+#include <progiso/core/base/error.hpp>
+#include <progiso/io/detail/file_input.hpp>
+#include <progiso/io/detail/file_output.hpp>
+#include <progiso/io/detail/writers.hpp>
+
+namespace progiso {
+namespace {
+
+namespace fs = std::filesystem;
+
+using detail::atomic_output;
+using detail::errno_text;
+using detail::lower_extension;
+
+/// Collects small pieces in a buffer of its own and hands them to the file in large blocks.
+class block_writer {
+ public:
+  explicit block_writer(atomic_output& out) : out_(out) { buffer_.reserve(capacity); }
+
+  void bytes(const void* data, std::size_t size) {
+    if (buffer_.size() + size > capacity) flush();
+    const auto* p = static_cast<const char*>(data);
+    buffer_.insert(buffer_.end(), p, p + size);
+  }
+  void text(std::string_view s) { bytes(s.data(), s.size()); }
+  void u8(std::uint8_t v) { bytes(&v, 1); }
+  void u32_le(std::uint32_t v) {
+    const char b[4] = {static_cast<char>(v & 0xffu), static_cast<char>((v >> 8) & 0xffu),
+                       static_cast<char>((v >> 16) & 0xffu), static_cast<char>(v >> 24)};
+    bytes(b, 4);
+  }
+  void f32_le(float v) { u32_le(std::bit_cast<std::uint32_t>(v)); }
+  template <class T>
+  void number(T v) {
+    char b[40];
+    const auto r = std::to_chars(b, b + sizeof b, v);
+    PROGISO_ASSERT(r.ec == std::errc{});
+    // The min() only tells gcc's -Warray-bounds what to_chars guarantees.
+    bytes(b, std::min(sizeof b, static_cast<std::size_t>(r.ptr - b)));
+  }
+  void flush() {
+    out_.write(buffer_.data(), buffer_.size());
+    buffer_.clear();
+  }
+
+ private:
+  static constexpr std::size_t capacity = std::size_t{1} << 16;
+  atomic_output& out_;
+  std::vector<char> buffer_;
+};
+
+// Whether the mesh carries vertex normals (one per vertex; none is the other valid state).
+bool has_normals(const triangle_mesh& mesh) {
+  PROGISO_ASSERT(mesh.normals.empty() || mesh.normals.size() == mesh.vertices.size());
+  return !mesh.normals.empty() && mesh.normals.size() == mesh.vertices.size();
+}
+
+void check_indices(const triangle_mesh& mesh) {
+#if defined(PROGISO_ENABLE_ASSERTS)
+  for (const auto& t : mesh.triangles) {
+    for (std::uint32_t v : t) PROGISO_ASSERT(v < mesh.vertices.size());
+  }
+#else
+  (void)mesh;
+#endif
+}
+
+// ---------------------------------------------------------------------------------------------
+// PLY reading helpers.
+
+std::vector<std::string_view> split_words(std::string_view line) {
+  std::vector<std::string_view> words;
+  std::size_t i = 0;
+  while (i < line.size()) {
+    while (i < line.size() && (line[i] == ' ' || line[i] == '\t')) ++i;
+    const std::size_t start = i;
+    while (i < line.size() && line[i] != ' ' && line[i] != '\t') ++i;
+    if (i > start) words.push_back(line.substr(start, i - start));
+  }
+  return words;
+}
+
+std::uint32_t load_u32_le(const unsigned char* p) {
+  return std::uint32_t{p[0]} | (std::uint32_t{p[1]} << 8) | (std::uint32_t{p[2]} << 16) |
+         (std::uint32_t{p[3]} << 24);
+}
+
+struct ply_element {
+  std::string name;
+  std::uint64_t count = 0;
+  std::vector<std::vector<std::string>> properties;
+};
+
+bool is_one_of(std::string_view word, std::initializer_list<std::string_view> options) {
+  return std::find(options.begin(), options.end(), word) != options.end();
+}
+
+}  // namespace
+
+// ---------------------------------------------------------------------------------------------
+// Writers.
+
+namespace detail {
+
+/// PLY and STL store float coordinates: refuse rather than write infinities.
+void check_float_range(const std::string& name, const triangle_mesh& mesh,
+                       std::string_view format) {
+  constexpr double float_max = static_cast<double>(std::numeric_limits<float>::max());
+  for (const vec3& p : mesh.vertices) {
+    for (double c : p) {
+      if (!(std::fabs(c) <= float_max)) {
+        throw error(name + ": a vertex coordinate (" + std::to_string(c) +
+                    ") is beyond the float range of " + std::string(format) +
+                    " (write .obj for double coordinates)");
+      }
+    }
+  }
+}
+
+void write_ply_to(atomic_output& out, const triangle_mesh& mesh) {
+  check_indices(mesh);
+  const std::string name = out.target().string();
+  if (mesh.vertices.size() > static_cast<std::size_t>(std::numeric_limits<std::int32_t>::max())) {
+    throw error(name + ": PLY int indices allow at most 2147483647 vertices, the mesh has " +
+                std::to_string(mesh.vertices.size()));
+  }
+  check_float_range(name, mesh, "PLY");
+  block_writer w(out);
+  w.text("ply\nformat binary_little_endian 1.0\ncomment generated by progiso\nelement vertex ");
+  w.number(mesh.vertices.size());
+  w.text("\nproperty float x\nproperty float y\nproperty float z");
+  const bool normals = has_normals(mesh);
+  if (normals) w.text("\nproperty float nx\nproperty float ny\nproperty float nz");
+  w.text("\nelement face ");
+  w.number(mesh.triangles.size());
+  w.text("\nproperty list uchar int vertex_indices\nend_header\n");
+  for (std::size_t i = 0; i < mesh.vertices.size(); ++i) {
+    for (double c : mesh.vertices[i]) w.f32_le(static_cast<float>(c));
+    if (normals) {
+      for (double c : mesh.normals[i]) w.f32_le(static_cast<float>(c));
+    }
+  }
+  for (const auto& t : mesh.triangles) {
+    w.u8(3);
+    for (std::uint32_t v : t) w.u32_le(v);
+  }
+  w.flush();
+}
+
+void write_obj_to(atomic_output& out, const triangle_mesh& mesh) {
+  check_indices(mesh);
+  block_writer w(out);
+  w.text("# generated by progiso\n");
+  // "KEY x y z", each the shortest decimal that reads back to the same double.
+  const auto line = [&w](std::string_view key, const vec3& p) {
+    w.text(key);
+    for (const double c : p) {
+      w.text(" ");
+      w.number(c);
+    }
+    w.text("\n");
+  };
+  for (const vec3& p : mesh.vertices) line("v", p);
+  const bool normals = has_normals(mesh);
+  if (normals) {
+    for (const vec3& n : mesh.normals) line("vn", n);
+  }
+  for (const auto& t : mesh.triangles) {
+    w.text("f");
+    for (const std::uint32_t v : t) {
+      // With normals, vertex i's normal is vn line i: "f a//a b//b c//c".
+      w.text(" ");
+      w.number(std::uint64_t{v} + 1);
+      if (normals) {
+        w.text("//");
+        w.number(std::uint64_t{v} + 1);
+      }
+    }
+    w.text("\n");
+  }
+  w.flush();
+}
+
+void write_stl_to(atomic_output& out, const triangle_mesh& mesh) {
+  check_indices(mesh);
+  const std::string name = out.target().string();
+  if (mesh.triangles.size() > std::numeric_limits<std::uint32_t>::max()) {
+    throw error(name + ": binary STL counts at most 4294967295 triangles, the mesh has " +
+                std::to_string(mesh.triangles.size()));
+  }
+  check_float_range(name, mesh, "STL");
+  block_writer w(out);
+  // 80 header bytes that do not start with "solid" (readers take those for ASCII STL).
+  std::string header = "binary STL generated by progiso";
+  header.resize(80, ' ');
+  w.text(header);
+  w.u32_le(static_cast<std::uint32_t>(mesh.triangles.size()));
+  for (const auto& t : mesh.triangles) {
+    const vec3& a = mesh.vertices[t[0]];
+    const vec3& b = mesh.vertices[t[1]];
+    const vec3& c = mesh.vertices[t[2]];
+    // The facet normal: the right-hand normal of the winding, out of the region f > w (the
+    // solid, as for bone in CT), unit length; zero for a degenerate facet.
+    vec3 n = area_normal(a, b, c);
+    const double len = std::sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
+    for (double& x : n) x = len > 0.0 ? x / len : 0.0;
+    for (double x : n) w.f32_le(static_cast<float>(x));
+    for (const vec3* p : {&a, &b, &c}) {
+      for (double x : *p) w.f32_le(static_cast<float>(x));
+    }
+    w.bytes("\0\0", 2);  // attribute byte count
+  }
+  w.flush();
+}
+
+void write_mesh_to(atomic_output& out, const triangle_mesh& mesh) {
+  const std::string ext = lower_extension(out.target());
+  if (ext == ".ply") return write_ply_to(out, mesh);
+  if (ext == ".obj") return write_obj_to(out, mesh);
+  if (ext == ".stl") return write_stl_to(out, mesh);
+  throw error(out.target().string() + ": unknown mesh format \"" +
+              out.target().extension().string() + "\" (expected .ply, .obj or .stl)");
+}
+
+}  // namespace detail
+
+void write_ply(const std::filesystem::path& file, const triangle_mesh& mesh) {
+  atomic_output out(file);
+  detail::write_ply_to(out, mesh);
+  out.commit();
+}
+
+void write_obj(const std::filesystem::path& file, const triangle_mesh& mesh) {
+  atomic_output out(file);
+  detail::write_obj_to(out, mesh);
+  out.commit();
+}
+
+void write_stl(const std::filesystem::path& file, const triangle_mesh& mesh) {
+  atomic_output out(file);
+  detail::write_stl_to(out, mesh);
+  out.commit();
+}
+
+void write_mesh(const std::filesystem::path& file, const triangle_mesh& mesh) {
+  const std::string ext = lower_extension(file);
+  if (ext == ".ply") return write_ply(file, mesh);
+  if (ext == ".obj") return write_obj(file, mesh);
+  if (ext == ".stl") return write_stl(file, mesh);
+  throw error(file.string() + ": unknown mesh format \"" + file.extension().string() +
+              "\" (expected .ply, .obj or .stl)");
+}
+
+// ---------------------------------------------------------------------------------------------
+// Reader.
+
+triangle_mesh read_ply(const std::filesystem::path& file) {
+  const std::string name = file.string();
+  const auto fail = [&](const std::string& what) -> error { return error(name + ": " + what); };
+
+  const std::vector<char> bytes = detail::input_file(file, "PLY").read_all();
+  const std::span<const unsigned char> data(reinterpret_cast<const unsigned char*>(bytes.data()),
+                                            bytes.size());
+
+  // ---- Header: lines up to "end_header".
+  std::vector<ply_element> elements;
+  std::size_t pos = 0;
+  int line_no = 0;
+  bool ended = false;
+  constexpr std::size_t max_header = std::size_t{1} << 16;
+  while (!ended) {
+    const auto nl = std::find(data.begin() + static_cast<std::ptrdiff_t>(pos), data.end(),
+                              static_cast<unsigned char>('\n'));
+    if (nl == data.end() || static_cast<std::size_t>(nl - data.begin()) > max_header) {
+      throw fail("expected a PLY header ending in \"end_header\", found none");
+    }
+    const auto end = static_cast<std::size_t>(nl - data.begin());
+    std::string_view line(reinterpret_cast<const char*>(data.data()) + pos, end - pos);
+    if (!line.empty() && line.back() == '\r') line.remove_suffix(1);
+    pos = end + 1;
+    ++line_no;
+    const std::vector<std::string_view> w = split_words(line);
+
+    if (line_no == 1) {
+      if (line != "ply") throw fail("not a PLY file (expected \"ply\" on the first line)");
+      continue;
+    }
+    if (line_no == 2) {
+      if (w.size() != 3 || w[0] != "format" || w[1] != "binary_little_endian" || w[2] != "1.0") {
+        throw fail("expected \"format binary_little_endian 1.0\", found " + detail::quoted(line));
+      }
+      continue;
+    }
+    if (w.empty() || w[0] == "comment" || w[0] == "obj_info") continue;
+    if (w[0] == "end_header") {
+      ended = true;
+    } else if (w[0] == "element") {
+      std::uint64_t count = 0;
+      const bool ok =
+          w.size() == 3 && std::from_chars(w[2].data(), w[2].data() + w[2].size(), count).ptr ==
+                               w[2].data() + w[2].size();
+      if (!ok) throw fail("malformed PLY header line " + detail::quoted(line));
+      elements.push_back({std::string(w[1]), count, {}});
+    } else if (w[0] == "property") {
+      if (elements.empty()) throw fail("PLY property before any element");
+      elements.back().properties.emplace_back(w.begin(), w.end());
+    } else {
+      throw fail("unknown PLY header keyword " + detail::quoted(w[0]));
+    }
+  }
+
+  // ---- Layout: exactly write_ply's.
+  const auto layout_error = [&]() {
+    return fail(
+        "unsupported PLY layout (expected element vertex with float x, y, z (and optionally nx, "
+        "ny, nz), then element face with list uchar int vertex_indices)");
+  };
+  if (elements.size() != 2 || elements[0].name != "vertex" || elements[1].name != "face") {
+    throw layout_error();
+  }
+  const auto& vprops = elements[0].properties;
+  if (vprops.size() != 3 && vprops.size() != 6) throw layout_error();
+  const bool normals = vprops.size() == 6;
+  for (std::size_t i = 0; i < vprops.size(); ++i) {
+    const auto& p = vprops[i];
+    const std::string axis = (i < 3 ? "" : "n") + std::string(1, static_cast<char>('x' + i % 3));
+    if (p.size() != 3 || !is_one_of(p[1], {"float", "float32"}) || p[2] != axis) {
+      throw layout_error();
+    }
+  }
+  const std::uint64_t vertex_bytes = normals ? 24 : 12;
+  const auto& fprops = elements[1].properties;
+  if (fprops.size() != 1) throw layout_error();
+  const auto& fp = fprops[0];
+  if (fp.size() != 5 || fp[1] != "list" || !is_one_of(fp[2], {"uchar", "uint8"}) ||
+      !is_one_of(fp[3], {"int", "int32", "uint", "uint32"}) ||
+      !is_one_of(fp[4], {"vertex_indices", "vertex_index"})) {
+    throw layout_error();
+  }
+  const bool signed_indices = is_one_of(fp[3], {"int", "int32"});
+
+  // ---- Body: the size must match the counts exactly (this also bounds the allocations).
+  const std::uint64_t nv = elements[0].count;
+  const std::uint64_t nf = elements[1].count;
+  const std::uint64_t body = data.size() - pos;
+  const bool fits =
+      nv <= body / vertex_bytes && nf <= body / 13 && nv * vertex_bytes + nf * 13 == body;
+  if (!fits) {
+    throw fail("header announces " + std::to_string(nv) + " vertices and " + std::to_string(nf) +
+               " triangles, but " + std::to_string(body) + " bytes of data follow (expected " +
+               (nv <= body && nf <= body ? std::to_string(nv * vertex_bytes + nf * 13)
+                                         : std::string("more")) +
+               ")");
+  }
+
+  triangle_mesh mesh;
+  mesh.vertices.resize(static_cast<std::size_t>(nv));
+  if (normals) mesh.normals.resize(static_cast<std::size_t>(nv));
+  const unsigned char* p = data.data() + pos;
+  const auto read_vec3 = [&p](vec3& v) {
+    for (double& c : v) {
+      c = static_cast<double>(std::bit_cast<float>(load_u32_le(p)));
+      p += 4;
+    }
+  };
+  for (std::size_t i = 0; i < mesh.vertices.size(); ++i) {
+    read_vec3(mesh.vertices[i]);
+    if (normals) read_vec3(mesh.normals[i]);
+  }
+  mesh.triangles.resize(static_cast<std::size_t>(nf));
+  for (std::size_t t = 0; t < mesh.triangles.size(); ++t) {
+    if (*p != 3) {
+      throw fail("face " + std::to_string(t) + " has " + std::to_string(*p) +
+                 " vertices, expected a triangle");
+    }
+    ++p;
+    for (std::uint32_t& v : mesh.triangles[t]) {
+      v = load_u32_le(p);
+      p += 4;
+      const bool negative = signed_indices && v > std::uint32_t{0x7fffffff};
+      if (negative || v >= nv) {
+        throw fail("face " + std::to_string(t) + " has vertex index " +
+                   (negative ? std::to_string(static_cast<std::int32_t>(v)) : std::to_string(v)) +
+                   ", expected 0 to " + std::to_string(nv) + " - 1");
+      }
+    }
+  }
+  return mesh;
+}
+
+}  // namespace progiso
