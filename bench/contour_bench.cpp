@@ -1,6 +1,6 @@
-// Benchmarks of 2D progressive contouring (issue 3): full progressive contouring against plain
+// Benchmarks of 2D progressive contouring: full progressive contouring against plain
 // marching triangles in the same binary, and time to first contour on a 4097² generated field;
-// the contour engine against the sequential contour refiner, and its isovalue changes (issue 12).
+// the contour engine against the sequential contour refiner, and its isovalue changes.
 //   build/release/bench/progiso_contour_bench --benchmark_counters_tabular=true
 #include <progiso/core/base/error.hpp>
 #include <progiso/core/contour/contour_refiner.hpp>

@@ -1,4 +1,4 @@
-// Benchmarks of the concurrent engine (issue 4). Run:
+// Benchmarks of the concurrent engine. Run:
 //   build/release/bench/progiso_engine_bench --benchmark_counters_tabular=true
 // Latencies are measured per event with steady_clock into our own sample vectors and reported
 // as p50/p99 counters (µs); wall-clock tails on small machines are dominated by the scheduler
@@ -307,7 +307,7 @@ BENCHMARK(BM_full_refine)
     ->MinTime(1.0);
 
 // ---------------------------------------------------------------------------------------------
-// The one-thread engine against the sequential refiner (issue 12: at most 1.1×), in pairs: every
+// The one-thread engine against the sequential refiner, in pairs: every
 // iteration refines fully with a fresh refiner and a fresh one-thread engine (range data built
 // beforehand, construction and teardown untimed), the order alternating, and the counter is
 // the median of the per-pair ratios engine / refiner. Arg: volume side.
@@ -389,7 +389,7 @@ BENCHMARK(BM_snapshot_mesh)
     ->MinTime(1.0);
 
 // ---------------------------------------------------------------------------------------------
-// Refinement by priority against full refinement (issue 12, target 8): splits per second of a
+// Refinement by priority against full refinement: splits per second of a
 // run that takes the largest error first (a deadline, an error target, a triangle budget),
 // over splits per second of full refinement (depth first), on one engine, the same isovalue
 // and a fresh root for each run; pairs alternate which runs first, and the counter is the

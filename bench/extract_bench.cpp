@@ -1,4 +1,4 @@
-// Benchmarks of the sequential core (issue 2): full progressive extraction against plain
+// Benchmarks of the sequential core: full progressive extraction against plain
 // marching tetrahedra in the same binary, time to first surface, diamonds visited against
 // voxels, and range-data build time and bytes; the progressive/plain ratio also in alternating
 // pairs (BM_progressive_over_plain). Run:

@@ -1,4 +1,4 @@
-// progiso against its peer, VTK's Flying Edges (issue 12), in one binary: vtkFlyingEdges3D on
+// progiso against its peer, VTK's Flying Edges, in one binary: vtkFlyingEdges3D on
 // every 3D volume of ../shared/data, 257³ and 513³ smooth fields (Marschner–Lobb) and the busy
 // vtkRTAnalyticSource wavelet at 256³ and 512³; vtkFlyingEdges2D on every image. Both sides
 // start from the volume in memory (FE reads progiso's own sample array, wrapped without a copy)
@@ -251,7 +251,7 @@ void BM_peer_normals(benchmark::State& state) {
 // ---- Scaling: the pipeline on one thread and on `threads` (arg 1), alternated in one benchmark
 // (the order flips every pair), and Flying Edges on the same two counts in the same iteration.
 // `speedup` is the median of the per-pair ratios progiso(1 thread) / progiso(threads), the
-// figure of issue 12's fifth target; `fe_speedup` is Flying Edges' over the same pairs, which
+// two-thread speed-up figure; `fe_speedup` is Flying Edges' over the same pairs, which
 // says what this machine gave a second thread at the time (on a shared virtual machine, not
 // always a whole core). Separate runs at each count (BM_peer_volume) drift apart with the
 // machine; these pairs do not. The iteration time is progiso's two runs.

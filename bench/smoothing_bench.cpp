@@ -1,4 +1,4 @@
-// Benchmarks of smoothing (issue 13): the 4-point subdivision field refined like data.
+// Benchmarks of smoothing: the 4-point subdivision field refined like data.
 //
 // - BM_smoothed_pipeline/<input>/<field>/<threads>: the command's pipeline (smooth(), range
 //   data, refinement, extraction of the full-resolution mesh; extract_isosurface_parallel) from

@@ -1,4 +1,4 @@
-// Randomized concurrent run of the engine (issue 4, stress/). Reader threads take and walk
+// Randomized concurrent run of the engine. Reader threads take and walk
 // snapshots continuously and sleep 0–50 µs at random points inside their guards, while a control
 // thread changes the isovalue at random moments, starts, cancels and restarts runs, and runs
 // deadlines; the engine refines with all workers. Every snapshot is checked:

@@ -165,7 +165,7 @@ extract_result extract_isosurface_parallel(const volume& vol, double isovalue,
 extract_result detail::extract_isosurface_parallel(const volume& vol, double isovalue,
                                                    const extract_options& options, unsigned threads,
                                                    path_choice path) {
-  using clock = std::chrono::steady_clock;
+  // detail::clock (run_control.hpp) is steady_clock.
   const auto seconds = [](clock::duration d) { return std::chrono::duration<double>(d).count(); };
   check_extract_inputs(isovalue, options);
   extract_result res;

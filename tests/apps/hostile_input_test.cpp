@@ -1,4 +1,4 @@
-// The progiso command against hostile input, one class of defect per test (issue 11): every
+// The progiso command against hostile input, one class of defect per test: every
 // refusal is exit status 2 with one error line, no file created, no input or other output
 // changed, in bounded time, and — where memory is the point — in bounded memory: the command
 // runs under an address-space limit (setrlimit; not in sanitizer builds) and its peak resident

@@ -1,4 +1,4 @@
-// The library as a hostile caller or an embedder in a hurry might use it (issue 11): temporaries
+// The library as a hostile caller or an embedder in a hurry might use it: temporaries
 // where references are kept, budgets beyond the clock, non-finite samples, coordinates that
 // overflow, messages in the library's own terms; and the file plumbing every reader and writer
 // shares (regular files only, outputs into devices, temporaries removed on signals).

@@ -1,4 +1,4 @@
-// The engine as an embedder might misuse it (issue 11): a temporary volume, control calls from
+// The engine as an embedder might misuse it: a temporary volume, control calls from
 // inside the progress callback, a callback that throws, budgets beyond the clock's range.
 #include <progiso/core/base/error.hpp>
 #include <progiso/core/field/analytic.hpp>

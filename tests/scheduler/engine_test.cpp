@@ -137,7 +137,7 @@ TEST(Engine, mesh_is_byte_identical_whatever_the_thread_count_and_batch_size) {
   }
 }
 
-// A renderer's buffers (issue 12, target 7): the snapshot's mesh as floats, and storage kept
+// A renderer's buffers: the snapshot's mesh as floats, and storage kept
 // from frame to frame: a coarser cut after a finer one allocates nothing.
 TEST(Engine, render_buffers_hold_the_mesh_as_floats_and_keep_their_storage_frame_after_frame) {
   const volume v = make_marschner_lobb({33, 33, 33});
