@@ -13,12 +13,20 @@ if(CMAKE_CXX_COMPILER_ID STREQUAL "GNU" AND CMAKE_CXX_COMPILER_VERSION VERSION_L
   add_compile_options(-Wno-restrict)
 endif()
 
+# With clang, an address-undefined build also instruments for libFuzzer's coverage and builds the
+# fuzz harnesses as libFuzzer binaries beside the tests (PROGISO_FUZZ_BINARIES), so that CI's
+# fuzzing stage reuses the sanitizer build instead of compiling the libraries a third time.
+set(PROGISO_FUZZ_BINARIES OFF)
 if(PROGISO_SANITIZE STREQUAL "address-undefined")
   # -fno-sanitize=vptr: with gcc, UBSan's vptr check aborts inside oneTBB's flow-graph headers.
   add_compile_options(-fsanitize=address,undefined -fno-sanitize=vptr
                       -fno-sanitize-recover=undefined -fno-omit-frame-pointer)
   add_link_options(-fsanitize=address,undefined)
   add_compile_definitions(PROGISO_SANITIZER_BUILD=1)
+  if(CMAKE_CXX_COMPILER_ID STREQUAL "Clang")
+    add_compile_options(-fsanitize=fuzzer-no-link)
+    set(PROGISO_FUZZ_BINARIES ON)
+  endif()
 elseif(PROGISO_SANITIZE STREQUAL "thread")
   add_compile_options(-fsanitize=thread -fno-omit-frame-pointer)
   add_link_options(-fsanitize=thread)
@@ -32,7 +40,8 @@ elseif(PROGISO_SANITIZE STREQUAL "fuzzer")
   add_compile_options(-fsanitize=fuzzer-no-link,address,undefined -fno-sanitize-recover=undefined
                       -fno-omit-frame-pointer)
   add_link_options(-fsanitize=address,undefined)
-  add_compile_definitions(PROGISO_SANITIZER_BUILD=1 PROGISO_FUZZ_BUILD=1)
+  add_compile_definitions(PROGISO_SANITIZER_BUILD=1)
+  set(PROGISO_FUZZ_BINARIES ON)
 elseif(NOT PROGISO_SANITIZE STREQUAL "")
   message(FATAL_ERROR "PROGISO_SANITIZE must be empty, address-undefined, thread or fuzzer")
 endif()

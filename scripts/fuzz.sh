@@ -5,7 +5,7 @@
 #   scripts/fuzz.sh [SECONDS_PER_HARNESS] [HARNESS ...]     (default: 60 s, every harness)
 #
 # Harnesses: raw nrrd nifti metaimage vtk vti pvti dicom jpeg tiff mrc pgm png ply obj cli extract (tests/fuzz/*_fuzz.cpp). Each starts from a working
-# corpus in build/fuzz/corpus/<harness>: the committed seeds and regressions
+# corpus in build/fuzz/corpus/<harness> (or $PROGISO_FUZZ_BUILD/corpus/<harness>, see below): the committed seeds and regressions
 # (tests/fuzz/corpus/<harness>), plus crops of the real data in ../shared/data (or
 # $PROGISO_DATA_DIR) made by tests/fuzz/make_seeds.py; the corpus grows across runs. An input
 # that crashes a harness is written to build/fuzz/artifacts/<harness>/: copy it into
@@ -23,12 +23,19 @@ harnesses=("$@")
 jobs="${PROGISO_FUZZ_JOBS:-2}"
 
 ./scripts/install-deps.sh --fuzz >/dev/null
-cmake --preset fuzz >/dev/null
+# The harnesses come from the `fuzz` preset's tree, or from an already configured clang
+# asan-ubsan tree named by $PROGISO_FUZZ_BUILD (CI reuses its sanitizer build this way).
+work="${PROGISO_FUZZ_BUILD:-build/fuzz}"
+if [ -z "${PROGISO_FUZZ_BUILD:-}" ]; then
+  cmake --preset fuzz >/dev/null
+elif [ ! -f "$work/CMakeCache.txt" ]; then
+  echo "fuzz.sh: PROGISO_FUZZ_BUILD=$work is not a configured build tree" >&2
+  exit 2
+fi
 targets=()
 for h in "${harnesses[@]}"; do targets+=("progiso_fuzz_$h"); done
-cmake --build build/fuzz --target "${targets[@]}" >/dev/null
+cmake --build "$work" --target "${targets[@]}" >/dev/null
 
-work=build/fuzz
 data="${PROGISO_DATA_DIR:-../shared/data}"
 seeds="$work/seeds"
 rm -rf "$seeds"

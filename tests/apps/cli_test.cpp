@@ -265,7 +265,7 @@ std::string ball_bytes() {
         const double d =
             std::sqrt((x - 8.3) * (x - 8.3) + (y - 7.6) * (y - 7.6) + (z - 8.1) * (z - 8.1));
         s[static_cast<std::size_t>(x + 17 * (y + 17 * z))] =
-            static_cast<char>(std::min(250.0, d * 20));
+            static_cast<char>(static_cast<unsigned char>(std::min(250.0, d * 20)));
       }
   return s;
 }

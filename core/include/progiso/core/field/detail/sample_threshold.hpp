@@ -19,10 +19,13 @@ struct sample_threshold {
 
   explicit sample_threshold(double isovalue) noexcept
       // floor(w) within ±2^62: beyond that no integer sample type reaches, and the order of
-      // every sample against it is the same as against w.
+      // every sample against it is the same as against w. A NaN (which callers refuse, some
+      // after making a threshold) takes 0 rather than an undefined conversion.
       : w(isovalue),
-        floor_w(static_cast<std::int64_t>(
-            std::floor(std::clamp(isovalue, -4.611686018427387904e18, 4.611686018427387904e18)))) {}
+        floor_w(std::isnan(isovalue)
+                    ? 0
+                    : static_cast<std::int64_t>(std::floor(std::clamp(
+                          isovalue, -4.611686018427387904e18, 4.611686018427387904e18)))) {}
 
   template <class T>
   [[nodiscard]] bool above(T v) const noexcept {
