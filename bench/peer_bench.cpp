@@ -8,7 +8,8 @@
 // finest_surface(), BM_peer_refined by refining the hierarchy), or the contour polylines in 2D.
 // vtkSMPTools runs on the same thread count as progiso. BM_deadline_quality measures what a
 // deadline buys (see there), BM_peer_scaling the pipeline's speed-up from one thread (see there),
-// BM_peer_normals both sides with vertex normals (see there).
+// BM_peer_normals both sides with vertex normals (see there), BM_follow a render thread that
+// follows a full run by its changes (see there).
 //
 // Each benchmark runs both sides in alternating pairs (the order flips every pair) and reports
 // medians: fe_ms, progiso_ms with its phases (range_ms, refine_ms, extract_ms; first_ms, the root
@@ -28,6 +29,7 @@
 #include <algorithm>
 #include <array>
 #include <chrono>
+#include <cmath>
 #include <cstdlib>
 #include <cstring>
 #include <filesystem>
@@ -35,6 +37,7 @@
 #include <map>
 #include <memory>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include <benchmark/benchmark.h>
@@ -248,6 +251,89 @@ void BM_peer_normals(benchmark::State& state) {
   state.counters["normals_ms"] = median(normals);
 }
 
+// ---- Following a refinement (BM_follow): a render thread that keeps the engine's surface in a
+// slot pool (render_slots) while a full run refines it from the root, frame by frame at 60 Hz:
+// each frame takes a snapshot, asks for the change since the last frame's cut
+// (surface_snapshot::change_since) and applies it. The pair's progiso side is the sum of the
+// frames' update times over the whole run (`progiso_ms`, `ratio` against Flying Edges). Also:
+// the frames' update times (`frame_p50_ms`, `frame_p99_ms`, `frame_max_ms`, nearest rank over
+// every frame of every pair), frames per run, and the whole finest cut into a fresh pool
+// (`cut_ms`, a rebuilt change applied; `cut_ratio` against Flying Edges) beside mesh_into()'s
+// indexed buffers (`mesh_into_ms`).
+
+double nearest_rank(std::vector<double> v, double q) {
+  if (v.empty()) return 0.0;
+  std::sort(v.begin(), v.end());
+  const auto k = static_cast<std::size_t>(std::ceil(q * static_cast<double>(v.size())));
+  return v[std::min(v.size() - 1, k == 0 ? 0 : k - 1)];
+}
+
+void BM_follow(benchmark::State& state) {
+  auto [in, vol, threads, fe] = volume_setup(state);
+  engine_options o;
+  o.threads = threads;
+  pair_stats s;
+  std::vector<double> frames;
+  std::vector<double> runs_frames;
+  std::vector<double> cut;
+  std::vector<double> cut_ratio;
+  std::vector<double> into;
+  render_slots slots;
+  surface_change change;
+  render_buffers buffers;
+  run_pairs(state, *fe, s, [&] {
+    engine e(vol, in.isovalue, o);
+    slots.clear();
+    cut_mark mark;
+    double total = 0.0;
+    std::size_t count = 0;
+    e.start(refine_goal::full());
+    auto next = clock_type::now();
+    while (true) {
+      const bool last = !e.running();  // read first: the frame after it holds the final cut
+      const auto t0 = clock_type::now();
+      {
+        const surface_snapshot snap = e.snapshot();
+        snap.change_since(mark, change);
+        slots.apply(change);
+        mark = snap.mark();
+      }
+      const double ms = ms_since(t0);
+      frames.push_back(ms);
+      total += ms;
+      ++count;
+      if (last) break;
+      next += std::chrono::microseconds(16667);
+      std::this_thread::sleep_until(next);
+    }
+    e.wait();
+    runs_frames.push_back(static_cast<double>(count));
+    s.mine_cells = static_cast<double>(slots.triangle_count());
+    {
+      const surface_snapshot snap = e.snapshot();
+      render_slots fresh;
+      const auto t0 = clock_type::now();
+      snap.change_since({}, change);
+      fresh.apply(change);
+      cut.push_back(ms_since(t0));
+      const auto t1 = clock_type::now();
+      snap.mesh_into(buffers);
+      into.push_back(ms_since(t1));
+      benchmark::DoNotOptimize(fresh.positions().data());
+    }
+    return total;
+  });
+  report(state, s, "triangles");
+  for (std::size_t i = 0; i < cut.size(); ++i) cut_ratio.push_back(cut[i] / s.fe[i]);
+  state.counters["frame_p50_ms"] = nearest_rank(frames, 0.5);
+  state.counters["frame_p99_ms"] = nearest_rank(frames, 0.99);
+  state.counters["frame_max_ms"] = nearest_rank(frames, 1.0);
+  state.counters["frames"] = median(runs_frames);
+  state.counters["cut_ms"] = median(cut);
+  state.counters["cut_ratio"] = median(cut_ratio);
+  state.counters["mesh_into_ms"] = median(into);
+}
+
 // ---- Scaling: the pipeline on one thread and on `threads` (arg 1), alternated in one benchmark
 // (the order flips every pair), and Flying Edges on the same two counts in the same iteration.
 // `speedup` is the median of the per-pair ratios progiso(1 thread) / progiso(threads), the
@@ -433,6 +519,15 @@ void register_all() {
       if (t == 1) continue;
       benchmark::RegisterBenchmark(("BM_peer_scaling/" + volumes()[i].name).c_str(),
                                    BM_peer_scaling)
+          ->Args({static_cast<std::int64_t>(i), static_cast<std::int64_t>(t)})
+          ->Iterations(volumes()[i].pairs)
+          ->UseManualTime()
+          ->Unit(benchmark::kMillisecond);
+    }
+  }
+  for (std::size_t i = 0; i < volumes().size(); ++i) {
+    for (const unsigned t : thread_counts(cores)) {
+      benchmark::RegisterBenchmark(("BM_follow/" + volumes()[i].name).c_str(), BM_follow)
           ->Args({static_cast<std::int64_t>(i), static_cast<std::int64_t>(t)})
           ->Iterations(volumes()[i].pairs)
           ->UseManualTime()

@@ -65,6 +65,7 @@
 #include <progiso/core/surface/mesh.hpp>
 #include <progiso/core/surface/normals.hpp>
 #include <progiso/core/surface/split_record.hpp>
+#include <progiso/core/surface/surface_change.hpp>
 
 namespace progiso {
 
@@ -154,6 +155,14 @@ struct engine_statistics {
   std::uint64_t recycled_roots = 0;
 };
 
+/// Where a snapshot's cut stood (surface_snapshot::mark()): plain data, kept by a renderer
+/// between frames (on any thread) to ask a later snapshot what changed since.
+struct cut_mark {
+  const engine* owner = nullptr;
+  std::uint64_t generation = 0;
+  std::uint64_t records = 0;  ///< 0: no cut
+};
+
 /// An immutable view of one published cut of one isovalue. Cheap to take, O(cut records) to
 /// walk. Holds an epoch guard of the thread that took it: destroy it on that thread, before
 /// the engine. Move-only.
@@ -195,6 +204,19 @@ class surface_snapshot {
   /// mesh_cut(max_error) into the caller's buffers, normals as mesh_into().
   void mesh_cut_into(double max_error, render_buffers& out,
                      vertex_normals normals = vertex_normals::none) const;
+  /// Where this cut stands, for change_since() on a later snapshot. O(1).
+  [[nodiscard]] cut_mark mark() const noexcept;
+  /// What changed from the cut `earlier` marked to this one (surface_change.hpp): the ids of the
+  /// triangles gone and the pieces added, float positions clipped to the data box in physical
+  /// coordinates as mesh_into() gives them, and with vertex_normals::gradient their normals.
+  /// When `earlier` is of another engine or isovalue, of no cut, or later than this cut, the
+  /// change is the whole cut (`rebuilt`). Applied in order to a render_slots pool, the changes
+  /// leave in it the triangles of mesh_into(), as a set, bit for bit. Costs what changed: the
+  /// records published since `earlier` and their parents' (plus one pass over the root
+  /// surface's triangles when a root diamond split). In parallel on the engine's thread count
+  /// for large changes, the same output for every thread count. `out`'s storage is reused.
+  void change_since(const cut_mark& earlier, surface_change& out,
+                    vertex_normals normals = vertex_normals::none) const;
   /// Checks that the root is alive and every record in the cut is well-formed (owners in the
   /// grid, triangle counts plausible); returns false on poison or garbage (stress tests).
   [[nodiscard]] bool check_integrity() const noexcept;

@@ -1,0 +1,243 @@
+// Readers: what changed between two snapshots of one isovalue (surface_snapshot::change_since).
+//
+// The cut of watermark W holds a triangle of record r < W iff its owner has no record below W
+// (docs/ARCHITECTURE.md, invariant 3). From W1 to W2 of one root, then:
+//  * added: the triangles of records [W1, W2) whose owner has no record below W2;
+//  * gone: the triangles of records below W1 whose owner has a record in [W1, W2). A diamond's
+//    triangles lie in the tetrahedra its parents' splits made (a root diamond's, in the root
+//    surface), so for each record of the window the records of its parents are scanned for the
+//    triangles it owns: the work is the window's records and their parents', not the cut.
+// Triangles of the window whose owner also split in the window were never seen: in neither list.
+
+#include "engine_impl.hpp"
+
+#include <progiso/core/surface/detail/mesh_clip.hpp>
+
+namespace progiso {
+
+namespace {
+
+// Ids (surface_change.hpp): a split record's triangle k (k < 32: at most 16 groups of at most 2
+// triangles) is record << 5 | k; the root surface's triangle k has the top bit set.
+constexpr std::uint64_t root_id_bit = std::uint64_t{1} << 63;
+[[nodiscard]] constexpr std::uint64_t record_triangle_id(std::uint64_t r, std::uint64_t k) {
+  return (r << 5) | k;
+}
+
+// One part's output: ids and physical positions (3 per piece).
+struct change_part {
+  std::vector<std::uint64_t> gone;
+  std::vector<std::uint64_t> added;
+  std::vector<vec3> corners;
+};
+
+class change_maker {
+ public:
+  change_maker(const detail::engine_root& root, const hierarchy& hier, const volume& vol,
+               std::uint64_t w1, std::uint64_t w2)
+      : root_(root), hier_(hier), vol_(vol), w1_(w1), w2_(w2) {
+    const ipoint& m = hier.data_max();
+    box_ = vec3{static_cast<double>(m[0]), static_cast<double>(m[1]), static_cast<double>(m[2])};
+  }
+
+  // Records [lo, hi) of the window.
+  void run(std::uint64_t lo, std::uint64_t hi, change_part& out) const {
+    for (std::uint64_t q = lo; q < hi; ++q) {
+      if (q == 0) {
+        add_root(out);
+        continue;
+      }
+      const detail::engine_record& rec = root_.records[q];
+      if (w1_ > 0) remove_owned_by(rec.diamond, out);
+      add_record(q, rec, out);
+    }
+  }
+
+  // Root triangles whose owner split in the window: one pass over the root surface.
+  void remove_from_root(change_part& out) const {
+    const std::vector<owned_triangle>& tris = root_.root_triangles;
+    for (std::size_t k = 0; k < tris.size(); ++k) {
+      if (tris[k].owner == no_owner) continue;
+      const std::uint32_t r = root_.record_index(tris[k].owner);
+      if (r >= w1_ && r < w2_) out.gone.push_back(root_id_bit | k);
+    }
+  }
+
+ private:
+  [[nodiscard]] bool split_in_later(std::uint64_t owner) const noexcept {
+    if (owner == no_owner) return false;
+    const std::uint32_t r = root_.record_index(owner);
+    return r != 0 && r < w2_;
+  }
+
+  // The triangles owned by diamond d in the records of its parents split before the window.
+  void remove_owned_by(std::uint64_t d, change_part& out) const {
+    const diamond dm = hier_.make_diamond(hier_.point(d));
+    std::array<ipoint, 4> parents{};
+    const int n = hier_.parents(dm, parents);
+    for (int i = 0; i < n; ++i) {
+      const std::uint32_t r = root_.record_index(hier_.index(parents[static_cast<std::size_t>(i)]));
+      // A parent split in the window made its triangles there: never seen by the earlier cut.
+      if (r == 0 || r >= w1_) continue;
+      const detail::engine_record& rec = root_.records[r];
+      std::uint64_t k = 0;
+      for (std::uint32_t g = 0; g < rec.count; ++g) {
+        const packed_group& group = rec.groups[g];
+        const std::size_t c = group.count();
+        if (group_owner(hier_, rec.diamond, rec.scale, group) == d) {
+          for (std::size_t t = 0; t < c; ++t) out.gone.push_back(record_triangle_id(r, k + t));
+        }
+        k += c;
+      }
+    }
+  }
+
+  void add_record(std::uint64_t q, const detail::engine_record& rec, change_part& out) const {
+    std::uint64_t k = 0;
+    std::uint64_t centre_key = 0;
+    bool have_centre = false;
+    for (std::uint32_t g = 0; g < rec.count; ++g) {
+      const packed_group& group = rec.groups[g];
+      const std::size_t c = group.count();
+      if (!split_in_later(group_owner(hier_, rec.diamond, rec.scale, group))) {
+        if (!have_centre) {
+          const ipoint ct = hier_.point(rec.diamond);
+          centre_key = edge_key(ct, ct);
+          have_centre = true;
+        }
+        for (std::size_t t = 0; t < c; ++t) {
+          add_triangle(record_triangle_id(q, k + t), unpack_at(centre_key, rec.scale, group, t),
+                       out);
+        }
+      }
+      k += c;
+    }
+  }
+
+  void add_root(change_part& out) const {
+    const std::vector<owned_triangle>& tris = root_.root_triangles;
+    for (std::size_t k = 0; k < tris.size(); ++k) {
+      if (!split_in_later(tris[k].owner)) add_triangle(root_id_bit | k, tris[k].keys, out);
+    }
+  }
+
+  // The triangle's piece, or its pieces inside the data box, as cut_mesher makes them: corners
+  // by interpolate() on canonically ordered ends, crossings by clip_to_box().
+  void add_triangle(std::uint64_t id, const std::array<std::uint64_t, 3>& keys,
+                    change_part& out) const {
+    std::array<vec3, 3> p{};
+    bool inside = true;
+    for (std::size_t v = 0; v < 3; ++v) {
+      const std::array<ipoint, 2> e = hier_.edge_ends(keys[v]);
+      p[v] = interpolate(e[0], vol_.value(e[0][0], e[0][1], e[0][2]), e[1],
+                         vol_.value(e[1][0], e[1][1], e[1][2]), root_.isovalue);
+      inside = inside && p[v][0] <= box_[0] && p[v][1] <= box_[1] && p[v][2] <= box_[2];
+    }
+    if (inside) {
+      out.added.push_back(id);
+      for (const vec3& x : p) out.corners.push_back(detail::physical_position(vol_, x));
+      return;
+    }
+    std::array<vec3, 8> extra{};  // crossings: ids 3 …
+    std::uint32_t extras = 0;
+    const auto crossing = [&](const vec3& x) {
+      extra[extras] = x;
+      return 3 + extras++;
+    };
+    const auto emit = [&](const std::array<std::uint32_t, 3>& t) {
+      out.added.push_back(id);
+      for (const std::uint32_t c : t) {
+        out.corners.push_back(detail::physical_position(vol_, c < 3 ? p[c] : extra[c - 3]));
+      }
+    };
+    (void)detail::clip_to_box(p, {0, 1, 2}, box_, crossing, emit);
+  }
+
+  const detail::engine_root& root_;
+  const hierarchy& hier_;
+  const volume& vol_;
+  std::uint64_t w1_;
+  std::uint64_t w2_;
+  vec3 box_{};
+};
+
+}  // namespace
+
+cut_mark surface_snapshot::mark() const noexcept {
+  if (!valid()) return {};
+  return cut_mark{owner_, root_->generation, published_};
+}
+
+void surface_snapshot::change_since(const cut_mark& earlier, surface_change& out,
+                                    vertex_normals normals) const {
+  PROGISO_ASSERT(valid());
+  out.clear();
+  const std::uint64_t w2 = published_;
+  out.rebuilt = earlier.owner != owner_ || earlier.generation != root_->generation ||
+                earlier.records == 0 || earlier.records > w2;
+  const std::uint64_t w1 = out.rebuilt ? 0 : earlier.records;
+  const engine& e = *owner_;
+  const change_maker maker(*root_, e.hierarchy_of(), e.field(), w1, w2);
+
+  // Parts of about 2 K records, up to 8 per thread (as build()), joined in record order: the
+  // same change for every thread count.
+  const std::uint64_t window = w2 - w1;
+  const std::size_t threads = e.threads();
+  const std::size_t parts =
+      threads <= 1 ? 1 : std::clamp<std::size_t>(window / 2048, 1, 8 * threads);
+  std::vector<change_part> pieces(parts);
+  const auto run_part = [&](std::size_t i) {
+    maker.run(w1 + window * i / parts, w1 + window * (i + 1) / parts, pieces[i]);
+  };
+  if (parts == 1) {
+    run_part(0);
+  } else {
+    tbb::task_arena arena(static_cast<int>(std::min(threads, parts)));
+    arena.execute([&] { tbb::parallel_for(std::size_t{0}, parts, run_part); });
+  }
+  // A root diamond in the window took triangles of the root surface with it.
+  bool root_split = false;
+  if (w1 > 0) {
+    for (std::uint64_t q = w1; q < w2 && !root_split; ++q)
+      root_split = root_->records[q].depth == 0;
+  }
+  change_part from_root;
+  if (root_split) maker.remove_from_root(from_root);
+  std::size_t gone = from_root.gone.size();
+  std::size_t added = 0;
+  for (const change_part& p : pieces) {
+    gone += p.gone.size();
+    added += p.added.size();
+  }
+  out.gone.insert(out.gone.end(), from_root.gone.begin(), from_root.gone.end());
+  out.gone.reserve(gone);
+  out.added.reserve(added);
+  out.positions.resize(9 * added);
+  std::size_t at = 0;
+  for (const change_part& p : pieces) {
+    out.gone.insert(out.gone.end(), p.gone.begin(), p.gone.end());
+    out.added.insert(out.added.end(), p.added.begin(), p.added.end());
+    for (const vec3& x : p.corners) {
+      for (std::size_t k = 0; k < 3; ++k) out.positions[at++] = static_cast<float>(x[k]);
+    }
+  }
+  if (normals == vertex_normals::gradient && added > 0) {
+    triangle_mesh m;
+    m.vertices.reserve(3 * added);
+    for (const change_part& p : pieces)
+      m.vertices.insert(m.vertices.end(), p.corners.begin(), p.corners.end());
+    m.triangles.resize(added);
+    for (std::size_t t = 0; t < added; ++t) {
+      const auto v = static_cast<std::uint32_t>(3 * t);
+      m.triangles[t] = {v, v + 1, v + 2};
+    }
+    e.add_normals(m);
+    out.normals.resize(9 * added);
+    for (std::size_t v = 0; v < m.normals.size(); ++v) {
+      for (std::size_t k = 0; k < 3; ++k)
+        out.normals[3 * v + k] = static_cast<float>(m.normals[v][k]);
+    }
+  }
+}
+
+}  // namespace progiso

@@ -1,0 +1,228 @@
+// Changes between snapshots (surface_snapshot::change_since) and the slot pool that follows them
+// (render_slots): applied in order, the pool holds exactly the cut of the latest snapshot.
+#include <progiso/core/base/error.hpp>
+#include <progiso/core/field/analytic.hpp>
+#include <progiso/core/surface/surface_change.hpp>
+#include <progiso/scheduler/engine.hpp>
+
+#include <algorithm>
+#include <array>
+#include <cstring>
+#include <map>
+#include <thread>
+#include <vector>
+
+#include <gtest/gtest.h>
+
+namespace progiso {
+namespace {
+
+using corners = std::array<float, 9>;
+
+// The cut's triangles as a multiset of their nine floats, from an indexed render buffer.
+std::map<corners, int> triangles_of(const render_buffers& b, bool normals) {
+  std::map<corners, int> out;
+  const std::vector<float>& src = normals ? b.normals : b.positions;
+  for (std::size_t t = 0; t < b.triangle_count(); ++t) {
+    corners c{};
+    for (std::size_t v = 0; v < 3; ++v) {
+      for (std::size_t k = 0; k < 3; ++k) c[3 * v + k] = src[3 * b.indices[3 * t + v] + k];
+    }
+    ++out[c];
+  }
+  return out;
+}
+
+// The live slots' triangles, the same way.
+std::map<corners, int> triangles_of(const render_slots& s, bool normals) {
+  std::map<corners, int> out;
+  const std::span<const float> src = normals ? s.normals() : s.positions();
+  for (std::size_t slot = 0; slot < s.slot_count(); ++slot) {
+    if (s.id_of(slot) == render_slots::free_slot) continue;
+    corners c{};
+    std::copy_n(src.data() + 9 * slot, 9, c.data());
+    ++out[c];
+  }
+  return out;
+}
+
+// Follows e's refinement towards `goals` (one after another), a change per step; returns how
+// many added pieces shared their triangle's id with the piece before (clipped triangles).
+std::size_t expect_slots_follow(engine& e, const std::vector<refine_goal>& goals, bool normals) {
+  const vertex_normals nv = normals ? vertex_normals::gradient : vertex_normals::none;
+  render_slots slots;
+  surface_change change;
+  cut_mark mark;
+  render_buffers whole;
+  std::size_t nonempty_gone = 0;
+  std::size_t shared = 0;
+  for (const refine_goal& goal : goals) {
+    e.refine(goal);
+    const surface_snapshot s = e.snapshot();
+    s.change_since(mark, change, nv);
+    EXPECT_EQ(change.rebuilt, mark.records == 0);
+    nonempty_gone += change.gone.empty() ? 0U : 1U;
+    for (std::size_t j = 1; j < change.added.size(); ++j) {
+      shared += change.added[j] == change.added[j - 1] ? 1U : 0U;
+    }
+    slots.apply(change);
+    mark = s.mark();
+    s.mesh_into(whole, nv);
+    EXPECT_EQ(slots.triangle_count(), whole.triangle_count()) << s.split_count() << " splits";
+    EXPECT_EQ(triangles_of(slots, false), triangles_of(whole, false));
+    if (normals) {
+      EXPECT_EQ(triangles_of(slots, true), triangles_of(whole, true));
+    }
+  }
+  EXPECT_GT(nonempty_gone, 0U) << "no step removed a triangle: the test shows nothing";
+  return shared;
+}
+
+std::vector<refine_goal> budget_steps(std::uint64_t first, std::uint64_t last) {
+  std::vector<refine_goal> goals;
+  for (std::uint64_t k = first; k < last; k *= 2) goals.push_back(refine_goal::triangles(k));
+  goals.push_back(refine_goal::full());
+  return goals;
+}
+
+engine_options with_threads(unsigned n) {
+  engine_options o;
+  o.threads = n;
+  return o;
+}
+
+TEST(SurfaceChange, applied_in_order_the_slots_hold_each_snapshots_cut_triangle_for_triangle) {
+  for (const unsigned threads : {1U, 2U}) {
+    engine e(make_marschner_lobb({33, 33, 33}), 0.5, with_threads(threads));
+    expect_slots_follow(e, budget_steps(64, 8192), false);
+  }
+}
+
+// 37 × 29 × 41 samples: the hierarchy is padded past the data box, so coarse triangles are
+// clipped into pieces that share an id.
+TEST(SurfaceChange, clipped_pieces_and_normals_follow_on_a_padded_hierarchy) {
+  engine e(make_gaussian_blobs({37, 29, 41}, 6, 7u), 0.4, with_threads(2));
+  const ipoint& m = e.hierarchy_of().data_max();
+  const ipoint& g = e.hierarchy_of().grid_max();
+  ASSERT_TRUE(m[0] < g[0] || m[1] < g[1] || m[2] < g[2]) << "the hierarchy is not padded";
+  EXPECT_GT(expect_slots_follow(e, budget_steps(16, 4096), true), 0U)
+      << "no triangle was clipped into pieces: the test shows nothing of clipping";
+}
+
+TEST(SurfaceChange, an_unchanged_cut_gives_an_empty_change_and_an_isovalue_change_a_rebuild) {
+  engine e(make_marschner_lobb({33, 33, 33}), 0.5, with_threads(2));
+  e.refine(refine_goal::triangles(2000));
+  render_slots slots;
+  surface_change change;
+  cut_mark mark;
+  {
+    const surface_snapshot s = e.snapshot();
+    s.change_since(mark, change);
+    slots.apply(change);
+    mark = s.mark();
+    s.change_since(mark, change);
+    EXPECT_FALSE(change.rebuilt);
+    EXPECT_TRUE(change.gone.empty());
+    EXPECT_TRUE(change.added.empty());
+  }
+  e.set_isovalue(0.3);
+  e.refine(refine_goal::triangles(1000));
+  const surface_snapshot s = e.snapshot();
+  s.change_since(mark, change);
+  EXPECT_TRUE(change.rebuilt);
+  EXPECT_TRUE(change.gone.empty());
+  slots.apply(change);
+  render_buffers whole;
+  s.mesh_into(whole);
+  EXPECT_EQ(triangles_of(slots, false), triangles_of(whole, false));
+  EXPECT_EQ(slots.slot_count(), whole.triangle_count()) << "a rebuild starts the pool afresh";
+}
+
+// The render side on its own thread, taking its own snapshots while a full run publishes.
+TEST(SurfaceChange, a_render_thread_follows_a_background_run_to_the_finest_cut) {
+  engine e(make_marschner_lobb({49, 49, 49}), 0.5, with_threads(2));
+  e.start(refine_goal::full());
+  std::size_t frames = 0;
+  std::thread render([&] {
+    render_slots slots;
+    surface_change change;
+    cut_mark mark;
+    while (true) {
+      const bool last = !e.running();  // read before the snapshot: then it holds the last cut
+      const surface_snapshot s = e.snapshot();
+      s.change_since(mark, change);
+      slots.apply(change);
+      mark = s.mark();
+      ++frames;
+      if (last) {
+        render_buffers whole;
+        s.mesh_into(whole);
+        EXPECT_EQ(triangles_of(slots, false), triangles_of(whole, false));
+        return;
+      }
+    }
+  });
+  render.join();
+  e.wait();
+  EXPECT_TRUE(e.done());
+  EXPECT_GE(frames, 1U);
+}
+
+TEST(RenderSlots, freed_slots_collapse_and_are_reused_before_the_pool_grows) {
+  render_slots slots;
+  surface_change c;
+  c.rebuilt = true;
+  for (std::uint64_t id = 0; id < 4; ++id) {
+    c.added.push_back(id);
+    for (std::uint64_t k = 0; k < 9; ++k) c.positions.push_back(static_cast<float>(id * 10 + k));
+  }
+  EXPECT_EQ(slots.apply(c), 4U);
+  c.clear();
+  c.gone = {1, 2};
+  c.added = {7};
+  c.positions.assign(9, 5.0F);
+  slots.apply(c);
+  EXPECT_EQ(slots.slot_count(), 4U);
+  EXPECT_EQ(slots.triangle_count(), 3U);
+  std::size_t free = 0;
+  for (std::size_t s = 0; s < slots.slot_count(); ++s) {
+    if (slots.id_of(s) != render_slots::free_slot) continue;
+    ++free;
+    const float* p = slots.positions().data() + 9 * s;
+    for (std::size_t k = 3; k < 9; ++k) EXPECT_EQ(p[k], p[k % 3]) << "a free slot is not collapsed";
+  }
+  EXPECT_EQ(free, 1U);
+  EXPECT_EQ(slots.written().size(), 3U);  // two freed, one of them reused
+}
+
+TEST(RenderSlots, a_change_applied_twice_or_out_of_order_is_refused_and_changes_nothing) {
+  render_slots slots;
+  surface_change first;
+  first.rebuilt = true;
+  first.added = {10, 11, 11};  // triangle 11 clipped into two pieces
+  first.positions.assign(27, 1.0F);
+  slots.apply(first);
+  surface_change second;
+  second.gone = {11};
+  second.added = {12};
+  second.positions.assign(9, 2.0F);
+  slots.apply(second);
+  EXPECT_EQ(slots.triangle_count(), 2U);
+  const std::vector<float> before(slots.positions().begin(), slots.positions().end());
+  EXPECT_THROW(slots.apply(second), error);  // 11 is gone already
+  surface_change stale;
+  stale.gone = {10, 10};
+  EXPECT_THROW(slots.apply(stale), error);
+  surface_change again;
+  again.added = {12};
+  again.positions.assign(9, 3.0F);
+  EXPECT_THROW(slots.apply(again), error);
+  EXPECT_EQ(slots.triangle_count(), 2U);
+  EXPECT_TRUE(std::equal(before.begin(), before.end(), slots.positions().begin()));
+  surface_change bad;
+  bad.added = {13};
+  EXPECT_THROW(slots.apply(bad), error);  // no positions
+}
+
+}  // namespace
+}  // namespace progiso
