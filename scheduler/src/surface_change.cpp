@@ -24,32 +24,58 @@ constexpr std::uint64_t root_id_bit = std::uint64_t{1} << 63;
   return (r << 5) | k;
 }
 
-// One part's output: ids and physical positions (3 per piece).
+// One part's output: ids, float positions (9 per piece) and, for normals, the corners' physical
+// positions as doubles (3 per piece: add_vertex_normals reads them as mesh_into()'s do).
 struct change_part {
   std::vector<std::uint64_t> gone;
   std::vector<std::uint64_t> added;
+  std::vector<std::uint64_t> hidden;
+  std::vector<float> positions;
   std::vector<vec3> corners;
+};
+
+// The grid positions of recently seen surface vertices, by edge key, direct-mapped: a record's
+// triangles share corners, and records published together are grid neighbours, so most corners
+// are found here instead of being decoded and interpolated again.
+class corner_cache {
+ public:
+  corner_cache() { keys_.fill(~std::uint64_t{0}); }
+  template <class Make>
+  const vec3& get(std::uint64_t key, Make&& make) {
+    const auto i = static_cast<std::size_t>((key * 0x9E3779B97F4A7C15ULL) >> (64 - bits));
+    if (keys_[i] != key) {
+      keys_[i] = key;
+      values_[i] = make(key);
+    }
+    return values_[i];
+  }
+
+ private:
+  static constexpr int bits = 10;
+  std::array<std::uint64_t, std::size_t{1} << bits> keys_{};
+  std::array<vec3, std::size_t{1} << bits> values_{};
 };
 
 class change_maker {
  public:
   change_maker(const detail::engine_root& root, const hierarchy& hier, const volume& vol,
-               std::uint64_t w1, std::uint64_t w2)
-      : root_(root), hier_(hier), vol_(vol), w1_(w1), w2_(w2) {
+               std::uint64_t w1, std::uint64_t w2, bool doubles)
+      : root_(root), hier_(hier), vol_(vol), w1_(w1), w2_(w2), doubles_(doubles) {
     const ipoint& m = hier.data_max();
     box_ = vec3{static_cast<double>(m[0]), static_cast<double>(m[1]), static_cast<double>(m[2])};
   }
 
   // Records [lo, hi) of the window.
   void run(std::uint64_t lo, std::uint64_t hi, change_part& out) const {
+    corner_cache cache;
     for (std::uint64_t q = lo; q < hi; ++q) {
       if (q == 0) {
-        add_root(out);
+        add_root(out, cache);
         continue;
       }
       const detail::engine_record& rec = root_.records[q];
       if (w1_ > 0) remove_owned_by(rec.diamond, out);
-      add_record(q, rec, out);
+      add_record(q, rec, out, cache);
     }
   }
 
@@ -92,7 +118,8 @@ class change_maker {
     }
   }
 
-  void add_record(std::uint64_t q, const detail::engine_record& rec, change_part& out) const {
+  void add_record(std::uint64_t q, const detail::engine_record& rec, change_part& out,
+                  corner_cache& cache) const {
     std::uint64_t k = 0;
     std::uint64_t centre_key = 0;
     bool have_centre = false;
@@ -107,35 +134,38 @@ class change_maker {
         }
         for (std::size_t t = 0; t < c; ++t) {
           add_triangle(record_triangle_id(q, k + t), unpack_at(centre_key, rec.scale, group, t),
-                       out);
+                       out, cache);
         }
       }
       k += c;
     }
   }
 
-  void add_root(change_part& out) const {
+  void add_root(change_part& out, corner_cache& cache) const {
     const std::vector<owned_triangle>& tris = root_.root_triangles;
     for (std::size_t k = 0; k < tris.size(); ++k) {
-      if (!split_in_later(tris[k].owner)) add_triangle(root_id_bit | k, tris[k].keys, out);
+      if (!split_in_later(tris[k].owner)) add_triangle(root_id_bit | k, tris[k].keys, out, cache);
     }
   }
 
   // The triangle's piece, or its pieces inside the data box, as cut_mesher makes them: corners
   // by interpolate() on canonically ordered ends, crossings by clip_to_box().
-  void add_triangle(std::uint64_t id, const std::array<std::uint64_t, 3>& keys,
-                    change_part& out) const {
+  void add_triangle(std::uint64_t id, const std::array<std::uint64_t, 3>& keys, change_part& out,
+                    corner_cache& cache) const {
+    const auto make = [this](std::uint64_t key) {
+      const std::array<ipoint, 2> e = hier_.edge_ends(key);
+      return interpolate(e[0], vol_.value(e[0][0], e[0][1], e[0][2]), e[1],
+                         vol_.value(e[1][0], e[1][1], e[1][2]), root_.isovalue);
+    };
     std::array<vec3, 3> p{};
     bool inside = true;
     for (std::size_t v = 0; v < 3; ++v) {
-      const std::array<ipoint, 2> e = hier_.edge_ends(keys[v]);
-      p[v] = interpolate(e[0], vol_.value(e[0][0], e[0][1], e[0][2]), e[1],
-                         vol_.value(e[1][0], e[1][1], e[1][2]), root_.isovalue);
+      p[v] = cache.get(keys[v], make);
       inside = inside && p[v][0] <= box_[0] && p[v][1] <= box_[1] && p[v][2] <= box_[2];
     }
     if (inside) {
       out.added.push_back(id);
-      for (const vec3& x : p) out.corners.push_back(detail::physical_position(vol_, x));
+      for (const vec3& x : p) put(detail::physical_position(vol_, x), out);
       return;
     }
     std::array<vec3, 8> extra{};  // crossings: ids 3 …
@@ -147,10 +177,18 @@ class change_maker {
     const auto emit = [&](const std::array<std::uint32_t, 3>& t) {
       out.added.push_back(id);
       for (const std::uint32_t c : t) {
-        out.corners.push_back(detail::physical_position(vol_, c < 3 ? p[c] : extra[c - 3]));
+        put(detail::physical_position(vol_, c < 3 ? p[c] : extra[c - 3]), out);
       }
     };
+    const std::size_t before = out.added.size();
     (void)detail::clip_to_box(p, {0, 1, 2}, box_, crossing, emit);
+    if (out.added.size() == before) out.hidden.push_back(id);
+  }
+
+  // A corner: rounded to float as fill_render_buffers() rounds it.
+  void put(const vec3& x, change_part& out) const {
+    for (std::size_t k = 0; k < 3; ++k) out.positions.push_back(static_cast<float>(x[k]));
+    if (doubles_) out.corners.push_back(x);
   }
 
   const detail::engine_root& root_;
@@ -158,6 +196,7 @@ class change_maker {
   const volume& vol_;
   std::uint64_t w1_;
   std::uint64_t w2_;
+  bool doubles_;
   vec3 box_{};
 };
 
@@ -177,51 +216,63 @@ void surface_snapshot::change_since(const cut_mark& earlier, surface_change& out
                 earlier.records == 0 || earlier.records > w2;
   const std::uint64_t w1 = out.rebuilt ? 0 : earlier.records;
   const engine& e = *owner_;
-  const change_maker maker(*root_, e.hierarchy_of(), e.field(), w1, w2);
+  const bool with_normals = normals == vertex_normals::gradient;
+  const change_maker maker(*root_, e.hierarchy_of(), e.field(), w1, w2, with_normals);
 
   // Parts of about 2 K records, up to 8 per thread (as build()), joined in record order: the
-  // same change for every thread count.
+  // same change for every thread count. One part writes into `out`'s own storage.
   const std::uint64_t window = w2 - w1;
   const std::size_t threads = e.threads();
   const std::size_t parts =
       threads <= 1 ? 1 : std::clamp<std::size_t>(window / 2048, 1, 8 * threads);
   std::vector<change_part> pieces(parts);
+  const auto swap_out = [&](change_part& p) {
+    p.gone.swap(out.gone);
+    p.added.swap(out.added);
+    p.hidden.swap(out.hidden);
+    p.positions.swap(out.positions);
+  };
   const auto run_part = [&](std::size_t i) {
     maker.run(w1 + window * i / parts, w1 + window * (i + 1) / parts, pieces[i]);
   };
   if (parts == 1) {
+    swap_out(pieces[0]);
     run_part(0);
+    swap_out(pieces[0]);
   } else {
     tbb::task_arena arena(static_cast<int>(std::min(threads, parts)));
     arena.execute([&] { tbb::parallel_for(std::size_t{0}, parts, run_part); });
+    std::size_t gone = 0;
+    std::size_t added = 0;
+    std::size_t hidden = 0;
+    for (const change_part& p : pieces) {
+      gone += p.gone.size();
+      added += p.added.size();
+      hidden += p.hidden.size();
+    }
+    out.gone.reserve(gone);
+    out.added.reserve(added);
+    out.hidden.reserve(hidden);
+    out.positions.reserve(9 * added);
+    for (const change_part& p : pieces) {
+      out.gone.insert(out.gone.end(), p.gone.begin(), p.gone.end());
+      out.added.insert(out.added.end(), p.added.begin(), p.added.end());
+      out.hidden.insert(out.hidden.end(), p.hidden.begin(), p.hidden.end());
+      out.positions.insert(out.positions.end(), p.positions.begin(), p.positions.end());
+    }
   }
   // A root diamond in the window took triangles of the root surface with it.
   bool root_split = false;
-  if (w1 > 0) {
-    for (std::uint64_t q = w1; q < w2 && !root_split; ++q)
-      root_split = root_->records[q].depth == 0;
+  for (std::uint64_t q = std::max<std::uint64_t>(w1, 1); w1 > 0 && q < w2 && !root_split; ++q) {
+    root_split = root_->records[q].depth == 0;
   }
-  change_part from_root;
-  if (root_split) maker.remove_from_root(from_root);
-  std::size_t gone = from_root.gone.size();
-  std::size_t added = 0;
-  for (const change_part& p : pieces) {
-    gone += p.gone.size();
-    added += p.added.size();
+  if (root_split) {
+    change_part from_root;
+    maker.remove_from_root(from_root);
+    out.gone.insert(out.gone.end(), from_root.gone.begin(), from_root.gone.end());
   }
-  out.gone.insert(out.gone.end(), from_root.gone.begin(), from_root.gone.end());
-  out.gone.reserve(gone);
-  out.added.reserve(added);
-  out.positions.resize(9 * added);
-  std::size_t at = 0;
-  for (const change_part& p : pieces) {
-    out.gone.insert(out.gone.end(), p.gone.begin(), p.gone.end());
-    out.added.insert(out.added.end(), p.added.begin(), p.added.end());
-    for (const vec3& x : p.corners) {
-      for (std::size_t k = 0; k < 3; ++k) out.positions[at++] = static_cast<float>(x[k]);
-    }
-  }
-  if (normals == vertex_normals::gradient && added > 0) {
+  const std::size_t added = out.added.size();
+  if (with_normals && added > 0) {
     triangle_mesh m;
     m.vertices.reserve(3 * added);
     for (const change_part& p : pieces)

@@ -9,6 +9,7 @@
 #include <array>
 #include <cstring>
 #include <map>
+#include <set>
 #include <thread>
 #include <vector>
 
@@ -46,16 +47,23 @@ std::map<corners, int> triangles_of(const render_slots& s, bool normals) {
   return out;
 }
 
-// Follows e's refinement towards `goals` (one after another), a change per step; returns how
-// many added pieces shared their triangle's id with the piece before (clipped triangles).
-std::size_t expect_slots_follow(engine& e, const std::vector<refine_goal>& goals, bool normals) {
+// What a follow saw of clipping: added pieces that shared their triangle's id with the piece
+// before, and triangles that were hidden (wholly past the data box) and later gone.
+struct clip_counts {
+  std::size_t shared = 0;
+  std::size_t hidden_then_gone = 0;
+};
+
+// Follows e's refinement towards `goals` (one after another), a change per step.
+clip_counts expect_slots_follow(engine& e, const std::vector<refine_goal>& goals, bool normals) {
   const vertex_normals nv = normals ? vertex_normals::gradient : vertex_normals::none;
   render_slots slots;
   surface_change change;
   cut_mark mark;
   render_buffers whole;
   std::size_t nonempty_gone = 0;
-  std::size_t shared = 0;
+  clip_counts counts;
+  std::set<std::uint64_t> hidden;
   for (const refine_goal& goal : goals) {
     e.refine(goal);
     const surface_snapshot s = e.snapshot();
@@ -63,8 +71,10 @@ std::size_t expect_slots_follow(engine& e, const std::vector<refine_goal>& goals
     EXPECT_EQ(change.rebuilt, mark.records == 0);
     nonempty_gone += change.gone.empty() ? 0U : 1U;
     for (std::size_t j = 1; j < change.added.size(); ++j) {
-      shared += change.added[j] == change.added[j - 1] ? 1U : 0U;
+      counts.shared += change.added[j] == change.added[j - 1] ? 1U : 0U;
     }
+    for (const std::uint64_t id : change.gone) counts.hidden_then_gone += hidden.count(id);
+    hidden.insert(change.hidden.begin(), change.hidden.end());
     slots.apply(change);
     mark = s.mark();
     s.mesh_into(whole, nv);
@@ -75,7 +85,7 @@ std::size_t expect_slots_follow(engine& e, const std::vector<refine_goal>& goals
     }
   }
   EXPECT_GT(nonempty_gone, 0U) << "no step removed a triangle: the test shows nothing";
-  return shared;
+  return counts;
 }
 
 std::vector<refine_goal> budget_steps(std::uint64_t first, std::uint64_t last) {
@@ -98,15 +108,30 @@ TEST(SurfaceChange, applied_in_order_the_slots_hold_each_snapshots_cut_triangle_
   }
 }
 
-// 37 × 29 × 41 samples: the hierarchy is padded past the data box, so coarse triangles are
-// clipped into pieces that share an id.
-TEST(SurfaceChange, clipped_pieces_and_normals_follow_on_a_padded_hierarchy) {
-  engine e(make_gaussian_blobs({37, 29, 41}, 6, 7u), 0.4, with_threads(2));
-  const ipoint& m = e.hierarchy_of().data_max();
-  const ipoint& g = e.hierarchy_of().grid_max();
-  ASSERT_TRUE(m[0] < g[0] || m[1] < g[1] || m[2] < g[2]) << "the hierarchy is not padded";
-  EXPECT_GT(expect_slots_follow(e, budget_steps(16, 4096), true), 0U)
-      << "no triangle was clipped into pieces: the test shows nothing of clipping";
+// 37 × 29 × 41 and 32³ samples: the hierarchy is padded past the data box, so coarse triangles
+// are clipped into pieces that share an id, or hidden wholly (and later removed by id).
+TEST(SurfaceChange, clipped_pieces_hidden_triangles_and_normals_follow_on_padded_hierarchies) {
+  clip_counts seen;
+  // Blobs inside the box, and a sphere about a point near the box's far corner, which the box
+  // cuts (its surface reaches the padding).
+  struct input {
+    volume v;
+    double w;
+  };
+  std::vector<input> inputs;
+  inputs.push_back({make_gaussian_blobs({37, 29, 41}, 6, 7u), 0.4});
+  inputs.push_back({make_sphere_field({32, 32, 32}, {27.5, 26.5, 28.5}), 9.0});
+  for (const input& in : inputs) {
+    engine e(in.v, in.w, with_threads(2));
+    const ipoint& m = e.hierarchy_of().data_max();
+    const ipoint& g = e.hierarchy_of().grid_max();
+    ASSERT_TRUE(m[0] < g[0] || m[1] < g[1] || m[2] < g[2]) << "the hierarchy is not padded";
+    const clip_counts c = expect_slots_follow(e, budget_steps(16, 4096), true);
+    seen.shared += c.shared;
+    seen.hidden_then_gone += c.hidden_then_gone;
+  }
+  EXPECT_GT(seen.shared, 0U) << "no triangle was clipped into pieces: the test shows nothing";
+  EXPECT_GT(seen.hidden_then_gone, 0U) << "no hidden triangle was removed later";
 }
 
 TEST(SurfaceChange, an_unchanged_cut_gives_an_empty_change_and_an_isovalue_change_a_rebuild) {

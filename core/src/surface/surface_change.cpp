@@ -1,6 +1,7 @@
 #include <progiso/core/surface/surface_change.hpp>
 
 #include <algorithm>
+#include <bit>
 #include <string>
 
 #include <progiso/core/base/error.hpp>
@@ -9,14 +10,18 @@ namespace progiso {
 
 namespace {
 
-// Multiplicative hashing: ids of one record differ in their low bits, and records are dense.
+// Fibonacci hashing, the product's top bits: ids of one record differ in their low bits and
+// records are dense, and the top bits depend on all of them (middle bits made long runs).
 [[nodiscard]] std::size_t home_of(std::uint64_t id, std::size_t mask) noexcept {
-  return static_cast<std::size_t>((id * 0x9E3779B97F4A7C15ULL) >> 32) & mask;
+  const auto bits = static_cast<int>(std::bit_width(mask));
+  return static_cast<std::size_t>((id * 0x9E3779B97F4A7C15ULL) >> (64 - bits));
 }
 
 constexpr std::uint64_t empty_id = render_slots::free_slot;
 // A gone id found by apply()'s check, until its slots are freed.
 constexpr std::uint32_t marked = std::uint32_t{1} << 31;
+// The table's value for a hidden triangle (no slot); slots stay below it.
+constexpr std::uint32_t no_slot = marked - 1;
 
 }  // namespace
 
@@ -125,19 +130,23 @@ std::size_t render_slots::apply(const surface_change& change) {
     }
     ids_.values[at] |= marked;
   }
-  for (std::size_t j = 0; j < change.added.size(); ++j) {
-    if (j > 0 && change.added[j] == change.added[j - 1]) continue;
-    const std::size_t at = ids_.find(change.added[j]);
+  const auto check_new = [&](std::uint64_t id) {
+    const std::size_t at = ids_.find(id);
     if (at < ids_.keys.size() && (ids_.values[at] & marked) == 0) {
       unmark();
-      throw error("render_slots: the change adds triangle " + std::to_string(change.added[j]) +
+      throw error("render_slots: the change adds triangle " + std::to_string(id) +
                   ", which the pool already holds (a change applied twice, or to another "
                   "surface's pool)");
     }
+  };
+  for (std::size_t j = 0; j < change.added.size(); ++j) {
+    if (j == 0 || change.added[j] != change.added[j - 1]) check_new(change.added[j]);
   }
+  for (const std::uint64_t id : change.hidden) check_new(id);
   for (const std::uint64_t id : change.gone) {
     const std::size_t at = ids_.find(id);
-    for (std::uint32_t s = ids_.values[at] & ~marked; s != none;) {
+    const std::uint32_t first = ids_.values[at] & ~marked;
+    for (std::uint32_t s = first == no_slot ? none : first; s != none;) {
       const std::uint32_t next = next_[s];
       free_slot_at(s);
       s = next;
@@ -154,7 +163,7 @@ std::size_t render_slots::apply(const surface_change& change) {
       free_.pop_back();
     } else {
       s = static_cast<std::uint32_t>(owner_.size());
-      if (s >= marked) throw error("render_slots: more than 2^31 slots");
+      if (s >= no_slot) throw error("render_slots: more than 2^31 - 2 slots");
       owner_.push_back(free_slot);
       next_.push_back(none);
       positions_.resize(positions_.size() + 9);
@@ -176,6 +185,7 @@ std::size_t render_slots::apply(const surface_change& change) {
     previous = s;
     ++live_;
   }
+  for (const std::uint64_t id : change.hidden) ids_.insert(id, no_slot);
   return written_.size();
 }
 

@@ -11,7 +11,8 @@
 // it and its place among that record's triangles, so the same triangle has the same id in every
 // cut that holds it, and a change names what it removes by the ids it added earlier. Where the
 // hierarchy reaches past the data box a triangle is clipped to the box: into up to four pieces,
-// which share its id (consecutive entries of `added`), or none.
+// which share its id (consecutive entries of `added`), or none (its id is then in `hidden`, so
+// that a later change may name it in `gone` like any other).
 //
 // Slots. render_slots gives each live piece one slot of three vertices (slot s: vertices 3s,
 // 3s + 1, 3s + 2), so the index buffer is the identity and never changes; a removed piece's slot
@@ -38,6 +39,8 @@ struct surface_change {
   std::vector<std::uint64_t> gone;
   /// One id per added piece: pieces of one triangle are consecutive.
   std::vector<std::uint64_t> added;
+  /// Ids of the triangles added that lie wholly past the data box: no piece, no slot.
+  std::vector<std::uint64_t> hidden;
   /// 9 per added piece: three corners, x y z each, in the orientation of triangle_mesh.
   std::vector<float> positions;
   /// 9 per added piece when normals were asked for, else empty.
@@ -48,6 +51,7 @@ struct surface_change {
     rebuilt = false;
     gone.clear();
     added.clear();
+    hidden.clear();
     positions.clear();
     normals.clear();
   }
@@ -58,12 +62,12 @@ struct surface_change {
 class render_slots {
  public:
   /// Applies a change: frees the slots of `gone` (collapsing them), then writes each added
-  /// piece into a free slot (the most recently freed first, so the pool stays as small as the
-  /// largest surface it held), or into a new slot at the end. A rebuilt change first empties
-  /// the pool (slot_count() starts again from 0). Returns the number of slots written. Throws
-  /// progiso::error when `gone` names a triangle the pool does not hold or `added` one it already
-  /// holds (a change applied out of order, or to another surface's pool); the pool is then
-  /// unchanged.
+  /// piece into a free slot (and remembers the ids of `hidden`, which take none) (the most recently
+  /// freed first, so the pool stays as small as the largest surface it held), or into a new slot at
+  /// the end. A rebuilt change first empties the pool (slot_count() starts again from 0). Returns
+  /// the number of slots written. Throws progiso::error when `gone` names a triangle the pool does
+  /// not hold or `added` one it already holds (a change applied out of order, or to another
+  /// surface's pool); the pool is then unchanged.
   std::size_t apply(const surface_change& change);
   /// Empties the pool: no slot, no id (storage is kept).
   void clear() noexcept;
@@ -86,7 +90,8 @@ class render_slots {
  private:
   static constexpr std::uint32_t none = ~std::uint32_t{0};
   // Open addressing by linear probing, with backward-shift deletion (no tombstones, so a pool
-  // that has seen millions of removals probes as short runs as a fresh one): id → first slot.
+  // that has seen millions of removals probes as short runs as a fresh one): id → first slot,
+  // or none for a hidden triangle.
   struct id_table {
     std::vector<std::uint64_t> keys;
     std::vector<std::uint32_t> values;
