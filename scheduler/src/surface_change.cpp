@@ -18,8 +18,8 @@ namespace progiso {
 namespace {
 
 // Ids (surface_change.hpp): a split record's triangle k (k < 32: at most 16 groups of at most 2
-// triangles) is record << 5 | k; the root surface's triangle k has the top bit set.
-constexpr std::uint64_t root_id_bit = std::uint64_t{1} << 63;
+// triangles) is record << 5 | k; the root surface's triangle k has root_triangle_bit set.
+constexpr std::uint64_t root_id_bit = root_triangle_bit;
 [[nodiscard]] constexpr std::uint64_t record_triangle_id(std::uint64_t r, std::uint64_t k) {
   return (r << 5) | k;
 }

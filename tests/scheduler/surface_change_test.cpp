@@ -204,7 +204,7 @@ TEST(RenderSlots, freed_slots_collapse_and_are_reused_before_the_pool_grows) {
   EXPECT_EQ(slots.apply(c), 4U);
   c.clear();
   c.gone = {1, 2};
-  c.added = {7};
+  c.added = {32};  // record 1's triangle 0
   c.positions.assign(9, 5.0F);
   slots.apply(c);
   EXPECT_EQ(slots.slot_count(), 4U);
@@ -229,7 +229,7 @@ TEST(RenderSlots, a_change_applied_twice_or_out_of_order_is_refused_and_changes_
   slots.apply(first);
   surface_change second;
   second.gone = {11};
-  second.added = {12};
+  second.added = {32};  // record 1's triangle 0
   second.positions.assign(9, 2.0F);
   slots.apply(second);
   EXPECT_EQ(slots.triangle_count(), 2U);
@@ -239,13 +239,19 @@ TEST(RenderSlots, a_change_applied_twice_or_out_of_order_is_refused_and_changes_
   stale.gone = {10, 10};
   EXPECT_THROW(slots.apply(stale), error);
   surface_change again;
-  again.added = {12};
+  again.added = {33};  // record 1 again
   again.positions.assign(9, 3.0F);
   EXPECT_THROW(slots.apply(again), error);
   EXPECT_EQ(slots.triangle_count(), 2U);
   EXPECT_TRUE(std::equal(before.begin(), before.end(), slots.positions().begin()));
+  surface_change unordered;
+  unordered.added = {100, 70};
+  unordered.positions.assign(18, 4.0F);
+  EXPECT_THROW(slots.apply(unordered), error);
+  EXPECT_EQ(slots.triangle_count(), 2U);
+  EXPECT_TRUE(std::equal(before.begin(), before.end(), slots.positions().begin()));
   surface_change bad;
-  bad.added = {13};
+  bad.added = {130};
   EXPECT_THROW(slots.apply(bad), error);  // no positions
 }
 

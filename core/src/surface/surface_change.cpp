@@ -1,7 +1,6 @@
 #include <progiso/core/surface/surface_change.hpp>
 
 #include <algorithm>
-#include <bit>
 #include <string>
 
 #include <progiso/core/base/error.hpp>
@@ -10,76 +9,26 @@ namespace progiso {
 
 namespace {
 
-// Fibonacci hashing, the product's top bits: ids of one record differ in their low bits and
-// records are dense, and the top bits depend on all of them (middle bits made long runs).
-[[nodiscard]] std::size_t home_of(std::uint64_t id, std::size_t mask) noexcept {
-  const auto bits = static_cast<int>(std::bit_width(mask));
-  return static_cast<std::size_t>((id * 0x9E3779B97F4A7C15ULL) >> (64 - bits));
-}
-
-constexpr std::uint64_t empty_id = render_slots::free_slot;
-// A gone id found by apply()'s check, until its slots are freed.
+// Entries (render_slots::entries_): 0, hidden_entry, or first slot + 1; `marked` flags one named
+// by the change being checked.
 constexpr std::uint32_t marked = std::uint32_t{1} << 31;
-// The table's value for a hidden triangle (no slot); slots stay below it.
-constexpr std::uint32_t no_slot = marked - 1;
+constexpr std::uint32_t hidden_entry = marked - 1;
+constexpr std::uint64_t max_k = 31;
+
+[[nodiscard]] bool is_root(std::uint64_t id) noexcept { return (id & root_triangle_bit) != 0; }
+[[nodiscard]] std::uint64_t record_of(std::uint64_t id) noexcept { return id >> 5; }
+[[nodiscard]] std::uint64_t k_of(std::uint64_t id) noexcept {
+  return is_root(id) ? id & ~root_triangle_bit : id & max_k;
+}
 
 }  // namespace
 
-std::size_t render_slots::id_table::find(std::uint64_t id) const noexcept {
-  if (keys.empty()) return 0;
-  const std::size_t mask = keys.size() - 1;
-  for (std::size_t i = home_of(id, mask);; i = (i + 1) & mask) {
-    if (keys[i] == id) return i;
-    if (keys[i] == empty_id) return keys.size();
-  }
-}
-
-void render_slots::id_table::grow() {
-  std::vector<std::uint64_t> old_keys(std::max<std::size_t>(64, 2 * keys.size()), empty_id);
-  std::vector<std::uint32_t> old_values(old_keys.size());
-  old_keys.swap(keys);
-  old_values.swap(values);
-  const std::size_t mask = keys.size() - 1;
-  for (std::size_t j = 0; j < old_keys.size(); ++j) {
-    if (old_keys[j] == empty_id) continue;
-    std::size_t i = home_of(old_keys[j], mask);
-    while (keys[i] != empty_id) i = (i + 1) & mask;
-    keys[i] = old_keys[j];
-    values[i] = old_values[j];
-  }
-}
-
-void render_slots::id_table::insert(std::uint64_t id, std::uint32_t slot) {
-  if (2 * (size + 1) > keys.size()) grow();  // load at most one half
-  const std::size_t mask = keys.size() - 1;
-  std::size_t i = home_of(id, mask);
-  while (keys[i] != empty_id) i = (i + 1) & mask;
-  keys[i] = id;
-  values[i] = slot;
-  ++size;
-}
-
-// Backward shift: the entries after the hole that may sit at or before it move up, so every
-// probe run stays unbroken without tombstones.
-void render_slots::id_table::erase_at(std::size_t place) noexcept {
-  const std::size_t mask = keys.size() - 1;
-  std::size_t hole = place;
-  for (std::size_t i = (hole + 1) & mask; keys[i] != empty_id; i = (i + 1) & mask) {
-    const std::size_t home = home_of(keys[i], mask);
-    // Entry i may fill the hole when its home is not in the cyclic interval (hole, i].
-    const bool stays = hole <= i ? (home > hole && home <= i) : (home > hole || home <= i);
-    if (stays) continue;
-    keys[hole] = keys[i];
-    values[hole] = values[i];
-    hole = i;
-  }
-  keys[hole] = empty_id;
-  --size;
-}
-
-void render_slots::id_table::clear() noexcept {
-  std::fill(keys.begin(), keys.end(), empty_id);
-  size = 0;
+std::uint32_t* render_slots::entry(std::uint64_t id) noexcept {
+  const std::uint64_t k = k_of(id);
+  if (is_root(id)) return k < root_.size() ? &root_[k] : nullptr;
+  const std::uint64_t r = record_of(id);
+  if (r >= base_.size() || base_[r] == none || k >= span_[r]) return nullptr;
+  return &entries_[base_[r] + k];
 }
 
 void render_slots::free_slot_at(std::uint32_t s) noexcept {
@@ -98,7 +47,10 @@ void render_slots::clear() noexcept {
   owner_.clear();
   next_.clear();
   free_.clear();
-  ids_.clear();
+  base_.clear();
+  span_.clear();
+  entries_.clear();
+  root_.clear();
   live_ = 0;
 }
 
@@ -112,47 +64,92 @@ std::size_t render_slots::apply(const surface_change& change) {
   }
   written_.clear();
   if (change.rebuilt) clear();
-  // Check before changing anything: every gone id held once, every added id new.
+
+  // 1. Check before changing anything. Gone: every id held, once (marked while checking).
   std::size_t checked = 0;
   const auto unmark = [&] {
-    for (std::size_t j = 0; j < checked; ++j) {
-      ids_.values[ids_.find(change.gone[j])] &= ~marked;
-    }
+    for (std::size_t j = 0; j < checked; ++j) *entry(change.gone[j]) &= ~marked;
+  };
+  const auto refuse = [&](const std::string& what) {
+    unmark();
+    throw error("render_slots: the change " + what +
+                " (a change applied twice, out of order, or to another surface's pool)");
   };
   for (; checked < change.gone.size(); ++checked) {
-    const std::size_t at = ids_.find(change.gone[checked]);
-    if (at >= ids_.keys.size() || (ids_.values[at] & marked) != 0) {
-      unmark();
-      throw error("render_slots: the change removes triangle " +
-                  std::to_string(change.gone[checked]) +
-                  ", which the pool does not hold (a change applied out of order, twice, or "
-                  "to another surface's pool)");
+    std::uint32_t* e = entry(change.gone[checked]);
+    if (e == nullptr || *e == 0 || (*e & marked) != 0) {
+      refuse("removes triangle " + std::to_string(change.gone[checked]) +
+             ", which the pool does not hold");
     }
-    ids_.values[at] |= marked;
+    *e |= marked;
   }
-  const auto check_new = [&](std::uint64_t id) {
-    const std::size_t at = ids_.find(id);
-    if (at < ids_.keys.size() && (ids_.values[at] & marked) == 0) {
-      unmark();
-      throw error("render_slots: the change adds triangle " + std::to_string(id) +
-                  ", which the pool already holds (a change applied twice, or to another "
-                  "surface's pool)");
+  // Added and hidden: new ids, record triangles by increasing id (merged, one run per record).
+  runs_.clear();
+  std::uint64_t last = 0;
+  bool any = false;
+  const auto take = [&](std::uint64_t id) {
+    if (is_root(id)) {
+      const std::uint32_t* e = entry(id);
+      if (e != nullptr && *e != 0 && (*e & marked) == 0) {
+        refuse("adds root triangle " + std::to_string(k_of(id)) + ", which the pool holds");
+      }
+      return;
     }
+    if (any && id < last) {
+      refuse("lists record triangles out of order (" + std::to_string(id) + " after " +
+             std::to_string(last) + ")");
+    }
+    const std::uint64_t r = record_of(id);
+    if (runs_.empty() || runs_.back().record != r) {
+      if (r < base_.size() && base_[r] != none) {
+        refuse("adds triangles of record " + std::to_string(r) + ", which the pool holds");
+      }
+      runs_.push_back({r, 0});
+    }
+    runs_.back().size = static_cast<std::uint32_t>(k_of(id) + 1);
+    last = id;
+    any = true;
   };
-  for (std::size_t j = 0; j < change.added.size(); ++j) {
-    if (j == 0 || change.added[j] != change.added[j - 1]) check_new(change.added[j]);
+  {
+    std::size_t a = 0;
+    std::size_t h = 0;
+    // Root ids come first in `added`; record ids of both lists merged by id.
+    while (a < change.added.size() && is_root(change.added[a])) take(change.added[a++]);
+    while (h < change.hidden.size() && is_root(change.hidden[h])) take(change.hidden[h++]);
+    while (a < change.added.size() || h < change.hidden.size()) {
+      const bool from_added = h == change.hidden.size() ||
+                              (a < change.added.size() && change.added[a] <= change.hidden[h]);
+      take(from_added ? change.added[a++] : change.hidden[h++]);
+    }
   }
-  for (const std::uint64_t id : change.hidden) check_new(id);
+
+  // 2. Free what is gone.
   for (const std::uint64_t id : change.gone) {
-    const std::size_t at = ids_.find(id);
-    const std::uint32_t first = ids_.values[at] & ~marked;
-    for (std::uint32_t s = first == no_slot ? none : first; s != none;) {
+    std::uint32_t* e = entry(id);
+    const std::uint32_t v = *e & ~marked;
+    *e = 0;
+    if (v == hidden_entry) continue;
+    for (std::uint32_t s = v - 1; s != none;) {
       const std::uint32_t next = next_[s];
       free_slot_at(s);
       s = next;
     }
-    ids_.erase_at(at);
   }
+  // 3. Blocks for the new records, then the pieces and the hidden ids.
+  for (const run& u : runs_) {
+    if (u.record >= base_.size()) {
+      base_.resize(u.record + 1, none);
+      span_.resize(u.record + 1, 0);
+    }
+    base_[u.record] = static_cast<std::uint32_t>(entries_.size());
+    span_[u.record] = static_cast<std::uint8_t>(u.size);
+    entries_.resize(entries_.size() + u.size, 0);
+  }
+  const auto root_entry = [&](std::uint64_t id) {
+    const std::uint64_t k = k_of(id);
+    if (k >= root_.size()) root_.resize(k + 1, 0);
+    return &root_[k];
+  };
   const bool with_normals = !change.normals.empty();
   if (with_normals && normals_.size() != positions_.size()) normals_.resize(positions_.size());
   std::uint32_t previous = none;
@@ -163,11 +160,11 @@ std::size_t render_slots::apply(const surface_change& change) {
       free_.pop_back();
     } else {
       s = static_cast<std::uint32_t>(owner_.size());
-      if (s >= no_slot) throw error("render_slots: more than 2^31 - 2 slots");
+      if (s + 1 >= hidden_entry) throw error("render_slots: more than 2^31 - 2 slots");
       owner_.push_back(free_slot);
       next_.push_back(none);
       positions_.resize(positions_.size() + 9);
-      if (with_normals || !normals_.empty()) normals_.resize(positions_.size());
+      if (!normals_.empty() || with_normals) normals_.resize(positions_.size());
     }
     const std::uint64_t id = change.added[j];
     owner_[s] = id;
@@ -175,7 +172,7 @@ std::size_t render_slots::apply(const surface_change& change) {
     if (j > 0 && change.added[j - 1] == id) {
       next_[previous] = s;
     } else {
-      ids_.insert(id, s);
+      *(is_root(id) ? root_entry(id) : entry(id)) = s + 1;
     }
     std::copy_n(change.positions.data() + 9 * j, 9, positions_.data() + 9 * std::size_t{s});
     if (with_normals) {
@@ -185,7 +182,9 @@ std::size_t render_slots::apply(const surface_change& change) {
     previous = s;
     ++live_;
   }
-  for (const std::uint64_t id : change.hidden) ids_.insert(id, no_slot);
+  for (const std::uint64_t id : change.hidden) {
+    *(is_root(id) ? root_entry(id) : entry(id)) = hidden_entry;
+  }
   return written_.size();
 }
 

@@ -8,11 +8,14 @@
 // storage that stays put between frames, so that an update writes only the slots it touches.
 //
 // Triangle ids. A triangle of a cut is named by where it was made: the record (split) that made
-// it and its place among that record's triangles, so the same triangle has the same id in every
-// cut that holds it, and a change names what it removes by the ids it added earlier. Where the
-// hierarchy reaches past the data box a triangle is clipped to the box: into up to four pieces,
-// which share its id (consecutive entries of `added`), or none (its id is then in `hidden`, so
-// that a later change may name it in `gone` like any other).
+// it and its place k among that record's triangles, `record << 5 | k` (k < 32), or for the root
+// surface's triangle k, `root_triangle_bit | k`. The same triangle has the same id in every cut
+// that holds it, and a change names what it removes by the ids it added earlier. Every triangle
+// of a record is added by the one change whose window holds the record, so a change lists its
+// added record triangles by increasing id. Where the hierarchy reaches past the data box a
+// triangle is clipped to the box: into up to four pieces, which share its id (consecutive entries
+// of `added`), or none (its id is then in `hidden`, so that a later change may name it in `gone`
+// like any other).
 //
 // Slots. render_slots gives each live piece one slot of three vertices (slot s: vertices 3s,
 // 3s + 1, 3s + 2), so the index buffer is the identity and never changes; a removed piece's slot
@@ -28,6 +31,9 @@
 #include <vector>
 
 namespace progiso {
+
+/// The top bit of a root surface triangle's id (see the file comment).
+inline constexpr std::uint64_t root_triangle_bit = std::uint64_t{1} << 63;
 
 /// The triangles that differ between an earlier cut and a later one of the same surface.
 struct surface_change {
@@ -62,12 +68,13 @@ struct surface_change {
 class render_slots {
  public:
   /// Applies a change: frees the slots of `gone` (collapsing them), then writes each added
-  /// piece into a free slot (and remembers the ids of `hidden`, which take none) (the most recently
-  /// freed first, so the pool stays as small as the largest surface it held), or into a new slot at
-  /// the end. A rebuilt change first empties the pool (slot_count() starts again from 0). Returns
-  /// the number of slots written. Throws progiso::error when `gone` names a triangle the pool does
-  /// not hold or `added` one it already holds (a change applied out of order, or to another
-  /// surface's pool); the pool is then unchanged.
+  /// piece into a free slot, the most recently freed first (so the pool stays as small as the
+  /// largest surface it held), or into a new slot at the end, and remembers the ids of `hidden`,
+  /// which take none. A rebuilt change first empties the pool (slot_count() starts again from
+  /// 0). Returns the number of slots written. Throws progiso::error, leaving the pool unchanged,
+  /// when `gone` names a triangle the pool does not hold or `added` or `hidden` one it already
+  /// holds (a change applied twice, out of order, or to another surface's pool), or when the
+  /// change is malformed (record ids not increasing, positions or normals not 9 per piece).
   std::size_t apply(const surface_change& change);
   /// Empties the pool: no slot, no id (storage is kept).
   void clear() noexcept;
@@ -89,19 +96,21 @@ class render_slots {
 
  private:
   static constexpr std::uint32_t none = ~std::uint32_t{0};
-  // Open addressing by linear probing, with backward-shift deletion (no tombstones, so a pool
-  // that has seen millions of removals probes as short runs as a fresh one): id → first slot,
-  // or none for a hidden triangle.
-  struct id_table {
-    std::vector<std::uint64_t> keys;
-    std::vector<std::uint32_t> values;
-    std::size_t size = 0;
-    [[nodiscard]] std::size_t find(std::uint64_t id) const noexcept;  // place, or keys.size()
-    void insert(std::uint64_t id, std::uint32_t slot);
-    void erase_at(std::size_t place) noexcept;
-    void clear() noexcept;
-    void grow();
+  // Where each id's pieces are, by record rather than by hash: the triangles of a record are
+  // added together, so record r gets a block of entries (one per k up to its largest) when its
+  // triangles arrive, written in sequence, and a lookup is two array reads. A hash table of ids
+  // cost a cache miss per insertion. An entry is 0 (no piece held), hidden_entry, or first slot
+  // + 1; the top bit marks an entry named by the change being checked.
+  std::uint32_t* entry(std::uint64_t id) noexcept;  // null when the id was never added
+  std::vector<std::uint32_t> base_;                 // per record: its block's first entry, or none
+  std::vector<std::uint8_t> span_;                  // per record: its block's size
+  std::vector<std::uint32_t> entries_;              // the blocks
+  std::vector<std::uint32_t> root_;                 // the root surface's triangles, by k
+  struct run {  // one record's triangles in the change being applied
+    std::uint64_t record;
+    std::uint32_t size;
   };
+  std::vector<run> runs_;
   void free_slot_at(std::uint32_t s) noexcept;
 
   std::vector<float> positions_;
@@ -110,7 +119,6 @@ class render_slots {
   std::vector<std::uint32_t> next_;   // per slot: the next piece of the same id, or none
   std::vector<std::uint32_t> free_;   // free slots, most recently freed last
   std::vector<std::uint32_t> written_;
-  id_table ids_;
   std::size_t live_ = 0;
 };
 
