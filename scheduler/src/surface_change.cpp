@@ -67,6 +67,15 @@ class change_maker {
 
   // Records [lo, hi) of the window.
   void run(std::uint64_t lo, std::uint64_t hi, change_part& out) const {
+    // Room for every triangle of the records (an upper bound: pages never written are never
+    // mapped), so that the part's arrays never move while they grow.
+    std::uint64_t most = lo == 0 ? root_.root_triangles.size() : 0;
+    for (std::uint64_t q = std::max<std::uint64_t>(lo, 1); q < hi; ++q) {
+      most += 2 * std::uint64_t{root_.records[q].count};
+    }
+    out.added.reserve(out.added.size() + most);
+    out.positions.reserve(out.positions.size() + 9 * most);
+    if (doubles_) out.corners.reserve(out.corners.size() + 3 * most);
     corner_cache cache;
     for (std::uint64_t q = lo; q < hi; ++q) {
       if (q == 0) {

@@ -152,6 +152,18 @@ std::size_t render_slots::apply(const surface_change& change) {
   };
   const bool with_normals = !change.normals.empty();
   if (with_normals && normals_.size() != positions_.size()) normals_.resize(positions_.size());
+  // The slots this change adds beyond the free ones, reserved at once (geometrically, so that
+  // a run of changes moves the arrays O(log n) times, not once per change).
+  if (change.added.size() > free_.size()) {
+    const std::size_t slots = owner_.size() + change.added.size() - free_.size();
+    const auto grow = [](auto& v, std::size_t n) {
+      if (n > v.capacity()) v.reserve(std::max(n, 2 * v.capacity()));
+    };
+    grow(owner_, slots);
+    grow(next_, slots);
+    grow(positions_, 9 * slots);
+    if (with_normals || !normals_.empty()) grow(normals_, 9 * slots);
+  }
   std::uint32_t previous = none;
   for (std::size_t j = 0; j < change.added.size(); ++j) {
     std::uint32_t s = 0;
