@@ -30,6 +30,8 @@
 #include <span>
 #include <vector>
 
+#include <progiso/core/base/error.hpp>
+
 namespace progiso {
 
 /// The top bit of a root surface triangle's id (see the file comment).
