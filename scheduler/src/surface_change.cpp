@@ -39,7 +39,6 @@ struct change_part {
 // are found here instead of being decoded and interpolated again.
 class corner_cache {
  public:
-  corner_cache() { keys_.fill(~std::uint64_t{0}); }
   template <class Make>
   const vec3& get(std::uint64_t key, Make&& make) {
     const auto i = static_cast<std::size_t>((key * 0x9E3779B97F4A7C15ULL) >> (64 - bits));
@@ -51,9 +50,12 @@ class corner_cache {
   }
 
  private:
-  static constexpr int bits = 10;
-  std::array<std::uint64_t, std::size_t{1} << bits> keys_{};
-  std::array<vec3, std::size_t{1} << bits> values_{};
+  // 4 K corners (128 KB, on the heap: a part may run on a worker's stack): larger tables found
+  // no more corners (bench/README.md).
+  static constexpr int bits = 12;
+  std::vector<std::uint64_t> keys_ =
+      std::vector<std::uint64_t>(std::size_t{1} << bits, ~std::uint64_t{0});
+  std::vector<vec3> values_ = std::vector<vec3>(std::size_t{1} << bits);
 };
 
 class change_maker {
