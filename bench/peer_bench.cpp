@@ -485,55 +485,24 @@ std::vector<unsigned> thread_counts(unsigned cores) {
 
 void register_all() {
   const unsigned cores = std::max(1u, static_cast<unsigned>(scheduler::default_concurrency()));
-  for (std::size_t i = 0; i < volumes().size(); ++i) {
-    for (const unsigned t : thread_counts(cores)) {
-      benchmark::RegisterBenchmark(("BM_peer_volume/" + volumes()[i].name).c_str(), BM_peer_volume)
-          ->Args({static_cast<std::int64_t>(i), static_cast<std::int64_t>(t)})
-          ->Iterations(volumes()[i].pairs)
-          ->UseManualTime()
-          ->Unit(benchmark::kMillisecond);
+  // A paired benchmark on every volume at every thread count from `lowest` on.
+  const auto per_volume = [&](const char* name, void (*fn)(benchmark::State&), unsigned lowest) {
+    for (std::size_t i = 0; i < volumes().size(); ++i) {
+      for (const unsigned t : thread_counts(cores)) {
+        if (t < lowest) continue;
+        benchmark::RegisterBenchmark((std::string(name) + "/" + volumes()[i].name).c_str(), fn)
+            ->Args({static_cast<std::int64_t>(i), static_cast<std::int64_t>(t)})
+            ->Iterations(volumes()[i].pairs)
+            ->UseManualTime()
+            ->Unit(benchmark::kMillisecond);
+      }
     }
-  }
-  for (std::size_t i = 0; i < volumes().size(); ++i) {
-    for (const unsigned t : thread_counts(cores)) {
-      benchmark::RegisterBenchmark(("BM_peer_refined/" + volumes()[i].name).c_str(),
-                                   BM_peer_refined)
-          ->Args({static_cast<std::int64_t>(i), static_cast<std::int64_t>(t)})
-          ->Iterations(volumes()[i].pairs)
-          ->UseManualTime()
-          ->Unit(benchmark::kMillisecond);
-    }
-  }
-  for (std::size_t i = 0; i < volumes().size(); ++i) {
-    for (const unsigned t : thread_counts(cores)) {
-      benchmark::RegisterBenchmark(("BM_peer_normals/" + volumes()[i].name).c_str(),
-                                   BM_peer_normals)
-          ->Args({static_cast<std::int64_t>(i), static_cast<std::int64_t>(t)})
-          ->Iterations(volumes()[i].pairs)
-          ->UseManualTime()
-          ->Unit(benchmark::kMillisecond);
-    }
-  }
-  for (std::size_t i = 0; i < volumes().size(); ++i) {
-    for (const unsigned t : thread_counts(cores)) {
-      if (t == 1) continue;
-      benchmark::RegisterBenchmark(("BM_peer_scaling/" + volumes()[i].name).c_str(),
-                                   BM_peer_scaling)
-          ->Args({static_cast<std::int64_t>(i), static_cast<std::int64_t>(t)})
-          ->Iterations(volumes()[i].pairs)
-          ->UseManualTime()
-          ->Unit(benchmark::kMillisecond);
-    }
-  }
-  for (std::size_t i = 0; i < volumes().size(); ++i) {
-    for (const unsigned t : thread_counts(cores)) {
-      benchmark::RegisterBenchmark(("BM_follow/" + volumes()[i].name).c_str(), BM_follow)
-          ->Args({static_cast<std::int64_t>(i), static_cast<std::int64_t>(t)})
-          ->Iterations(volumes()[i].pairs)
-          ->UseManualTime()
-          ->Unit(benchmark::kMillisecond);
-    }
-  }
+  };
+  per_volume("BM_peer_volume", BM_peer_volume, 1);
+  per_volume("BM_peer_refined", BM_peer_refined, 1);
+  per_volume("BM_peer_normals", BM_peer_normals, 1);
+  per_volume("BM_peer_scaling", BM_peer_scaling, 2);
+  per_volume("BM_follow", BM_follow, 1);
   for (std::size_t i = 0; i < volumes().size(); ++i) {
     for (std::int64_t t = 1; t <= 2; ++t) {
       benchmark::RegisterBenchmark(("BM_deadline_quality/" + volumes()[i].name).c_str(),
