@@ -163,6 +163,30 @@ TEST(SurfaceChange, an_unchanged_cut_gives_an_empty_change_and_an_isovalue_chang
   EXPECT_EQ(slots.slot_count(), whole.triangle_count()) << "a rebuild starts the pool afresh";
 }
 
+TEST(SurfaceChange, a_mark_of_another_engine_gives_a_rebuild_of_the_whole_cut) {
+  engine a(make_marschner_lobb({33, 33, 33}), 0.5, with_threads(1));
+  engine b(make_marschner_lobb({33, 33, 33}), 0.5, with_threads(1));
+  // b's cut has more records than the mark: only the owner tells the mark is not b's.
+  a.refine(refine_goal::triangles(1000));
+  b.refine(refine_goal::triangles(3000));
+  cut_mark of_a;
+  {
+    const surface_snapshot s = a.snapshot();
+    of_a = s.mark();
+  }
+  const surface_snapshot s = b.snapshot();
+  ASSERT_EQ(of_a.generation, s.mark().generation);  // same generation: only the owner differs
+  ASSERT_LT(of_a.records, s.mark().records);
+  surface_change change;
+  s.change_since(of_a, change);
+  EXPECT_TRUE(change.rebuilt);
+  render_slots slots;
+  slots.apply(change);
+  render_buffers whole;
+  s.mesh_into(whole);
+  EXPECT_EQ(triangles_of(slots, false), triangles_of(whole, false));
+}
+
 // The render side on its own thread, taking its own snapshots while a full run publishes.
 TEST(SurfaceChange, a_render_thread_follows_a_background_run_to_the_finest_cut) {
   engine e(make_marschner_lobb({49, 49, 49}), 0.5, with_threads(2));
