@@ -45,6 +45,15 @@
 
 namespace progiso::detail {
 
+// Parts for a reader's pass over `records` records on `threads` threads: one per 2 K records, up
+// to 8 per thread, because records gather where the surface is and parts of equal record ranges
+// differ in work, so many small parts balance the threads (bench/README.md); one on one thread.
+[[nodiscard]] inline std::size_t reader_parts(std::uint64_t records, std::size_t threads) noexcept {
+  return threads <= 1
+             ? 1
+             : std::clamp<std::size_t>(static_cast<std::size_t>(records / 2048), 1, 8 * threads);
+}
+
 // Core's pieces of work (range slabs, mesh parts) as oneTBB tasks in the calling arena.
 inline void tbb_loop(std::size_t n, const std::function<void(std::size_t)>& body) {
   tbb::parallel_for(std::size_t{0}, n, [&body](std::size_t i) { body(i); });

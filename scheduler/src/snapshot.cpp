@@ -88,10 +88,7 @@ template <class Keep>
 triangle_mesh surface_snapshot::build(Keep&& keep) const {
   const engine& e = *owner_;
   const std::size_t threads = e.threads();
-  const std::size_t parts =
-      threads <= 1
-          ? 1
-          : std::clamp<std::size_t>(static_cast<std::size_t>(published_ / 2048), 1, 8 * threads);
+  const std::size_t parts = detail::reader_parts(published_, threads);
   const snapshot_cut<std::remove_cvref_t<Keep>> cut{*root_, published_, keep};
   detail::cut_mesher mesher(cut, e.hierarchy_of(), e.field(), root_->isovalue);
   if (parts == 1) return mesher.build({}, 1);

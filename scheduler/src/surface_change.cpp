@@ -32,6 +32,7 @@ struct change_part {
   std::vector<std::uint64_t> hidden;
   std::vector<float> positions;
   std::vector<vec3> corners;
+  bool root_split = false;  // a root diamond's record is in the part (after an earlier cut)
 };
 
 // The grid positions of recently seen surface vertices, by edge key, direct-mapped: a record's
@@ -85,7 +86,10 @@ class change_maker {
         continue;
       }
       const detail::engine_record& rec = root_.records[q];
-      if (w1_ > 0) remove_owned_by(rec.diamond, out);
+      if (w1_ > 0) {
+        remove_owned_by(rec.diamond, out);
+        out.root_split = out.root_split || rec.depth == 0;
+      }
       add_record(q, rec, out, cache);
     }
   }
@@ -230,12 +234,11 @@ void surface_snapshot::change_since(const cut_mark& earlier, surface_change& out
   const bool with_normals = normals == vertex_normals::gradient;
   const change_maker maker(*root_, e.hierarchy_of(), e.field(), w1, w2, with_normals);
 
-  // Parts of about 2 K records, up to 8 per thread (as build()), joined in record order: the
-  // same change for every thread count. One part writes into `out`'s own storage.
+  // Parts as a mesh's (reader_parts), joined in record order: the same change for every thread
+  // count. One part writes into `out`'s own storage.
   const std::uint64_t window = w2 - w1;
   const std::size_t threads = e.threads();
-  const std::size_t parts =
-      threads <= 1 ? 1 : std::clamp<std::size_t>(window / 2048, 1, 8 * threads);
+  const std::size_t parts = detail::reader_parts(window, threads);
   std::vector<change_part> pieces(parts);
   const auto swap_out = [&](change_part& p) {
     p.gone.swap(out.gone);
@@ -274,9 +277,7 @@ void surface_snapshot::change_since(const cut_mark& earlier, surface_change& out
   }
   // A root diamond in the window took triangles of the root surface with it.
   bool root_split = false;
-  for (std::uint64_t q = std::max<std::uint64_t>(w1, 1); w1 > 0 && q < w2 && !root_split; ++q) {
-    root_split = root_->records[q].depth == 0;
-  }
+  for (const change_part& p : pieces) root_split = root_split || p.root_split;
   if (root_split) {
     change_part from_root;
     maker.remove_from_root(from_root);
