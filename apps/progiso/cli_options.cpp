@@ -6,6 +6,7 @@
 #include <system_error>
 
 #include <progiso/core/base/error.hpp>
+#include <progiso/core/surface/hierarchy_stream.hpp>
 #include <progiso/io/detail/file_input.hpp>
 #include <progiso/io/detail/file_output.hpp>
 
@@ -17,8 +18,11 @@ const char* const usage_text =
     "          [--dims NX,NY,NZ --type u8|i8|u16|i16|u32|i32|f32|f64 [--big-endian]]\n"
     "          [--spacing SX,SY,SZ | --world] [--series N|UID] [--volume K]\n"
     "          [--full | --error E | --max-triangles K | --time-ms T [--by-priority]]\n"
-    "          [--stats-json FILE] [--threads N] [--normals]\n"
+    "          [--stats-json FILE] [--threads N] [--normals] [--hierarchy OUT.pgh]\n"
     "          [--smooth S] [--smooth-from K] [--smooth-region X0,Y0,Z0,X1,Y1,Z1] [--alpha A]\n"
+    "  progiso cut IN.pgh -o OUT.ply|OUT.obj|OUT.stl\n"
+    "          [--error E | --max-triangles K | --region X0,Y0,Z0,X1,Y1,Z1] [--records N]\n"
+    "          [--stats-json FILE]\n"
     "  progiso extract --demo -o OUT.ply [--iso W] [--threads N] [--normals]\n"
     "  progiso contour INPUT.pgm|INPUT.png -o OUT.obj|OUT.svg --iso W[,W2,...]\n"
     "          [--full | --error E | --max-segments K | --time-ms T] [--frames DIR]\n"
@@ -48,6 +52,11 @@ const char* const usage_text =
     "rotations and flips applied.\n"
     "--demo uses a built-in 129^3 Marschner-Lobb volume (isovalue 0.5 unless --iso is\n"
     "given).\n"
+    "--hierarchy OUT.pgh runs the engine and writes its output hierarchy as it is published:\n"
+    "a versioned stream of split records (docs/formats.md) from which `progiso cut` makes\n"
+    "any cut without the volume: by error, by triangle budget, or full resolution inside a\n"
+    "box of grid coordinates (--region, inclusive) with the least refinement outside it;\n"
+    "--records N takes the stream's first N records (a coarser cut).\n"
     "Modes: --full (default) refines everywhere the surface can be; --error E stops when\n"
     "every remaining split error is <= E; --max-triangles K keeps at most K triangles;\n"
     "--time-ms T returns the finest surface made within T milliseconds: uniform cuts of the\n"
@@ -273,10 +282,10 @@ bool parse_smoothing(const std::string& f, const Value& value, smoothing& s, std
 extract_arguments parse_extract(const std::vector<std::string>& args) {
   extract_arguments a;
   if (args.empty()) {
-    throw error("missing command (expected 'extract' or 'contour'; see progiso --help)");
+    throw error("missing command (expected 'extract', 'cut' or 'contour'; see progiso --help)");
   }
   if (args[0] != "extract") {
-    throw error("unknown command " + shown(args[0]) + " (expected 'extract' or 'contour')");
+    throw error("unknown command " + shown(args[0]) + " (expected 'extract', 'cut' or 'contour')");
   }
   int modes = 0;
   bool by_priority = false;
@@ -339,6 +348,8 @@ extract_arguments parse_extract(const std::vector<std::string>& args) {
       a.spacing = s;
     } else if (f == "--stats-json") {
       a.stats_json = value();
+    } else if (f == "--hierarchy") {
+      a.hierarchy = value();
     } else if (f == "--threads") {
       const std::string t = value();
       const std::uint64_t n = parse_count(f, t);
@@ -385,6 +396,70 @@ extract_arguments parse_extract(const std::vector<std::string>& args) {
   }
   if (a.stats_json && a.stats_json->empty()) {
     throw error("--stats-json: expected a file name, found an empty one");
+  }
+  if (a.hierarchy) {
+    if (detail::lower_extension(*a.hierarchy) != hierarchy_stream_extension) {
+      throw error("--hierarchy: " + shown(*a.hierarchy) + ": expected a " +
+                  hierarchy_stream_extension + " file name");
+    }
+    if (a.world) {
+      throw error(
+          "--hierarchy with --world: a stream holds physical coordinates (origin + index x "
+          "spacing); write it without --world");
+    }
+  }
+  return a;
+}
+
+cut_arguments parse_cut(const std::vector<std::string>& args) {
+  cut_arguments a;
+  if (args.empty() || args[0] != "cut") throw error("expected the 'cut' command");
+  int modes = 0;
+  for (std::size_t i = 1; i < args.size(); ++i) {
+    const std::string& f = args[i];
+    const auto value = [&] { return next_value(args, i, f); };
+    if (f == "-o" || f == "--output") {
+      a.output = value();
+    } else if (f == "--error") {
+      a.max_error = parse_number(f, value());
+      if (a.max_error < 0) throw error("--error: expected a non-negative number");
+      a.how = cut_arguments::mode::error;
+      ++modes;
+    } else if (f == "--max-triangles") {
+      a.max_triangles = parse_count(f, value());
+      a.how = cut_arguments::mode::triangles;
+      ++modes;
+    } else if (f == "--region") {
+      const std::string t = value();
+      const auto parts = t.empty() ? std::vector<std::string>{} : split_list(f, t);
+      if (parts.size() != 6) {
+        throw error("--region: expected 6 numbers X0,Y0,Z0,X1,Y1,Z1, found " + shown(t));
+      }
+      for (std::size_t k = 0; k < 6; ++k) a.region[k] = parse_number(f, parts[k]);
+      for (std::size_t q = 0; q < 3; ++q) {
+        if (a.region[q] > a.region[q + 3]) {
+          throw error("--region: expected each low corner <= its high corner, found " + shown(t));
+        }
+      }
+      a.how = cut_arguments::mode::region;
+      ++modes;
+    } else if (f == "--records") {
+      a.records = parse_count(f, value());
+    } else if (f == "--stats-json") {
+      a.stats_json = value();
+      if (a.stats_json->empty()) {
+        throw error("--stats-json: expected a file name, found an empty one");
+      }
+    } else if (!take_other(f, a.help, a.input)) {
+      return a;
+    }
+  }
+  if (modes > 1) throw error("choose at most one of --error, --max-triangles, --region");
+  if (!a.input) throw error("missing IN.pgh");
+  if (!a.output) throw error("missing -o OUT.ply|OUT.obj|OUT.stl");
+  const std::string ext = detail::lower_extension(*a.output);
+  if (ext != ".ply" && ext != ".obj" && ext != ".stl") {
+    throw error(*a.output + ": unknown mesh format (expected a .ply, .obj or .stl file name)");
   }
   return a;
 }

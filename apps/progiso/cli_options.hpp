@@ -47,8 +47,23 @@ struct extract_arguments {
   extract_options options;
   std::chrono::duration<double> time_budget{0.0};  // --time-ms, until the volume is in memory
   std::optional<std::string> stats_json;
-  unsigned threads = 0;  // 0: all cores
+  std::optional<std::string> hierarchy;  // --hierarchy: the engine's records as a stream (.pgh)
+  unsigned threads = 0;                  // 0: all cores
   smoothing smooth;
+};
+
+/// `progiso cut`: a cut of a hierarchy stream, without the volume.
+struct cut_arguments {
+  enum class mode { all, error, triangles, region };
+  bool help = false;
+  std::optional<std::string> input;
+  std::optional<std::string> output;
+  mode how = mode::all;
+  double max_error = 0.0;
+  std::uint64_t max_triangles = 0;
+  std::array<double, 6> region{};  // X0, Y0, Z0, X1, Y1, Z1 (grid coordinates, inclusive)
+  std::uint64_t records = ~std::uint64_t{0};  // --records N: the stream's first N records
+  std::optional<std::string> stats_json;
 };
 
 struct contour_arguments {
@@ -77,6 +92,8 @@ void start_deadline(Arguments& a) {
 
 /// `args` is argv without the program name, starting with "extract". Throws progiso::error.
 [[nodiscard]] extract_arguments parse_extract(const std::vector<std::string>& args);
+/// `args` is argv without the program name, starting with "cut". Throws progiso::error.
+[[nodiscard]] cut_arguments parse_cut(const std::vector<std::string>& args);
 /// `args` is argv without the program name, starting with "contour". Throws progiso::error.
 [[nodiscard]] contour_arguments parse_contour(const std::vector<std::string>& args);
 

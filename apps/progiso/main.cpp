@@ -7,6 +7,8 @@
 //           [--stats-json FILE] [--threads N] [--normals]
 //           [--smooth S] [--smooth-from K] [--smooth-region X0,Y0,Z0,X1,Y1,Z1] [--alpha A]
 //   progiso extract --demo -o OUT.ply [--iso W] [--threads N] [--normals]
+//   progiso cut IN.pgh -o OUT.ply|OUT.obj|OUT.stl
+//           [--error E | --max-triangles K | --region X0,Y0,Z0,X1,Y1,Z1] [--records N]
 //   progiso contour INPUT.pgm|INPUT.png -o OUT.obj|OUT.svg --iso W[,W2,...]
 //           [--full | --error E | --max-segments K | --time-ms T] [--frames DIR]
 //           [--stats-json FILE]
@@ -27,8 +29,10 @@
 #include <iostream>
 #include <limits>
 #include <optional>
+#include <span>
 #include <sstream>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include <progiso/core/base/error.hpp>
@@ -37,9 +41,11 @@
 #include <progiso/core/refine/refiner.hpp>
 #include <progiso/io/detail/file_output.hpp>
 #include <progiso/io/detail/writers.hpp>
+#include <progiso/io/hierarchy_io.hpp>
 #include <progiso/io/mesh_io.hpp>
 #include <progiso/io/volume_io.hpp>
 #include <progiso/scheduler/engine.hpp>
+#include <progiso/scheduler/hierarchy_export.hpp>
 #include <progiso/scheduler/tbb_environment.hpp>
 
 #include "cli_common.hpp"
@@ -245,6 +251,142 @@ void to_world(progiso::triangle_mesh& mesh, const progiso::volume& data,
   }
 }
 
+/// extract --hierarchy: the engine refines towards the goal while this thread writes the records
+/// it publishes, a chunk every few milliseconds, so that the stream grows with the run (into a
+/// FIFO or device it is readable while the run goes on; a file appears, complete, at the end).
+/// The mesh written to -o is the engine's final cut (at full resolution, marching tetrahedra's
+/// surface, as the direct path's).
+int run_with_hierarchy(arguments& a, const std::shared_ptr<const progiso::volume>& vol, double iso,
+                       progiso::detail::atomic_output& mesh_out,
+                       std::optional<progiso::detail::atomic_output>& stats_out,
+                       progiso::detail::atomic_output& hierarchy_out) {
+  using clock = std::chrono::steady_clock;
+  const auto t0 = clock::now();
+  progiso::engine_options eo;
+  eo.threads = a.threads;
+  progiso::engine e(vol, iso, eo);
+  progiso::hierarchy_exporter out(e, [&hierarchy_out](std::span<const std::byte> b) {
+    hierarchy_out.write(b.data(), b.size());
+  });
+  start_deadline(a);
+  e.start(a.options.goal);
+  while (e.running()) {
+    {
+      const progiso::surface_snapshot s = e.snapshot();
+      out.write(s);
+    }
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  }
+  e.wait();
+  progiso::triangle_mesh mesh;
+  std::uint64_t splits = 0;
+  {
+    const progiso::surface_snapshot s = e.snapshot();
+    out.write(s);
+    mesh = s.mesh();
+    splits = s.split_count();
+  }
+  out.finish();
+  if (a.options.normals) e.add_normals(mesh);
+  const double seconds = std::chrono::duration<double>(clock::now() - t0).count();
+  progiso::detail::write_mesh_to(mesh_out, mesh);
+  if (stats_out) {
+    std::ostringstream o;
+    o << "{\n  \"isovalue\": " << json_number(iso) << ",\n  \"mode\": \""
+      << goal_name(a.options.goal, "triangles") << "\",\n  \"path\": \"engine\",\n"
+      << "  \"splits\": " << splits << ",\n  \"triangles\": " << mesh.triangles.size()
+      << ",\n  \"vertices\": " << mesh.vertices.size()
+      << ",\n  \"hierarchy_records\": " << out.records()
+      << ",\n  \"hierarchy_bytes\": " << out.bytes()
+      << ",\n  \"total_ms\": " << json_number(seconds * 1e3) << "\n}\n";
+    stats_out->write(o.str());
+  }
+  mesh_out.finish();
+  if (stats_out) stats_out->finish();
+  hierarchy_out.finish();
+  mesh_out.publish();
+  if (stats_out) stats_out->publish();
+  hierarchy_out.publish();
+  std::printf(
+      "progiso: %zu triangles, %zu vertices; %llu splits in %.1f ms; hierarchy stream of %llu "
+      "records, %llu bytes (%.1f per triangle); wrote %s and %s\n",
+      mesh.triangles.size(), mesh.vertices.size(), static_cast<unsigned long long>(splits),
+      seconds * 1e3, static_cast<unsigned long long>(out.records()),
+      static_cast<unsigned long long>(out.bytes()),
+      mesh.triangles.empty()
+          ? 0.0
+          : static_cast<double>(out.bytes()) / static_cast<double>(mesh.triangles.size()),
+      a.output->c_str(), a.hierarchy->c_str());
+  return 0;
+}
+
+/// progiso cut: a cut of a hierarchy stream, without the volume.
+int run_cut(const std::vector<std::string>& args) {
+  const progiso::cli::cut_arguments a = progiso::cli::parse_cut(args);
+  if (a.help) {
+    std::cout << usage_text;
+    return 0;
+  }
+  using clock = std::chrono::steady_clock;
+  refuse_clashing_outputs(
+      {fs::path(*a.input)},
+      a.stats_json ? std::vector<named_output>{{"-o", *a.output}, {"--stats-json", *a.stats_json}}
+                   : std::vector<named_output>{{"-o", *a.output}});
+  progiso::detail::atomic_output mesh_out(*a.output);
+  std::optional<progiso::detail::atomic_output> stats_out;
+  if (a.stats_json) stats_out.emplace(*a.stats_json);
+  const auto t0 = clock::now();
+  const progiso::hierarchy_stream h = progiso::read_hierarchy_stream(*a.input, a.records);
+  const auto t1 = clock::now();
+  progiso::hierarchy_stream::split_set split;
+  double threshold = -1.0;
+  using mode = progiso::cli::cut_arguments::mode;
+  switch (a.how) {
+    case mode::all:
+      split = h.all();
+      break;
+    case mode::error:
+      split = h.by_error(a.max_error);
+      break;
+    case mode::triangles:
+      split = h.by_triangles(a.max_triangles, &threshold);
+      break;
+    case mode::region:
+      split = h.in_box({a.region[0], a.region[1], a.region[2]},
+                       {a.region[3], a.region[4], a.region[5]});
+      break;
+  }
+  const progiso::triangle_mesh mesh = h.mesh(split);
+  const auto t2 = clock::now();
+  std::uint64_t taken = 0;
+  for (std::size_t r = 1; r < split.size(); ++r) taken += split[r];
+  const double read_ms = std::chrono::duration<double, std::milli>(t1 - t0).count();
+  const double cut_ms = std::chrono::duration<double, std::milli>(t2 - t1).count();
+  progiso::detail::write_mesh_to(mesh_out, mesh);
+  if (stats_out) {
+    std::ostringstream o;
+    o << "{\n  \"input\": \"" << json_escape(*a.input) << "\",\n  \"records\": " << h.records()
+      << ",\n  \"complete\": " << (h.complete() ? "true" : "false") << ",\n  \"split\": " << taken
+      << ",\n  \"error_threshold\": " << json_number(threshold)
+      << ",\n  \"triangles\": " << mesh.triangles.size()
+      << ",\n  \"vertices\": " << mesh.vertices.size()
+      << ",\n  \"read_ms\": " << json_number(read_ms) << ",\n  \"cut_ms\": " << json_number(cut_ms)
+      << "\n}\n";
+    stats_out->write(o.str());
+  }
+  mesh_out.finish();
+  if (stats_out) stats_out->finish();
+  mesh_out.publish();
+  if (stats_out) stats_out->publish();
+  std::printf(
+      "progiso: cut of %llu of %llu records (%s), %zu triangles, %zu vertices; read %.1f ms, "
+      "cut %.1f ms; wrote %s\n",
+      static_cast<unsigned long long>(taken), static_cast<unsigned long long>(h.records()),
+      h.complete() ? "a complete stream" : "a prefix", mesh.triangles.size(), mesh.vertices.size(),
+      read_ms, cut_ms, a.output->c_str());
+  return 0;
+}
+
 int run(const std::vector<std::string>& args) {
   arguments a = parse_extract(args);
   if (a.help) {
@@ -265,6 +407,7 @@ int run(const std::vector<std::string>& args) {
     if (source) inputs = source->files();
     std::vector<named_output> outputs{{"-o", *a.output}};
     if (a.stats_json) outputs.push_back({"--stats-json", *a.stats_json});
+    if (a.hierarchy) outputs.push_back({"--hierarchy", *a.hierarchy});
     refuse_clashing_outputs(inputs, outputs);
   }
   std::optional<progiso::index_to_world> world;
@@ -279,6 +422,8 @@ int run(const std::vector<std::string>& args) {
   progiso::detail::atomic_output mesh_out(*a.output);
   std::optional<progiso::detail::atomic_output> stats_out;
   if (a.stats_json) stats_out.emplace(*a.stats_json);
+  std::optional<progiso::detail::atomic_output> hierarchy_out;
+  if (a.hierarchy) hierarchy_out.emplace(*a.hierarchy);
 
   const std::string input = a.demo ? std::string("demo: Marschner-Lobb 129^3") : *a.input;
   std::shared_ptr<const progiso::volume> data;
@@ -311,6 +456,9 @@ int run(const std::vector<std::string>& args) {
               << ", alpha " << a.smooth.alpha << (a.smooth.region ? ", in a region" : "") << ")";
   }
   std::cerr << "\n";
+  if (hierarchy_out) {
+    return run_with_hierarchy(a, vol, iso, mesh_out, stats_out, *hierarchy_out);
+  }
   progress_bar bar;
   a.options.progress = [&bar](const progiso::extract_progress& p) { bar.update(p); };
   start_deadline(a);  // the volume is in memory
@@ -373,6 +521,7 @@ int main(int argc, char** argv) {
       return 0;
     }
     if (first == "contour") return run_contour(args);
+    if (first == "cut") return run_cut(args);
     return run(args);
   } catch (const progiso::error& e) {
     // One line whatever the message quotes (file names and arguments are the user's text).

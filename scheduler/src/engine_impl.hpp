@@ -154,6 +154,9 @@ struct engine_root : epoch_object {
   // Some queued diamond was keyed by an error bound (hi − lo: the range data's error pass was
   // not done); re-keyed by the exact errors once they exist. Commit step and driver.
   bool bound_keys = false;
+  // The focus (refine_goal::focus) the queue's exact keys are weighted by: a run with another
+  // one keys them again (requeue_by_ranges). Commit step and driver.
+  std::optional<refine_focus> keyed_focus;
 
   // Commit step only. The packed groups of the published records (each record's in one piece;
   // records point into the chunks, which never move).

@@ -56,7 +56,12 @@ std::optional<ready_item> engine_impl::ready_child(const engine_root& r, const i
   const detail::readiness ready =
       ready_rule(*rd, c, h, owns_surface, errors_needed(), r.isovalue, r.threshold, error_bound());
   if (!ready.keep) return std::nullopt;
-  return ready_item{errors_needed() ? ready.error : placeholder_key(depth), depth, index};
+  if (!errors_needed()) return ready_item{placeholder_key(depth), depth, index};
+  if (goal.focus) {
+    return ready_item{ready.error * focus_weight(*goal.focus, c, h, hierarchy::type_of(c, h)),
+                      depth, index};
+  }
+  return ready_item{ready.error, depth, index};
 }
 
 bool engine_impl::queue_if_straddles(engine_root& r, const ipoint& c, std::int32_t h, int depth,
@@ -100,7 +105,10 @@ void engine_impl::requeue_by_ranges(engine_root& r) {
   queue_deadline_leftovers(r);
   const range_data* rd = built_ranges();
   PROGISO_ASSERT(rd != nullptr);
-  if (!r.placeholder_keys && !(r.bound_keys && rd->errors_exact())) return;
+  const std::optional<refine_focus> focus = errors_needed() ? goal.focus : std::nullopt;
+  const bool refocus = r.keyed_focus != focus;
+  r.keyed_focus = focus;
+  if (!r.placeholder_keys && !(r.bound_keys && rd->errors_exact()) && !refocus) return;
   std::vector<ready_item> items;
   items.reserve(r.queue.size());
   while (!r.queue.empty()) {
@@ -108,7 +116,7 @@ void engine_impl::requeue_by_ranges(engine_root& r) {
     r.queue.pop();
   }
   std::uint64_t culled = 0;
-  const bool all = r.bound_keys && rd->errors_exact();
+  const bool all = (r.bound_keys && rd->errors_exact()) || refocus;
   r.bound_keys = false;
   r.placeholder_keys = false;  // set again by what is queued by placeholder below (full refinement)
   mark_if_keys_are_bounds(r, rd);

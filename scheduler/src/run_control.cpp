@@ -64,6 +64,11 @@ void require_valid_goal(const refine_goal& goal) {
   if (goal.what == refine_goal::kind::error && !(goal.max_error >= -1e300)) {
     throw error("refine goal: expected a number as error threshold");
   }
+  if (goal.focus) {
+    refine_goal focus_only;
+    focus_only.focus = goal.focus;
+    check_goal(focus_only);
+  }
 }
 
 thread_local const run_control* run_control::in_callback_of = nullptr;
@@ -239,6 +244,9 @@ void engine_impl::launch(std::unique_lock<std::mutex>& lock, const refine_goal& 
   stop_and_join(lock);
   engine_root* r = current();
   goal = g;
+  // A focus weights the keys: an error target is then taken by priority (its split set depends on
+  // the weights, which the plane sweep does not know).
+  if (goal.focus) goal.any_order = false;
   r->queue.set_discipline(g.what == refine_goal::kind::full ? queue_discipline::lifo
                                                             : queue_discipline::largest_error);
   if (g.what == refine_goal::kind::error) r->queue.aim_at(g.max_error);  // eligible() is exact

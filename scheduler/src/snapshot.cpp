@@ -103,6 +103,15 @@ triangle_mesh surface_snapshot::mesh() const {
   return build([](std::uint64_t) { return true; });
 }
 
+triangle_mesh surface_snapshot::mesh_of_records(const std::vector<std::uint8_t>& split) const {
+  PROGISO_ASSERT(valid());
+  if (split.size() != published_) {
+    throw error("mesh_of_records: expected a split set of " + std::to_string(published_) +
+                " entries, found " + std::to_string(split.size()));
+  }
+  return build([&split](std::uint64_t r) { return split[r] != 0; });
+}
+
 // Records carry no errors (full refinement never computes them): the cut's records are chosen
 // here, by the range data's exact errors (made first when no run has made them), one lookup
 // per record, in parallel. Every diamond's error is then from one source, and nested, so the

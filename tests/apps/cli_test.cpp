@@ -270,6 +270,61 @@ std::string ball_bytes() {
   return s;
 }
 
+TEST_F(Cli, hierarchy_stream_gives_every_cut_without_the_volume) {
+  const fs::path in = write_file("ball.raw", ball_bytes());
+  const fs::path mesh = dir_ / "full.ply";
+  const fs::path stream = dir_ / "ball.pgh";
+  const fs::path stats = dir_ / "run.json";
+  run_result r =
+      run("extract " + in.string() + " --dims 17,17,17 --type u8 --iso 111 --threads 2 -o " +
+          mesh.string() + " --hierarchy " + stream.string() + " --stats-json " + stats.string());
+  ASSERT_EQ(r.status, 0) << r.err;
+  EXPECT_NE(r.out.find("hierarchy stream of"), std::string::npos) << r.out;
+  EXPECT_NE(slurp(stats).find("\"hierarchy_bytes\""), std::string::npos);
+  // The full cut of the stream is the command's own mesh, byte for byte, and the volume's
+  // finest surface (the direct path's).
+  const fs::path cut = dir_ / "cut.ply";
+  r = run("cut " + stream.string() + " -o " + cut.string());
+  ASSERT_EQ(r.status, 0) << r.err;
+  EXPECT_NE(r.out.find("a complete stream"), std::string::npos) << r.out;
+  EXPECT_TRUE(slurp(cut) == slurp(mesh));
+  const fs::path direct = dir_ / "direct.ply";
+  r = run("extract " + in.string() + " --dims 17,17,17 --type u8 --iso 111 -o " + direct.string());
+  ASSERT_EQ(r.status, 0) << r.err;
+  EXPECT_TRUE(test::same_surface(read_ply(cut), read_ply(direct)));
+  // Coarser cuts: by error, by budget, in a box, and of a prefix, each a valid surface.
+  const auto full_triangles = read_ply(cut).triangles.size();
+  const std::string budget = "--max-triangles " + std::to_string(full_triangles / 2);
+  for (const std::string& how :
+       {std::string("--error 20"), budget, std::string("--region 0,0,0,8,8,8"),
+        std::string("--records 40")}) {
+    const fs::path part = dir_ / "part.ply";
+    r = run("cut " + stream.string() + " " + how + " -o " + part.string());
+    ASSERT_EQ(r.status, 0) << how << ": " << r.err;
+    const triangle_mesh m = read_ply(part);
+    EXPECT_GT(m.triangles.size(), 0u) << how;
+    EXPECT_LT(m.triangles.size(), full_triangles) << how;
+    EXPECT_TRUE(test::check_valid_cut(m, {0, 0, 0}, {16, 16, 16})) << how;
+    if (how == budget) {
+      EXPECT_LE(m.triangles.size(), full_triangles / 2);
+    }
+  }
+  // A truncated or corrupt stream: one line naming it, exit 2, no output.
+  const std::string bytes = slurp(stream);
+  const fs::path cut_short = write_file("short.pgh", bytes.substr(0, bytes.size() - 7));
+  expect_bad_input("cut " + cut_short.string(), "short.pgh: hierarchy stream: byte");
+  std::string flipped = bytes;
+  flipped[flipped.size() / 2] = static_cast<char>(flipped[flipped.size() / 2] ^ 0x21);
+  const fs::path corrupt = write_file("corrupt.pgh", flipped);
+  expect_bad_input("cut " + corrupt.string(), "CRC");
+  expect_bad_input("cut " + in.string(), "PROGISOH");
+  expect_bad_input("cut " + stream.string() + " --error 1 --records x", "--records");
+  expect_bad_input("cut " + stream.string() + " --region 1,2,3", "--region");
+  expect_bad_input("extract " + in.string() + " --dims 17,17,17 --type u8 --iso 111 --hierarchy " +
+                       (dir_ / "h.bin").string(),
+                   ".pgh");
+}
+
 TEST_F(Cli, smoothing_options_refine_the_smoothed_field_on_every_thread_count) {
   const std::string in =
       write_file("ball.raw", ball_bytes()).string() + " --dims 17,17,17 --type u8 --iso 111";

@@ -50,6 +50,7 @@
 #include <cstdint>
 #include <functional>
 #include <memory>
+#include <vector>
 
 #include <progiso/concurrent/epoch.hpp>
 #include <progiso/core/base/config.hpp>
@@ -70,6 +71,7 @@
 namespace progiso {
 
 class engine;
+class hierarchy_exporter;
 
 namespace detail {
 struct engine_root;
@@ -204,6 +206,11 @@ class surface_snapshot {
   /// mesh_cut(max_error) into the caller's buffers, normals as mesh_into().
   void mesh_cut_into(double max_error, render_buffers& out,
                      vertex_normals normals = vertex_normals::none) const;
+  /// The cut of the records r (1 … split_count()) with split[r] != 0 (entry 0 is unused; the
+  /// set must be closed under parents): a cut between the root surface and this one, made as
+  /// mesh() makes it. Hierarchy streams number records as the engine does, so a stream's split
+  /// sets (hierarchy_stream.hpp) apply here. Throws progiso::error for a set of another size.
+  [[nodiscard]] triangle_mesh mesh_of_records(const std::vector<std::uint8_t>& split) const;
   /// Where this cut stands, for change_since() on a later snapshot. O(1).
   [[nodiscard]] cut_mark mark() const noexcept;
   /// What changed from the cut `earlier` marked to this one (surface_change.hpp): the ids of the
@@ -223,6 +230,7 @@ class surface_snapshot {
 
  private:
   friend class engine;
+  friend class hierarchy_exporter;
   template <class Keep>
   triangle_mesh build(Keep&& keep) const;
 

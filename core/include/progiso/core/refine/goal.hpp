@@ -11,8 +11,11 @@
 // strategy that switches on `kind` (docs/ARCHITECTURE.md, "Where to change what").
 #pragma once
 
+#include <array>
 #include <chrono>
+#include <cmath>
 #include <cstdint>
+#include <optional>
 #include <string>
 
 #include <progiso/core/base/config.hpp>
@@ -20,6 +23,49 @@
 #include <progiso/core/refine/deadline.hpp>
 
 namespace progiso {
+
+/// Where a run refines first (what a view needs): a box of grid coordinates, or a point (lo ==
+/// hi). A run by priority keys each ready diamond by its error times its weight: 1 when the
+/// diamond's reach (focus_reach()) meets the box, else falloff / (falloff + d), d the distance
+/// from the box to the reach (0 outside when falloff is 0). Weights never grow from a diamond to
+/// its children (a child's reach lies in each parent's), so keys stay nested, the cut stays
+/// closed under parents, and inside the box every goal behaves as without a focus: an error
+/// target splits there exactly the diamonds of error above it, and outside it to the target over
+/// the weight (a screen-space error when the point is the eye). Full runs ignore the focus (they
+/// split everything), and an error target in any order is taken by priority. The 3D engine
+/// honours it (scheduler/engine.hpp); core's sequential extract_isosurface() and the 2D paths
+/// ignore it.
+struct refine_focus {
+  std::array<double, 3> lo{};
+  std::array<double, 3> hi{};
+  double falloff = 0.0;  ///< grid units, non-negative
+  friend bool operator==(const refine_focus&, const refine_focus&) = default;
+};
+
+/// Half the side of the cube around a diamond's centre that holds its region and every
+/// descendant's: 8h, 6h, 5h for types 0, 1, 2 at scale h. A parent's centre is h from its
+/// child's along some axes (types 0→1, 1→2) or h/2 (type 2 → type 0 at h/2, whose reach is 4h
+/// of the parent's h), so each child's cube lies in each parent's.
+[[nodiscard]] constexpr double focus_reach(std::int32_t h, int type) noexcept {
+  return static_cast<double>(h) * (type == 0 ? 8.0 : (type == 1 ? 6.0 : 5.0));
+}
+
+/// The weight of the diamond centred at c (scale h, type) under `f` (see refine_focus).
+[[nodiscard]] inline double focus_weight(const refine_focus& f,
+                                         const std::array<std::int32_t, 3>& c, std::int32_t h,
+                                         int type) noexcept {
+  const double r = focus_reach(h, type);
+  double d2 = 0.0;
+  for (std::size_t q = 0; q < 3; ++q) {
+    const double lo = static_cast<double>(c[q]) - r;
+    const double hi = static_cast<double>(c[q]) + r;
+    const double gap = lo > f.hi[q] ? lo - f.hi[q] : (hi < f.lo[q] ? f.lo[q] - hi : 0.0);
+    d2 += gap * gap;
+  }
+  if (d2 == 0.0) return 1.0;
+  if (f.falloff <= 0.0) return 0.0;
+  return f.falloff / (f.falloff + std::sqrt(d2));
+}
 
 struct refine_goal {
   enum class kind {
@@ -41,21 +87,34 @@ struct refine_goal {
   /// one-shot extraction), not for one that shows or interrupts the run. The 2D entries take
   /// their targets by priority either way.
   bool any_order = false;
+  /// Refine here first (error, budget and deadline goals): see refine_focus.
+  std::optional<refine_focus> focus;
 
   static refine_goal full() { return {}; }
-  static refine_goal error(double e) { return {kind::error, e, 0, {}, false}; }
-  static refine_goal error_in_any_order(double e) { return {kind::error, e, 0, {}, true}; }
+  static refine_goal error(double e) { return {kind::error, e, 0, {}, false, {}}; }
+  static refine_goal error_in_any_order(double e) { return {kind::error, e, 0, {}, true, {}}; }
   /// A budget of k triangles (3D) …
-  static refine_goal triangles(std::uint64_t k) { return {kind::budget, 0.0, k, {}, false}; }
+  static refine_goal triangles(std::uint64_t k) { return {kind::budget, 0.0, k, {}, false, {}}; }
   /// … or of k segments (2D): the same goal, named for the element counted.
   static refine_goal segments(std::uint64_t k) { return triangles(k); }
   static refine_goal until(std::chrono::steady_clock::time_point t) {
-    return {kind::deadline, 0.0, 0, t, false};
+    return {kind::deadline, 0.0, 0, t, false, {}};
   }
   /// A deadline `budget` from now; a budget past the clock's range is no deadline at all
   /// (deadline_after() saturates).
   static refine_goal within(std::chrono::duration<double> budget) {
     return until(deadline_after(std::chrono::steady_clock::now(), budget));
+  }
+  /// This goal, refined inside the box [lo, hi] (grid coordinates) first.
+  [[nodiscard]] refine_goal focused(const std::array<double, 3>& lo,
+                                    const std::array<double, 3>& hi, double falloff = 0.0) const {
+    refine_goal g = *this;
+    g.focus = refine_focus{lo, hi, falloff};
+    return g;
+  }
+  /// … or around a point.
+  [[nodiscard]] refine_goal focused(const std::array<double, 3>& point, double falloff) const {
+    return focused(point, point, falloff);
   }
 };
 
@@ -64,6 +123,18 @@ inline void check_goal(const refine_goal& goal) {
   if (goal.what == refine_goal::kind::error && !(goal.max_error >= 0.0)) {
     throw error("error threshold: expected a non-negative number, found " +
                 std::to_string(goal.max_error));
+  }
+  if (goal.focus) {
+    const refine_focus& f = *goal.focus;
+    for (std::size_t q = 0; q < 3; ++q) {
+      if (!std::isfinite(f.lo[q]) || !std::isfinite(f.hi[q]) || f.lo[q] > f.hi[q]) {
+        throw error("focus: expected a box of finite coordinates with lo <= hi on every axis");
+      }
+    }
+    if (!(f.falloff >= 0.0) || !std::isfinite(f.falloff)) {
+      throw error("focus: expected a finite non-negative falloff, found " +
+                  std::to_string(f.falloff));
+    }
   }
 }
 

@@ -83,10 +83,21 @@ concept cut_source = requires(const Source& s, std::uint64_t i) {
   { s.root_triangles() } -> std::convertible_to<const std::vector<owned_triangle>&>;
 };
 
-template <cut_source Source>
+/// What cut_mesher samples: a volume, or any field with value(x, y, z) (a double at a grid
+/// vertex, clamped to the data as volume::value() clamps) and the volume's spacing() and
+/// origin(). A hierarchy stream's consumer has no volume: only the samples at the cut's
+/// vertices (core/surface/hierarchy_stream.hpp).
+template <class Field>
+concept cut_field = requires(const Field& f, std::int64_t i) {
+  { f.value(i, i, i) } -> std::convertible_to<double>;
+  { f.spacing() } -> std::convertible_to<std::array<double, 3>>;
+  { f.origin() } -> std::convertible_to<std::array<double, 3>>;
+};
+
+template <cut_source Source, cut_field Field = volume>
 class cut_mesher {
  public:
-  cut_mesher(const Source& src, const hierarchy& hier, const volume& vol, double isovalue)
+  cut_mesher(const Source& src, const hierarchy& hier, const Field& vol, double isovalue)
       : src_(src), hier_(hier), vol_(vol), w_(isovalue), records_(src.records()) {
     for (std::size_t q = 0; q < 3; ++q) box_[q] = static_cast<double>(hier.data_max()[q]);
     root_mask_ = static_cast<std::uint32_t>(hier.root_size() - 1);
@@ -505,7 +516,7 @@ class cut_mesher {
 
   const Source& src_;
   const hierarchy& hier_;
-  const volume& vol_;
+  const Field& vol_;
   double w_;
   std::uint64_t records_;
   std::size_t parts_ = 1;

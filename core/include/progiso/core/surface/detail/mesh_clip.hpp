@@ -87,8 +87,10 @@ struct position_hash {
   std::size_t operator()(const vec3& p) const noexcept;
 };
 
-/// Physical coordinates of a grid position of vol (origin + position × spacing).
-[[nodiscard]] inline vec3 physical_position(const volume& vol, const vec3& p) noexcept {
+/// Physical coordinates of a grid position of vol (origin + position × spacing); vol is a
+/// volume or anything with its spacing() and origin().
+template <class Field>
+[[nodiscard]] inline vec3 physical_position(const Field& vol, const vec3& p) noexcept {
   const auto& sp = vol.spacing();
   const auto& org = vol.origin();
   return vec3{org[0] + p[0] * sp[0], org[1] + p[1] * sp[1], org[2] + p[2] * sp[2]};
