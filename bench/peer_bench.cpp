@@ -9,7 +9,8 @@
 // vtkSMPTools runs on the same thread count as progiso. BM_deadline_quality measures what a
 // deadline buys (see there), BM_peer_scaling the pipeline's speed-up from one thread (see there),
 // BM_peer_normals both sides with vertex normals (see there), BM_follow a render thread that
-// follows a full run by its changes (see there).
+// follows a full run by its changes (see there), BM_finest_buffers an engine's finest cut in a
+// renderer's buffers, fresh and after an isovalue change (see there).
 //
 // Each benchmark runs both sides in alternating pairs (the order flips every pair) and reports
 // medians: fe_ms, progiso_ms with its phases (range_ms, refine_ms, extract_ms; first_ms, the root
@@ -396,20 +397,31 @@ void BM_peer_scaling(benchmark::State& state) {
 }
 
 // ---- The quality a deadline buys: the fraction of the full-resolution surface's area within one
-// voxel (the largest spacing) of the surface progiso publishes by a deadline of 1/8, 1/4, 1/2
-// and 1 × Flying Edges' full time (FE's median over 5 runs, same thread count), counted from
-// the volume in memory. Per deadline: the median over 3 runs of the fraction (100 000 points
-// drawn by area on the full surface, exact distances to the cut from a CGAL AABB tree), of the
-// cut's triangles and of the stride of the uniform cut reached (the default, the ladder of
-// uniform cuts: area_, tri_, stride_; late_ms_, the latest of its runs' returns after the
-// deadline, negative when all were early); the same for refinement by priority (prio_area_,
-// prio_tri_), its runs alternated with the ladder's (ABBA).
+// voxel (the largest spacing) of the surface shown by a deadline of 1/8, 1/4, 1/2, 1 and 2 ×
+// Flying Edges' full time (FE's median over 5 runs, same thread count), for three users:
+//  - the ladder (area_): the one-shot command's --time-ms path, uniform cuts from scratch
+//    (extract_isosurface_parallel with a deadline), from the volume in memory;
+//  - a fresh engine (engine_area_): made from the volume in memory, refined to the deadline
+//    (refine(until)), then snapshot().mesh();
+//  - after a change (change_area_): a warm engine, fully refined at another isovalue
+//    (1.1 × the input's), then set_isovalue() and refined to the deadline, counted from
+//    set_isovalue().
+// Per deadline and user: the median over 3 runs (rotated, so that no user always goes first) of
+// the fraction (100 000 points drawn by area on the full surface, exact distances to the cut
+// from a CGAL AABB tree) and of the cut's triangles (tri_, engine_tri_, change_tri_); the
+// ladder's stride reached (stride_) and the engine's (engine_stride_: 0 when it shows records or
+// its root surface); late_ms_, the latest return after the deadline of any engine run (negative:
+// all early).
 
 void BM_deadline_quality(benchmark::State& state) {
   auto [in, vol, threads, fe] = volume_setup(state);
   const auto& sp = vol.spacing();
   const double voxel = std::max({sp[0], sp[1], sp[2]});
-  static constexpr std::array<int, 4> divisors{8, 4, 2, 1};
+  const double other = in.isovalue * 1.1;
+  static constexpr std::array<double, 5> fractions{0.125, 0.25, 0.5, 1.0, 2.0};
+  static constexpr std::array<const char*, 5> names{"1/8", "1/4", "1/2", "1", "2"};
+  engine_options eo;
+  eo.threads = threads;
   for (auto _ : state) {
     std::vector<double> fe_ms;
     for (int k = 0; k < 5; ++k) {
@@ -422,35 +434,119 @@ void BM_deadline_quality(benchmark::State& state) {
         extract_isosurface_parallel(vol, in.isovalue, extract_options{}, threads).mesh;
     state.counters["fe_ms"] = fe_full;
     state.counters["full_triangles"] = static_cast<double>(full.triangles.size());
-    for (const int d : divisors) {
-      // The ladder of uniform cuts (the default) and refinement by priority, alternated.
-      std::array<std::vector<double>, 2> fraction;
-      std::array<std::vector<double>, 2> triangles;
+    engine warm(vol, other, eo);
+    warm.refine_full();
+    for (std::size_t d = 0; d < fractions.size(); ++d) {
+      const auto budget = std::chrono::duration_cast<clock_type::duration>(
+          std::chrono::duration<double, std::milli>(fe_full * fractions[d]));
+      std::array<std::vector<double>, 3> fraction;
+      std::array<std::vector<double>, 3> triangles;
       std::vector<double> strides;
+      std::vector<double> engine_strides;
       std::vector<double> late;
-      for (int k = 0; k < 6; ++k) {
-        const bool ladder = (k % 2 == 0) == (k % 4 < 2);
-        extract_options o;
-        o.goal = refine_goal::within(std::chrono::duration<double, std::milli>(fe_full / d));
-        o.deadline_ladder = ladder;
-        const extract_result r = extract_isosurface_parallel(vol, in.isovalue, o, threads);
-        const std::size_t j = ladder ? 0 : 1;
-        fraction[j].push_back(area_within(full, r.mesh, voxel, 100000).fraction);
-        triangles[j].push_back(static_cast<double>(r.mesh.triangles.size()));
-        if (ladder) {
+      const auto measure = [&](std::size_t user) {
+        triangle_mesh m;
+        if (user == 0) {
+          extract_options o;
+          o.goal = refine_goal::within(budget);
+          const extract_result r = extract_isosurface_parallel(vol, in.isovalue, o, threads);
           strides.push_back(r.ladder_stride);
-          late.push_back(r.pipeline_seconds * 1e3 - fe_full / d);
+          m = r.mesh;
+        } else if (user == 1) {
+          const auto t0 = clock_type::now();
+          engine e(vol, in.isovalue, eo);
+          e.refine(refine_goal::until(t0 + budget));
+          late.push_back(ms_since(t0) - fe_full * fractions[d]);
+          const surface_snapshot snap = e.snapshot();
+          engine_strides.push_back(snap.uniform_stride());
+          m = snap.mesh();
+        } else {
+          const auto t0 = clock_type::now();
+          warm.set_isovalue(in.isovalue);
+          warm.refine(refine_goal::until(t0 + budget));
+          late.push_back(ms_since(t0) - fe_full * fractions[d]);
+          {
+            const surface_snapshot snap = warm.snapshot();
+            m = snap.mesh();
+          }
+          warm.set_isovalue(other);
+          warm.refine_full();
         }
+        fraction[user].push_back(area_within(full, m, voxel, 100000).fraction);
+        triangles[user].push_back(static_cast<double>(m.triangles.size()));
+      };
+      for (std::size_t k = 0; k < 3; ++k) {
+        for (std::size_t j = 0; j < 3; ++j) measure((k + j) % 3);
       }
-      const std::string at = "1/" + std::to_string(d);
+      const std::string at = names[d];
       state.counters["area_" + at] = median(fraction[0]);
       state.counters["tri_" + at] = median(triangles[0]);
       state.counters["stride_" + at] = median(strides);
+      state.counters["engine_area_" + at] = median(fraction[1]);
+      state.counters["engine_tri_" + at] = median(triangles[1]);
+      state.counters["engine_stride_" + at] = median(engine_strides);
+      state.counters["change_area_" + at] = median(fraction[2]);
+      state.counters["change_tri_" + at] = median(triangles[2]);
       state.counters["late_ms_" + at] = *std::max_element(late.begin(), late.end());
-      state.counters["prio_area_" + at] = median(fraction[1]);
-      state.counters["prio_tri_" + at] = median(triangles[1]);
     }
   }
+}
+
+// ---- The finest cut in a renderer's buffers (BM_finest_buffers): from the volume in memory, an
+// engine made, refine_full(), then snapshot().mesh_into(buffers) (`progiso_ms`, `ratio` against
+// Flying Edges); and after a change (`change_ms`, `change_ratio`): a warm engine, fully refined
+// at another isovalue (1.1 × the input's), set_isovalue(), refine_full(), mesh_into(), counted
+// from set_isovalue(). The three run in rotated order within each pair.
+
+void BM_finest_buffers(benchmark::State& state) {
+  auto [in, vol, threads, fe] = volume_setup(state);
+  const double other = in.isovalue * 1.1;
+  engine_options eo;
+  eo.threads = threads;
+  engine warm(vol, other, eo);
+  warm.refine_full();
+  render_buffers buffers;
+  render_buffers warm_buffers;
+  std::vector<double> fe_ms, fresh_ms, change_ms, ratio, change_ratio;
+  double triangles = 0.0;
+  int pair = 0;
+  for (auto _ : state) {
+    double f = 0.0, a = 0.0, c = 0.0;
+    const auto run = [&](int which) {
+      const auto t0 = clock_type::now();
+      if (which == 0) {
+        (void)fe->run();
+        f = ms_since(t0);
+      } else if (which == 1) {
+        engine e(vol, in.isovalue, eo);
+        e.refine_full();
+        e.snapshot().mesh_into(buffers);
+        a = ms_since(t0);
+        triangles = static_cast<double>(buffers.triangle_count());
+      } else {
+        warm.set_isovalue(in.isovalue);
+        warm.refine_full();
+        warm.snapshot().mesh_into(warm_buffers);
+        c = ms_since(t0);
+        warm.set_isovalue(other);
+        warm.refine_full();
+      }
+    };
+    for (int j = 0; j < 3; ++j) run((pair + j) % 3);
+    ++pair;
+    fe_ms.push_back(f);
+    fresh_ms.push_back(a);
+    change_ms.push_back(c);
+    ratio.push_back(a / f);
+    change_ratio.push_back(c / f);
+    state.SetIterationTime(a / 1e3);
+  }
+  state.counters["fe_ms"] = median(fe_ms);
+  state.counters["progiso_ms"] = median(fresh_ms);
+  state.counters["ratio"] = median(ratio);
+  state.counters["change_ms"] = median(change_ms);
+  state.counters["change_ratio"] = median(change_ratio);
+  state.counters["progiso_triangles"] = triangles;
 }
 
 // ---- 2D: vtkFlyingEdges2D against progiso's contours (polylines in memory).
@@ -503,6 +599,7 @@ void register_all() {
   per_volume("BM_peer_normals", BM_peer_normals, 1);
   per_volume("BM_peer_scaling", BM_peer_scaling, 2);
   per_volume("BM_follow", BM_follow, 1);
+  per_volume("BM_finest_buffers", BM_finest_buffers, 1);
   for (std::size_t i = 0; i < volumes().size(); ++i) {
     for (std::int64_t t = 1; t <= 2; ++t) {
       benchmark::RegisterBenchmark(("BM_deadline_quality/" + volumes()[i].name).c_str(),

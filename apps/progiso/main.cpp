@@ -264,6 +264,7 @@ int run_with_hierarchy(arguments& a, const std::shared_ptr<const progiso::volume
   const auto t0 = clock::now();
   progiso::engine_options eo;
   eo.threads = a.threads;
+  eo.uniform_cuts = false;  // a stream carries split records: every split makes one
   progiso::engine e(vol, iso, eo);
   progiso::hierarchy_exporter out(e, [&hierarchy_out](std::span<const std::byte> b) {
     hierarchy_out.write(b.data(), b.size());

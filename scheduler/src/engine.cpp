@@ -125,6 +125,8 @@ engine_statistics engine::statistics() const {
   s.retired_bytes = impl_->retired_bytes.load(std::memory_order_relaxed);  // relaxed: a statistic
   s.peak_retired_bytes = impl_->peak_retired_bytes.get();
   s.recycled_roots = impl_->recycled_roots.get();
+  // relaxed: a statistic (roots are made by the control thread and the driver).
+  s.roots = impl_->next_serial.load(std::memory_order_relaxed);
   s.root_bytes = impl_->root_bytes.get();
   s.runs = impl_->runs.get();
   s.cancelled_runs = impl_->cancelled_runs.get();
@@ -171,6 +173,9 @@ extract_result detail::extract_isosurface_parallel(const volume& vol, double iso
   extract_result res;
   engine_options eo;
   eo.threads = threads;
+  // The direct paths below are chosen here; what runs through the engine asks for its records
+  // (the hierarchy's path of a full run, refinement by priority).
+  eo.uniform_cuts = false;
   int max_depth = 0;
   if (options.progress) {
     eo.progress = [&options, &max_depth](const engine_progress& p) {

@@ -127,6 +127,15 @@ struct engine_root : epoch_object {
   double isovalue;
   detail::sample_threshold threshold;  // isovalue, as straddle tests compare samples with it
   std::uint64_t generation;
+  // Which of the engine's published roots this is (cut_mark::root): set just before it is
+  // published; 0 for a root never published (engine_options::on_reclaim hears only the others).
+  std::uint64_t serial = 0;
+  // A uniform cut made by streaming passes (engine_options::uniform_cuts), shown instead of
+  // records: every diamond of scale ≥ base_stride split (0: a root of records). Its mesh is
+  // final (clipped, physical); record 0 holds no triangle and counts the mesh's. Set before
+  // the root is published, immutable afterwards.
+  std::int32_t base_stride = 0;
+  triangle_mesh base;
   // When the root surface was published (make_root(), just before the store that publishes it).
   clock::time_point published_at{};
   append_log<engine_record> records;
@@ -187,6 +196,7 @@ struct engine_root : epoch_object {
     std::uint64_t n = records.byte_size();
     n += root_triangles.capacity() * sizeof(owned_triangle);
     n += groups.byte_size();
+    n += base.vertices.capacity() * sizeof(vec3) + base.triangles.capacity() * 12;
     return n;
   }
   std::uint64_t retired_bytes = 0;  // bytes() when retired
@@ -364,7 +374,31 @@ struct engine_impl : run_control {
   }
   // ---- roots ---------------------------------------------------------------------------------
 
-  engine_root* make_root(double w, std::uint64_t gen);
+  // A root of records showing the root surface of w. `published`: it is about to be published
+  // (named now, name_published()); else it is refined out of sight first (launch()).
+  engine_root* make_root(double w, std::uint64_t gen, bool published = true);
+  // Gives r the next serial (cut_mark::root), just before it is published. Control thread.
+  void name_published(engine_root& r) noexcept {
+    // relaxed: a name, not an order (the store that publishes the root carries it).
+    r.serial = next_serial.fetch_add(1, std::memory_order_relaxed) + 1;
+  }
+  // A root that shows `mesh`, the uniform cut of `stride` at w (engine_root::base): no records,
+  // no per-vertex words. Any thread (the driver makes them while it runs).
+  engine_root* make_base_root(double w, std::uint64_t gen, std::int32_t stride,
+                              triangle_mesh&& mesh);
+  // Whether a run towards `g` from root r takes the passes (engine_options::uniform_cuts): a
+  // full goal unless r shows the finest cut; an unfocused deadline on a root that holds no
+  // split record (its root surface, or a uniform cut). Control thread.
+  [[nodiscard]] bool by_uniform_cuts(const engine_root& r, const refine_goal& g) const noexcept;
+  // The driver of a run by uniform cuts: the finest cut (a full goal) or the ladder's cuts
+  // until the deadline (deadline_ladder's model), each published as a base root in place of the
+  // one this run shows. Publishes under `control` only while the root it replaces is still the
+  // published one (an isovalue change wins), and never touches a root after retiring it.
+  void drive_uniform(engine_root* r);
+  // Under `control`: publishes `fresh` in place of `shown` and retires `shown`, when `shown` is
+  // still the published root; else destroys `fresh` (never published). Returns whether it
+  // published.
+  bool replace_root(engine_root* shown, engine_root* fresh);
 
   // Commit step (the first run on this root): queues the root diamonds whose range straddles
   // (every one not wholly in the padding, by placeholder, before the range data is built).
@@ -644,8 +678,10 @@ struct engine_impl : run_control {
   // up for the time the build takes (bench/README.md).
   void drive_unranged(engine_root* r);
 
-  // The driver thread of one run.
-  void drive(engine_root* r);
+  // The driver thread of one run. With `replaces`, r is a root of records made for this run,
+  // unpublished, in place of the uniform cut `replaces` shows: published by the driver once
+  // the goal is reached (replace_root()), else destroyed.
+  void drive(engine_root* r, engine_root* replaces = nullptr);
 
   // Control (caller holds `control`).
   void launch(std::unique_lock<std::mutex>& lock, const refine_goal& g);
@@ -728,6 +764,9 @@ struct engine_impl : run_control {
   mutable counter peak_retired_bytes, root_bytes;
   counter recycled_roots;
   std::uint64_t generation = 0;  // guarded by control
+  // The last serial given to a published root (engine_root::serial): written under `control`
+  // (or by the constructor), read by statistics().
+  std::atomic<std::uint64_t> next_serial{0};
 };
 
 }  // namespace progiso::detail

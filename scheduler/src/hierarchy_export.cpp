@@ -12,6 +12,11 @@ hierarchy_exporter::hierarchy_exporter(const engine& e, hierarchy_stream_writer:
 void hierarchy_exporter::write(const surface_snapshot& s) {
   PROGISO_ASSERT(s.valid());
   if (s.owner_ != &engine_) throw error("hierarchy stream: a snapshot of another engine");
+  if (s.root_->base_stride > 0) {
+    throw error(
+        "hierarchy stream: the snapshot is a uniform cut made by streaming passes, which "
+        "has no split records to write (engine_options::uniform_cuts = false)");
+  }
   const volume& field = engine_.field();
   const hierarchy& hier = engine_.hierarchy_of();
   if (!writer_) {
@@ -29,10 +34,13 @@ void hierarchy_exporter::write(const surface_snapshot& s) {
     }
     writer_.emplace(out_, h, corners, s.root_->root_triangles);
     generation_ = s.generation();
+    root_ = s.root_->serial;
     written_ = 1;
   } else if (s.generation() != generation_) {
     throw error("hierarchy stream: a snapshot of another isovalue (" +
                 std::to_string(s.isovalue()) + ") than the stream's");
+  } else if (s.root_->serial != root_) {
+    throw error("hierarchy stream: a snapshot of another refinement of the stream's isovalue");
   }
   if (s.published_ <= written_) return;
   const range_data& rd = engine_.ranges();

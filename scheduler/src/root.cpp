@@ -10,8 +10,29 @@
 
 namespace progiso::detail {
 
-engine_root* engine_impl::make_root(double w, std::uint64_t gen) {
+engine_root* engine_impl::make_base_root(double w, std::uint64_t gen, std::int32_t stride,
+                                         triangle_mesh&& mesh) {
+  vertex_state none{zeroed_array<std::uint32_t>(0),
+                    zeroed_array<engine_record*>(append_log<engine_record>::max_chunks)};
+  auto* r = make_managed<engine_root>(domain, *this, w, gen, std::move(none));
+  r->base_stride = stride;  // its serial comes with its publication (replace_root())
+  r->base = std::move(mesh);
+  const std::uint64_t n = r->base.triangles.size();
+  r->cut_triangles = n;
+  r->records.push_back({no_owner, nullptr, 0, -1, 0, 0, n});
+  r->records.publish();
+  r->seeded = true;
+  r->triangles.set(n);
+  r->record_triangles.set(n);
+  // The finest cut leaves nothing to split; a coarser one leaves its frontier (not listed).
+  r->remaining.set(stride == 1 ? 0 : 1);
+  r->published_at = clock::now();
+  return r;
+}
+
+engine_root* engine_impl::make_root(double w, std::uint64_t gen, bool published) {
   auto* r = make_managed<engine_root>(domain, *this, w, gen, take_vertex_state());
+  if (published) name_published(*r);
   std::vector<owned_triangle> tris;
   for (std::uint64_t q = 0; q < hier.root_count(); ++q) {
     const std::optional<ipoint> centre = compute_root(hier, vol, w, q, tris);
@@ -208,6 +229,7 @@ void engine_impl::stop_reclaimer() noexcept {
 
 void engine_impl::reclaim(engine_root& r, bool keep) noexcept {
   PROGISO_ASSERT(r.magic == root_alive);
+  keep = keep && r.base_stride == 0;  // a uniform cut's root has no per-vertex words
   if (keep) {
     const std::lock_guard lock(reclaim_mutex);
     keep = !spare || spare_fresh;  // one spare set at most, a cleared one rather than a fresh one
@@ -250,7 +272,7 @@ void engine_impl::reclaim(engine_root& r, bool keep) noexcept {
   // relaxed: a statistic; the control thread's fetch_add is the other writer.
   retired_bytes.fetch_sub(r.retired_bytes, std::memory_order_relaxed);
   r.magic = root_dead;
-  if (opt.on_reclaim) opt.on_reclaim(r.generation);
+  if (opt.on_reclaim && r.serial != 0) opt.on_reclaim(r.generation);  // published roots only
   delete &r;
 }
 

@@ -12,6 +12,7 @@
 
 #include <progiso/core/base/error.hpp>
 #include <progiso/core/refine/deadline.hpp>
+#include <progiso/core/surface/finest_surface.hpp>
 
 namespace progiso::detail {
 
@@ -197,7 +198,105 @@ void engine_impl::drive_unranged(engine_root* r) {
   }
 }
 
-void engine_impl::drive(engine_root* r) {
+bool engine_impl::by_uniform_cuts(const engine_root& r, const refine_goal& g) const noexcept {
+  if (!opt.uniform_cuts || vol.dims()[2] < 2 || opt.smooth.active()) return false;
+  switch (g.what) {
+    case refine_goal::kind::full:
+      return true;
+    case refine_goal::kind::deadline:
+      return !g.focus && (r.base_stride > 0 || r.records.published() <= 1);
+    default:
+      return false;
+  }
+}
+
+bool engine_impl::replace_root(engine_root* shown, engine_root* fresh) {
+  const std::lock_guard lock(control);
+  if (current() != shown) {
+    // An isovalue change published its root first: `fresh` was never seen.
+    reclaim(*fresh, false);
+    return false;
+  }
+  name_published(*fresh);
+  // seq_cst (the default), as swap_root(): release for readers' protect(), and the unlink seq_cst
+  // for the TSan variant of the reclamation argument (concurrent/epoch.hpp).
+  root.store(fresh);
+  shown->retired_bytes = shown->bytes();
+  // relaxed: a statistic; the reclaimer's fetch_sub is the other writer.
+  const std::uint64_t now =
+      retired_bytes.fetch_add(shown->retired_bytes, std::memory_order_relaxed) +
+      shown->retired_bytes;
+  peak_retired_bytes.set(std::max(peak_retired_bytes.get(), now));
+  root_bytes.set(fresh->bytes());
+  control_participant.retire(shown, &engine_impl::destroy_root, shown->birth_era());
+  control_participant.flush();
+  return true;
+}
+
+namespace {
+// Thrown through the ladder when a uniform cut could not be published (an isovalue change).
+struct root_replaced {};
+}  // namespace
+
+void engine_impl::drive_uniform(engine_root* r) {
+  const double w = r->isovalue;
+  const std::uint64_t gen = r->generation;
+  engine_root* shown = r;  // never read after it is retired: only compared
+  const std::int32_t shown_stride = r->base_stride;
+  bool reached = false;
+  const auto publish = [&](triangle_mesh&& m, std::int32_t stride) {
+    engine_root* b = make_base_root(w, gen, stride, std::move(m));
+    const std::uint64_t triangles = b->cut_triangles;
+    if (!replace_root(shown, b)) throw root_replaced{};
+    shown = b;
+    if (opt.progress) {
+      call_progress([&] { opt.progress({0, triangles, 0.0, hier.max_depth()}); });
+    }
+  };
+  // The passes run pieces of rows on the engine's threads, in its arena.
+  const auto passes = [&](auto&& f) {
+    if (threads <= 1) {
+      f(parallel_loop{}, std::size_t{1});
+    } else {
+      arena.execute([&] { f(parallel_loop{tbb_loop}, std::size_t{16} * threads); });
+    }
+  };
+  try {
+    if (goal.what == refine_goal::kind::full) {
+      if (shown_stride != 1) {
+        passes([&](const parallel_loop& loop, std::size_t parts) {
+          finest_progress watch;
+          watch = [this](std::uint64_t, std::uint64_t) {
+            if (stopping()) throw root_replaced{};
+          };
+          publish(finest_surface(vol, w, loop, parts, watch), 1);
+        });
+      }
+      reached = true;
+    } else if (shown_stride != 1) {
+      detail::ladder_hooks hooks;
+      hooks.hierarchy_cuts = true;
+      // The root surface is the uniform cut of the root cubes' side: the ladder begins below.
+      hooks.shown_stride = shown_stride > 0 ? shown_stride : hier.root_size();
+      hooks.stopping = [this] { return stopping(); };
+      hooks.on_cut = publish;
+      std::int32_t finest = shown_stride;
+      passes([&](const parallel_loop& loop, std::size_t parts) {
+        const ladder_result l =
+            detail::ladder_surface(vol, w, goal.deadline, loop, parts, {}, hooks);
+        if (l.levels_done > 0) finest = l.stride;
+      });
+      reached = finest == 1;
+    } else {
+      reached = true;
+    }
+  } catch (const root_replaced&) {
+    // Stopped, or an isovalue change published its root: what was published stays.
+  }
+  end_run(reached);
+}
+
+void engine_impl::drive(engine_root* r, engine_root* replaces) {
   slice_end = goal.deadline;
   if (goal.what == refine_goal::kind::full) {
     // Full refinement splits every straddling diamond whatever the errors: ranges only.
@@ -237,6 +336,19 @@ void engine_impl::drive(engine_root* r) {
       reached = r->seeded && ready_count(*r) == 0;
       break;
   }
+  if (replaces != nullptr) {
+    // Records made out of sight in place of a uniform cut: shown once the goal is reached, or,
+    // for a deadline or a budget, once they hold at least the uniform cut's triangles.
+    const bool as_many =
+        (goal.what == refine_goal::kind::deadline || goal.what == refine_goal::kind::budget) &&
+        r->cut_triangles >= replaces->cut_triangles;
+    if ((reached || as_many) && !stopping()) {
+      if (!replace_root(replaces, r)) reached = false;  // an isovalue change came first
+    } else {
+      reached = false;
+      destroy_root(r);  // never published: no reader holds it
+    }
+  }
   end_run(reached);
 }
 
@@ -247,16 +359,32 @@ void engine_impl::launch(std::unique_lock<std::mutex>& lock, const refine_goal& 
   // A focus weights the keys: an error target is then taken by priority (its split set depends on
   // the weights, which the plane sweep does not know).
   if (goal.focus) goal.any_order = false;
+  stop.store(false, std::memory_order_relaxed);  // relaxed: the thread start orders it
+  budget_hit = false;
+  if (by_uniform_cuts(*r, goal)) {
+    if (threads > 1) arena.enqueue([] {});  // see below
+    begin_run([this, r] { drive_uniform(r); });
+    return;
+  }
+  engine_root* replaces = nullptr;
+  if (r->base_stride == 1 && goal.what != refine_goal::kind::deadline) {
+    // The finest cut holds every split: an error or budget goal asks for nothing more.
+    begin_run([this] { end_run(true); });
+    return;
+  }
+  if (r->base_stride > 0) {
+    // A uniform cut has no records to go on from: a root of records is refined out of sight.
+    replaces = r;
+    r = make_root(r->isovalue, r->generation, false);
+  }
   r->queue.set_discipline(g.what == refine_goal::kind::full ? queue_discipline::lifo
                                                             : queue_discipline::largest_error);
   if (g.what == refine_goal::kind::error) r->queue.aim_at(g.max_error);  // eligible() is exact
-  stop.store(false, std::memory_order_relaxed);  // relaxed: the thread start orders it
-  budget_hit = false;
   // An empty task asks oneTBB for the arena's workers now, before the driver thread starts:
   // workers that have idled long enough to sleep join new work late, by as long as a whole
   // range build of a mid-sized grid can take (bench/README.md).
   if (threads > 1) arena.enqueue([] {});
-  begin_run([this, r] { drive(r); });
+  begin_run([this, r, replaces] { drive(r, replaces); });
 }
 
 }  // namespace progiso::detail

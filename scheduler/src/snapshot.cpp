@@ -15,12 +15,33 @@ std::uint64_t surface_snapshot::triangle_count() const noexcept {
   return root_->records[published_ - 1].cut_triangles;
 }
 
+std::int32_t surface_snapshot::uniform_stride() const noexcept { return root_->base_stride; }
+
 bool surface_snapshot::is_split(std::uint64_t index) const noexcept {
+  if (root_->base_stride > 0) {
+    const hierarchy& hier = owner_->hierarchy_of();
+    const ipoint c = hier.point(index);
+    const auto corner_mask = static_cast<std::int32_t>(hier.root_size() - 1);
+    if (((c[0] | c[1] | c[2]) & corner_mask) == 0) return false;  // a root cube's corner
+    return hier.scale_of(c) >= root_->base_stride;
+  }
   const std::uint32_t r = root_->record_index(index);
   return r != 0 && r < published_;
 }
 
+namespace {
+
+[[noreturn]] void refuse_uniform(const char* call, std::int32_t stride) {
+  throw error(std::string("surface_snapshot::") + call + ": the cut is a uniform cut of stride " +
+              std::to_string(stride) +
+              " made by streaming passes, which holds no split records (is_split() tells its "
+              "split set; engine_options::uniform_cuts = false refines by records)");
+}
+
+}  // namespace
+
 void surface_snapshot::for_each_split(const std::function<void(std::uint64_t)>& f) const {
+  if (root_->base_stride > 0) refuse_uniform("for_each_split", root_->base_stride);
   for (std::uint64_t r = 1; r < published_; ++r) f(root_->records[r].diamond);
 }
 
@@ -45,6 +66,7 @@ void walk_record(const detail::engine_root& root, const hierarchy& hier, std::ui
 
 void surface_snapshot::for_each_triangle(
     const std::function<void(const owned_triangle&)>& f) const {
+  if (root_->base_stride > 0) refuse_uniform("for_each_triangle", root_->base_stride);
   const auto live = [this](std::uint64_t owner) { return owner == no_owner || !is_split(owner); };
   for (std::uint64_t r = 0; r < published_; ++r) {
     walk_record(*root_, owner_->hierarchy_of(), r, live,
@@ -100,6 +122,7 @@ triangle_mesh surface_snapshot::build(Keep&& keep) const {
 
 triangle_mesh surface_snapshot::mesh() const {
   PROGISO_ASSERT(valid());
+  if (root_->base_stride > 0) return root_->base;
   return build([](std::uint64_t) { return true; });
 }
 
@@ -109,6 +132,7 @@ triangle_mesh surface_snapshot::mesh_of_records(const std::vector<std::uint8_t>&
     throw error("mesh_of_records: expected a split set of " + std::to_string(published_) +
                 " entries, found " + std::to_string(split.size()));
   }
+  if (root_->base_stride > 0) return root_->base;
   return build([&split](std::uint64_t r) { return split[r] != 0; });
 }
 
@@ -118,6 +142,7 @@ triangle_mesh surface_snapshot::mesh_of_records(const std::vector<std::uint8_t>&
 // cut is parent-closed whatever mix of runs made the records.
 triangle_mesh surface_snapshot::mesh_cut(double max_error) const {
   PROGISO_ASSERT(valid());
+  if (root_->base_stride > 0) refuse_uniform("mesh_cut", root_->base_stride);
   const range_data& rd = owner_->ranges();
   const hierarchy& hier = owner_->hierarchy_of();
   std::vector<std::uint8_t> coarse(published_, 0);  // per record: error > max_error
@@ -142,6 +167,21 @@ triangle_mesh surface_snapshot::mesh_cut(double max_error) const {
 }
 
 void surface_snapshot::mesh_into(render_buffers& out, vertex_normals normals) const {
+  if (root_->base_stride > 0) {
+    // The uniform cut's mesh is final: written as it is, normals from its positions alone.
+    fill_render_buffers(root_->base, out);
+    if (normals == vertex_normals::gradient) {
+      triangle_mesh points;
+      points.vertices = root_->base.vertices;
+      owner_->add_normals(points);
+      out.normals.resize(3 * points.normals.size());
+      float* n = out.normals.data();
+      for (const vec3& v : points.normals) {
+        for (const double x : v) *n++ = static_cast<float>(x);
+      }
+    }
+    return;
+  }
   triangle_mesh m = mesh();
   if (normals == vertex_normals::gradient) owner_->add_normals(m);
   fill_render_buffers(m, out);
@@ -173,6 +213,10 @@ bool surface_snapshot::check_integrity() const noexcept {
   if (root_ == nullptr) return false;
   if (root_->magic != detail::root_alive || !std::isfinite(root_->isovalue)) return false;
   const std::uint64_t vertices = owner_->hierarchy_of().vertex_count();
+  if (root_->base_stride > 0) {
+    return published_ == 1 && root_->records[0].count == 0 &&
+           root_->records[0].cut_triangles == root_->base.triangles.size();
+  }
   for (std::uint64_t r = 0; r < published_; ++r) {
     const detail::engine_record& rec = root_->records[r];
     if (r == 0) {

@@ -219,16 +219,69 @@ class change_maker {
 
 cut_mark surface_snapshot::mark() const noexcept {
   if (!valid()) return {};
-  return cut_mark{owner_, root_->generation, published_};
+  return cut_mark{owner_, root_->generation, published_, root_->serial};
 }
+
+namespace {
+
+// The change to a uniform cut (engine_root::base) from any other cut: the whole cut, its
+// triangle k named as the root surface's triangle k is (a uniform cut's root holds no other
+// triangle), corners gathered from its final mesh; in parts on the engine's threads.
+void uniform_change(const engine& e, const triangle_mesh& base, surface_change& out,
+                    bool with_normals) {
+  out.rebuilt = true;
+  const std::size_t n = base.triangles.size();
+  out.added.resize(n);
+  out.positions.resize(9 * n);
+  std::vector<vec3> normals;
+  if (with_normals) {
+    triangle_mesh points;
+    points.vertices = base.vertices;
+    e.add_normals(points);
+    normals = std::move(points.normals);
+    out.normals.resize(9 * n);
+  }
+  const auto gather = [&](std::size_t lo, std::size_t hi) {
+    for (std::size_t t = lo; t < hi; ++t) {
+      out.added[t] = root_id_bit | t;
+      for (std::size_t c = 0; c < 3; ++c) {
+        const std::uint32_t v = base.triangles[t][c];
+        for (std::size_t k = 0; k < 3; ++k) {
+          out.positions[9 * t + 3 * c + k] = static_cast<float>(base.vertices[v][k]);
+          if (with_normals) out.normals[9 * t + 3 * c + k] = static_cast<float>(normals[v][k]);
+        }
+      }
+    }
+  };
+  const std::size_t threads = e.threads();
+  constexpr std::size_t chunk = std::size_t{1} << 16;
+  if (threads <= 1 || n <= chunk) {
+    gather(0, n);
+    return;
+  }
+  tbb::task_arena arena(static_cast<int>(threads));
+  arena.execute([&] {
+    tbb::parallel_for(std::size_t{0}, (n + chunk - 1) / chunk,
+                      [&](std::size_t i) { gather(i * chunk, std::min(n, (i + 1) * chunk)); });
+  });
+}
+
+}  // namespace
 
 void surface_snapshot::change_since(const cut_mark& earlier, surface_change& out,
                                     vertex_normals normals) const {
   PROGISO_ASSERT(valid());
   out.clear();
   const std::uint64_t w2 = published_;
-  out.rebuilt = earlier.owner != owner_ || earlier.generation != root_->generation ||
-                earlier.records == 0 || earlier.records > w2;
+  const bool same_root = earlier.owner == owner_ && earlier.generation == root_->generation &&
+                         earlier.root == root_->serial;
+  if (root_->base_stride > 0) {
+    if (!same_root || earlier.records != w2) {
+      uniform_change(*owner_, root_->base, out, normals == vertex_normals::gradient);
+    }
+    return;
+  }
+  out.rebuilt = !same_root || earlier.records == 0 || earlier.records > w2;
   const std::uint64_t w1 = out.rebuilt ? 0 : earlier.records;
   const engine& e = *owner_;
   const bool with_normals = normals == vertex_normals::gradient;

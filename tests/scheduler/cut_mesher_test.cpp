@@ -85,6 +85,8 @@ struct split_set_cut {
 
 engine_options with_threads(unsigned n) {
   engine_options o;
+  o.uniform_cuts = false;  // these tests are of split records (uniform_cuts_test.cpp: the passes)
+  o.uniform_cuts = false;  // these tests are of split records (uniform_cuts_test.cpp: the passes)
   o.threads = n;
   return o;
 }
@@ -205,7 +207,7 @@ TEST(CutMesher, any_number_of_parts_gives_the_one_part_mesh_vertex_for_vertex) {
 TEST(CutMesher, engine_mesh_in_parts_equals_the_one_thread_mesh) {
   const volume v = make_gaussian_blobs({81, 77, 79}, 12, 8u);
   engine one(v, 0.4, with_threads(1));
-  engine all(v, 0.4);
+  engine all(v, 0.4, with_threads(0));  // all cores, by records
   one.refine_full();
   all.refine_full();
   if (all.threads() < 2) GTEST_SKIP() << "one core: no parts";

@@ -19,6 +19,7 @@ namespace {
 
 engine_options progress_every(std::uint64_t n, std::function<void(const engine_progress&)> f) {
   engine_options o;
+  o.uniform_cuts = false;  // these tests are of split records (uniform_cuts_test.cpp: the passes)
   o.threads = 2;
   o.progress_interval = n;
   o.progress = std::move(f);

@@ -51,6 +51,8 @@ triangle_mesh replay(const engine& e, const surface_snapshot& s) {
 
 engine_options with_threads(unsigned n) {
   engine_options o;
+  o.uniform_cuts = false;  // these tests are of split records (uniform_cuts_test.cpp: the passes)
+  o.uniform_cuts = false;  // these tests are of split records (uniform_cuts_test.cpp: the passes)
   o.threads = n;
   return o;
 }
@@ -1171,7 +1173,7 @@ TEST(Engine, full_pipeline_reports_the_rows_of_its_two_passes_one_call_at_a_time
 
 TEST(Engine, root_surface_is_published_before_any_pass_over_the_volume) {
   const volume v = make_marschner_lobb({65, 65, 65});
-  engine e(v, 0.5);
+  engine e(v, 0.5, with_threads(0));  // all cores, by records
   // Constructed: the root surface is there, and the range data is not built yet.
   EXPECT_EQ(e.range_build_seconds(), 0.0);
   const surface_snapshot first = e.snapshot();

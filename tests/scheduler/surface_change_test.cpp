@@ -97,6 +97,8 @@ std::vector<refine_goal> budget_steps(std::uint64_t first, std::uint64_t last) {
 
 engine_options with_threads(unsigned n) {
   engine_options o;
+  o.uniform_cuts = false;  // these tests are of split records (uniform_cuts_test.cpp: the passes)
+  o.uniform_cuts = false;  // these tests are of split records (uniform_cuts_test.cpp: the passes)
   o.threads = n;
   return o;
 }

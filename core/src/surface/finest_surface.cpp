@@ -12,6 +12,7 @@
 #include <mutex>
 #include <string>
 #include <type_traits>
+#include <unordered_map>
 #include <vector>
 
 #include <progiso/core/base/detail/prefault.hpp>
@@ -586,9 +587,48 @@ double field_index(double p, std::int64_t sub_n, std::int64_t n, std::int32_t st
   return from + (p - last_cell) * (static_cast<double>(n - 1) - from);
 }
 
+// A mesh in the field's grid frame clipped to the data box [0, dims − 1]: triangles wholly inside
+// are kept as they are, the others clipped as cut_mesher clips a cut's pieces (clip_to_box(): a
+// crossing point computed from the segment's ordered ends, one vertex per position), and the
+// vertices only clipped-away triangles used are dropped. Sequential: only the last layer of
+// cells along an axis reaches past the box.
+void clip_to_data_box(triangle_mesh& mesh, const index3& dims, const parallel_loop& run,
+                      std::size_t parts) {
+  const vec3 box{static_cast<double>(dims[0] - 1), static_cast<double>(dims[1] - 1),
+                 static_cast<double>(dims[2] - 1)};
+  const auto inside = [&box](const vec3& p) {
+    return p[0] <= box[0] && p[1] <= box[1] && p[2] <= box[2];
+  };
+  std::vector<std::array<std::uint32_t, 3>> kept;
+  kept.reserve(mesh.triangles.size());
+  std::unordered_map<vec3, std::uint32_t, detail::position_hash> crossings;
+  std::vector<std::uint32_t> suspects;
+  const auto crossing = [&](const vec3& x) {
+    const auto [it, inserted] =
+        crossings.try_emplace(x, static_cast<std::uint32_t>(mesh.vertices.size()));
+    if (inserted) mesh.vertices.push_back(x);
+    return it->second;
+  };
+  const auto emit = [&kept](const std::array<std::uint32_t, 3>& t) { kept.push_back(t); };
+  for (const std::array<std::uint32_t, 3>& t : mesh.triangles) {
+    const std::array<vec3, 3> p{mesh.vertices[t[0]], mesh.vertices[t[1]], mesh.vertices[t[2]]};
+    if (inside(p[0]) && inside(p[1]) && inside(p[2])) {
+      kept.push_back(t);
+      continue;
+    }
+    const std::array<bool, 3> used = detail::clip_to_box(p, t, box, crossing, emit);
+    for (std::size_t v = 0; v < 3; ++v) {
+      if (!used[v]) suspects.push_back(t[v]);
+    }
+  }
+  mesh.triangles = std::move(kept);
+  detail::drop_unused(mesh, suspects, run, parts);
+}
+
 triangle_mesh uniform_surface_hooked(const volume& field, double isovalue, std::int32_t stride,
                                      const parallel_loop& run, std::size_t parts,
-                                     const finest_progress& progress, const interrupts& stop) {
+                                     const finest_progress& progress, const interrupts& stop,
+                                     bool hierarchy_cut = false) {
   if (stride < 1 || stride > (1 << 14) ||
       !std::has_single_bit(static_cast<std::uint32_t>(stride))) {
     throw error("uniform surface: the stride must be a power of two in [1, 16384], found " +
@@ -631,9 +671,33 @@ triangle_mesh uniform_surface_hooked(const volume& field, double isovalue, std::
     finest_mesher<const T*> m(sub, {1.0, 1.0, 1.0}, {0.0, 0.0, 0.0}, out, isovalue);
     return m.run(run, parts, progress, stop);
   });
-  // Index frame of the subsampled grid → the field's physical frame.
   const auto& sp = field.spacing();
   const auto& org = field.origin();
+  if (hierarchy_cut) {
+    // The subsampled grid's cells are all `stride` wide (its last samples are the box's last,
+    // as the hierarchy's padding repeats the nearest sample): grid frame, clipped, physical.
+    bool past_box = false;
+    for (std::size_t q = 0; q < 3; ++q) past_box = past_box || (sub[q] - 1) * stride > dims[q] - 1;
+    const auto scale = [&](std::size_t part) {
+      const std::size_t n = mesh.vertices.size();
+      const std::size_t count = std::max<std::size_t>(parts, 1);
+      for (std::size_t v = n * part / count; v < n * (part + 1) / count; ++v) {
+        for (double& x : mesh.vertices[v]) x *= stride;  // exact: a power of two
+      }
+    };
+    run_loop(run, std::max<std::size_t>(parts, 1), scale);
+    if (past_box) clip_to_data_box(mesh, dims, run, parts);
+    const auto to_physical = [&](std::size_t part) {
+      const std::size_t n = mesh.vertices.size();
+      const std::size_t count = std::max<std::size_t>(parts, 1);
+      for (std::size_t v = n * part / count; v < n * (part + 1) / count; ++v) {
+        mesh.vertices[v] = detail::physical_position(field, mesh.vertices[v]);
+      }
+    };
+    run_loop(run, std::max<std::size_t>(parts, 1), to_physical);
+    return mesh;
+  }
+  // Index frame of the subsampled grid → the field's physical frame.
   const auto place = [&](std::size_t part) {
     const std::size_t n = mesh.vertices.size();
     const std::size_t count = std::max<std::size_t>(parts, 1);
@@ -656,6 +720,12 @@ triangle_mesh uniform_surface(const volume& field, double isovalue, std::int32_t
   return uniform_surface_hooked(field, isovalue, stride, run, parts, progress, {});
 }
 
+triangle_mesh uniform_cut(const volume& field, double isovalue, std::int32_t stride,
+                          const parallel_loop& run, std::size_t parts,
+                          const finest_progress& progress) {
+  return uniform_surface_hooked(field, isovalue, stride, run, parts, progress, {}, true);
+}
+
 namespace {
 
 // Thrown through finest_surface() by ladder_surface()'s progress when the deadline has passed.
@@ -667,6 +737,13 @@ ladder_result ladder_surface(const volume& field, double isovalue,
                              std::chrono::steady_clock::time_point deadline,
                              const parallel_loop& run, std::size_t parts,
                              const ladder_progress& progress) {
+  return detail::ladder_surface(field, isovalue, deadline, run, parts, progress, {});
+}
+
+ladder_result detail::ladder_surface(const volume& field, double isovalue,
+                                     std::chrono::steady_clock::time_point deadline,
+                                     const parallel_loop& run, std::size_t parts,
+                                     const ladder_progress& progress, const ladder_hooks& hooks) {
   using clock = std::chrono::steady_clock;
   const auto since = [](clock::time_point t) {
     return std::chrono::duration<double>(clock::now() - t).count();
@@ -677,6 +754,9 @@ ladder_result ladder_surface(const volume& field, double isovalue,
     const std::int64_t longest = std::max({dims[0], dims[1], dims[2]}) - 1;
     while (longest / (2 * stride) >= 8 && stride < (1 << 14)) stride *= 2;
   }
+  // A caller that shows a cut already begins below it, and need not make a first cut at all.
+  const bool shown = hooks.shown_stride > 0;
+  if (shown) stride = std::min(stride, hooks.shown_stride / 2);
   ladder_result res;
   const auto called = clock::now();
   // A cut's time: its first pass (and the copy of its samples) in proportion to its grid
@@ -702,7 +782,10 @@ ladder_result ladder_surface(const volume& field, double isovalue,
     const index3 sub = uniform_grid_dims(dims, stride);
     const double points =
         static_cast<double>(sub[0]) * static_cast<double>(sub[1]) * static_cast<double>(sub[2]);
-    const bool must = res.levels_done == 0;
+    const bool must = res.levels_done == 0 && !shown;
+    const auto give_up = [&] {
+      return (!must && clock::now() >= deadline) || (hooks.stopping && hooks.stopping());
+    };
     const auto left = [&deadline] {
       return std::chrono::duration<double>(deadline - clock::now()).count();
     };
@@ -723,8 +806,8 @@ ladder_result ladder_surface(const volume& field, double isovalue,
       const auto now = clock::now();
       const double so_far = std::chrono::duration<double>(now - sized_at).count();
       if (fraction > 1.0) sizing = so_far;  // both arrays sized (the calling thread)
+      if (give_up()) throw deadline_passed{};
       if (must) return;
-      if (now >= deadline) throw deadline_passed{};
       double ends = -1.0;  // projected seconds from sizing's start to the cut's end
       if (fraction > 1.0) {
         ends = so_far + pass2_per_output * output;
@@ -740,11 +823,17 @@ ladder_result ladder_surface(const volume& field, double isovalue,
     const finest_progress watch = [&](std::uint64_t done, std::uint64_t total) {
       if (progress) progress(stride, done, total);
       // The last call says all is done: nothing left to give up.
-      if (!must && done < total && clock::now() >= deadline) throw deadline_passed{};
+      if (done < total && give_up()) throw deadline_passed{};
     };
     try {
-      triangle_mesh m = uniform_surface_hooked(field, isovalue, stride, run, parts, watch, stop);
-      res.mesh = std::move(m);
+      triangle_mesh m = uniform_surface_hooked(field, isovalue, stride, run, parts, watch, stop,
+                                               hooks.hierarchy_cuts);
+      res.triangles = m.triangles.size();
+      if (hooks.on_cut) {
+        hooks.on_cut(std::move(m), stride);
+      } else {
+        res.mesh = std::move(m);
+      }
     } catch (const deadline_passed&) {
       res.abandoned = true;
       break;

@@ -53,7 +53,11 @@ void put(std::vector<std::byte>& out, T v) {
   std::array<std::byte, sizeof(T)> b{};
   std::memcpy(b.data(), &v, sizeof(T));
   if constexpr (std::endian::native == std::endian::big) std::reverse(b.begin(), b.end());
-  out.insert(out.end(), b.begin(), b.end());
+  // resize and copy rather than insert(): gcc 12 at -O3 reports a false bounds overflow in
+  // vector::insert of a small array (-Wstringop-overflow).
+  const std::size_t at = out.size();
+  out.resize(at + sizeof(T));
+  std::memcpy(out.data() + at, b.data(), sizeof(T));
 }
 void put_varint(std::vector<std::byte>& out, std::uint64_t v) {
   while (v >= 0x80) {
@@ -649,8 +653,8 @@ hierarchy_stream stream_decoder::decode(std::span<const std::byte> bytes,
 // Cuts
 
 hierarchy_stream::split_set hierarchy_stream::all() const {
-  split_set s{0};  // records_ holds the root surface at least
-  s.resize(records_.size(), 1);
+  split_set s(records_.size(), 1);  // records_ holds the root surface at least
+  if (!s.empty()) s[0] = 0;
   return s;
 }
 

@@ -118,8 +118,8 @@ struct engine_options {
   /// Fill retired roots with a poison pattern before freeing them (stress tests: a use after
   /// free reads poison that snapshot::check_integrity() reports).
   bool poison_retired = false;
-  /// Called with the generation of every root as it is destroyed (stress tests count them), on
-  /// the engine's reclaimer thread or in ~engine.
+  /// Called with the generation of every published root as it is destroyed (stress tests count
+  /// them; engine_statistics::roots), on the engine's reclaimer thread or in ~engine.
   std::function<void(std::uint64_t generation)> on_reclaim;
   /// Called from the commit step about every `progress_interval` splits (keep it short). It may
   /// call engine::cancel() (a stop request) and any reader; an exception it throws stops the
@@ -130,6 +130,18 @@ struct engine_options {
   /// active(). field() is then the smoothed volume; the constructor throws progiso::error on
   /// bad parameters (as smooth() does).
   smoothing smooth;
+  /// Uniform cuts by streaming passes (finest_surface.hpp) where they buy more than splits: a
+  /// full run publishes the finest cut made by finest_surface(); a deadline run (without a
+  /// focus) on a root that holds no split yet — a fresh engine, a new isovalue — publishes the
+  /// ladder's uniform cuts of the hierarchy coarse to fine (uniform_cut(): every diamond of
+  /// scale ≥ the stride split, clipped to the box), each as soon as it is made, until the
+  /// deadline; a later deadline run goes on down the ladder. Such a cut is a cut of the
+  /// hierarchy without records (surface_snapshot::uniform_stride()): an error, budget or focused
+  /// run from it refines a root of records out of sight and publishes it once its goal is
+  /// reached, so readers never see a coarser surface than the uniform cut. Off (or for a 2D or
+  /// smoothed field): every run refines the hierarchy split by split, with a record per split
+  /// (what hierarchy streams and split sets need).
+  bool uniform_cuts = true;
 };
 
 // What a run refines towards: refine_goal (core/refine/goal.hpp).
@@ -155,6 +167,11 @@ struct engine_statistics {
   /// Roots (isovalues) that took the cleared per-vertex arrays of a reclaimed root instead of
   /// mapping fresh ones (engine life).
   std::uint64_t recycled_roots = 0;
+  /// Roots published (engine life): one per isovalue, one per uniform cut, and one per root of
+  /// records refined out of sight and then shown (engine_options::uniform_cuts). Every one but
+  /// the current is retired (reclamation.retired), and engine_options::on_reclaim hears each
+  /// as it is destroyed.
+  std::uint64_t roots = 0;
 };
 
 /// Where a snapshot's cut stood (surface_snapshot::mark()): plain data, kept by a renderer
@@ -163,6 +180,8 @@ struct cut_mark {
   const engine* owner = nullptr;
   std::uint64_t generation = 0;
   std::uint64_t records = 0;  ///< 0: no cut
+  /// Which of the engine's roots (a new one per isovalue and per uniform cut published).
+  std::uint64_t root = 0;
 };
 
 /// An immutable view of one published cut of one isovalue. Cheap to take, O(cut records) to
@@ -181,22 +200,30 @@ class surface_snapshot {
   [[nodiscard]] double isovalue() const noexcept;
   /// Number of isovalue changes before this snapshot's root (0 for the first isovalue).
   [[nodiscard]] std::uint64_t generation() const noexcept;
-  /// Split diamonds in the cut (records − 1).
+  /// Split diamonds in the cut with a record (records − 1): 0 for a uniform cut.
   [[nodiscard]] std::uint64_t split_count() const noexcept { return published_ - 1; }
+  /// 0 for a cut of split records; s for a uniform cut made by streaming passes
+  /// (engine_options::uniform_cuts): every diamond of scale ≥ s split, 1 being the finest cut.
+  [[nodiscard]] std::int32_t uniform_stride() const noexcept;
   /// Triangles in the cut before box clipping: O(1).
   [[nodiscard]] std::uint64_t triangle_count() const noexcept;
-  /// Whether the diamond with this grid index is split in the cut.
+  /// Whether the diamond with this grid index is split in the cut (in a uniform cut of stride
+  /// s: whether its scale is s or more).
   [[nodiscard]] bool is_split(std::uint64_t index) const noexcept;
-  /// Calls f(grid index) for every split diamond of the cut, in publication order.
+  /// Calls f(grid index) for every split diamond of the cut, in publication order (a uniform
+  /// cut's: every diamond of scale ≥ its stride whose range holds the isovalue, by grid index;
+  /// the others hold no surface at any cut).
   void for_each_split(const std::function<void(std::uint64_t)>& f) const;
-  /// Calls f(owned_triangle) for every triangle of the cut (edge keys, unclipped).
+  /// Calls f(owned_triangle) for every triangle of the cut (edge keys, unclipped). A uniform
+  /// cut holds positions, not keys: throws progiso::error there.
   void for_each_triangle(const std::function<void(const owned_triangle&)>& f) const;
   /// The cut's surface: indexed, clipped to the data box, physical coordinates, records in
   /// canonical order (by diamond), so it depends only on the split set.
   [[nodiscard]] triangle_mesh mesh() const;
   /// The coarser cut of the split diamonds whose nested error exceeds max_error, by the range
   /// data's exact errors: makes them first if no run has (engine::ranges(); so, like it, not
-  /// from the progress callback).
+  /// from the progress callback). A uniform cut has no records to choose from: throws
+  /// progiso::error there (refine_until() gives the cut by error).
   [[nodiscard]] triangle_mesh mesh_cut(double max_error) const;
   /// mesh() as float positions and indices in buffers the caller owns (a renderer's, reused
   /// frame after frame: their storage is kept, see render_buffers); with

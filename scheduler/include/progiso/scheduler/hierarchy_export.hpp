@@ -38,6 +38,7 @@ class hierarchy_exporter {
   hierarchy_stream_writer::sink out_;
   std::optional<hierarchy_stream_writer> writer_;
   std::uint64_t generation_ = 0;
+  std::uint64_t root_ = 0;     // the engine's root (cut_mark::root) the stream's records are of
   std::uint64_t written_ = 0;  // records written, counting the root surface
 };
 

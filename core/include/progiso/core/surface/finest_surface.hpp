@@ -80,6 +80,18 @@ using finest_progress = std::function<void(std::uint64_t rows_done, std::uint64_
 /// dims[q] ≥ 2 (every stride-th index and the last), 1 stays 1.
 [[nodiscard]] index3 uniform_grid_dims(const index3& dims, std::int32_t stride) noexcept;
 
+/// The cut of the hierarchy (hierarchy.hpp) in which every diamond of scale ≥ `stride` is split,
+/// clipped to the data box as a cut is meshed (stride a power of two; 1 gives finest_surface()):
+/// uniform_surface()'s cells, all `stride` wide, the last layer reaching past the box where
+/// `stride` does not divide dims − 1 (its samples those of the box's last plane, as the
+/// hierarchy's padding repeats the nearest sample) and clipped there (mesh_clip.hpp). So it is
+/// the surface the engine's refinement reaches for that split set, on every grid, as a set of
+/// triangles vertex for vertex (numbered otherwise). Cost: uniform_surface()'s, plus one scan of
+/// its triangles where the box is not divided. Throws as uniform_surface().
+[[nodiscard]] triangle_mesh uniform_cut(const volume& field, double isovalue, std::int32_t stride,
+                                        const parallel_loop& run = {}, std::size_t parts = 1,
+                                        const finest_progress& progress = {});
+
 /// Work done by ladder_surface(): the rows of the cut at `stride` done so far, as
 /// finest_progress says them for each cut in turn (rows_total is that cut's own).
 using ladder_progress =
@@ -92,6 +104,7 @@ struct ladder_result {
   int levels_done = 0;         ///< uniform cuts finished, the returned one included
   bool abandoned = false;      ///< a finer cut was begun and given up at the deadline
   double first_seconds = 0.0;  ///< from the call to the first (coarsest) cut done
+  std::size_t triangles = 0;   ///< the triangles of the finest cut done (also with on_cut)
 };
 
 /// The time-critical scenario on uniform cuts: uniform_surface() at strides 2^k, 2^(k−1), …, 1,
@@ -108,5 +121,29 @@ struct ladder_result {
                                            std::chrono::steady_clock::time_point deadline,
                                            const parallel_loop& run = {}, std::size_t parts = 1,
                                            const ladder_progress& progress = {});
+
+namespace detail {
+
+/// What an engine asks of the ladder beyond ladder_surface()'s.
+struct ladder_hooks {
+  /// uniform_cut() (hierarchy cuts, clipped) instead of uniform_surface() (stretched).
+  bool hierarchy_cuts = false;
+  /// A cut of this stride is shown already (0: none): the ladder begins one stride below it,
+  /// and no cut is forced, so that nothing is made past the deadline.
+  std::int32_t shown_stride = 0;
+  /// Asked wherever the deadline is: true gives up the cut in progress and ends the call.
+  std::function<bool()> stopping;
+  /// Each cut done, coarse to fine, handed over as it is made (the result then holds no mesh).
+  std::function<void(triangle_mesh&&, std::int32_t stride)> on_cut;
+};
+
+/// ladder_surface() with hooks (the engine's deadline runs on an unrefined root).
+[[nodiscard]] ladder_result ladder_surface(const volume& field, double isovalue,
+                                           std::chrono::steady_clock::time_point deadline,
+                                           const parallel_loop& run, std::size_t parts,
+                                           const ladder_progress& progress,
+                                           const ladder_hooks& hooks);
+
+}  // namespace detail
 
 }  // namespace progiso

@@ -36,7 +36,14 @@ std::array<bool, 3> clip_to_box(const std::array<vec3, 3>& p,
   // Clipping a convex polygon by a plane adds at most one corner: at most 6 after 3 planes.
   std::array<corner, 8> poly{};
   std::array<corner, 8> next{};
-  for (std::size_t i = 0; i < 3; ++i) poly[i] = {p[i], ids[i]};
+  // From the corner with the smallest position, orientation kept: the clipped polygon's fan
+  // then depends only on the oriented triangle, not on which corner a mesher lists first (the
+  // engine's cuts and uniform_cut() list them differently and must clip alike).
+  std::size_t first = 0;
+  for (std::size_t i = 1; i < 3; ++i) {
+    if (p[i] < p[first]) first = i;
+  }
+  for (std::size_t i = 0; i < 3; ++i) poly[i] = {p[(first + i) % 3], ids[(first + i) % 3]};
   std::size_t size = 3;
   for (std::size_t q = 0; q < 3 && size >= 3; ++q) {
     std::size_t kept = 0;
