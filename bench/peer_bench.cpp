@@ -10,7 +10,8 @@
 // deadline buys (see there), BM_peer_scaling the pipeline's speed-up from one thread (see there),
 // BM_peer_normals both sides with vertex normals (see there), BM_follow a render thread that
 // follows a full run by its changes (see there), BM_finest_buffers an engine's finest cut in a
-// renderer's buffers, fresh and after an isovalue change (see there).
+// renderer's buffers, fresh and after an isovalue change (see there), BM_stream_cut a cut made
+// from a hierarchy stream without the volume (see there).
 //
 // Each benchmark runs both sides in alternating pairs (the order flips every pair) and reports
 // medians: fe_ms, progiso_ms with its phases (range_ms, refine_ms, extract_ms; first_ms, the root
@@ -22,9 +23,12 @@
 #include <progiso/core/contour/contour_refiner.hpp>
 #include <progiso/core/field/analytic.hpp>
 #include <progiso/core/refine/refiner.hpp>
+#include <progiso/core/surface/hierarchy_stream.hpp>
 #include <progiso/io/image_io.hpp>
 #include <progiso/io/volume_io.hpp>
 #include <progiso/scheduler/engine.hpp>
+#include <progiso/scheduler/frame_feed.hpp>
+#include <progiso/scheduler/hierarchy_export.hpp>
 #include <progiso/scheduler/tbb_environment.hpp>
 
 #include <algorithm>
@@ -253,14 +257,17 @@ void BM_peer_normals(benchmark::State& state) {
 }
 
 // ---- Following a refinement (BM_follow): a render thread that keeps the engine's surface in a
-// slot pool (render_slots) while a full run refines it from the root, frame by frame at 60 Hz:
-// each frame takes a snapshot, asks for the change since the last frame's cut
-// (surface_snapshot::change_since) and applies it. The pair's progiso side is the sum of the
-// frames' update times over the whole run (`progiso_ms`, `ratio` against Flying Edges). Also:
-// the frames' update times (`frame_p50_ms`, `frame_p99_ms`, `frame_max_ms`, nearest rank over
-// every frame of every pair), frames per run, and the whole finest cut into a fresh pool
+// slot pool while a full run refines it from the root, frame by frame at 60 Hz, through a
+// frame_feed (its producer thread makes each frame's change, or a whole pool for a rebuilt cut,
+// and hands it over a Boost.Lockfree queue): each frame calls update(). The pair's progiso side
+// is the sum of the render thread's update times over the whole run (`progiso_ms`, `ratio`
+// against Flying Edges). Also: the update times (`frame_p50_ms`, `frame_p99_ms`,
+// `frame_max_ms`, nearest rank over every frame of every pair), frames per run, the producer's
+// time making frames (`producer_ms`), and the whole finest cut into a fresh pool on one thread
 // (`cut_ms`, a rebuilt change applied; `cut_ratio` against Flying Edges) beside mesh_into()'s
-// indexed buffers (`mesh_into_ms`).
+// indexed buffers (`mesh_into_ms`, `into_ratio`). BM_follow is the default engine (a full run
+// makes the finest cut by the passes: one rebuilt frame); BM_follow_records follows full
+// refinement by split records (engine_options::uniform_cuts off: a change per frame).
 
 double nearest_rank(std::vector<double> v, double q) {
   if (v.empty()) return 0.0;
@@ -269,47 +276,46 @@ double nearest_rank(std::vector<double> v, double q) {
   return v[std::min(v.size() - 1, k == 0 ? 0 : k - 1)];
 }
 
-void BM_follow(benchmark::State& state) {
+void follow(benchmark::State& state, bool uniform_cuts) {
   auto [in, vol, threads, fe] = volume_setup(state);
   engine_options o;
   o.threads = threads;
+  o.uniform_cuts = uniform_cuts;
   pair_stats s;
   std::vector<double> frames;
   std::vector<double> runs_frames;
+  std::vector<double> producer;
   std::vector<double> cut;
-  std::vector<double> cut_ratio;
   std::vector<double> into;
-  render_slots slots;
   surface_change change;
   render_buffers buffers;
   run_pairs(state, *fe, s, [&] {
     engine e(vol, in.isovalue, o);
-    slots.clear();
-    cut_mark mark;
+    frame_feed feed(e);
     double total = 0.0;
     std::size_t count = 0;
     e.start(refine_goal::full());
     auto next = clock_type::now();
     while (true) {
-      const bool last = !e.running();  // read first: the frame after it holds the final cut
+      // Read first: a frame after the run's end that finds the feed at the last cut ends it.
+      const bool idle = !e.running();
       const auto t0 = clock_type::now();
-      {
-        const surface_snapshot snap = e.snapshot();
-        snap.change_since(mark, change);
-        slots.apply(change);
-        mark = snap.mark();
-      }
+      feed.update();
       const double ms = ms_since(t0);
       frames.push_back(ms);
       total += ms;
       ++count;
-      if (last) break;
+      if (idle) {
+        const cut_mark last = e.snapshot().mark();
+        const cut_mark held = feed.mark();
+        if (held.root == last.root && held.records == last.records) break;
+      }
       next += std::chrono::microseconds(16667);
       std::this_thread::sleep_until(next);
     }
-    e.wait();
     runs_frames.push_back(static_cast<double>(count));
-    s.mine_cells = static_cast<double>(slots.triangle_count());
+    producer.push_back(feed.statistics().producer_seconds * 1e3);
+    s.mine_cells = static_cast<double>(feed.surface().triangle_count());
     {
       const surface_snapshot snap = e.snapshot();
       render_slots fresh;
@@ -325,14 +331,78 @@ void BM_follow(benchmark::State& state) {
     return total;
   });
   report(state, s, "triangles");
-  for (std::size_t i = 0; i < cut.size(); ++i) cut_ratio.push_back(cut[i] / s.fe[i]);
+  std::vector<double> cut_ratio;
+  std::vector<double> into_ratio;
+  for (std::size_t i = 0; i < cut.size(); ++i) {
+    cut_ratio.push_back(cut[i] / s.fe[i]);
+    into_ratio.push_back(into[i] / s.fe[i]);
+  }
   state.counters["frame_p50_ms"] = nearest_rank(frames, 0.5);
   state.counters["frame_p99_ms"] = nearest_rank(frames, 0.99);
   state.counters["frame_max_ms"] = nearest_rank(frames, 1.0);
   state.counters["frames"] = median(runs_frames);
+  state.counters["producer_ms"] = median(producer);
   state.counters["cut_ms"] = median(cut);
   state.counters["cut_ratio"] = median(cut_ratio);
   state.counters["mesh_into_ms"] = median(into);
+  state.counters["into_ratio"] = median(into_ratio);
+}
+void BM_follow(benchmark::State& state) { follow(state, true); }
+void BM_follow_records(benchmark::State& state) { follow(state, false); }
+
+// ---- Cuts without the volume (BM_stream_cut): the engine's full refinement by records
+// (uniform_cuts off) exported as a hierarchy stream once (`bytes_per_triangle`), then in
+// alternating pairs with Flying Edges: the stream decoded and validated and its full cut meshed
+// (`progiso_ms`: hierarchy_stream::decode() then mesh(all()), no volume; `decode_ms`, `cut_ms`),
+// beside the engine's own snapshot().mesh() of the same records (`engine_mesh_ms`).
+
+void BM_stream_cut(benchmark::State& state) {
+  auto [in, vol, threads, fe] = volume_setup(state);
+  engine_options o;
+  o.threads = threads;
+  o.uniform_cuts = false;
+  engine e(vol, in.isovalue, o);
+  e.refine_full();
+  std::vector<std::byte> bytes;
+  {
+    hierarchy_exporter x(e, [&bytes](std::span<const std::byte> b) {
+      bytes.insert(bytes.end(), b.begin(), b.end());
+    });
+    const surface_snapshot snap = e.snapshot();
+    x.write(snap);
+    x.finish();
+  }
+  pair_stats s;
+  std::vector<double> decode_ms;
+  std::vector<double> cut_ms;
+  std::vector<double> engine_ms;
+  double triangles = 0.0;
+  run_pairs(state, *fe, s, [&] {
+    const auto t0 = clock_type::now();
+    const hierarchy_stream h = hierarchy_stream::decode(bytes);
+    decode_ms.push_back(ms_since(t0));
+    const auto t1 = clock_type::now();
+    const triangle_mesh m = h.mesh(h.all());
+    cut_ms.push_back(ms_since(t1));
+    const double ms = ms_since(t0);
+    triangles = static_cast<double>(m.triangles.size());
+    s.mine_cells = triangles;
+    benchmark::DoNotOptimize(m.vertices.data());
+    const auto t2 = clock_type::now();
+    {
+      const surface_snapshot snap = e.snapshot();
+      const triangle_mesh em = snap.mesh();
+      benchmark::DoNotOptimize(em.vertices.data());
+    }
+    engine_ms.push_back(ms_since(t2));
+    return ms;
+  });
+  report(state, s, "triangles");
+  state.counters["decode_ms"] = median(decode_ms);
+  state.counters["cut_ms"] = median(cut_ms);
+  state.counters["engine_mesh_ms"] = median(engine_ms);
+  state.counters["stream_bytes"] = static_cast<double>(bytes.size());
+  state.counters["bytes_per_triangle"] = static_cast<double>(bytes.size()) / triangles;
 }
 
 // ---- Scaling: the pipeline on one thread and on `threads` (arg 1), alternated in one benchmark
@@ -599,7 +669,9 @@ void register_all() {
   per_volume("BM_peer_normals", BM_peer_normals, 1);
   per_volume("BM_peer_scaling", BM_peer_scaling, 2);
   per_volume("BM_follow", BM_follow, 1);
+  per_volume("BM_follow_records", BM_follow_records, 1);
   per_volume("BM_finest_buffers", BM_finest_buffers, 1);
+  per_volume("BM_stream_cut", BM_stream_cut, 1);
   for (std::size_t i = 0; i < volumes().size(); ++i) {
     for (std::int64_t t = 1; t <= 2; ++t) {
       benchmark::RegisterBenchmark(("BM_deadline_quality/" + volumes()[i].name).c_str(),

@@ -9,19 +9,28 @@
 //   - exactly one isovalue and the right cut: equal to the sequential refiner's surface for the
 //     snapshot's split set at the snapshot's isovalue (a mix of isovalues would move vertices);
 //   - cuts of one root only grow.
-// At shutdown every root (one per isovalue) has been reclaimed exactly once.
+// Beside them, a render thread follows the engine through a frame_feed (its producer takes
+// snapshots and makes changes while all this goes on) and, once the runs are over, must hold
+// the last cut triangle for triangle; and a stream writer exports every root of records it sees
+// (hierarchy_exporter), each stream decoding to the last cut it wrote.
+// At shutdown every published root has been reclaimed exactly once.
 // Runs PROGISO_STRESS_SECONDS (default 1).
 #include <progiso/core/field/analytic.hpp>
 #include <progiso/core/hierarchy/hierarchy.hpp>
 #include <progiso/core/ranges/range_data.hpp>
 #include <progiso/core/refine/refiner.hpp>
+#include <progiso/core/surface/hierarchy_stream.hpp>
 #include <progiso/scheduler/engine.hpp>
+#include <progiso/scheduler/frame_feed.hpp>
+#include <progiso/scheduler/hierarchy_export.hpp>
 
+#include <array>
 #include <atomic>
 #include <chrono>
 #include <cstdio>
 #include <map>
 #include <mutex>
+#include <optional>
 #include <random>
 #include <set>
 #include <string>
@@ -47,6 +56,30 @@ void random_pause(std::mt19937& rng) {
   std::this_thread::sleep_for(std::chrono::microseconds(us(rng)));
 }
 
+using corners = std::array<float, 9>;
+
+std::map<corners, int> triangles_of(const render_slots& s) {
+  std::map<corners, int> out;
+  const std::span<const float> p = s.positions();
+  for (std::size_t slot = 0; slot < s.slot_count(); ++slot) {
+    if (s.id_of(slot) == render_slots::free_slot) continue;
+    corners c{};
+    std::copy_n(p.data() + 9 * slot, 9, c.data());
+    ++out[c];
+  }
+  return out;
+}
+
+std::map<corners, int> triangles_of(const render_buffers& b) {
+  std::map<corners, int> out;
+  for (std::size_t t = 0; t < b.triangle_count(); ++t) {
+    corners c{};
+    for (std::size_t k = 0; k < 9; ++k) c[k] = b.positions[3 * b.indices[3 * t + k / 3] + k % 3];
+    ++out[c];
+  }
+  return out;
+}
+
 struct reader_counts {
   std::uint64_t snapshots = 0;
   std::uint64_t triangles_walked = 0;
@@ -68,7 +101,7 @@ TEST(EngineStress, readers_walk_snapshots_while_runs_are_cancelled_and_the_isova
     std::uint64_t generations = 0;
     std::uint64_t roots = 0;
     std::uint64_t control_ops = 0;
-    std::vector<reader_counts> counts(2);
+    std::vector<reader_counts> counts(4);  // two readers, the render thread, the stream writer
     {
       engine_options o;
       o.poison_retired = true;
@@ -85,7 +118,79 @@ TEST(EngineStress, readers_walk_snapshots_while_runs_are_cancelled_and_the_isova
       std::atomic<bool> finished{false};
 
       std::vector<std::thread> readers;
-      for (std::size_t t = 0; t < counts.size(); ++t) {
+      frame_feed_options fo;
+      fo.poll = 200us;
+      fo.depth = 2;
+      frame_feed feed(e, fo);  // destroyed before the engine
+      readers.emplace_back([&] {
+        // The render thread: updates at random moments; once the runs are over (finished is
+        // set after the last cancel), it must catch up with the last cut.
+        std::mt19937 rng(300);
+        reader_counts& c = counts[2];
+        // acquire: pairs with the release-store in test::control_until().
+        while (!finished.load(std::memory_order_acquire)) {
+          c.snapshots += feed.update();
+          random_pause(rng);
+        }
+        const cut_mark last = e.snapshot().mark();
+        const auto give_up = clock::now() + 30s;
+        while (!(feed.mark().root == last.root && feed.mark().records == last.records) &&
+               clock::now() < give_up) {
+          c.snapshots += feed.update();
+          std::this_thread::sleep_for(200us);
+        }
+        render_buffers b;
+        e.snapshot().mesh_into(b);
+        c.triangles_walked += b.triangle_count();
+        if (triangles_of(feed.surface()) != triangles_of(b)) {
+          ++c.violations;
+          c.first_violation = "the render thread's pool differs from the last cut";
+        }
+      });
+      readers.emplace_back([&] {
+        // The stream writer: every root of records it sees, exported; each finished stream
+        // must decode, and its full cut must be the last snapshot it wrote.
+        std::mt19937 rng(400);
+        reader_counts& c = counts[3];
+        std::vector<std::byte> bytes;
+        std::optional<hierarchy_exporter> out;
+        std::uint64_t root = 0;
+        triangle_mesh last_written;
+        const auto check = [&] {
+          if (!out) return;
+          out->finish();
+          try {
+            const hierarchy_stream h = hierarchy_stream::decode(bytes);
+            if (auto r = test::same_surface(h.mesh(h.all()), last_written); !r) {
+              ++c.violations;
+              c.first_violation = std::string("stream cut: ") + r.message();
+            }
+          } catch (const std::exception& x) {
+            ++c.violations;
+            c.first_violation = std::string("stream refused: ") + x.what();
+          }
+          out.reset();
+          bytes.clear();
+        };
+        // acquire: pairs with the release-store in test::control_until().
+        while (!finished.load(std::memory_order_acquire)) {
+          const surface_snapshot s = e.snapshot();
+          if (s.uniform_stride() > 0) continue;
+          if (s.mark().root != root) {
+            check();
+            root = s.mark().root;
+            out.emplace(e, [&bytes](std::span<const std::byte> b) {
+              bytes.insert(bytes.end(), b.begin(), b.end());
+            });
+          }
+          out->write(s);
+          last_written = s.mesh();
+          ++c.snapshots;
+          random_pause(rng);
+        }
+        check();
+      });
+      for (std::size_t t = 0; t < 2; ++t) {
         readers.emplace_back([&, t] {
           std::mt19937 rng(static_cast<unsigned>(100 + t));
           reader_counts& c = counts[t];

@@ -329,10 +329,12 @@ int run_cut(const std::vector<std::string>& args) {
     return 0;
   }
   using clock = std::chrono::steady_clock;
-  refuse_clashing_outputs(
-      {fs::path(*a.input)},
-      a.stats_json ? std::vector<named_output>{{"-o", *a.output}, {"--stats-json", *a.stats_json}}
-                   : std::vector<named_output>{{"-o", *a.output}});
+  // Built step by step: gcc 12 at -O3 reports a string of a braced list inside a conditional
+  // as maybe uninitialized (a false -Wmaybe-uninitialized).
+  std::vector<named_output> outputs;
+  outputs.push_back({"-o", *a.output});
+  if (a.stats_json) outputs.push_back({"--stats-json", *a.stats_json});
+  refuse_clashing_outputs({fs::path(*a.input)}, outputs);
   progiso::detail::atomic_output mesh_out(*a.output);
   std::optional<progiso::detail::atomic_output> stats_out;
   if (a.stats_json) stats_out.emplace(*a.stats_json);

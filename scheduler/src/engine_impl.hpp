@@ -718,6 +718,14 @@ struct engine_impl : run_control {
   bool reclaim_quit = false;
   std::optional<vertex_state> spare;
   bool spare_fresh = false;  // `spare` was mapped fresh (by the reclaimer), not cleared
+  // The storage of a reclaimed uniform cut's mesh (the largest one), for a later cut of about
+  // its size (take_mesh_storage()): the new cut's pages are then mapped already, and the old
+  // ones are not unmapped while a run makes the new one (unmapping a large mesh on the
+  // reclaimer slowed a deadline run after an isovalue change; bench/README.md).
+  triangle_mesh spare_mesh;
+  // Recycled storage for a cut of `vertices` and `triangles` (detail::mesh_storage): the spare
+  // mesh when it holds them and is at most four times larger, else nothing. Any thread.
+  triangle_mesh take_mesh_storage(std::uint64_t vertices, std::uint64_t triangles);
   std::thread reclaimer;
   bool recycle = true;
   mutable epoch_domain domain;

@@ -123,11 +123,9 @@ struct frame_feed::state {
       p->apply(*c);
       free_changes.push_back(c);
       out.pool = p;
-    } else if (c->gone.empty() && c->added.empty() && c->hidden.empty()) {
-      free_changes.push_back(c);  // the same surface (a cut the render thread holds)
-      handed = m;
-      return;
     } else {
+      // Even a change of no triangle (splits whose records add none) is handed over: mark()
+      // tells the render thread which cut it holds.
       out.change = c;
     }
     const bool pushed = ready.push(out);  // room was checked above; this thread is the only writer

@@ -253,6 +253,18 @@ void engine_impl::reclaim(engine_root& r, bool keep) noexcept {
       }
     }
   }
+  if (r.base_stride > 0 && recycle && !opt.poison_retired) {
+    // The mesh's storage kept for a later cut (take_mesh_storage()): the larger of it and the
+    // spare; the smaller one is freed after the lock.
+    triangle_mesh smaller;
+    {
+      const std::lock_guard lock(reclaim_mutex);
+      if (r.base.triangles.capacity() > spare_mesh.triangles.capacity()) {
+        std::swap(r.base, spare_mesh);
+      }
+      smaller = std::move(r.base);
+    }
+  }
   if (opt.poison_retired) {
     r.groups.overwrite(poison_byte);
     poison_vector(r.root_triangles);
@@ -274,6 +286,14 @@ void engine_impl::reclaim(engine_root& r, bool keep) noexcept {
   r.magic = root_dead;
   if (opt.on_reclaim && r.serial != 0) opt.on_reclaim(r.generation);  // published roots only
   delete &r;
+}
+
+triangle_mesh engine_impl::take_mesh_storage(std::uint64_t vertices, std::uint64_t triangles) {
+  const std::lock_guard lock(reclaim_mutex);
+  const std::size_t v = spare_mesh.vertices.capacity();
+  const std::size_t t = spare_mesh.triangles.capacity();
+  if (v < vertices || t < triangles || 4 * triangles < t) return {};
+  return std::exchange(spare_mesh, triangle_mesh{});
 }
 
 void engine_impl::destroy_root(void* p) noexcept {

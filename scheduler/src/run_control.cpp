@@ -253,6 +253,9 @@ void engine_impl::drive_uniform(engine_root* r) {
       call_progress([&] { opt.progress({0, triangles, 0.0, hier.max_depth()}); });
     }
   };
+  const detail::mesh_storage storage = [this](std::uint64_t v, std::uint64_t t) {
+    return take_mesh_storage(v, t);
+  };
   // The passes run pieces of rows on the engine's threads, in its arena.
   const auto passes = [&](auto&& f) {
     if (threads <= 1) {
@@ -269,7 +272,7 @@ void engine_impl::drive_uniform(engine_root* r) {
           watch = [this](std::uint64_t, std::uint64_t) {
             if (stopping()) throw root_replaced{};
           };
-          publish(finest_surface(vol, w, loop, parts, watch), 1);
+          publish(detail::finest_surface(vol, w, loop, parts, watch, storage), 1);
         });
       }
       reached = true;
@@ -280,6 +283,7 @@ void engine_impl::drive_uniform(engine_root* r) {
       hooks.shown_stride = shown_stride > 0 ? shown_stride : hier.root_size();
       hooks.stopping = [this] { return stopping(); };
       hooks.on_cut = publish;
+      hooks.storage = storage;
       std::int32_t finest = shown_stride;
       passes([&](const parallel_loop& loop, std::size_t parts) {
         const ladder_result l =

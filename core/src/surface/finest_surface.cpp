@@ -35,6 +35,12 @@ struct interrupts {
   // (with the fraction of that array sized so far, from any of the call's threads,
   // concurrently), and once both arrays are sized (with 2, on the calling thread).
   std::function<void(double)> poll;
+  // Asked for storage to write the output into, once its size is known (detail::mesh_storage).
+  detail::mesh_storage storage;
+  // Capacity beyond the output's size in both arrays (a sixteenth, unmapped until used), for a
+  // caller that adds to them in place (clip_to_data_box()): growing past capacity would copy
+  // the arrays into fresh pages.
+  bool slack = false;
 };
 
 // A grid point's owned edges, by slot: 0 +x, 1 +y, 2 +z, 3 the diagonal of its xy square,
@@ -255,9 +261,14 @@ class finest_mesher {
     // per thread, which made sizing a large field's output a long step, slower still on two
     // threads (bench/README.md). Mapped in slices over the threads, then zeroed side by side. In
     // steps of 1 M elements, each mapped then zeroed, when the caller polls between them.
-    triangle_mesh mesh;
     const std::uint64_t nv = row_vertices_[rows_];
     const std::uint64_t nt = row_triangles_[rows_];
+    // Recycled storage, when the caller has some: its pages are mapped already, so sizing and
+    // writing it fault nothing, and nothing was unmapped to make room for it.
+    triangle_mesh mesh = stop.storage ? stop.storage(nv, nt) : triangle_mesh{};
+    mesh.vertices.clear();
+    mesh.triangles.clear();
+    mesh.normals.clear();
     const auto size = [&stop](auto& array, std::uint64_t n) {
       using element = typename std::remove_reference_t<decltype(array)>::value_type;
       if (!stop.poll) {
@@ -272,8 +283,8 @@ class finest_mesher {
         array.resize(next);
       }
     };
-    mesh.vertices.reserve(static_cast<std::size_t>(nv));
-    mesh.triangles.reserve(static_cast<std::size_t>(nt));
+    mesh.vertices.reserve(static_cast<std::size_t>(nv + (stop.slack ? nv / 16 + 64 : 0)));
+    mesh.triangles.reserve(static_cast<std::size_t>(nt + (stop.slack ? nt / 16 + 64 : 0)));
     if (!stop.poll) {
       detail::prefault_in_parts(loop, parts, mesh.vertices.data(),
                                 static_cast<std::size_t>(nv) * sizeof(mesh.vertices[0]));
@@ -566,6 +577,14 @@ triangle_mesh finest_surface(const volume& field, double isovalue, const paralle
   return finest_surface_hooked(field, isovalue, run, parts, progress, {});
 }
 
+triangle_mesh detail::finest_surface(const volume& field, double isovalue, const parallel_loop& run,
+                                     std::size_t parts, const finest_progress& progress,
+                                     const mesh_storage& storage) {
+  interrupts hooks;
+  hooks.storage = storage;
+  return finest_surface_hooked(field, isovalue, run, parts, progress, hooks);
+}
+
 index3 uniform_grid_dims(const index3& dims, std::int32_t stride) noexcept {
   index3 sub{};
   for (std::size_t q = 0; q < 3; ++q) sub[q] = dims[q] < 2 ? dims[q] : (dims[q] - 2) / stride + 2;
@@ -587,42 +606,128 @@ double field_index(double p, std::int64_t sub_n, std::int64_t n, std::int32_t st
   return from + (p - last_cell) * (static_cast<double>(n - 1) - from);
 }
 
-// A mesh in the field's grid frame clipped to the data box [0, dims − 1]: triangles wholly inside
-// are kept as they are, the others clipped as cut_mesher clips a cut's pieces (clip_to_box(): a
-// crossing point computed from the segment's ordered ends, one vertex per position), and the
-// vertices only clipped-away triangles used are dropped. Sequential: only the last layer of
-// cells along an axis reaches past the box.
+// A mesh in the field's grid frame clipped to the data box [0, dims − 1], as cut_mesher clips a
+// cut's pieces (clip_to_box(): a crossing point computed from the segment's ordered ends, one
+// vertex per position), in place: only the last layer of cells along an axis reaches past the
+// box, so the whole mesh is read once in parallel parts (its corners marked outside or not, its
+// triangles tested by those marks) and written only where it changes. A clipped triangle's slot
+// takes its first piece, or, when it has none, a further piece of another or else the last
+// triangle;
+// vertices no triangle uses any more — every one outside the box, and a clipped triangle's
+// corner on the box that no piece kept, when nothing else uses it — are dropped by one renaming
+// pass, the rest keeping their order. The same result for every part count.
 void clip_to_data_box(triangle_mesh& mesh, const index3& dims, const parallel_loop& run,
                       std::size_t parts) {
+  using tri = std::array<std::uint32_t, 3>;
   const vec3 box{static_cast<double>(dims[0] - 1), static_cast<double>(dims[1] - 1),
                  static_cast<double>(dims[2] - 1)};
-  const auto inside = [&box](const vec3& p) {
-    return p[0] <= box[0] && p[1] <= box[1] && p[2] <= box[2];
-  };
-  std::vector<std::array<std::uint32_t, 3>> kept;
-  kept.reserve(mesh.triangles.size());
+  parts = std::max<std::size_t>(parts, 1);
+  const std::size_t nv = mesh.vertices.size();
+  // 1 for a vertex outside the box (then 2 for one that stays unused), 0 inside.
+  std::vector<std::uint8_t> mark(nv);
+  run_loop(run, parts, [&](std::size_t k) {
+    for (std::size_t v = piece_begin(nv, parts, k); v < piece_begin(nv, parts, k + 1); ++v) {
+      const vec3& p = mesh.vertices[v];
+      mark[v] = p[0] <= box[0] && p[1] <= box[1] && p[2] <= box[2] ? 0 : 1;
+    }
+  });
+  const std::size_t nt = mesh.triangles.size();
+  std::vector<std::vector<std::uint32_t>> found(parts);
+  run_loop(run, parts, [&](std::size_t k) {
+    for (std::size_t t = piece_begin(nt, parts, k); t < piece_begin(nt, parts, k + 1); ++t) {
+      const tri& c = mesh.triangles[t];
+      if ((mark[c[0]] | mark[c[1]] | mark[c[2]]) != 0) {
+        found[k].push_back(static_cast<std::uint32_t>(t));
+      }
+    }
+  });
+  std::vector<std::uint32_t> clipped;
+  for (const auto& f : found) clipped.insert(clipped.end(), f.begin(), f.end());
+  if (clipped.empty()) return;
   std::unordered_map<vec3, std::uint32_t, detail::position_hash> crossings;
-  std::vector<std::uint32_t> suspects;
+  std::vector<tri> extra;
+  std::vector<std::uint32_t> holes;
+  std::vector<std::uint32_t> on_box;  // corners inside the box that a clipped triangle lost
   const auto crossing = [&](const vec3& x) {
     const auto [it, inserted] =
         crossings.try_emplace(x, static_cast<std::uint32_t>(mesh.vertices.size()));
     if (inserted) mesh.vertices.push_back(x);
     return it->second;
   };
-  const auto emit = [&kept](const std::array<std::uint32_t, 3>& t) { kept.push_back(t); };
-  for (const std::array<std::uint32_t, 3>& t : mesh.triangles) {
-    const std::array<vec3, 3> p{mesh.vertices[t[0]], mesh.vertices[t[1]], mesh.vertices[t[2]]};
-    if (inside(p[0]) && inside(p[1]) && inside(p[2])) {
-      kept.push_back(t);
-      continue;
-    }
-    const std::array<bool, 3> used = detail::clip_to_box(p, t, box, crossing, emit);
+  for (const std::uint32_t t : clipped) {
+    const tri c = mesh.triangles[t];
+    const std::array<vec3, 3> p{mesh.vertices[c[0]], mesh.vertices[c[1]], mesh.vertices[c[2]]};
+    bool first = true;
+    const std::array<bool, 3> used = detail::clip_to_box(p, c, box, crossing, [&](const tri& e) {
+      if (first) {
+        mesh.triangles[t] = e;
+        first = false;
+      } else {
+        extra.push_back(e);
+      }
+    });
+    if (first) holes.push_back(t);
     for (std::size_t v = 0; v < 3; ++v) {
-      if (!used[v]) suspects.push_back(t[v]);
+      if (!used[v] && mark[c[v]] == 0) on_box.push_back(c[v]);
     }
   }
-  mesh.triangles = std::move(kept);
-  detail::drop_unused(mesh, suspects, run, parts);
+  // Holes take the further pieces first; those left are filled from the end, largest first (a
+  // hole at the end is dropped); pieces left over go to the end.
+  const std::size_t filled = std::min(holes.size(), extra.size());
+  for (std::size_t i = 0; i < filled; ++i) mesh.triangles[holes[i]] = extra[i];
+  for (std::size_t i = holes.size(); i > filled; --i) {
+    const std::uint32_t h = holes[i - 1];
+    if (h + 1 != mesh.triangles.size()) mesh.triangles[h] = mesh.triangles.back();
+    mesh.triangles.pop_back();
+  }
+  mesh.triangles.insert(mesh.triangles.end(), extra.begin() + static_cast<std::ptrdiff_t>(filled),
+                        extra.end());
+  mark.resize(mesh.vertices.size(), 0);  // crossing points are inside
+  if (!on_box.empty()) {
+    // Rare (a corner on the box whose triangle kept nothing there): dropped only if unused.
+    for (const std::uint32_t v : on_box) mark[v] = 2;
+    for (const tri& c : mesh.triangles) {
+      for (const std::uint32_t v : c) {
+        if (mark[v] == 2) mark[v] = 0;
+      }
+    }
+  }
+  // Renaming: each kept vertex's new id is its old one less the dropped before it.
+  const std::size_t nv2 = mesh.vertices.size();
+  std::vector<std::uint32_t> before(parts + 1, 0);
+  run_loop(run, parts, [&](std::size_t k) {
+    std::uint32_t n = 0;
+    for (std::size_t v = piece_begin(nv2, parts, k); v < piece_begin(nv2, parts, k + 1); ++v) {
+      n += mark[v] != 0 ? 1u : 0u;
+    }
+    before[k + 1] = n;
+  });
+  for (std::size_t k = 0; k < parts; ++k) before[k + 1] += before[k];
+  if (before[parts] == 0) return;
+  std::vector<std::uint32_t> rename(nv2);
+  run_loop(run, parts, [&](std::size_t k) {
+    std::uint32_t dropped = before[k];
+    for (std::size_t v = piece_begin(nv2, parts, k); v < piece_begin(nv2, parts, k + 1); ++v) {
+      if (mark[v] != 0) {
+        ++dropped;
+      } else {
+        rename[v] = static_cast<std::uint32_t>(v) - dropped;
+      }
+    }
+  });
+  const std::size_t nt2 = mesh.triangles.size();
+  run_loop(run, parts, [&](std::size_t k) {
+    for (std::size_t t = piece_begin(nt2, parts, k); t < piece_begin(nt2, parts, k + 1); ++t) {
+      for (std::uint32_t& v : mesh.triangles[t]) v = rename[v];
+    }
+  });
+  // Kept vertices move down in order; a part's targets lie at or below its sources and above
+  // the earlier parts' targets, so the parts run one after another.
+  std::size_t to = 0;
+  for (std::size_t v = 0; v < nv2; ++v) {
+    if (mark[v] == 0) mesh.vertices[to++] = mesh.vertices[v];
+  }
+  mesh.vertices.resize(to);
 }
 
 triangle_mesh uniform_surface_hooked(const volume& field, double isovalue, std::int32_t stride,
@@ -669,7 +774,10 @@ triangle_mesh uniform_surface_hooked(const volume& field, double isovalue, std::
     };
     run_loop(run, static_cast<std::size_t>(sub[2]), plane);
     finest_mesher<const T*> m(sub, {1.0, 1.0, 1.0}, {0.0, 0.0, 0.0}, out, isovalue);
-    return m.run(run, parts, progress, stop);
+    if (!hierarchy_cut) return m.run(run, parts, progress, stop);
+    interrupts with_slack = stop;
+    with_slack.slack = true;  // clip_to_data_box() adds crossing points and pieces in place
+    return m.run(run, parts, progress, with_slack);
   });
   const auto& sp = field.spacing();
   const auto& org = field.origin();
@@ -796,6 +904,7 @@ ladder_result detail::ladder_surface(const volume& field, double isovalue,
     double sizing = 0.0;
     clock::time_point sized_at{};
     interrupts stop;
+    stop.storage = hooks.storage;
     stop.sized = [&](std::uint64_t v, std::uint64_t t) {
       sized_at = clock::now();
       first_pass = std::chrono::duration<double>(sized_at - start).count();

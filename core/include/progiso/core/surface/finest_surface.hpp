@@ -124,6 +124,18 @@ struct ladder_result {
 
 namespace detail {
 
+/// Storage for a surface's output, asked for once its vertex and triangle counts are known: a
+/// mesh whose vectors' capacity the output reuses (its contents are dropped), or an empty one.
+/// An engine hands back a retired cut's storage this way, so that a new cut neither maps fresh
+/// pages nor waits while the old ones are unmapped.
+using mesh_storage = std::function<triangle_mesh(std::uint64_t vertices, std::uint64_t triangles)>;
+
+/// finest_surface() writing into storage from `storage` (when it is not empty).
+[[nodiscard]] triangle_mesh finest_surface(const volume& field, double isovalue,
+                                           const parallel_loop& run, std::size_t parts,
+                                           const finest_progress& progress,
+                                           const mesh_storage& storage);
+
 /// What an engine asks of the ladder beyond ladder_surface()'s.
 struct ladder_hooks {
   /// uniform_cut() (hierarchy cuts, clipped) instead of uniform_surface() (stretched).
@@ -135,6 +147,8 @@ struct ladder_hooks {
   std::function<bool()> stopping;
   /// Each cut done, coarse to fine, handed over as it is made (the result then holds no mesh).
   std::function<void(triangle_mesh&&, std::int32_t stride)> on_cut;
+  /// Storage for each cut's output (mesh_storage), when not empty.
+  mesh_storage storage;
 };
 
 /// ladder_surface() with hooks (the engine's deadline runs on an unrefined root).
