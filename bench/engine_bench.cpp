@@ -27,6 +27,14 @@
 namespace progiso::bench {
 namespace {
 
+// The engine refining by split records (engine_options::uniform_cuts off): what this file
+// measures; peer_bench.cpp measures the uniform cuts.
+engine_options by_records() {
+  engine_options o;
+  o.uniform_cuts = false;
+  return o;
+}
+
 using clock = std::chrono::steady_clock;
 using namespace std::chrono_literals;
 
@@ -62,7 +70,7 @@ double next_isovalue(std::uint64_t i) { return i % 2 == 0 ? 0.5 : 0.45; }
 // Arg: 0 = no writer, 1 = writers on all cores refining continuously.
 void BM_snapshot_acquire(benchmark::State& state) {
   const bool writers = state.range(0) != 0;
-  engine e(ml(129), 0.5);
+  engine e(ml(129), 0.5, by_records());
   std::atomic<bool> quit{false};
   std::thread control;
   if (writers) {
@@ -111,7 +119,7 @@ BENCHMARK(BM_snapshot_acquire)->Arg(0)->Arg(1)->Iterations(2000000)->UseRealTime
 // cancel() → every worker quiet (cancel returns after the driver joined and all tasks ended),
 // at a random moment 0.5–4 ms into a full refinement of 129³.
 void BM_cancel_quiet(benchmark::State& state) {
-  engine e(ml(129), 0.5);
+  engine e(ml(129), 0.5, by_records());
   std::mt19937 rng(1);
   std::uniform_int_distribution<int> delay_us(500, 4000);
   std::vector<double> samples;
@@ -140,6 +148,7 @@ BENCHMARK(BM_cancel_quiet)->Iterations(300)->UseManualTime()->Unit(benchmark::kM
 // Arg: threads.
 void BM_deadline_after_full(benchmark::State& state) {
   engine_options o;
+  o.uniform_cuts = false;  // refinement by split records, what these measure
   o.threads = static_cast<unsigned>(state.range(0));
   engine e(ml(257), 0.5, o);
   e.refine(refine_goal::triangles(1));  // the range data, built once per volume
@@ -183,6 +192,7 @@ BENCHMARK(BM_deadline_after_full)->Arg(1)->Arg(2)->Iterations(12)->Unit(benchmar
 // the new isovalue's surface. Arg: threads.
 void BM_isovalue_change(benchmark::State& state) {
   engine_options o;
+  o.uniform_cuts = false;  // refinement by split records, what these measure
   o.threads = static_cast<unsigned>(state.range(0));
   engine e(ml(257), 0.5, o);
   e.refine(refine_goal::triangles(1));  // the range data, built once per volume, not per change
@@ -225,6 +235,7 @@ BENCHMARK(BM_isovalue_change)
 // Args: τ in ms (ML 257³ never finishes within 33 ms), threads.
 void BM_deadline_overshoot(benchmark::State& state) {
   engine_options o;
+  o.uniform_cuts = false;  // refinement by split records, what these measure
   o.threads = static_cast<unsigned>(state.range(1));
   engine e(ml(257), 0.5, o);
   const auto budget = std::chrono::milliseconds(state.range(0));
@@ -279,6 +290,7 @@ void BM_full_refine(benchmark::State& state) {
     return;
   }
   engine_options o;
+  o.uniform_cuts = false;  // refinement by split records, what these measure
   o.threads = n;
   std::uint64_t splits = 0;
   std::uint64_t batches = 0;
@@ -316,6 +328,7 @@ void BM_engine_over_refiner(benchmark::State& state) {
   const hierarchy h(v.dims());
   const range_data ranges(v, h);
   engine_options o;
+  o.uniform_cuts = false;  // refinement by split records, what these measure
   o.threads = 1;
   std::vector<double> ratios;
   double refiner_s = 0.0;
@@ -367,6 +380,7 @@ BENCHMARK(BM_engine_over_refiner)
 // the extraction phase of the pipeline alone. Args: threads, volume side.
 void BM_snapshot_mesh(benchmark::State& state) {
   engine_options o;
+  o.uniform_cuts = false;  // refinement by split records, what these measure
   o.threads = static_cast<unsigned>(state.range(0));
   engine e(ml(state.range(1)), 0.5, o);
   e.refine_full();
@@ -404,6 +418,7 @@ BENCHMARK(BM_snapshot_mesh)
 // median ratio of diamonds examined per second.
 void BM_priority_over_full(benchmark::State& state) {
   engine_options o;
+  o.uniform_cuts = false;  // refinement by split records, what these measure
   o.threads = static_cast<unsigned>(state.range(0));
   o.schedule = state.range(2) == 0 ? refinement_schedule::tasks : refinement_schedule::flow_graph;
   const int mode = static_cast<int>(state.range(1));
@@ -506,6 +521,7 @@ BENCHMARK(BM_priority_over_full)
 // Reports the median of the per-pair ratios. Arg: writer threads.
 void BM_writer_with_reader(benchmark::State& state) {
   engine_options o;
+  o.uniform_cuts = false;  // refinement by split records, what these measure
   o.threads = static_cast<unsigned>(state.range(0));
   engine e(ml(129), 0.5, o);
   // 0 = asleep, 1 = walking, 2 = quit. The reader acknowledges each change through `at`.
@@ -582,6 +598,7 @@ BENCHMARK(BM_writer_with_reader)->Arg(1)->Arg(2)->Iterations(15)->UseManualTime(
 // each refined fully: interval-based reclamation (Arg 1) against plain EBR (Arg 0).
 void BM_stalled_reader_memory(benchmark::State& state) {
   engine_options o;
+  o.uniform_cuts = false;  // refinement by split records, what these measure
   o.reclamation.interval_based = state.range(0) != 0;
   std::uint64_t peak = 0;
   std::uint64_t root = 0;

@@ -397,8 +397,12 @@ struct engine_impl : run_control {
   void drive_uniform(engine_root* r);
   // Under `control`: publishes `fresh` in place of `shown` and retires `shown`, when `shown` is
   // still the published root; else destroys `fresh` (never published). Returns whether it
-  // published.
-  bool replace_root(engine_root* shown, engine_root* fresh);
+  // published. Without `retire_now` the caller retires `shown` later (retire_root(), under
+  // `control`; drive_uniform() does after its run).
+  bool replace_root(engine_root* shown, engine_root* fresh, bool retire_now = true);
+  // Retires a root no longer published and flushes (statistics as set_isovalue() keeps them).
+  // Under `control`.
+  void retire_root(engine_root* old);
 
   // Commit step (the first run on this root): queues the root diamonds whose range straddles
   // (every one not wholly in the padding, by placeholder, before the range data is built).

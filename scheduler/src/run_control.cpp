@@ -210,7 +210,7 @@ bool engine_impl::by_uniform_cuts(const engine_root& r, const refine_goal& g) co
   }
 }
 
-bool engine_impl::replace_root(engine_root* shown, engine_root* fresh) {
+bool engine_impl::replace_root(engine_root* shown, engine_root* fresh, bool retire_now) {
   const std::lock_guard lock(control);
   if (current() != shown) {
     // An isovalue change published its root first: `fresh` was never seen.
@@ -221,16 +221,19 @@ bool engine_impl::replace_root(engine_root* shown, engine_root* fresh) {
   // seq_cst (the default), as swap_root(): release for readers' protect(), and the unlink seq_cst
   // for the TSan variant of the reclamation argument (concurrent/epoch.hpp).
   root.store(fresh);
-  shown->retired_bytes = shown->bytes();
+  root_bytes.set(fresh->bytes());
+  if (retire_now) retire_root(shown);
+  return true;
+}
+
+void engine_impl::retire_root(engine_root* old) {
+  old->retired_bytes = old->bytes();
   // relaxed: a statistic; the reclaimer's fetch_sub is the other writer.
   const std::uint64_t now =
-      retired_bytes.fetch_add(shown->retired_bytes, std::memory_order_relaxed) +
-      shown->retired_bytes;
+      retired_bytes.fetch_add(old->retired_bytes, std::memory_order_relaxed) + old->retired_bytes;
   peak_retired_bytes.set(std::max(peak_retired_bytes.get(), now));
-  root_bytes.set(fresh->bytes());
-  control_participant.retire(shown, &engine_impl::destroy_root, shown->birth_era());
+  control_participant.retire(old, &engine_impl::destroy_root, old->birth_era());
   control_participant.flush();
-  return true;
 }
 
 namespace {
@@ -243,11 +246,16 @@ void engine_impl::drive_uniform(engine_root* r) {
   const std::uint64_t gen = r->generation;
   engine_root* shown = r;  // never read after it is retired: only compared
   const std::int32_t shown_stride = r->base_stride;
+  std::vector<engine_root*> superseded;  // published before, replaced by this run: to retire
+  superseded.reserve(64);                // more than the ladder's strides: no growth mid-run
   bool reached = false;
   const auto publish = [&](triangle_mesh&& m, std::int32_t stride) {
     engine_root* b = make_base_root(w, gen, stride, std::move(m));
     const std::uint64_t triangles = b->cut_triangles;
-    if (!replace_root(shown, b)) throw root_replaced{};
+    // The roots this run replaces are retired after it, not while its next cut is made
+    // (freeing them on the reclaimer competed with the passes; bench/README.md).
+    if (!replace_root(shown, b, false)) throw root_replaced{};
+    superseded.push_back(shown);
     shown = b;
     if (opt.progress) {
       call_progress([&] { opt.progress({0, triangles, 0.0, hier.max_depth()}); });
@@ -298,6 +306,10 @@ void engine_impl::drive_uniform(engine_root* r) {
     // Stopped, or an isovalue change published its root: what was published stays.
   }
   end_run(reached);
+  // The roots this run replaced, retired now that its caller has its result (a control call
+  // that would start another run, or the destructor, joins this thread first).
+  const std::lock_guard lock(control);
+  for (engine_root* old : superseded) retire_root(old);
 }
 
 void engine_impl::drive(engine_root* r, engine_root* replaces) {
