@@ -382,10 +382,14 @@ struct engine_impl : run_control {
     // relaxed: a name, not an order (the store that publishes the root carries it).
     r.serial = next_serial.fetch_add(1, std::memory_order_relaxed) + 1;
   }
-  // A root that shows `mesh`, the uniform cut of `stride` at w (engine_root::base): no records,
-  // no per-vertex words. Any thread (the driver makes them while it runs).
-  engine_root* make_base_root(double w, std::uint64_t gen, std::int32_t stride,
-                              triangle_mesh&& mesh);
+  // A root for a uniform cut at w (engine_root::base): no per-vertex words, its records'
+  // directory and first chunk allocated. Made before a run's passes begin, one per cut it may
+  // publish: mapping memory while the passes fault pages in waits for the address space's lock
+  // (bench/README.md). Any thread.
+  engine_root* make_base_root(double w, std::uint64_t gen);
+  // Makes r show `mesh`, the uniform cut of `stride`: record 0, holding no triangle, counts the
+  // mesh's. Before r is published.
+  static void set_base(engine_root& r, std::int32_t stride, triangle_mesh&& mesh);
   // Whether a run towards `g` from root r takes the passes (engine_options::uniform_cuts): a
   // full goal unless r shows the finest cut; an unfocused deadline on a root that holds no
   // split record (its root surface, or a uniform cut). Control thread.

@@ -10,24 +10,28 @@
 
 namespace progiso::detail {
 
-engine_root* engine_impl::make_base_root(double w, std::uint64_t gen, std::int32_t stride,
-                                         triangle_mesh&& mesh) {
+engine_root* engine_impl::make_base_root(double w, std::uint64_t gen) {
   vertex_state none{zeroed_array<std::uint32_t>(0),
                     zeroed_array<engine_record*>(append_log<engine_record>::max_chunks)};
   auto* r = make_managed<engine_root>(domain, *this, w, gen, std::move(none));
-  r->base_stride = stride;  // its serial comes with its publication (replace_root())
-  r->base = std::move(mesh);
-  const std::uint64_t n = r->base.triangles.size();
-  r->cut_triangles = n;
-  r->records.push_back({no_owner, nullptr, 0, -1, 0, 0, n});
-  r->records.publish();
   r->seeded = true;
-  r->triangles.set(n);
-  r->record_triangles.set(n);
-  // The finest cut leaves nothing to split; a coarser one leaves its frontier (not listed).
-  r->remaining.set(stride == 1 ? 0 : 1);
-  r->published_at = clock::now();
+  // Its first chunk of records, allocated now (set_base() only writes record 0 into it).
+  r->records.push_back({no_owner, nullptr, 0, -1, 0, 0, 0});
   return r;
+}
+
+void engine_impl::set_base(engine_root& r, std::int32_t stride, triangle_mesh&& mesh) {
+  r.base_stride = stride;  // its serial comes with its publication (replace_root())
+  r.base = std::move(mesh);
+  const std::uint64_t n = r.base.triangles.size();
+  r.cut_triangles = n;
+  r.records.at_unpublished(0).cut_triangles = n;
+  r.records.publish();
+  r.triangles.set(n);
+  r.record_triangles.set(n);
+  // The finest cut leaves nothing to split; a coarser one leaves its frontier (not listed).
+  r.remaining.set(stride == 1 ? 0 : 1);
+  r.published_at = clock::now();
 }
 
 engine_root* engine_impl::make_root(double w, std::uint64_t gen, bool published) {

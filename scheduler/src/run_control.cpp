@@ -5,6 +5,7 @@
 #include "engine_impl.hpp"
 
 #include <algorithm>
+#include <bit>
 #include <cmath>
 #include <optional>
 #include <string>
@@ -249,8 +250,23 @@ void engine_impl::drive_uniform(engine_root* r) {
   std::vector<engine_root*> superseded;  // published before, replaced by this run: to retire
   superseded.reserve(64);                // more than the ladder's strides: no growth mid-run
   bool reached = false;
+  // A root for each cut the run may publish, made before the passes (make_base_root()): the
+  // ladder tries at most one cut per stride below what is shown.
+  std::vector<engine_root*> made;
+  {
+    const std::int32_t top = shown_stride > 0 ? shown_stride : hier.root_size();
+    const std::size_t cuts =
+        goal.what == refine_goal::kind::full
+            ? 1
+            : static_cast<std::size_t>(std::bit_width(static_cast<std::uint32_t>(top)) - 1);
+    made.reserve(cuts);
+    for (std::size_t k = 0; k < cuts; ++k) made.push_back(make_base_root(w, gen));
+  }
   const auto publish = [&](triangle_mesh&& m, std::int32_t stride) {
-    engine_root* b = make_base_root(w, gen, stride, std::move(m));
+    PROGISO_ASSERT(!made.empty());
+    engine_root* b = made.back();
+    made.pop_back();
+    set_base(*b, stride, std::move(m));
     const std::uint64_t triangles = b->cut_triangles;
     // The roots this run replaces are retired after it, not while its next cut is made
     // (freeing them on the reclaimer competed with the passes; bench/README.md).
@@ -292,6 +308,7 @@ void engine_impl::drive_uniform(engine_root* r) {
       hooks.stopping = [this] { return stopping(); };
       hooks.on_cut = publish;
       hooks.storage = storage;
+      hooks.begin_when_time_is_left = true;  // each cut is shown as it is made
       std::int32_t finest = shown_stride;
       passes([&](const parallel_loop& loop, std::size_t parts) {
         const ladder_result l =
@@ -307,7 +324,9 @@ void engine_impl::drive_uniform(engine_root* r) {
   }
   end_run(reached);
   // The roots this run replaced, retired now that its caller has its result (a control call
-  // that would start another run, or the destructor, joins this thread first).
+  // that would start another run, or the destructor, joins this thread first); those it did not
+  // use, never published, destroyed.
+  for (engine_root* unused : made) reclaim(*unused, false);
   const std::lock_guard lock(control);
   for (engine_root* old : superseded) retire_root(old);
 }

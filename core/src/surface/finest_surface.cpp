@@ -897,7 +897,11 @@ ladder_result detail::ladder_surface(const volume& field, double isovalue,
     const auto left = [&deadline] {
       return std::chrono::duration<double>(deadline - clock::now()).count();
     };
-    if (!must && per_point * points + per_output * growth * last_output > left()) break;
+    if (!must && (hooks.begin_when_time_is_left
+                      ? left() <= 0.0
+                      : per_point * points + per_output * growth * last_output > left())) {
+      break;
+    }
     const auto start = clock::now();
     double first_pass = 0.0;
     double output = 0.0;
