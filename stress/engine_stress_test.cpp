@@ -43,6 +43,7 @@
 #include "support/engine_stress.hpp"
 #include "support/mesh_checks.hpp"
 #include "support/reference_mt.hpp"
+#include "support/render_checks.hpp"
 #include "support/stress_support.hpp"
 
 namespace progiso {
@@ -54,30 +55,6 @@ using clock = std::chrono::steady_clock;
 void random_pause(std::mt19937& rng) {
   std::uniform_int_distribution<int> us(0, 50);
   std::this_thread::sleep_for(std::chrono::microseconds(us(rng)));
-}
-
-using corners = std::array<float, 9>;
-
-std::map<corners, int> triangles_of(const render_slots& s) {
-  std::map<corners, int> out;
-  const std::span<const float> p = s.positions();
-  for (std::size_t slot = 0; slot < s.slot_count(); ++slot) {
-    if (s.id_of(slot) == render_slots::free_slot) continue;
-    corners c{};
-    std::copy_n(p.data() + 9 * slot, 9, c.data());
-    ++out[c];
-  }
-  return out;
-}
-
-std::map<corners, int> triangles_of(const render_buffers& b) {
-  std::map<corners, int> out;
-  for (std::size_t t = 0; t < b.triangle_count(); ++t) {
-    corners c{};
-    for (std::size_t k = 0; k < 9; ++k) c[k] = b.positions[3 * b.indices[3 * t + k / 3] + k % 3];
-    ++out[c];
-  }
-  return out;
 }
 
 struct reader_counts {
@@ -142,7 +119,7 @@ TEST(EngineStress, readers_walk_snapshots_while_runs_are_cancelled_and_the_isova
         render_buffers b;
         e.snapshot().mesh_into(b);
         c.triangles_walked += b.triangle_count();
-        if (triangles_of(feed.surface()) != triangles_of(b)) {
+        if (test::slot_triangles(feed.surface()) != test::buffer_triangles(b)) {
           ++c.violations;
           c.first_violation = "the render thread's pool differs from the last cut";
         }

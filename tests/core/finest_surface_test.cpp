@@ -28,6 +28,7 @@
 
 #include "support/mesh_checks.hpp"
 #include "support/reference_mt.hpp"
+#include "support/render_checks.hpp"
 #include "support/test_data.hpp"
 
 namespace progiso {
@@ -55,14 +56,7 @@ void scrambled_loop(std::size_t n, const std::function<void(std::size_t)>& body)
   if (failure) std::rethrow_exception(failure);
 }
 
-bool same_bytes(const triangle_mesh& a, const triangle_mesh& b) {
-  // memcmp is not given the null pointers of empty meshes.
-  return a.vertices.size() == b.vertices.size() && a.triangles.size() == b.triangles.size() &&
-         (a.vertices.empty() || std::memcmp(a.vertices.data(), b.vertices.data(),
-                                            a.vertices.size() * sizeof(vec3)) == 0) &&
-         (a.triangles.empty() || std::memcmp(a.triangles.data(), b.triangles.data(),
-                                             a.triangles.size() * sizeof(a.triangles[0])) == 0);
-}
+using test::same_bytes;
 
 void expect_finest_equals_full_refinement(const volume& v, double w) {
   const triangle_mesh mine = finest_surface(v, w);

@@ -14,33 +14,13 @@
 
 #include <gtest/gtest.h>
 
+#include "support/render_checks.hpp"
+
 namespace progiso {
 namespace {
 
-using corners = std::array<float, 9>;
-
-std::map<corners, int> triangles_of(const render_slots& s, bool normals) {
-  std::map<corners, int> out;
-  const std::span<const float> src = normals ? s.normals() : s.positions();
-  for (std::size_t slot = 0; slot < s.slot_count(); ++slot) {
-    if (s.id_of(slot) == render_slots::free_slot) continue;
-    corners c{};
-    std::copy_n(src.data() + 9 * slot, 9, c.data());
-    ++out[c];
-  }
-  return out;
-}
-
-std::map<corners, int> triangles_of(const render_buffers& b, bool normals) {
-  std::map<corners, int> out;
-  const std::vector<float>& src = normals ? b.normals : b.positions;
-  for (std::size_t t = 0; t < b.triangle_count(); ++t) {
-    corners c{};
-    for (std::size_t k = 0; k < 9; ++k) c[k] = src[3 * b.indices[3 * t + k / 3] + k % 3];
-    ++out[c];
-  }
-  return out;
-}
+using test::buffer_triangles;
+using test::slot_triangles;
 
 bool same_cut(const cut_mark& a, const cut_mark& b) {
   return a.owner == b.owner && a.generation == b.generation && a.records == b.records &&
@@ -67,9 +47,9 @@ std::size_t catch_up(frame_feed& feed, const engine& e) {
 void expect_holds_latest_cut(const frame_feed& feed, const engine& e, bool normals) {
   render_buffers b;
   e.snapshot().mesh_into(b, normals ? vertex_normals::gradient : vertex_normals::none);
-  EXPECT_EQ(triangles_of(feed.surface(), false), triangles_of(b, false));
+  EXPECT_EQ(slot_triangles(feed.surface(), false), buffer_triangles(b, false));
   if (normals) {
-    EXPECT_EQ(triangles_of(feed.surface(), true), triangles_of(b, true));
+    EXPECT_EQ(slot_triangles(feed.surface(), true), buffer_triangles(b, true));
   }
 }
 

@@ -15,37 +15,13 @@
 
 #include <gtest/gtest.h>
 
+#include "support/render_checks.hpp"
+
 namespace progiso {
 namespace {
 
-using corners = std::array<float, 9>;
-
-// The cut's triangles as a multiset of their nine floats, from an indexed render buffer.
-std::map<corners, int> triangles_of(const render_buffers& b, bool normals) {
-  std::map<corners, int> out;
-  const std::vector<float>& src = normals ? b.normals : b.positions;
-  for (std::size_t t = 0; t < b.triangle_count(); ++t) {
-    corners c{};
-    for (std::size_t v = 0; v < 3; ++v) {
-      for (std::size_t k = 0; k < 3; ++k) c[3 * v + k] = src[3 * b.indices[3 * t + v] + k];
-    }
-    ++out[c];
-  }
-  return out;
-}
-
-// The live slots' triangles, the same way.
-std::map<corners, int> triangles_of(const render_slots& s, bool normals) {
-  std::map<corners, int> out;
-  const std::span<const float> src = normals ? s.normals() : s.positions();
-  for (std::size_t slot = 0; slot < s.slot_count(); ++slot) {
-    if (s.id_of(slot) == render_slots::free_slot) continue;
-    corners c{};
-    std::copy_n(src.data() + 9 * slot, 9, c.data());
-    ++out[c];
-  }
-  return out;
-}
+using test::buffer_triangles;
+using test::slot_triangles;
 
 // What a follow saw of clipping: added pieces that shared their triangle's id with the piece
 // before, and triangles that were hidden (wholly past the data box) and later gone.
@@ -79,9 +55,9 @@ clip_counts expect_slots_follow(engine& e, const std::vector<refine_goal>& goals
     mark = s.mark();
     s.mesh_into(whole, nv);
     EXPECT_EQ(slots.triangle_count(), whole.triangle_count()) << s.split_count() << " splits";
-    EXPECT_EQ(triangles_of(slots, false), triangles_of(whole, false));
+    EXPECT_EQ(slot_triangles(slots, false), buffer_triangles(whole, false));
     if (normals) {
-      EXPECT_EQ(triangles_of(slots, true), triangles_of(whole, true));
+      EXPECT_EQ(slot_triangles(slots, true), buffer_triangles(whole, true));
     }
   }
   EXPECT_GT(nonempty_gone, 0U) << "no step removed a triangle: the test shows nothing";
@@ -161,7 +137,7 @@ TEST(SurfaceChange, an_unchanged_cut_gives_an_empty_change_and_an_isovalue_chang
   slots.apply(change);
   render_buffers whole;
   s.mesh_into(whole);
-  EXPECT_EQ(triangles_of(slots, false), triangles_of(whole, false));
+  EXPECT_EQ(slot_triangles(slots, false), buffer_triangles(whole, false));
   EXPECT_EQ(slots.slot_count(), whole.triangle_count()) << "a rebuild starts the pool afresh";
 }
 
@@ -186,7 +162,7 @@ TEST(SurfaceChange, a_mark_of_another_engine_gives_a_rebuild_of_the_whole_cut) {
   slots.apply(change);
   render_buffers whole;
   s.mesh_into(whole);
-  EXPECT_EQ(triangles_of(slots, false), triangles_of(whole, false));
+  EXPECT_EQ(slot_triangles(slots, false), buffer_triangles(whole, false));
 }
 
 // The render side on its own thread, taking its own snapshots while a full run publishes.
@@ -208,7 +184,7 @@ TEST(SurfaceChange, a_render_thread_follows_a_background_run_to_the_finest_cut) 
       if (last) {
         render_buffers whole;
         s.mesh_into(whole);
-        EXPECT_EQ(triangles_of(slots, false), triangles_of(whole, false));
+        EXPECT_EQ(slot_triangles(slots, false), buffer_triangles(whole, false));
         return;
       }
     }

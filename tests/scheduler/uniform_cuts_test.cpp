@@ -22,17 +22,12 @@
 #include <gtest/gtest.h>
 
 #include "support/mesh_checks.hpp"
+#include "support/render_checks.hpp"
 
 namespace progiso {
 namespace {
 
-bool same_bytes(const triangle_mesh& a, const triangle_mesh& b) {
-  return a.vertices.size() == b.vertices.size() && a.triangles.size() == b.triangles.size() &&
-         (a.vertices.empty() || std::memcmp(a.vertices.data(), b.vertices.data(),
-                                            a.vertices.size() * sizeof(vec3)) == 0) &&
-         (a.triangles.empty() || std::memcmp(a.triangles.data(), b.triangles.data(),
-                                             a.triangles.size() * sizeof(a.triangles[0])) == 0);
-}
+using test::same_bytes;
 
 // A grid no stride divides (the cuts are clipped to the box), with a surface the box cuts open.
 volume test_volume() { return make_marschner_lobb({46, 39, 52}); }
@@ -233,22 +228,7 @@ TEST(UniformCuts, changes_to_and_from_uniform_cuts_keep_slots_equal_to_mesh_into
       render_buffers b;
       s.mesh_into(b, nv);
       // The pool's triangles equal the buffers', as multisets of nine floats.
-      std::map<std::array<float, 9>, int> want;
-      std::map<std::array<float, 9>, int> got;
-      const std::vector<float>& src = normals ? b.normals : b.positions;
-      for (std::size_t t = 0; t < b.triangle_count(); ++t) {
-        std::array<float, 9> c{};
-        for (std::size_t k = 0; k < 9; ++k) c[k] = src[3 * b.indices[3 * t + k / 3] + k % 3];
-        ++want[c];
-      }
-      const std::span<const float> pool = normals ? slots.normals() : slots.positions();
-      for (std::size_t slot = 0; slot < slots.slot_count(); ++slot) {
-        if (slots.id_of(slot) == render_slots::free_slot) continue;
-        std::array<float, 9> c{};
-        std::copy_n(pool.data() + 9 * slot, 9, c.data());
-        ++got[c];
-      }
-      EXPECT_EQ(got, want);
+      EXPECT_EQ(test::slot_triangles(slots, normals), test::buffer_triangles(b, normals));
       return s.uniform_stride();
     };
     EXPECT_EQ(follow(), 0);
