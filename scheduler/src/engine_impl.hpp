@@ -395,10 +395,14 @@ struct engine_impl : run_control {
   // split record (its root surface, or a uniform cut). Control thread.
   [[nodiscard]] bool by_uniform_cuts(const engine_root& r, const refine_goal& g) const noexcept;
   // The driver of a run by uniform cuts: the finest cut (a full goal) or the ladder's cuts
-  // until the deadline (deadline_ladder's model), each published as a base root in place of the
-  // one this run shows. Publishes under `control` only while the root it replaces is still the
-  // published one (an isovalue change wins), and never touches a root after retiring it.
-  void drive_uniform(engine_root* r);
+  // until the deadline (deadline_ladder's model), each published, in one of the roots `made`,
+  // in place of the one this run shows; the roots it did not use are destroyed after it. Publishes
+  // under `control` only while the root it replaces is still the published one (an isovalue change
+  // wins), and never touches a root after retiring it.
+  void drive_uniform(engine_root* r, std::vector<engine_root*> made);
+  // The roots a run by uniform cuts towards `g` from r may publish (make_base_root()), made by
+  // launch() before the driver starts. Control thread.
+  std::vector<engine_root*> make_base_roots(const engine_root& r, const refine_goal& g);
   // Under `control`: publishes `fresh` in place of `shown` and retires `shown`, when `shown` is
   // still the published root; else destroys `fresh` (never published). Returns whether it
   // published. Without `retire_now` the caller retires `shown` later (retire_root(), under

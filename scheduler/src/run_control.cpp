@@ -242,26 +242,31 @@ namespace {
 struct root_replaced {};
 }  // namespace
 
-void engine_impl::drive_uniform(engine_root* r) {
+std::vector<engine_root*> engine_impl::make_base_roots(const engine_root& r, const refine_goal& g) {
+  // The ladder tries at most one cut per stride below what is shown; a full goal makes one.
+  const std::int32_t top = r.base_stride > 0 ? r.base_stride : hier.root_size();
+  const std::size_t cuts =
+      g.what == refine_goal::kind::full
+          ? 1
+          : static_cast<std::size_t>(std::bit_width(static_cast<std::uint32_t>(top)) - 1);
+  std::vector<engine_root*> made;
+  made.reserve(cuts);
+  try {
+    for (std::size_t k = 0; k < cuts; ++k) made.push_back(make_base_root(r.isovalue, r.generation));
+  } catch (...) {
+    for (engine_root* m : made) reclaim(*m, false);
+    throw;
+  }
+  return made;
+}
+
+void engine_impl::drive_uniform(engine_root* r, std::vector<engine_root*> made) {
   const double w = r->isovalue;
-  const std::uint64_t gen = r->generation;
   engine_root* shown = r;  // never read after it is retired: only compared
   const std::int32_t shown_stride = r->base_stride;
   std::vector<engine_root*> superseded;  // published before, replaced by this run: to retire
   superseded.reserve(64);                // more than the ladder's strides: no growth mid-run
   bool reached = false;
-  // A root for each cut the run may publish, made before the passes (make_base_root()): the
-  // ladder tries at most one cut per stride below what is shown.
-  std::vector<engine_root*> made;
-  {
-    const std::int32_t top = shown_stride > 0 ? shown_stride : hier.root_size();
-    const std::size_t cuts =
-        goal.what == refine_goal::kind::full
-            ? 1
-            : static_cast<std::size_t>(std::bit_width(static_cast<std::uint32_t>(top)) - 1);
-    made.reserve(cuts);
-    for (std::size_t k = 0; k < cuts; ++k) made.push_back(make_base_root(w, gen));
-  }
   const auto publish = [&](triangle_mesh&& m, std::int32_t stride) {
     PROGISO_ASSERT(!made.empty());
     engine_root* b = made.back();
@@ -397,8 +402,11 @@ void engine_impl::launch(std::unique_lock<std::mutex>& lock, const refine_goal& 
   stop.store(false, std::memory_order_relaxed);  // relaxed: the thread start orders it
   budget_hit = false;
   if (by_uniform_cuts(*r, goal)) {
-    if (threads > 1) arena.enqueue([] {});  // see below
-    begin_run([this, r] { drive_uniform(r); });
+    // The roots it may publish first, then the workers woken (see below), then the driver: the
+    // passes begin as soon as it starts.
+    std::vector<engine_root*> made = make_base_roots(*r, goal);
+    if (threads > 1) arena.enqueue([] {});
+    begin_run([this, r, made] { drive_uniform(r, made); });
     return;
   }
   engine_root* replaces = nullptr;
