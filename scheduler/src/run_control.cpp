@@ -326,6 +326,11 @@ void engine_impl::drive_uniform(engine_root* r, std::vector<engine_root*> made) 
     }
   } catch (const root_replaced&) {
     // Stopped, or an isovalue change published its root: what was published stays.
+  } catch (...) {
+    // The passes' own failure (memory, a surface beyond 32-bit ids): the run stops, what was
+    // published stays, and wait() or refine() rethrows it, as a progress callback's error. This
+    // thread is the run's only publisher, the one writer of callback_error.
+    callback_error = std::current_exception();
   }
   end_run(reached);
   // The roots this run replaced, retired now that its caller has its result (a control call
