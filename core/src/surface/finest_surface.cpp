@@ -913,14 +913,16 @@ ladder_result detail::ladder_surface(const volume& field, double isovalue,
       sized_at = clock::now();
       first_pass = std::chrono::duration<double>(sized_at - start).count();
       output = static_cast<double>(v + t);
-      if (!must && rest_margin * per_output * output > left()) throw deadline_passed{};
+      if (!must && !hooks.begin_when_time_is_left && rest_margin * per_output * output > left()) {
+        throw deadline_passed{};
+      }
     };
     stop.poll = [&](double fraction) {
       const auto now = clock::now();
       const double so_far = std::chrono::duration<double>(now - sized_at).count();
       if (fraction > 1.0) sizing = so_far;  // both arrays sized (the calling thread)
       if (give_up()) throw deadline_passed{};
-      if (must) return;
+      if (must || hooks.begin_when_time_is_left) return;
       double ends = -1.0;  // projected seconds from sizing's start to the cut's end
       if (fraction > 1.0) {
         ends = so_far + pass2_per_output * output;

@@ -149,11 +149,10 @@ struct ladder_hooks {
   std::function<void(triangle_mesh&&, std::int32_t stride)> on_cut;
   /// Storage for each cut's output (mesh_storage), when not empty.
   mesh_storage storage;
-  /// Begin every finer cut while time is left, not only one the model says will end in time:
-  /// it is still given up after its first pass when its exact size does not fit, or at the
-  /// deadline. For a caller that has shown each cut as it was made (an engine), a cut given up
-  /// costs nothing shown; the model, fitted on the cuts of one call, is pessimistic in a call's
-  /// first cuts (cold pages and workers).
+  /// Begin every finer cut while time is left and give it up only at the deadline (or a stop),
+  /// not when the model says it will not end in time. For a caller that has shown each cut as
+  /// it was made (an engine), a cut given up costs nothing shown, and the model, fitted on the
+  /// cuts of one call, is pessimistic in a call's first cuts (cold pages and workers).
   bool begin_when_time_is_left = false;
 };
 
