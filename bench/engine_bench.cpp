@@ -147,8 +147,7 @@ BENCHMARK(BM_cancel_quiet)->Iterations(300)->UseManualTime()->Unit(benchmark::kM
 // Reports the splits of the runs: mean, least, and the mean of each run's place (run_1 … run_4).
 // Arg: threads.
 void BM_deadline_after_full(benchmark::State& state) {
-  engine_options o;
-  o.uniform_cuts = false;  // refinement by split records, what these measure
+  engine_options o = by_records();
   o.threads = static_cast<unsigned>(state.range(0));
   engine e(ml(257), 0.5, o);
   e.refine(refine_goal::triangles(1));  // the range data, built once per volume
@@ -191,8 +190,7 @@ BENCHMARK(BM_deadline_after_full)->Arg(1)->Arg(2)->Iterations(12)->Unit(benchmar
 // an upper bound on the first). Every sample checks that the snapshot right after the call holds
 // the new isovalue's surface. Arg: threads.
 void BM_isovalue_change(benchmark::State& state) {
-  engine_options o;
-  o.uniform_cuts = false;  // refinement by split records, what these measure
+  engine_options o = by_records();
   o.threads = static_cast<unsigned>(state.range(0));
   engine e(ml(257), 0.5, o);
   e.refine(refine_goal::triangles(1));  // the range data, built once per volume, not per change
@@ -234,8 +232,7 @@ BENCHMARK(BM_isovalue_change)
 // 10th percentile and least of the runs) show whether the reclaimer's work slows the run.
 // Args: τ in ms (ML 257³ never finishes within 33 ms), threads.
 void BM_deadline_overshoot(benchmark::State& state) {
-  engine_options o;
-  o.uniform_cuts = false;  // refinement by split records, what these measure
+  engine_options o = by_records();
   o.threads = static_cast<unsigned>(state.range(1));
   engine e(ml(257), 0.5, o);
   const auto budget = std::chrono::milliseconds(state.range(0));
@@ -289,8 +286,7 @@ void BM_full_refine(benchmark::State& state) {
     state.counters["splits"] = static_cast<double>(splits);
     return;
   }
-  engine_options o;
-  o.uniform_cuts = false;  // refinement by split records, what these measure
+  engine_options o = by_records();
   o.threads = n;
   std::uint64_t splits = 0;
   std::uint64_t batches = 0;
@@ -327,8 +323,7 @@ void BM_engine_over_refiner(benchmark::State& state) {
   const volume& v = ml(state.range(0));
   const hierarchy h(v.dims());
   const range_data ranges(v, h);
-  engine_options o;
-  o.uniform_cuts = false;  // refinement by split records, what these measure
+  engine_options o = by_records();
   o.threads = 1;
   std::vector<double> ratios;
   double refiner_s = 0.0;
@@ -379,8 +374,7 @@ BENCHMARK(BM_engine_over_refiner)
 // Extraction of the finest cut from a snapshot (mesh()), on N threads, after one full run:
 // the extraction phase of the pipeline alone. Args: threads, volume side.
 void BM_snapshot_mesh(benchmark::State& state) {
-  engine_options o;
-  o.uniform_cuts = false;  // refinement by split records, what these measure
+  engine_options o = by_records();
   o.threads = static_cast<unsigned>(state.range(0));
   engine e(ml(state.range(1)), 0.5, o);
   e.refine_full();
@@ -417,8 +411,7 @@ BENCHMARK(BM_snapshot_mesh)
 // diamonds it leaves unsplit, which full refinement splits; `visited_ratio_median` is the
 // median ratio of diamonds examined per second.
 void BM_priority_over_full(benchmark::State& state) {
-  engine_options o;
-  o.uniform_cuts = false;  // refinement by split records, what these measure
+  engine_options o = by_records();
   o.threads = static_cast<unsigned>(state.range(0));
   o.schedule = state.range(2) == 0 ? refinement_schedule::tasks : refinement_schedule::flow_graph;
   const int mode = static_cast<int>(state.range(1));
@@ -520,8 +513,7 @@ BENCHMARK(BM_priority_over_full)
 // both halves of a pair see the same machine (a shared VM's speed drifts by ±15% over seconds).
 // Reports the median of the per-pair ratios. Arg: writer threads.
 void BM_writer_with_reader(benchmark::State& state) {
-  engine_options o;
-  o.uniform_cuts = false;  // refinement by split records, what these measure
+  engine_options o = by_records();
   o.threads = static_cast<unsigned>(state.range(0));
   engine e(ml(129), 0.5, o);
   // 0 = asleep, 1 = walking, 2 = quit. The reader acknowledges each change through `at`.
@@ -597,8 +589,7 @@ BENCHMARK(BM_writer_with_reader)->Arg(1)->Arg(2)->Iterations(15)->UseManualTime(
 // Memory pinned by a reader stalled inside one snapshot for a whole run of 20 isovalue changes,
 // each refined fully: interval-based reclamation (Arg 1) against plain EBR (Arg 0).
 void BM_stalled_reader_memory(benchmark::State& state) {
-  engine_options o;
-  o.uniform_cuts = false;  // refinement by split records, what these measure
+  engine_options o = by_records();
   o.reclamation.interval_based = state.range(0) != 0;
   std::uint64_t peak = 0;
   std::uint64_t root = 0;

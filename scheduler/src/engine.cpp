@@ -61,13 +61,7 @@ engine::~engine() {
 
 void engine::set_isovalue(double w) {
   detail::engine_impl& e = *impl_;
-  detail::swap_root(e, w, [&e](detail::engine_root& old) {
-    old.retired_bytes = old.bytes();
-    // relaxed: a statistic; the reclaimer's fetch_sub is the other writer.
-    const std::uint64_t now =
-        e.retired_bytes.fetch_add(old.retired_bytes, std::memory_order_relaxed) + old.retired_bytes;
-    e.peak_retired_bytes.set(std::max(e.peak_retired_bytes.get(), now));
-  });
+  detail::swap_root(e, w, [&e](detail::engine_root& old) { e.count_retired(old); });
 }
 
 void engine::start(const refine_goal& goal) { detail::start_run(*impl_, goal); }

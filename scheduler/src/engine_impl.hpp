@@ -408,8 +408,9 @@ struct engine_impl : run_control {
   // published. Without `retire_now` the caller retires `shown` later (retire_root(), under
   // `control`; drive_uniform() does after its run).
   bool replace_root(engine_root* shown, engine_root* fresh, bool retire_now = true);
-  // Retires a root no longer published and flushes (statistics as set_isovalue() keeps them).
-  // Under `control`.
+  // Counts a root being retired in the retired-bytes statistics. Under `control`.
+  void count_retired(engine_root& old);
+  // Retires a root no longer published (count_retired()) and flushes. Under `control`.
   void retire_root(engine_root* old);
 
   // Commit step (the first run on this root): queues the root diamonds whose range straddles

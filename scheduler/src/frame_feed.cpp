@@ -82,23 +82,16 @@ struct frame_feed::state {
   std::atomic<std::uint64_t> taken{0};
   std::atomic<std::uint64_t> producer_ns{0};
 
-  surface_change* take_change() {
-    if (!free_changes.empty()) {
-      surface_change* c = free_changes.back();
-      free_changes.pop_back();
-      return c;
+  // An object from the producer's free list, or a new one owned by `all`.
+  template <class T>
+  static T* take(std::vector<T*>& free, std::vector<std::unique_ptr<T>>& all) {
+    if (!free.empty()) {
+      T* t = free.back();
+      free.pop_back();
+      return t;
     }
-    changes.push_back(std::make_unique<surface_change>());
-    return changes.back().get();
-  }
-  render_slots* take_pool() {
-    if (!free_pools.empty()) {
-      render_slots* p = free_pools.back();
-      free_pools.pop_back();
-      return p;
-    }
-    pools.push_back(std::make_unique<render_slots>());
-    return pools.back().get();
+    all.push_back(std::make_unique<T>());
+    return all.back().get();
   }
 
   // One look at the engine: a frame handed over when its cut is newer than the last one.
@@ -113,12 +106,12 @@ struct frame_feed::state {
     const cut_mark m = s.mark();
     if (same_cut(m, handed)) return;
     const auto t0 = std::chrono::steady_clock::now();
-    surface_change* c = take_change();
+    surface_change* c = take(free_changes, changes);
     s.change_since(handed, *c, options.normals);
     frame out;
     out.mark = m;
     if (c->rebuilt) {
-      render_slots* p = take_pool();
+      render_slots* p = take(free_pools, pools);
       p->clear();
       p->apply(*c);
       free_changes.push_back(c);

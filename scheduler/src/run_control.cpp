@@ -227,12 +227,16 @@ bool engine_impl::replace_root(engine_root* shown, engine_root* fresh, bool reti
   return true;
 }
 
-void engine_impl::retire_root(engine_root* old) {
-  old->retired_bytes = old->bytes();
+void engine_impl::count_retired(engine_root& old) {
+  old.retired_bytes = old.bytes();
   // relaxed: a statistic; the reclaimer's fetch_sub is the other writer.
   const std::uint64_t now =
-      retired_bytes.fetch_add(old->retired_bytes, std::memory_order_relaxed) + old->retired_bytes;
+      retired_bytes.fetch_add(old.retired_bytes, std::memory_order_relaxed) + old.retired_bytes;
   peak_retired_bytes.set(std::max(peak_retired_bytes.get(), now));
+}
+
+void engine_impl::retire_root(engine_root* old) {
+  count_retired(*old);
   control_participant.retire(old, &engine_impl::destroy_root, old->birth_era());
   control_participant.flush();
 }
