@@ -9,7 +9,8 @@
 set -euo pipefail
 packages=(cmake ninja-build g++ clang-format pkg-config libgtest-dev libgmock-dev libbenchmark-dev
           libteem-dev libnifti2-dev libdcmtk-dev zlib1g-dev libpng-dev libtiff-dev libopenjp2-7-dev libcgal-dev libgmp-dev libmpfr-dev libboost-dev
-          libtbb-dev python3-mrcfile)
+          libtbb-dev python3-mrcfile python3-dev python3-numpy pybind11-dev python3-pytest
+          python3-skimage)
 for option in "$@"; do
   case "$option" in
     --fuzz) packages+=(clang libclang-rt-14-dev python3) ;;

@@ -59,7 +59,41 @@ std::optional<sample_type> parse_sample_type(std::string_view name) noexcept {
 
 volume::volume(index3 dims, sample_type type, std::vector<std::byte> samples,
                std::array<double, 3> spacing, std::array<double, 3> origin)
-    : dims_(dims), type_(type), samples_(std::move(samples)), spacing_(spacing), origin_(origin) {
+    : dims_(dims), type_(type), spacing_(spacing), origin_(origin) {
+  auto owned = std::make_shared<const std::vector<std::byte>>(std::move(samples));
+  data_ = owned->data();
+  size_ = owned->size();
+  keeper_ = std::move(owned);
+  check_layout();
+  scan_samples();
+}
+
+volume::volume(index3 dims, sample_type type, std::shared_ptr<const void> keeper,
+               const std::byte* data, std::size_t size, bool borrowed,
+               std::array<double, 3> spacing, std::array<double, 3> origin)
+    : dims_(dims),
+      type_(type),
+      keeper_(std::move(keeper)),
+      data_(data),
+      size_(size),
+      borrowed_(borrowed),
+      spacing_(spacing),
+      origin_(origin) {}
+
+volume volume::borrow(index3 dims, sample_type type, std::span<const std::byte> samples,
+                      std::shared_ptr<const void> keeper, std::array<double, 3> spacing,
+                      std::array<double, 3> origin) {
+  volume v(dims, type, std::move(keeper), samples.data(), samples.size(), true, spacing, origin);
+  v.check_layout();
+  if (type == sample_type::f32 || type == sample_type::f64) {
+    v.scan_samples();
+  } else {
+    v.deferred_ = std::make_shared<deferred_range>();
+  }
+  return v;
+}
+
+void volume::check_layout() const {
   for (std::size_t a = 0; a < 3; ++a) {
     // x and y need two samples; z may be 1 (a 2D image is a volume one sample thick).
     if (dims_[a] < (a == 2 ? 1 : 2)) {
@@ -84,26 +118,38 @@ volume::volume(index3 dims, sample_type type, std::vector<std::byte> samples,
     }
   }
   const std::size_t expected = voxel_count() * sample_size(type_);
-  if (samples_.size() != expected) {
+  if (size_ != expected) {
     throw error("volume: expected " + std::to_string(expected) + " bytes of samples, found " +
-                std::to_string(samples_.size()));
+                std::to_string(size_));
   }
+  if (data_ == nullptr) throw error("volume: expected samples, found a null pointer");
+}
+
+namespace {
+
+// The smallest and largest sample, and the first non-finite one (n when none).
+template <class T>
+std::array<double, 2> sample_range(const T* s, std::size_t n, std::size_t& non_finite) {
   double lo = std::numeric_limits<double>::infinity();
   double hi = -lo;
-  std::size_t non_finite = voxel_count();  // the first NaN or infinite sample, if any
-  visit_samples([&](const auto* s) {
-    using T = std::remove_cvref_t<decltype(*s)>;
-    const std::size_t n = voxel_count();
-    for (std::size_t i = 0; i < n; ++i) {
-      const auto v = static_cast<double>(s[i]);
-      if (v < lo) lo = v;
-      if (v > hi) hi = v;
-      if constexpr (std::is_floating_point_v<T>) {
-        // v − v is 0 for every finite v and NaN for a NaN or an infinity.
-        if (!(v - v == 0.0) && non_finite == n) non_finite = i;
-      }
+  non_finite = n;
+  for (std::size_t i = 0; i < n; ++i) {
+    const auto v = static_cast<double>(s[i]);
+    if (v < lo) lo = v;
+    if (v > hi) hi = v;
+    if constexpr (std::is_floating_point_v<T>) {
+      // v − v is 0 for every finite v and NaN for a NaN or an infinity.
+      if (!(v - v == 0.0) && non_finite == n) non_finite = i;
     }
-  });
+  }
+  return {lo, hi};
+}
+
+}  // namespace
+
+void volume::scan_samples() {
+  std::size_t non_finite = voxel_count();
+  range_ = visit_samples([&](const auto* s) { return sample_range(s, voxel_count(), non_finite); });
   if (non_finite != voxel_count()) {
     const auto i = static_cast<std::int64_t>(non_finite);
     const std::int64_t x = i % dims_[0];
@@ -113,7 +159,16 @@ volume::volume(index3 dims, sample_type type, std::vector<std::byte> samples,
                 " at sample " + std::to_string(non_finite) + " (x " + std::to_string(x) + ", y " +
                 std::to_string(y) + ", z " + std::to_string(z) + ")");
   }
-  range_ = {lo, hi};
+}
+
+std::array<double, 2> volume::value_range() const noexcept {
+  if (deferred_ == nullptr) return range_;
+  std::call_once(deferred_->once, [this] {
+    std::size_t unused = 0;
+    deferred_->range =
+        visit_samples([&](const auto* s) { return sample_range(s, voxel_count(), unused); });
+  });
+  return deferred_->range;
 }
 
 }  // namespace progiso

@@ -133,19 +133,18 @@ bool normalise(vec3& v) {
 }
 
 // Normals of the vertices in `flat` (sorted) from their triangles: the sum of the area-weighted
-// right-hand normals, each triangle's scaled to its largest component first.
-void normals_from_triangles(triangle_mesh& mesh, const std::vector<std::uint32_t>& flat) {
+// right-hand normals, each triangle's scaled to its largest component first; one per entry.
+std::vector<vec3> normals_from_triangles(std::span<const vec3> vertices,
+                                         std::span<const std::array<std::uint32_t, 3>> triangles,
+                                         const std::vector<std::uint32_t>& flat) {
   constexpr std::uint32_t none = std::numeric_limits<std::uint32_t>::max();
-  std::vector<std::uint32_t> slot(mesh.vertices.size(), none);
+  std::vector<std::uint32_t> slot(vertices.size(), none);
   for (std::size_t k = 0; k < flat.size(); ++k) slot[flat[k]] = static_cast<std::uint32_t>(k);
   std::vector<vec3> sum(flat.size(), vec3{});
   std::vector<vec3> any(flat.size(), vec3{});  // one triangle's unit normal, if the sum cancels
-  for (const auto& tri : mesh.triangles) {
+  for (const auto& tri : triangles) {
     if (slot[tri[0]] == none && slot[tri[1]] == none && slot[tri[2]] == none) continue;
-    const vec3& a = mesh.vertices[tri[0]];
-    const vec3& b = mesh.vertices[tri[1]];
-    const vec3& c = mesh.vertices[tri[2]];
-    const vec3 n = area_normal(a, b, c);
+    const vec3 n = area_normal(vertices[tri[0]], vertices[tri[1]], vertices[tri[2]]);
     for (const std::uint32_t corner : tri) {
       const std::uint32_t k = slot[corner];
       if (k == none) continue;
@@ -155,16 +154,20 @@ void normals_from_triangles(triangle_mesh& mesh, const std::vector<std::uint32_t
     }
   }
   for (std::size_t k = 0; k < flat.size(); ++k) {
-    vec3 n = sum[k];
-    mesh.normals[flat[k]] = normalise(n) ? n : any[k];
+    vec3& n = sum[k];
+    if (!normalise(n)) n = any[k];
   }
+  return sum;
 }
 
-}  // namespace
-
-void add_vertex_normals(triangle_mesh& mesh, const volume& field, const parallel_loop& run) {
-  const std::size_t count = mesh.vertices.size();
-  mesh.normals.assign(count, vec3{});
+// The pass of add_vertex_normals() and vertex_normals_into(): put(i, unit normal, descent) for
+// every vertex i whose gradient has a direction, then put(i, normal from its triangles, {}) for
+// the others (descent: −∇f at the vertex in physical units, unnormalised).
+template <class Put>
+void normals_pass(std::span<const vec3> vertices,
+                  std::span<const std::array<std::uint32_t, 3>> triangles, const volume& field,
+                  const parallel_loop& run, const Put& put) {
+  const std::size_t count = vertices.size();
   if (count == 0) return;
   const grid_frame frame(field);
   const std::size_t pieces = (count + piece_vertices - 1) / piece_vertices;
@@ -176,23 +179,57 @@ void add_vertex_normals(triangle_mesh& mesh, const volume& field, const parallel
       // The gradients first, then their lengths in a loop of their own: a square root and a
       // division per vertex, independent from one vertex to the next, overlap there, where
       // behind each vertex's sample loads they took a large part of the pass.
+      std::vector<vec3> descent(end - begin);
       for (std::size_t i = begin; i < end; ++i) {
-        mesh.normals[i] = descent_at(samples, frame, mesh.vertices[i]);
+        descent[i - begin] = descent_at(samples, frame, vertices[i]);
       }
       for (std::size_t i = begin; i < end; ++i) {
-        vec3& n = mesh.normals[i];
+        vec3 n = descent[i - begin];
         const double len2 = n[0] * n[0] + n[1] * n[1] + n[2] * n[2];
         const bool plain = len2 >= std::numeric_limits<double>::min() &&
                            len2 <= std::numeric_limits<double>::max();
         const double inverse = plain ? 1.0 / std::sqrt(len2) : 1.0;
         n = {n[0] * inverse, n[1] * inverse, n[2] * inverse};
-        if (!plain && !normalise(n)) flat[k].push_back(static_cast<std::uint32_t>(i));
+        if (!plain && !normalise(n)) {
+          flat[k].push_back(static_cast<std::uint32_t>(i));
+        } else {
+          put(i, n, descent[i - begin]);
+        }
       }
     });
   });
   std::vector<std::uint32_t> all;
   for (const auto& f : flat) all.insert(all.end(), f.begin(), f.end());
-  if (!all.empty()) normals_from_triangles(mesh, all);
+  if (all.empty()) return;
+  const std::vector<vec3> n = normals_from_triangles(vertices, triangles, all);
+  for (std::size_t k = 0; k < all.size(); ++k) put(all[k], n[k], vec3{});
+}
+
+}  // namespace
+
+void add_vertex_normals(triangle_mesh& mesh, const volume& field, const parallel_loop& run) {
+  mesh.normals.assign(mesh.vertices.size(), vec3{});
+  normals_pass(mesh.vertices, mesh.triangles, field, run,
+               [&](std::size_t i, const vec3& n, const vec3&) { mesh.normals[i] = n; });
+}
+
+void vertex_normals_into(std::span<const vec3> vertices,
+                         std::span<const std::array<std::uint32_t, 3>> triangles,
+                         const volume& field, float* normals, float* gradient_l1,
+                         const parallel_loop& run) {
+  const std::array<double, 3>& spacing = field.spacing();
+  normals_pass(vertices, triangles, field, run,
+               [&](std::size_t i, const vec3& n, const vec3& descent) {
+                 for (std::size_t a = 0; a < 3; ++a) {
+                   normals[3 * i + a] = static_cast<float>(n[a]);
+                 }
+                 if (gradient_l1 != nullptr) {
+                   // Back to index units: the pass divided each component by its spacing.
+                   gradient_l1[i] = static_cast<float>(std::fabs(descent[0]) * spacing[0] +
+                                                       std::fabs(descent[1]) * spacing[1] +
+                                                       std::fabs(descent[2]) * spacing[2]);
+                 }
+               });
 }
 
 }  // namespace progiso

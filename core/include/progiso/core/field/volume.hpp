@@ -17,6 +17,10 @@
 // Everything that refines or extracts reads samples through at(), value() or
 // detail::visit_field(), so both kinds run through the same code.
 //
+// Samples are owned (the constructor takes a vector) or borrowed (borrow(): another owner's
+// memory, such as a numpy array, read in place, kept alive through a keeper the caller passes).
+// Copies of a volume share its samples: they are immutable either way.
+//
 // Thread safety: a volume is immutable after construction; concurrent reads are safe.
 #pragma once
 
@@ -24,7 +28,9 @@
 #include <cstddef>
 #include <cstdint>
 #include <memory>
+#include <mutex>
 #include <optional>
+#include <span>
 #include <string_view>
 #include <vector>
 
@@ -69,6 +75,17 @@ class volume {
   volume(index3 dims, sample_type type, std::vector<std::byte> samples,
          std::array<double, 3> spacing = {1.0, 1.0, 1.0},
          std::array<double, 3> origin = {0.0, 0.0, 0.0});
+  /// A volume reading `samples` in place, without a copy (host byte order, x fastest). `keeper`
+  /// owns that memory and is held by the volume and its copies (null: the caller keeps it alive
+  /// and unchanged while any of them is in use). Checked as the constructor checks, except that
+  /// integer samples are not scanned here: no integer is NaN, and their range is found by the
+  /// first call of value_range(). So a borrowed integer volume is ready in O(1); a
+  /// floating-point one costs one pass, which rejects NaN and infinite samples.
+  [[nodiscard]] static volume borrow(index3 dims, sample_type type,
+                                     std::span<const std::byte> samples,
+                                     std::shared_ptr<const void> keeper,
+                                     std::array<double, 3> spacing = {1.0, 1.0, 1.0},
+                                     std::array<double, 3> origin = {0.0, 0.0, 0.0});
 
   [[nodiscard]] const index3& dims() const noexcept { return dims_; }
   [[nodiscard]] sample_type type() const noexcept { return type_; }
@@ -78,8 +95,10 @@ class volume {
     return static_cast<std::size_t>(dims_[0] * dims_[1] * dims_[2]);
   }
   /// Bytes of sample storage.
-  [[nodiscard]] std::size_t byte_size() const noexcept { return samples_.size(); }
-  [[nodiscard]] const std::byte* bytes() const noexcept { return samples_.data(); }
+  [[nodiscard]] std::size_t byte_size() const noexcept { return size_; }
+  [[nodiscard]] const std::byte* bytes() const noexcept { return data_; }
+  /// Whether the samples are another owner's (borrow()).
+  [[nodiscard]] bool borrowed() const noexcept { return borrowed_; }
 
   /// Linear index of an in-box grid point.
   [[nodiscard]] std::size_t linear(std::int64_t x, std::int64_t y, std::int64_t z) const noexcept {
@@ -92,8 +111,9 @@ class volume {
     const auto c = [](std::int64_t v, std::int64_t hi) { return v < 0 ? 0 : (v > hi ? hi : v); };
     return at(linear(c(x, dims_[0] - 1), c(y, dims_[1] - 1), c(z, dims_[2] - 1)));
   }
-  /// Smallest and largest sample.
-  [[nodiscard]] std::array<double, 2> value_range() const noexcept { return range_; }
+  /// Smallest and largest sample (a borrowed integer volume scans its samples on the first
+  /// call, once, whichever thread calls).
+  [[nodiscard]] std::array<double, 2> value_range() const noexcept;
   /// The subdivision behind a smoothed volume (smooth(), smoothing.hpp), or null for data. A
   /// smoothed volume has no sample array: bytes() is null, byte_size() 0, type() f64, its
   /// samples are computed by at() and value(), value_range() is a bound on them, and
@@ -109,13 +129,28 @@ class volume {
   volume(std::shared_ptr<const detail::subdivision> sub, const volume& data, index3 dims,
          std::array<double, 2> range);
 
+  // The range of samples not scanned at construction (borrowed integers), found once.
+  struct deferred_range {
+    std::once_flag once;
+    std::array<double, 2> range{};
+  };
+  volume(index3 dims, sample_type type, std::shared_ptr<const void> keeper, const std::byte* data,
+         std::size_t size, bool borrowed, std::array<double, 3> spacing,
+         std::array<double, 3> origin);
+  void check_layout() const;
+  void scan_samples();  // range_, and rejects non-finite samples
+
   std::shared_ptr<const detail::subdivision> sub_;
   index3 dims_;
   sample_type type_;
-  std::vector<std::byte> samples_;
+  std::shared_ptr<const void> keeper_;  // owns the samples (an owned vector, or the caller's)
+  const std::byte* data_ = nullptr;
+  std::size_t size_ = 0;
+  bool borrowed_ = false;
   std::array<double, 3> spacing_;
   std::array<double, 3> origin_;
   std::array<double, 2> range_{};
+  std::shared_ptr<deferred_range> deferred_;  // null: range_ holds the range
 };
 
 // ---------------------------------------------------------------------------------------------
@@ -125,7 +160,7 @@ inline double volume::at(std::size_t i) const noexcept {
   if (sub_ != nullptr) [[unlikely]] {
     return detail::subdivided_at(*sub_, i);
   }
-  const std::byte* p = samples_.data();
+  const std::byte* p = data_;
   switch (type_) {
     case sample_type::u8:
       return static_cast<double>(reinterpret_cast<const std::uint8_t*>(p)[i]);
@@ -150,7 +185,7 @@ inline double volume::at(std::size_t i) const noexcept {
 template <class F>
 decltype(auto) volume::visit_samples(F&& f) const {
   PROGISO_ASSERT(sub_ == nullptr);
-  const std::byte* p = samples_.data();
+  const std::byte* p = data_;
   switch (type_) {
     case sample_type::u8:
       return f(reinterpret_cast<const std::uint8_t*>(p));

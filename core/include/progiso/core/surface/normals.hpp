@@ -20,7 +20,9 @@
 // Thread safety: reads `field` only; `mesh` is the caller's.
 #pragma once
 
+#include <array>
 #include <cstdint>
+#include <span>
 
 #include <progiso/core/base/config.hpp>
 #include <progiso/core/base/parallel_loop.hpp>
@@ -40,5 +42,15 @@ enum class vertex_normals : std::uint8_t {
 /// position outside the data box is taken at the nearest point of the box). `field` may be a
 /// smoothed volume (smooth()): its gradient is that of its computed samples.
 void add_vertex_normals(triangle_mesh& mesh, const volume& field, const parallel_loop& run = {});
+/// The same normals as floats, 3 per vertex into `normals`, without a mesh (a caller handing
+/// float arrays on, such as the Python binding, whose vertices are not yet floats); and, when
+/// `gradient_l1` is not null, one float per vertex there: |∂f/∂i| + |∂f/∂j| + |∂f/∂k| of the
+/// same interpolated gradient in index units (the `values` scikit-image's marching_cubes gives
+/// each vertex; 0 where the gradient vanishes). `triangles` serve the vertices whose gradient
+/// vanishes, as in add_vertex_normals().
+void vertex_normals_into(std::span<const vec3> vertices,
+                         std::span<const std::array<std::uint32_t, 3>> triangles,
+                         const volume& field, float* normals, float* gradient_l1,
+                         const parallel_loop& run = {});
 
 }  // namespace progiso
