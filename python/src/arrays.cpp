@@ -1,6 +1,5 @@
 #include "arrays.hpp"
 
-#include <cstring>
 #include <span>
 
 namespace progiso::python {
@@ -83,7 +82,8 @@ sample_array as_samples(const py::handle& obj, int rank, const char* what) {
   return out;
 }
 
-volume view_volume(const sample_array& a, const std::array<double, 3>& spacing_axes) {
+volume view_volume(const sample_array& a, const std::array<double, 3>& spacing_axes,
+                   const parallel_loop& run) {
   const auto rank = a.array.ndim();
   index3 dims{};
   std::array<double, 3> spacing{};
@@ -96,24 +96,7 @@ volume view_volume(const sample_array& a, const std::array<double, 3>& spacing_a
   }
   const std::span<const std::byte> bytes(static_cast<const std::byte*>(a.array.data()),
                                          static_cast<std::size_t>(a.array.nbytes()));
-  return volume::borrow(dims, a.type, bytes, nullptr, spacing);
-}
-
-py::array points_as_float_axes(std::vector<std::array<double, 3>>&& points) {
-  const std::size_t n = points.size();
-  auto* held = new std::vector<std::array<double, 3>>(std::move(points));
-  py::capsule free_it(held,
-                      [](void* p) { delete static_cast<std::vector<std::array<double, 3>>*>(p); });
-  // Point i's floats go to bytes [12 i, 12 i + 12), below or at the doubles of point i (read
-  // first): front to back, nothing is overwritten before it is read.
-  auto* floats = reinterpret_cast<float*>(held->data());
-  for (std::size_t i = 0; i < n; ++i) {
-    const std::array<double, 3> p = (*held)[i];
-    const std::array<float, 3> f{static_cast<float>(p[2]), static_cast<float>(p[1]),
-                                 static_cast<float>(p[0])};
-    std::memcpy(floats + 3 * i, f.data(), sizeof f);
-  }
-  return py::array_t<float>({static_cast<py::ssize_t>(n), py::ssize_t{3}}, floats, free_it);
+  return volume::borrow(dims, a.type, bytes, nullptr, spacing, {0.0, 0.0, 0.0}, run);
 }
 
 py::array floats_as_axes(std::vector<float>&& xyz, bool per_triangle) {

@@ -3,8 +3,7 @@
 // In: a C-contiguous array in native byte order of one of the eight sample types is viewed as a
 // borrowed volume (volume::borrow()); any other layout or dtype is converted by numpy once. Out:
 // a C++ vector is moved to the heap and handed to numpy with a capsule that frees it, so the
-// array owns the vector's memory; a buffer of doubles becomes a float32 array by compacting the
-// floats into the same storage (no second allocation).
+// array owns the vector's memory.
 #pragma once
 
 #include <array>
@@ -17,6 +16,7 @@
 #include <pybind11/numpy.h>
 #include <pybind11/pybind11.h>
 
+#include <progiso/core/base/parallel_loop.hpp>
 #include <progiso/core/field/volume.hpp>
 
 namespace progiso::python {
@@ -38,8 +38,9 @@ struct sample_array {
 
 /// A volume reading `a` in place, numpy axis order (axis 0 slowest) mapped to progiso's z, y, x;
 /// `spacing_axes` is per numpy axis. A 2-D array is an image (one sample thick). The caller keeps
-/// `a` alive while the volume is used.
-[[nodiscard]] volume view_volume(const sample_array& a, const std::array<double, 3>& spacing_axes);
+/// `a` alive while the volume is used. Floating-point samples are checked through `run`.
+[[nodiscard]] volume view_volume(const sample_array& a, const std::array<double, 3>& spacing_axes,
+                                 const parallel_loop& run = {});
 
 /// A numpy array owning `data` (moved to the heap), of `shape`, element type T.
 template <class T>
@@ -48,10 +49,6 @@ template <class T>
   py::capsule free_it(held, [](void* p) { delete static_cast<std::vector<T>*>(p); });
   return py::array_t<T>(std::move(shape), held->data(), free_it);
 }
-
-/// Doubles, 3 per point in x, y, z order, as a float32 array of shape (n, 3) in numpy axis order
-/// (z, y, x), written over the same storage (the vector is moved into the array's owner).
-[[nodiscard]] py::array points_as_float_axes(std::vector<std::array<double, 3>>&& points);
 
 /// Floats, 3 per point in x, y, z order, reversed in place to axis order; shape (n, 3) (or
 /// (n, 3, 3) with `per_triangle`: three corners per row).

@@ -39,6 +39,7 @@
 #include <progiso/core/field/volume.hpp>
 #include <progiso/core/refine/goal.hpp>
 #include <progiso/core/refine/refiner.hpp>
+#include <progiso/core/surface/finest_surface.hpp>
 #include <progiso/core/surface/mesh.hpp>
 #include <progiso/core/surface/normals.hpp>
 #include <progiso/core/surface/surface_change.hpp>
@@ -181,8 +182,8 @@ std::shared_ptr<const volume> field_of(volume data, const smoothing& s) {
 // Meshes out.
 
 // The triangles of `m` that `keep` accepts, then only the vertices they use, in order.
-template <class Keep>
-void keep_triangles(triangle_mesh& m, Keep&& keep) {
+template <class Mesh, class Keep>
+void keep_triangles(Mesh& m, Keep&& keep) {
   std::size_t to = 0;
   for (std::size_t t = 0; t < m.triangles.size(); ++t) {
     if (keep(m.triangles[t])) m.triangles[to++] = m.triangles[t];
@@ -207,8 +208,9 @@ void keep_triangles(triangle_mesh& m, Keep&& keep) {
 }
 
 // The mesh as (verts, faces, normals, values) arrays (see the file comment), vertices in axis
-// order; `ascent` reverses the winding.
-py::tuple mesh_arrays(triangle_mesh&& m, const volume& field, bool ascent, bool values) {
+// order; `ascent` reverses the winding. Normals and values on `threads` workers.
+py::tuple mesh_arrays(detail::float_mesh&& m, const volume& field, bool ascent, bool values,
+                      unsigned threads) {
   const std::size_t n = m.vertices.size();
   if (m.triangles.size() > static_cast<std::size_t>(std::numeric_limits<std::int32_t>::max())) {
     throw py::value_error("the surface has more triangles than int32 faces can number");
@@ -217,11 +219,14 @@ py::tuple mesh_arrays(triangle_mesh&& m, const volume& field, bool ascent, bool 
   std::vector<float> grad(values ? n : 0);
   {
     py::gil_scoped_release release;
-    vertex_normals_into(m.vertices, m.triangles, field, normals.data(),
-                        values ? grad.data() : nullptr);
+    scheduler::run_on_threads(threads, [&](const parallel_loop& loop, std::size_t) {
+      vertex_normals_into(std::span<const std::array<float, 3>>(m.vertices), m.triangles, field,
+                          normals.data(), values ? grad.data() : nullptr, loop);
+    });
     if (ascent) {
       for (auto& tri : m.triangles) std::swap(tri[1], tri[2]);
     }
+    for (auto& p : m.vertices) std::swap(p[0], p[2]);
   }
   // The triangles' uint32 ids as int32 (scikit-image's dtype): every id < 2^31 (checked above
   // for the count; vertices number fewer than 3 per triangle).
@@ -231,7 +236,11 @@ py::tuple mesh_arrays(triangle_mesh&& m, const volume& field, bool ascent, bool 
       tri, [](void* p) { delete static_cast<std::vector<std::array<std::uint32_t, 3>>*>(p); });
   py::array faces = py::array_t<std::int32_t>(
       {t, py::ssize_t{3}}, reinterpret_cast<std::int32_t*>(tri->data()), free_tri);
-  py::array verts = points_as_float_axes(std::move(m.vertices));
+  auto* pos = new std::vector<std::array<float, 3>>(std::move(m.vertices));
+  py::capsule free_pos(pos,
+                       [](void* p) { delete static_cast<std::vector<std::array<float, 3>>*>(p); });
+  py::array verts = py::array_t<float>({static_cast<py::ssize_t>(n), py::ssize_t{3}},
+                                       reinterpret_cast<float*>(pos->data()), free_pos);
   py::array norms = floats_as_axes(std::move(normals));
   py::object vals = values ? py::object(own(std::move(grad), {static_cast<py::ssize_t>(n)}))
                            : py::object(py::none());
@@ -252,11 +261,15 @@ py::tuple extract(const py::handle& data, std::optional<double> level_arg,
   const unsigned threads = threads_of(threads_arg);
   std::shared_ptr<const volume> field;
   std::array<double, 2> range{};
+  const auto clock_start = std::chrono::steady_clock::now();
   try {
     py::gil_scoped_release release;  // a floating-point volume is scanned for NaN
-    volume samples = view_volume(a, spacing);
-    range = samples.value_range();
-    field = field_of(std::move(samples), s);
+    std::optional<volume> samples;
+    scheduler::run_on_threads(threads, [&](const parallel_loop& loop, std::size_t) {
+      samples.emplace(view_volume(a, spacing, loop));
+    });
+    range = samples->value_range();
+    field = field_of(std::move(*samples), s);
   } catch (const error& e) {
     throw py::value_error(message(e));
   }
@@ -277,25 +290,51 @@ py::tuple extract(const py::handle& data, std::optional<double> level_arg,
       throw py::value_error("mask: expected a boolean array");
     }
   }
-  extract_options options;
-  options.goal = goal_of(goal_kind, goal_value);
+  const refine_goal goal = goal_of(goal_kind, goal_value);
   std::atomic<bool> stop_asked{false};
-  options.progress = [&](const extract_progress&) {
-    // Partner: the store in stop() below; relaxed suffices, the run's end is joined by future.
-    if (stop_asked.load(std::memory_order_relaxed)) throw interrupted{};
-  };
+  // Partner: the store in the stop callback below; relaxed suffices, the run's end is joined
+  // through its future.
+  const auto stopping = [&stop_asked] { return stop_asked.load(std::memory_order_relaxed); };
   const auto started = std::chrono::steady_clock::now();
-  extract_result result;
+  detail::float_mesh m;
+  double pipeline_seconds = 0.0;
   try {
-    result =
-        interruptible([&] { return extract_isosurface_parallel(*field, level, options, threads); },
-                      [] {}, [&] { stop_asked.store(true, std::memory_order_relaxed); });
+    m = interruptible(
+        [&] {
+          if (goal.what == refine_goal::kind::full) {
+            // The finest cut by the two streaming passes, its positions written as floats.
+            detail::float_mesh out;
+            const finest_progress progress = [&](std::uint64_t, std::uint64_t) {
+              if (stopping()) throw interrupted{};
+            };
+            scheduler::run_on_threads(threads, [&](const parallel_loop& loop, std::size_t parts) {
+              out = detail::finest_surface_floats(*field, level, loop, parts, progress);
+            });
+            return out;
+          }
+          extract_options options;
+          options.goal = goal;
+          options.progress = [&](const extract_progress&) {
+            if (stopping()) throw interrupted{};
+          };
+          extract_result r = extract_isosurface_parallel(*field, level, options, threads);
+          detail::float_mesh out;
+          out.triangles = std::move(r.mesh.triangles);
+          out.vertices.resize(r.mesh.vertices.size());
+          for (std::size_t v = 0; v < out.vertices.size(); ++v) {
+            const vec3& q = r.mesh.vertices[v];
+            out.vertices[v] = {static_cast<float>(q[0]), static_cast<float>(q[1]),
+                               static_cast<float>(q[2])};
+          }
+          return out;
+        },
+        [] {}, [&] { stop_asked.store(true, std::memory_order_relaxed); });
   } catch (const error& e) {
     throw py::value_error(message(e));
   }
-  triangle_mesh& m = result.mesh;
   const double extract_seconds =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count();
+  pipeline_seconds = extract_seconds;
   {
     py::gil_scoped_release release;
     if (mask) {
@@ -310,8 +349,10 @@ py::tuple extract(const py::handle& data, std::optional<double> level_arg,
       keep_triangles(m, [&](const std::array<std::uint32_t, 3>& tri) {
         std::array<std::int64_t, 3> upper{};
         for (std::size_t q = 0; q < 3; ++q) {
-          const double c =
-              (m.vertices[tri[0]][q] + m.vertices[tri[1]][q] + m.vertices[tri[2]][q]) / 3.0;
+          const double c = (static_cast<double>(m.vertices[tri[0]][q]) +
+                            static_cast<double>(m.vertices[tri[1]][q]) +
+                            static_cast<double>(m.vertices[tri[2]][q])) /
+                           3.0;
           // In the data's index units (a smoothed field's finer grid divided back).
           const double i = (c - o[q]) / sp[q] / fine;
           const auto cell = static_cast<std::int64_t>(std::floor(i));
@@ -324,12 +365,9 @@ py::tuple extract(const py::handle& data, std::optional<double> level_arg,
     }
     if (!allow_degenerate) {
       keep_triangles(m, [&](const std::array<std::uint32_t, 3>& tri) {
-        const auto f = [&](std::uint32_t v) {
-          const auto& p = m.vertices[v];
-          return std::array<float, 3>{static_cast<float>(p[0]), static_cast<float>(p[1]),
-                                      static_cast<float>(p[2])};
-        };
-        const auto p = f(tri[0]), q = f(tri[1]), r = f(tri[2]);
+        const auto& p = m.vertices[tri[0]];
+        const auto& q = m.vertices[tri[1]];
+        const auto& r = m.vertices[tri[2]];
         return tri[0] != tri[1] && tri[1] != tri[2] && tri[0] != tri[2] && p != q && q != r &&
                p != r;
       });
@@ -337,12 +375,18 @@ py::tuple extract(const py::handle& data, std::optional<double> level_arg,
   }
   py::dict info;
   info["seconds"] = extract_seconds;
-  info["pipeline_seconds"] = result.pipeline_seconds;
-  info["first_surface_seconds"] = result.first_surface_seconds;
+  info["pipeline_seconds"] = pipeline_seconds;
   info["triangles"] = m.triangles.size();
   info["copied"] = a.copied;
   info["threads"] = threads == 0 ? scheduler::default_concurrency() : static_cast<int>(threads);
-  py::tuple arrays = mesh_arrays(std::move(m), *field, ascent, true);
+  const auto since = [](std::chrono::steady_clock::time_point t) {
+    return std::chrono::duration<double>(std::chrono::steady_clock::now() - t).count();
+  };
+  info["check_seconds"] = std::chrono::duration<double>(started - clock_start).count();
+  const auto arrays_start = std::chrono::steady_clock::now();
+  py::tuple arrays = mesh_arrays(std::move(m), *field, ascent, true, threads);
+  info["normals_seconds"] = since(arrays_start);
+  info["total_seconds"] = since(clock_start);
   return py::make_tuple(arrays[0], arrays[1], arrays[2], arrays[3], info);
 }
 
@@ -373,7 +417,11 @@ class py_engine {
     const smoothing s = smoothing_of(smooth_arg);
     try {
       py::gil_scoped_release release;
-      field_ = field_of(view_volume(samples_, spacing), s);
+      std::optional<volume> borrowed;
+      scheduler::run_on_threads(options.threads, [&](const parallel_loop& loop, std::size_t) {
+        borrowed.emplace(view_volume(samples_, spacing, loop));
+      });
+      field_ = field_of(std::move(*borrowed), s);
       engine_ = std::make_unique<engine>(field_, level, std::move(options));
     } catch (const error& e) {
       throw py::value_error(message(e));

@@ -37,6 +37,32 @@ def test_nrrd_header_gives_spacing_origin_and_world_in_axis_order(tmp_path):
     np.testing.assert_allclose(w @ [1, 2, 3, 1], [10 + 3 * 0.5, 20 + 2 * 0.75, 30 + 1 * 2, 1])
 
 
+@pytest.mark.parametrize("kind", ["mha", "vtk"])
+def test_metaimage_and_legacy_vtk_read_in_axis_order(tmp_path, kind):
+    a = ((np.arange(5 * 6 * 7) * 3) % 65000).astype(np.uint16).reshape(5, 6, 7)
+    if kind == "mha":
+        header = ("ObjectType = Image\nNDims = 3\nDimSize = 7 6 5\nElementType = MET_USHORT\n"
+                  "ElementSpacing = 0.5 0.75 2\nOffset = 10 20 30\nElementDataFile = LOCAL\n")
+        data = a.astype("<u2").tobytes()
+    else:
+        header = ("# vtk DataFile Version 3.0\nprogiso test\nBINARY\nDATASET STRUCTURED_POINTS\n"
+                  "DIMENSIONS 7 6 5\nSPACING 0.5 0.75 2\nORIGIN 10 20 30\nPOINT_DATA 210\n"
+                  "SCALARS s unsigned_short 1\nLOOKUP_TABLE default\n")
+        data = a.astype(">u2").tobytes()
+    path = tmp_path / ("v." + kind)
+    path.write_bytes(header.encode() + data)
+    got = progiso.read_volume(path)
+    np.testing.assert_array_equal(got.array, a)
+    assert got.array.dtype == np.uint16
+    assert got.spacing == (2.0, 0.75, 0.5)
+    assert got.origin == (30.0, 20.0, 10.0)
+    np.testing.assert_allclose(got.world @ [1, 2, 3, 1], [10 + 1.5, 20 + 1.5, 30 + 2, 1])
+    # And the surface of what was read is the surface of the array.
+    v, f, _, _ = progiso.marching_cubes(got.array, 300.5, spacing=got.spacing)
+    v2, f2, _, _ = progiso.marching_cubes(a, 300.5, spacing=(2.0, 0.75, 0.5))
+    np.testing.assert_array_equal(v, v2)
+
+
 def test_file_errors_are_os_errors_naming_the_file(tmp_path):
     missing = tmp_path / "nope.nrrd"
     with pytest.raises(OSError, match="nope.nrrd"):

@@ -6,6 +6,7 @@
 
 #include <progiso/core/base/error.hpp>
 #include <progiso/core/surface/finest_surface.hpp>
+#include <progiso/scheduler/tbb_environment.hpp>
 
 namespace progiso {
 
@@ -188,15 +189,7 @@ extract_result detail::extract_isosurface_parallel(const volume& vol, double iso
   const auto t1 = clock::now();
   // The direct paths run pieces of rows on the engine's thread count, in a fresh arena (as the
   // snapshots' meshes), or on this thread alone.
-  const auto direct = [&eng](auto&& f) {
-    const std::size_t n = eng.threads();
-    if (n <= 1) {
-      f(parallel_loop{}, std::size_t{1});
-    } else {
-      tbb::task_arena arena(static_cast<int>(n));
-      arena.execute([&] { f(parallel_loop{detail::tbb_loop}, 16 * n); });
-    }
-  };
+  const auto direct = [&eng](const auto& f) { scheduler::run_on_threads(eng.threads(), f); };
   // A 2D field has no coarser uniform cut than its finest: it refines by priority.
   using kind = refine_goal::kind;
   const bool ladder =

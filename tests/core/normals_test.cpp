@@ -16,12 +16,14 @@
 #include <functional>
 #include <memory>
 #include <numbers>
+#include <span>
 #include <thread>
 #include <vector>
 
 #include <progiso/core/field/analytic.hpp>
 #include <progiso/core/field/smoothing.hpp>
 #include <progiso/core/refine/refiner.hpp>
+#include <progiso/core/surface/finest_surface.hpp>
 
 #include "support/test_data.hpp"
 
@@ -216,6 +218,59 @@ TEST(Normals, face_the_side_the_triangles_face_on_the_shared_volumes) {
       EXPECT_GT(fraction, 0.94) << info.name << " w " << w << " (least cosine " << least << ")";
     }
   }
+}
+
+}  // namespace
+}  // namespace progiso
+
+namespace progiso {
+namespace {
+
+// The float path the Python binding takes: finest_surface_floats() then vertex_normals_into().
+TEST(FloatNormals, are_the_double_paths_normals_and_gradient_l1_rounded_to_floats) {
+  const std::array<double, 3> spacing{0.5, 1.25, 2.0};
+  const volume v = sampled({19, 14, 11}, spacing, {1.0, -2.0, 3.0}, [](const vec3& p) {
+    return std::sin(0.7 * p[0]) + std::cos(0.45 * p[1]) * p[2] * 0.1 + 0.02 * p[0] * p[1];
+  });
+  const triangle_mesh d = finest_surface(v, 0.3);
+  const detail::float_mesh f = detail::finest_surface_floats(v, 0.3);
+  ASSERT_GT(d.triangles.size(), 200u);
+  ASSERT_EQ(f.triangles, d.triangles);
+  ASSERT_EQ(f.vertices.size(), d.vertices.size());
+  for (std::size_t i = 0; i < d.vertices.size(); ++i) {
+    for (std::size_t q = 0; q < 3; ++q) {
+      ASSERT_EQ(f.vertices[i][q], static_cast<float>(d.vertices[i][q])) << i;
+    }
+  }
+  triangle_mesh with_normals = d;
+  add_vertex_normals(with_normals, v);
+  std::vector<float> normals(3 * d.vertices.size());
+  std::vector<float> l1(d.vertices.size());
+  vertex_normals_into(d.vertices, d.triangles, v, normals.data(), l1.data());
+  std::vector<float> from_floats(3 * d.vertices.size());
+  vertex_normals_into(std::span<const std::array<float, 3>>(f.vertices), f.triangles, v,
+                      from_floats.data(), nullptr);
+  for (std::size_t i = 0; i < d.vertices.size(); ++i) {
+    for (std::size_t q = 0; q < 3; ++q) {
+      ASSERT_EQ(normals[3 * i + q], static_cast<float>(with_normals.normals[i][q])) << i;
+      ASSERT_NEAR(from_floats[3 * i + q], normals[3 * i + q], 1e-4) << i;
+    }
+    ASSERT_GT(l1[i], 0.0f) << i;
+  }
+}
+
+TEST(FloatNormals, gradient_l1_is_the_index_unit_gradient_of_a_linear_field) {
+  // f = 3 i + 0.5 j − 2 k in index units, whatever the spacing: |∂f/∂i| + … = 5.5 everywhere.
+  const std::array<double, 3> spacing{0.25, 2.0, 1.5};
+  const volume v = sampled({9, 8, 7}, spacing, {0.0, 0.0, 0.0}, [&](const vec3& p) {
+    return 3.0 * p[0] / spacing[0] + 0.5 * p[1] / spacing[1] - 2.0 * p[2] / spacing[2];
+  });
+  const triangle_mesh m = finest_surface(v, 4.1);
+  ASSERT_GT(m.vertices.size(), 20u);
+  std::vector<float> normals(3 * m.vertices.size());
+  std::vector<float> l1(m.vertices.size());
+  vertex_normals_into(m.vertices, m.triangles, v, normals.data(), l1.data());
+  for (const float x : l1) EXPECT_NEAR(x, 5.5, 1e-4);
 }
 
 }  // namespace

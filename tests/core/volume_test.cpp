@@ -8,7 +8,9 @@
 #include <limits>
 #include <memory>
 #include <span>
+#include <string>
 #include <thread>
+#include <type_traits>
 #include <vector>
 
 #include <progiso/core/field/volume.hpp>
@@ -92,6 +94,50 @@ TEST(BorrowedVolume, gives_the_surface_of_the_same_samples_owned) {
   EXPECT_EQ(ma.vertices, mb.vertices);
   EXPECT_EQ(ma.triangles, mb.triangles);
   EXPECT_EQ(a.value_range(), b.value_range());
+}
+
+}  // namespace
+}  // namespace progiso
+
+namespace progiso {
+namespace {
+
+// The range scan runs in vectorised blocks with a scalar tail: every position must be seen.
+template <class T>
+void check_scan_at_every_kind_of_position() {
+  const index3 dims{37, 29, 23};  // not a multiple of any block or vector width
+  const std::size_t n = 37 * 29 * 23;
+  std::vector<T> s(n);
+  for (std::size_t i = 0; i < n; ++i)
+    s[i] = static_cast<T>(std::sin(0.001 * static_cast<double>(i)));
+  for (const std::size_t at : {std::size_t{0}, std::size_t{5}, std::size_t{16383},
+                               std::size_t{16384}, std::size_t{20000}, n - 1}) {
+    std::vector<T> t = s;
+    t[at] = static_cast<T>(-7.5);
+    const volume lo = volume::borrow(
+        dims, std::is_same_v<T, float> ? sample_type::f32 : sample_type::f64, bytes_of(t), nullptr);
+    EXPECT_EQ(lo.value_range()[0], -7.5) << at;
+    t[at] = static_cast<T>(9.25);
+    const volume hi = volume::borrow(dims, lo.type(), bytes_of(t), nullptr);
+    EXPECT_EQ(hi.value_range()[1], 9.25) << at;
+    for (const T bad : {std::numeric_limits<T>::quiet_NaN(), std::numeric_limits<T>::infinity(),
+                        -std::numeric_limits<T>::infinity()}) {
+      t[at] = bad;
+      try {
+        (void)volume::borrow(dims, lo.type(), bytes_of(t), nullptr);
+        ADD_FAILURE() << "a non-finite sample at " << at << " was accepted";
+      } catch (const error& e) {
+        EXPECT_NE(std::string(e.what()).find("at sample " + std::to_string(at) + " "),
+                  std::string::npos)
+            << e.what();
+      }
+    }
+  }
+}
+
+TEST(BorrowedVolume, finds_the_range_and_the_first_non_finite_sample_anywhere) {
+  check_scan_at_every_kind_of_position<float>();
+  check_scan_at_every_kind_of_position<double>();
 }
 
 }  // namespace

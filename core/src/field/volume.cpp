@@ -1,9 +1,14 @@
 #include <progiso/core/field/volume.hpp>
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
+#if defined(__SSE2__)
+#include <emmintrin.h>
+#endif
 #include <string>
 #include <type_traits>
+#include <vector>
 
 #include <progiso/core/base/error.hpp>
 
@@ -82,11 +87,11 @@ volume::volume(index3 dims, sample_type type, std::shared_ptr<const void> keeper
 
 volume volume::borrow(index3 dims, sample_type type, std::span<const std::byte> samples,
                       std::shared_ptr<const void> keeper, std::array<double, 3> spacing,
-                      std::array<double, 3> origin) {
+                      std::array<double, 3> origin, const parallel_loop& run) {
   volume v(dims, type, std::move(keeper), samples.data(), samples.size(), true, spacing, origin);
   v.check_layout();
   if (type == sample_type::f32 || type == sample_type::f64) {
-    v.scan_samples();
+    v.scan_samples(run);
   } else {
     v.deferred_ = std::make_shared<deferred_range>();
   }
@@ -127,29 +132,153 @@ void volume::check_layout() const {
 
 namespace {
 
-// The smallest and largest sample, and the first non-finite one (n when none).
-template <class T>
-std::array<double, 2> sample_range(const T* s, std::size_t n, std::size_t& non_finite) {
-  double lo = std::numeric_limits<double>::infinity();
-  double hi = -lo;
-  non_finite = n;
-  for (std::size_t i = 0; i < n; ++i) {
-    const auto v = static_cast<double>(s[i]);
-    if (v < lo) lo = v;
-    if (v > hi) hi = v;
-    if constexpr (std::is_floating_point_v<T>) {
-      // v − v is 0 for every finite v and NaN for a NaN or an infinity.
-      if (!(v - v == 0.0) && non_finite == n) non_finite = i;
+#if defined(__SSE2__)
+// SSE2 operations on four floats or two doubles, for simd_range().
+struct sse_floats {
+  using T = float;
+  using V = __m128;
+  static constexpr std::size_t lanes = 4;
+  static V load(const T* p) { return _mm_loadu_ps(p); }
+  static V min(V a, V b) { return _mm_min_ps(a, b); }
+  static V max(V a, V b) { return _mm_max_ps(a, b); }
+  static V unordered_diff(V a) {  // all ones where a − a is NaN: a is NaN or infinite
+    const V d = _mm_sub_ps(a, a);
+    return _mm_cmpunord_ps(d, d);
+  }
+  static V bit_or(V a, V b) { return _mm_or_ps(a, b); }
+  static bool any(V a) { return _mm_movemask_ps(a) != 0; }
+  static void store(T* p, V a) { _mm_storeu_ps(p, a); }
+};
+struct sse_doubles {
+  using T = double;
+  using V = __m128d;
+  static constexpr std::size_t lanes = 2;
+  static V load(const T* p) { return _mm_loadu_pd(p); }
+  static V min(V a, V b) { return _mm_min_pd(a, b); }
+  static V max(V a, V b) { return _mm_max_pd(a, b); }
+  static V unordered_diff(V a) {
+    const V d = _mm_sub_pd(a, a);
+    return _mm_cmpunord_pd(d, d);
+  }
+  static V bit_or(V a, V b) { return _mm_or_pd(a, b); }
+  static bool any(V a) { return _mm_movemask_pd(a) != 0; }
+  static void store(T* p, V a) { _mm_storeu_pd(p, a); }
+};
+
+// The floating-point part of block_range(): whole steps of four vectors from s + i on, four
+// accumulators deep (a min or max waits for the one before it in its chain); advances i.
+template <class Ops>
+bool simd_range(const typename Ops::T* s, std::size_t& i, std::size_t e, typename Ops::T& lo,
+                typename Ops::T& hi) {
+  using V = typename Ops::V;
+  constexpr std::size_t step = 4 * Ops::lanes;
+  if (e - i < step) return false;
+  V l[4];
+  V h[4];
+  V nan[4];
+  for (std::size_t k = 0; k < 4; ++k) {
+    l[k] = h[k] = Ops::load(s + i);
+    nan[k] = Ops::unordered_diff(l[k]);
+  }
+  for (; i + step <= e; i += step) {
+    for (std::size_t k = 0; k < 4; ++k) {
+      const V v = Ops::load(s + i + k * Ops::lanes);
+      l[k] = Ops::min(l[k], v);
+      h[k] = Ops::max(h[k], v);
+      nan[k] = Ops::bit_or(nan[k], Ops::unordered_diff(v));
     }
   }
-  return {lo, hi};
+  typename Ops::T out[Ops::lanes];
+  for (std::size_t k = 0; k < 4; ++k) {
+    Ops::store(out, l[k]);
+    for (const auto x : out) lo = x < lo ? x : lo;
+    Ops::store(out, h[k]);
+    for (const auto x : out) hi = x > hi ? x : hi;
+  }
+  return Ops::any(Ops::bit_or(Ops::bit_or(nan[0], nan[1]), Ops::bit_or(nan[2], nan[3])));
+}
+#endif
+
+// The smallest and largest of s[b, e) into lo, hi, and whether one of them is not finite
+// (NaN or infinite: v − v is NaN exactly then). Integer loops vectorise as written; floating
+// ones would not (a compare-and-select is not a min without -ffinite-math-only), so on x86-64
+// they take SSE2's min and max (simd_range()), and read at about memory speed.
+template <class T>
+bool block_range(const T* s, std::size_t b, std::size_t e, T& lo, T& hi) {
+  std::size_t i = b;
+  bool bad = false;
+#if defined(__SSE2__)
+  if constexpr (std::is_same_v<T, float>) {
+    bad = simd_range<sse_floats>(s, i, e, lo, hi);
+  } else if constexpr (std::is_same_v<T, double>) {
+    bad = simd_range<sse_doubles>(s, i, e, lo, hi);
+  }
+#endif
+  unsigned flag = 0;
+  for (; i < e; ++i) {
+    const T v = s[i];
+    lo = v < lo ? v : lo;
+    hi = v > hi ? v : hi;
+    if constexpr (std::is_floating_point_v<T>) flag |= static_cast<unsigned>(!(v - v == T{0}));
+  }
+  return bad || flag != 0;
+}
+
+// The first of `items` items in piece k of `parts` near-equal pieces.
+std::size_t piece_of(std::size_t items, std::size_t parts, std::size_t k) noexcept {
+  return k * (items / parts) + std::min(k, items % parts);
+}
+
+// The smallest and largest sample, and the first non-finite one (n when none), block by block;
+// only a block holding a non-finite sample is searched again for its first one.
+template <class T>
+std::array<double, 2> sample_range(const T* s, std::size_t n, std::size_t& non_finite) {
+  constexpr std::size_t block = 16384;
+  non_finite = n;
+  T lo = s[0];
+  T hi = s[0];
+  for (std::size_t b = 0; b < n; b += block) {
+    const std::size_t e = std::min(n, b + block);
+    if (block_range(s, b, e, lo, hi)) {
+      for (std::size_t i = b; i < e; ++i) {
+        if (!(s[i] - s[i] == T{0})) {
+          non_finite = i;
+          return {0.0, 0.0};
+        }
+      }
+    }
+  }
+  return {static_cast<double>(lo), static_cast<double>(hi)};
 }
 
 }  // namespace
 
-void volume::scan_samples() {
-  std::size_t non_finite = voxel_count();
-  range_ = visit_samples([&](const auto* s) { return sample_range(s, voxel_count(), non_finite); });
+void volume::scan_samples(const parallel_loop& run) {
+  const std::size_t n = voxel_count();
+  std::size_t non_finite = n;
+  if (!run) {
+    range_ = visit_samples([&](const auto* s) { return sample_range(s, n, non_finite); });
+  } else {
+    // Pieces of about 4 M samples; the range the extremes of theirs, the first non-finite
+    // sample the first of theirs.
+    const std::size_t parts = std::max<std::size_t>(1, n >> 22);
+    std::vector<std::array<double, 2>> ranges(parts);
+    std::vector<std::size_t> firsts(parts, n);
+    visit_samples([&](const auto* s) {
+      run(parts, [&](std::size_t k) {
+        const std::size_t b = piece_of(n, parts, k), e = piece_of(n, parts, k + 1);
+        std::size_t first = e - b;
+        ranges[k] = sample_range(s + b, e - b, first);
+        if (first != e - b) firsts[k] = b + first;
+      });
+    });
+    range_ = ranges[0];
+    for (std::size_t k = 0; k < parts; ++k) {
+      range_[0] = std::min(range_[0], ranges[k][0]);
+      range_[1] = std::max(range_[1], ranges[k][1]);
+      non_finite = std::min(non_finite, firsts[k]);
+    }
+  }
   if (non_finite != voxel_count()) {
     const auto i = static_cast<std::int64_t>(non_finite);
     const std::int64_t x = i % dims_[0];

@@ -217,8 +217,11 @@ class finest_mesher {
     row_triangles_.assign(rows_ + 1, 0);
   }
 
-  triangle_mesh run(const parallel_loop& loop, std::size_t parts, const finest_progress& to,
-                    const interrupts& stop = {}) {
+  // Mesh: triangle_mesh (double positions), or detail::float_mesh (float positions, without
+  // normals or the storage, slack and poll hooks, which serve the engine's cuts).
+  template <class Mesh = triangle_mesh>
+  Mesh run(const parallel_loop& loop, std::size_t parts, const finest_progress& to,
+           const interrupts& stop = {}) {
     parts = std::max<std::size_t>(1, std::min(parts, rows_));
     progress_relay progress(to, 2 * static_cast<std::uint64_t>(rows_));
     // Rows [first, last) of the second pass, `step` rows at a time, each step reported.
@@ -265,10 +268,13 @@ class finest_mesher {
     const std::uint64_t nt = row_triangles_[rows_];
     // Recycled storage, when the caller has some: its pages are mapped already, so sizing and
     // writing it fault nothing, and nothing was unmapped to make room for it.
-    triangle_mesh mesh = stop.storage ? stop.storage(nv, nt) : triangle_mesh{};
-    mesh.vertices.clear();
-    mesh.triangles.clear();
-    mesh.normals.clear();
+    Mesh mesh{};
+    if constexpr (std::is_same_v<Mesh, triangle_mesh>) {
+      if (stop.storage) mesh = stop.storage(nv, nt);
+      mesh.vertices.clear();
+      mesh.triangles.clear();
+      mesh.normals.clear();
+    }
     const auto size = [&stop](auto& array, std::uint64_t n) {
       using element = typename std::remove_reference_t<decltype(array)>::value_type;
       if (!stop.poll) {
@@ -433,7 +439,8 @@ class finest_mesher {
   }
 
   // Pass 2: row r's vertex positions.
-  void write_vertices(std::size_t r, triangle_mesh& mesh) const {
+  template <class Mesh>
+  void write_vertices(std::size_t r, Mesh& mesh) const {
     if (row_vertices_[r + 1] == row_vertices_[r]) return;
     const auto n = static_cast<std::size_t>(nx_);
     const auto y = static_cast<std::int64_t>(r) % ny_;
@@ -466,8 +473,14 @@ class finest_mesher {
         const double fa = static_cast<double>(s_[row + xi + offset[static_cast<std::size_t>(p)]]);
         const double fb = static_cast<double>(s_[row + xi + offset[static_cast<std::size_t>(q)]]);
         const vec3 at = interpolate(a, fa, b, fb, w_);
-        mesh.vertices[id++] = {origin_[0] + at[0] * spacing_[0], origin_[1] + at[1] * spacing_[1],
-                               origin_[2] + at[2] * spacing_[2]};
+        const vec3 pos{origin_[0] + at[0] * spacing_[0], origin_[1] + at[1] * spacing_[1],
+                       origin_[2] + at[2] * spacing_[2]};
+        if constexpr (std::is_same_v<Mesh, triangle_mesh>) {
+          mesh.vertices[id++] = pos;
+        } else {
+          mesh.vertices[id++] = {static_cast<float>(pos[0]), static_cast<float>(pos[1]),
+                                 static_cast<float>(pos[2])};
+        }
       }
     }
   }
@@ -475,7 +488,8 @@ class finest_mesher {
   // Pass 2: the triangles of the cubes between point rows r, r + 1 (y + 1), r + ny (z + 1) and
   // r + ny + 1, each vertex's id being its owner row's first id plus the crossed edges before it
   // in that row (counted forward as the cubes advance, eight empty points at a time).
-  void write_triangles(std::size_t r, triangle_mesh& mesh) const {
+  template <class Mesh>
+  void write_triangles(std::size_t r, Mesh& mesh) const {
     const auto y = static_cast<std::int64_t>(r) % ny_;
     const auto z = static_cast<std::int64_t>(r) / ny_;
     if (y + 1 >= ny_ || z + 1 >= nz_ || row_triangles_[r + 1] == row_triangles_[r]) return;
@@ -583,6 +597,19 @@ triangle_mesh detail::finest_surface(const volume& field, double isovalue, const
   interrupts hooks;
   hooks.storage = storage;
   return finest_surface_hooked(field, isovalue, run, parts, progress, hooks);
+}
+
+detail::float_mesh detail::finest_surface_floats(const volume& field, double isovalue,
+                                                 const parallel_loop& run, std::size_t parts,
+                                                 const finest_progress& progress) {
+  if (!std::isfinite(isovalue)) {
+    throw error("finest surface: the isovalue must be finite, found " + std::to_string(isovalue));
+  }
+  return detail::visit_field(field, [&](const auto samples) {
+    finest_mesher<std::remove_cv_t<decltype(samples)>> m(field.dims(), field.spacing(),
+                                                         field.origin(), samples, isovalue);
+    return m.template run<float_mesh>(run, parts, progress);
+  });
 }
 
 index3 uniform_grid_dims(const index3& dims, std::int32_t stride) noexcept {

@@ -134,7 +134,13 @@ bool normalise(vec3& v) {
 
 // Normals of the vertices in `flat` (sorted) from their triangles: the sum of the area-weighted
 // right-hand normals, each triangle's scaled to its largest component first; one per entry.
-std::vector<vec3> normals_from_triangles(std::span<const vec3> vertices,
+template <class P>
+vec3 as_vec3(const P& p) {
+  return {static_cast<double>(p[0]), static_cast<double>(p[1]), static_cast<double>(p[2])};
+}
+
+template <class P>
+std::vector<vec3> normals_from_triangles(std::span<const P> vertices,
                                          std::span<const std::array<std::uint32_t, 3>> triangles,
                                          const std::vector<std::uint32_t>& flat) {
   constexpr std::uint32_t none = std::numeric_limits<std::uint32_t>::max();
@@ -144,7 +150,8 @@ std::vector<vec3> normals_from_triangles(std::span<const vec3> vertices,
   std::vector<vec3> any(flat.size(), vec3{});  // one triangle's unit normal, if the sum cancels
   for (const auto& tri : triangles) {
     if (slot[tri[0]] == none && slot[tri[1]] == none && slot[tri[2]] == none) continue;
-    const vec3 n = area_normal(vertices[tri[0]], vertices[tri[1]], vertices[tri[2]]);
+    const vec3 n = area_normal(as_vec3(vertices[tri[0]]), as_vec3(vertices[tri[1]]),
+                               as_vec3(vertices[tri[2]]));
     for (const std::uint32_t corner : tri) {
       const std::uint32_t k = slot[corner];
       if (k == none) continue;
@@ -163,8 +170,8 @@ std::vector<vec3> normals_from_triangles(std::span<const vec3> vertices,
 // The pass of add_vertex_normals() and vertex_normals_into(): put(i, unit normal, descent) for
 // every vertex i whose gradient has a direction, then put(i, normal from its triangles, {}) for
 // the others (descent: −∇f at the vertex in physical units, unnormalised).
-template <class Put>
-void normals_pass(std::span<const vec3> vertices,
+template <class P, class Put>
+void normals_pass(std::span<const P> vertices,
                   std::span<const std::array<std::uint32_t, 3>> triangles, const volume& field,
                   const parallel_loop& run, const Put& put) {
   const std::size_t count = vertices.size();
@@ -178,22 +185,28 @@ void normals_pass(std::span<const vec3> vertices,
       const std::size_t end = std::min(count, (k + 1) * piece_vertices);
       // The gradients first, then their lengths in a loop of their own: a square root and a
       // division per vertex, independent from one vertex to the next, overlap there, where
-      // behind each vertex's sample loads they took a large part of the pass.
-      std::vector<vec3> descent(end - begin);
-      for (std::size_t i = begin; i < end; ++i) {
-        descent[i - begin] = descent_at(samples, frame, vertices[i]);
-      }
-      for (std::size_t i = begin; i < end; ++i) {
-        vec3 n = descent[i - begin];
-        const double len2 = n[0] * n[0] + n[1] * n[1] + n[2] * n[2];
-        const bool plain = len2 >= std::numeric_limits<double>::min() &&
-                           len2 <= std::numeric_limits<double>::max();
-        const double inverse = plain ? 1.0 / std::sqrt(len2) : 1.0;
-        n = {n[0] * inverse, n[1] * inverse, n[2] * inverse};
-        if (!plain && !normalise(n)) {
-          flat[k].push_back(static_cast<std::uint32_t>(i));
-        } else {
-          put(i, n, descent[i - begin]);
+      // behind each vertex's sample loads they took a large part of the pass. In runs of a
+      // stack buffer's size: a heap buffer per piece was mapped and unmapped each time, and
+      // the page faults of the threads' pieces queued on the address space's lock.
+      constexpr std::size_t batch = 256;
+      std::array<vec3, batch> descent;
+      for (std::size_t from = begin; from < end; from += batch) {
+        const std::size_t to = std::min(end, from + batch);
+        for (std::size_t i = from; i < to; ++i) {
+          descent[i - from] = descent_at(samples, frame, as_vec3(vertices[i]));
+        }
+        for (std::size_t i = from; i < to; ++i) {
+          vec3 n = descent[i - from];
+          const double len2 = n[0] * n[0] + n[1] * n[1] + n[2] * n[2];
+          const bool plain = len2 >= std::numeric_limits<double>::min() &&
+                             len2 <= std::numeric_limits<double>::max();
+          const double inverse = plain ? 1.0 / std::sqrt(len2) : 1.0;
+          n = {n[0] * inverse, n[1] * inverse, n[2] * inverse};
+          if (!plain && !normalise(n)) {
+            flat[k].push_back(static_cast<std::uint32_t>(i));
+          } else {
+            put(i, n, descent[i - from]);
+          }
         }
       }
     });
@@ -209,14 +222,16 @@ void normals_pass(std::span<const vec3> vertices,
 
 void add_vertex_normals(triangle_mesh& mesh, const volume& field, const parallel_loop& run) {
   mesh.normals.assign(mesh.vertices.size(), vec3{});
-  normals_pass(mesh.vertices, mesh.triangles, field, run,
+  normals_pass(std::span<const vec3>(mesh.vertices), std::span(mesh.triangles), field, run,
                [&](std::size_t i, const vec3& n, const vec3&) { mesh.normals[i] = n; });
 }
 
-void vertex_normals_into(std::span<const vec3> vertices,
-                         std::span<const std::array<std::uint32_t, 3>> triangles,
-                         const volume& field, float* normals, float* gradient_l1,
-                         const parallel_loop& run) {
+namespace {
+
+template <class P>
+void normals_into(std::span<const P> vertices,
+                  std::span<const std::array<std::uint32_t, 3>> triangles, const volume& field,
+                  float* normals, float* gradient_l1, const parallel_loop& run) {
   const std::array<double, 3>& spacing = field.spacing();
   normals_pass(vertices, triangles, field, run,
                [&](std::size_t i, const vec3& n, const vec3& descent) {
@@ -230,6 +245,22 @@ void vertex_normals_into(std::span<const vec3> vertices,
                                                        std::fabs(descent[2]) * spacing[2]);
                  }
                });
+}
+
+}  // namespace
+
+void vertex_normals_into(std::span<const vec3> vertices,
+                         std::span<const std::array<std::uint32_t, 3>> triangles,
+                         const volume& field, float* normals, float* gradient_l1,
+                         const parallel_loop& run) {
+  normals_into(vertices, triangles, field, normals, gradient_l1, run);
+}
+
+void vertex_normals_into(std::span<const std::array<float, 3>> vertices,
+                         std::span<const std::array<std::uint32_t, 3>> triangles,
+                         const volume& field, float* normals, float* gradient_l1,
+                         const parallel_loop& run) {
+  normals_into(vertices, triangles, field, normals, gradient_l1, run);
 }
 
 }  // namespace progiso

@@ -9,8 +9,12 @@
 // mask, cgroup limits) on first use, so keep it out of hot paths.
 #pragma once
 
+#include <cstddef>
+#include <functional>
+
 #include <progiso/core/base/config.hpp>
 #include <progiso/core/base/error.hpp>
+#include <progiso/core/base/parallel_loop.hpp>
 
 namespace progiso::scheduler {
 
@@ -18,5 +22,13 @@ namespace progiso::scheduler {
 /// the CPUs this process may run on, after affinity masks and cgroup limits): the default for
 /// `--threads`. Always at least 1.
 [[nodiscard]] int default_concurrency() noexcept;
+
+/// Calls f(loop, parts) with a parallel_loop (core/base/parallel_loop.hpp) that runs its pieces
+/// on `threads` workers of oneTBB's pool, in an arena of its own (0: default_concurrency()),
+/// and the number of pieces to cut the work into (16 per thread, so that pieces of uneven work
+/// balance); with one thread, an empty loop (this thread) and 1. For core's direct passes
+/// (finest_surface(), vertex normals) run outside an engine. Rethrows what f throws.
+void run_on_threads(unsigned threads,
+                    const std::function<void(const parallel_loop& loop, std::size_t parts)>& f);
 
 }  // namespace progiso::scheduler

@@ -37,6 +37,7 @@
 #include <progiso/core/base/assert.hpp>
 #include <progiso/core/base/config.hpp>
 #include <progiso/core/base/error.hpp>
+#include <progiso/core/base/parallel_loop.hpp>
 
 namespace progiso {
 
@@ -80,12 +81,14 @@ class volume {
   /// and unchanged while any of them is in use). Checked as the constructor checks, except that
   /// integer samples are not scanned here: no integer is NaN, and their range is found by the
   /// first call of value_range(). So a borrowed integer volume is ready in O(1); a
-  /// floating-point one costs one pass, which rejects NaN and infinite samples.
+  /// floating-point one costs one pass, which rejects NaN and infinite samples, in pieces
+  /// through `run` when it is given (core/base/parallel_loop.hpp).
   [[nodiscard]] static volume borrow(index3 dims, sample_type type,
                                      std::span<const std::byte> samples,
                                      std::shared_ptr<const void> keeper,
                                      std::array<double, 3> spacing = {1.0, 1.0, 1.0},
-                                     std::array<double, 3> origin = {0.0, 0.0, 0.0});
+                                     std::array<double, 3> origin = {0.0, 0.0, 0.0},
+                                     const parallel_loop& run = {});
 
   [[nodiscard]] const index3& dims() const noexcept { return dims_; }
   [[nodiscard]] sample_type type() const noexcept { return type_; }
@@ -138,7 +141,8 @@ class volume {
          std::size_t size, bool borrowed, std::array<double, 3> spacing,
          std::array<double, 3> origin);
   void check_layout() const;
-  void scan_samples();  // range_, and rejects non-finite samples
+  // range_, and rejects non-finite samples (pieces through run, when not empty).
+  void scan_samples(const parallel_loop& run = {});
 
   std::shared_ptr<const detail::subdivision> sub_;
   index3 dims_;

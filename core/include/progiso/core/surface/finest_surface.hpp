@@ -28,10 +28,12 @@
 // Thread safety: reads `field` only.
 #pragma once
 
+#include <array>
 #include <chrono>
 #include <cstddef>
 #include <cstdint>
 #include <functional>
+#include <vector>
 
 #include <progiso/core/base/config.hpp>
 #include <progiso/core/base/parallel_loop.hpp>
@@ -130,6 +132,17 @@ namespace detail {
 /// pages nor waits while the old ones are unmapped.
 using mesh_storage = std::function<triangle_mesh(std::uint64_t vertices, std::uint64_t triangles)>;
 
+/// A mesh whose positions are floats (what a renderer or numpy takes), for callers that would
+/// otherwise round a triangle_mesh's doubles into a second array.
+struct float_mesh {
+  std::vector<std::array<float, 3>> vertices;
+  std::vector<std::array<std::uint32_t, 3>> triangles;
+};
+/// finest_surface() with each position rounded to the nearest float as it is written: the
+/// same triangles, and positions equal to finest_surface()'s rounded, in half its vertex memory.
+[[nodiscard]] float_mesh finest_surface_floats(const volume& field, double isovalue,
+                                               const parallel_loop& run = {}, std::size_t parts = 1,
+                                               const finest_progress& progress = {});
 /// finest_surface() writing into storage from `storage` (when it is not empty).
 [[nodiscard]] triangle_mesh finest_surface(const volume& field, double isovalue,
                                            const parallel_loop& run, std::size_t parts,

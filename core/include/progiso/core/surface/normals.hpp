@@ -52,5 +52,11 @@ void vertex_normals_into(std::span<const vec3> vertices,
                          std::span<const std::array<std::uint32_t, 3>> triangles,
                          const volume& field, float* normals, float* gradient_l1,
                          const parallel_loop& run = {});
+/// The same from float positions (detail::finest_surface_floats(); each taken as the double it
+/// is).
+void vertex_normals_into(std::span<const std::array<float, 3>> vertices,
+                         std::span<const std::array<std::uint32_t, 3>> triangles,
+                         const volume& field, float* normals, float* gradient_l1,
+                         const parallel_loop& run = {});
 
 }  // namespace progiso
