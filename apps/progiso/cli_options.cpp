@@ -14,13 +14,13 @@ namespace progiso::cli {
 
 const char* const usage_text =
     "usage:\n"
-    "  progiso extract INPUT -o OUT.ply|OUT.obj|OUT.stl --iso W\n"
+    "  progiso extract INPUT -o OUT.ply|OUT.obj|OUT.stl|OUT.glb|OUT.vtp --iso W\n"
     "          [--dims NX,NY,NZ --type u8|i8|u16|i16|u32|i32|f32|f64 [--big-endian]]\n"
     "          [--spacing SX,SY,SZ | --world] [--series N|UID] [--volume K]\n"
     "          [--full | --error E | --max-triangles K | --time-ms T [--by-priority]]\n"
     "          [--stats-json FILE] [--threads N] [--normals] [--hierarchy OUT.pgh]\n"
     "          [--smooth S] [--smooth-from K] [--smooth-region X0,Y0,Z0,X1,Y1,Z1] [--alpha A]\n"
-    "  progiso cut IN.pgh -o OUT.ply|OUT.obj|OUT.stl\n"
+    "  progiso cut IN.pgh -o OUT.ply|OUT.obj|OUT.stl|OUT.glb|OUT.vtp\n"
     "          [--error E | --max-triangles K | --region X0,Y0,Z0,X1,Y1,Z1] [--records N]\n"
     "          [--stats-json FILE]\n"
     "  progiso extract --demo -o OUT.ply [--iso W] [--threads N] [--normals]\n"
@@ -28,6 +28,9 @@ const char* const usage_text =
     "          [--full | --error E | --max-segments K | --time-ms T] [--frames DIR]\n"
     "          [--stats-json FILE]\n"
     "          [--smooth S] [--smooth-from K] [--smooth-region X0,Y0,X1,Y1] [--alpha A]\n"
+    "  progiso view INPUT|--demo [--iso W] [--port P] [--bind ADDR] [--threads N]\n"
+    "          [extract's input and --smooth options]: the surface refining in a browser; prints\n"
+    "          the page's address (binds 127.0.0.1 and port 8080 unless told; --port 0: any)\n"
     "\n"
     "INPUT is a .nrrd/.nhdr file, a NIfTI-1/2 file (.nii, .nii.gz, or .hdr with its .img;\n"
     "scl_slope/scl_inter applied, so isovalues are in physical units), a MetaImage file\n"
@@ -367,7 +370,7 @@ extract_arguments parse_extract(const std::vector<std::string>& args) {
   }
   if (a.demo && a.input) throw error("--demo takes no INPUT");
   if (!a.demo && !a.input) throw error("missing INPUT (or --demo)");
-  if (!a.output) throw error("missing -o OUT.ply|OUT.obj|OUT.stl");
+  if (!a.output) throw error("missing -o OUT.ply|OUT.obj|OUT.stl|OUT.glb|OUT.vtp");
   if (!a.demo && !a.iso) throw error("missing --iso W");
   if (a.dims.has_value() != a.type.has_value()) {
     throw error("--dims and --type must be given together for a raw volume");
@@ -386,8 +389,9 @@ extract_arguments parse_extract(const std::vector<std::string>& args) {
     throw error("--world and --spacing: the orientation the file declares sets the spacing");
   }
   const std::string ext = detail::lower_extension(*a.output);
-  if (ext != ".ply" && ext != ".obj" && ext != ".stl") {
-    throw error(*a.output + ": unknown mesh format (expected a .ply, .obj or .stl file name)");
+  if (ext != ".ply" && ext != ".obj" && ext != ".stl" && ext != ".glb" && ext != ".vtp") {
+    throw error(*a.output +
+                ": unknown mesh format (expected a .ply, .obj, .stl, .glb or .vtp file name)");
   }
   if (a.options.normals && ext == ".stl") {
     throw error("--normals: " + *a.output +
@@ -456,10 +460,11 @@ cut_arguments parse_cut(const std::vector<std::string>& args) {
   }
   if (modes > 1) throw error("choose at most one of --error, --max-triangles, --region");
   if (!a.input) throw error("missing IN.pgh");
-  if (!a.output) throw error("missing -o OUT.ply|OUT.obj|OUT.stl");
+  if (!a.output) throw error("missing -o OUT.ply|OUT.obj|OUT.stl|OUT.glb|OUT.vtp");
   const std::string ext = detail::lower_extension(*a.output);
-  if (ext != ".ply" && ext != ".obj" && ext != ".stl") {
-    throw error(*a.output + ": unknown mesh format (expected a .ply, .obj or .stl file name)");
+  if (ext != ".ply" && ext != ".obj" && ext != ".stl" && ext != ".glb" && ext != ".vtp") {
+    throw error(*a.output +
+                ": unknown mesh format (expected a .ply, .obj, .stl, .glb or .vtp file name)");
   }
   return a;
 }

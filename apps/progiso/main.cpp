@@ -1,13 +1,13 @@
 // progiso — command-line front end: progressive isosurfaces of volumes, isocontours of images.
 //
-//   progiso extract INPUT -o OUT.ply|OUT.obj|OUT.stl --iso W
+//   progiso extract INPUT -o OUT.ply|OUT.obj|OUT.stl|OUT.glb|OUT.vtp --iso W
 //           [--dims NX,NY,NZ --type u8|i8|u16|i16|u32|i32|f32|f64 [--big-endian]]
 //           [--spacing SX,SY,SZ | --world] [--series N|UID] [--volume K]
 //           [--full | --error E | --max-triangles K | --time-ms T [--by-priority]]
 //           [--stats-json FILE] [--threads N] [--normals]
 //           [--smooth S] [--smooth-from K] [--smooth-region X0,Y0,Z0,X1,Y1,Z1] [--alpha A]
 //   progiso extract --demo -o OUT.ply [--iso W] [--threads N] [--normals]
-//   progiso cut IN.pgh -o OUT.ply|OUT.obj|OUT.stl
+//   progiso cut IN.pgh -o OUT.ply|OUT.obj|OUT.stl|OUT.glb|OUT.vtp
 //           [--error E | --max-triangles K | --region X0,Y0,Z0,X1,Y1,Z1] [--records N]
 //   progiso contour INPUT.pgm|INPUT.png -o OUT.obj|OUT.svg --iso W[,W2,...]
 //           [--full | --error E | --max-segments K | --time-ms T] [--frames DIR]
@@ -53,6 +53,7 @@
 #include "cli_outputs.hpp"
 
 int run_contour(const std::vector<std::string>& args);
+int run_view(const std::vector<std::string>& args);
 
 namespace {
 
@@ -179,13 +180,16 @@ class progress_bar {
   std::chrono::steady_clock::time_point drawn_;  // the last redraw
 };
 
-/// Refuses a PLY or STL output whose float coordinates could not hold the volume's extent (in
-/// the scanner coordinates of `world` when given: the box's corners mapped).
+/// Refuses a PLY, STL, GLB or VTP output whose float coordinates could not hold the volume's extent
+/// (in the scanner coordinates of `world` when given: the box's corners mapped).
 void check_float_range(const fs::path& output, const progiso::volume& vol,
                        const std::optional<progiso::index_to_world>& world) {
   const std::string ext = progiso::detail::lower_extension(output);
-  if (ext != ".ply" && ext != ".stl") return;
-  const std::string format = ext == ".ply" ? "PLY" : "STL";
+  if (ext != ".ply" && ext != ".stl" && ext != ".glb" && ext != ".vtp") return;
+  const std::string format = ext == ".ply"   ? "PLY"
+                             : ext == ".stl" ? "STL"
+                             : ext == ".glb" ? "glTF"
+                                             : "VTP";
   constexpr double float_max = static_cast<double>(std::numeric_limits<float>::max());
   std::array<double, 3> far{};
   for (int corner = 0; corner < 8; ++corner) {
@@ -525,6 +529,7 @@ int main(int argc, char** argv) {
     }
     if (first == "contour") return run_contour(args);
     if (first == "cut") return run_cut(args);
+    if (first == "view") return run_view(args);
     return run(args);
   } catch (const progiso::error& e) {
     // One line whatever the message quotes (file names and arguments are the user's text).

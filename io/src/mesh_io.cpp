@@ -1,6 +1,7 @@
 #include <progiso/io/mesh_io.hpp>
 
 #include <algorithm>
+#include <array>
 #include <bit>
 #include <cctype>
 #include <cerrno>
@@ -235,13 +236,178 @@ void write_stl_to(atomic_output& out, const triangle_mesh& mesh) {
   w.flush();
 }
 
+// glTF 2.0 binary (.glb): a 12-byte header, a JSON chunk and a BIN chunk, each padded to 4
+// bytes (JSON with spaces, BIN with zeros). One mesh of one indexed triangle primitive: float
+// positions (with the min and max the format requires), float normals when the mesh has them,
+// unsigned int indices. An empty mesh gives a scene with one node and no mesh (glTF forbids an
+// accessor of no element).
+void write_glb_to(atomic_output& out, const triangle_mesh& mesh) {
+  check_indices(mesh);
+  const std::string name = out.target().string();
+  check_float_range(name, mesh, "glTF");
+  const std::uint64_t n = mesh.vertices.size();
+  const std::uint64_t t = mesh.triangles.size();
+  const bool normals = has_normals(mesh);
+  const std::uint64_t position_bytes = 12 * n;
+  const std::uint64_t normal_bytes = normals ? 12 * n : 0;
+  const std::uint64_t index_bytes = 12 * t;
+  const std::uint64_t bin = position_bytes + normal_bytes + index_bytes;  // multiple of 4
+  if (bin + 4096 > std::numeric_limits<std::uint32_t>::max()) {
+    throw error(name + ": a GLB file holds at most 4 GiB, the mesh needs " + std::to_string(bin) +
+                " bytes (write .ply)");
+  }
+  std::string json;
+  const auto num = [](auto v) {
+    char b[40];
+    const auto r = std::to_chars(b, b + sizeof b, v);
+    return std::string(b, static_cast<std::size_t>(r.ptr - b));
+  };
+  json += R"({"asset":{"version":"2.0","generator":"progiso"},"scene":0,"scenes":[{"nodes":[0]}],)";
+  if (t == 0 || n == 0) {
+    json += R"("nodes":[{}]})";
+  } else {
+    std::array<float, 3> lo{}, hi{};
+    for (std::size_t q = 0; q < 3; ++q) {
+      lo[q] = std::numeric_limits<float>::max();
+      hi[q] = std::numeric_limits<float>::lowest();
+    }
+    for (const vec3& p : mesh.vertices) {
+      for (std::size_t q = 0; q < 3; ++q) {
+        const auto f = static_cast<float>(p[q]);
+        lo[q] = std::min(lo[q], f);
+        hi[q] = std::max(hi[q], f);
+      }
+    }
+    const auto vec = [&](const std::array<float, 3>& v) {
+      return "[" + num(v[0]) + "," + num(v[1]) + "," + num(v[2]) + "]";
+    };
+    json += R"("nodes":[{"mesh":0}],"meshes":[{"primitives":[{"attributes":{"POSITION":0)";
+    if (normals) json += R"(,"NORMAL":1)";
+    json += R"(},"indices":)" + num(normals ? 2 : 1) + R"(,"mode":4}]}],)";
+    json += R"("buffers":[{"byteLength":)" + num(bin) + "}],";
+    json += R"("bufferViews":[{"buffer":0,"byteOffset":0,"byteLength":)" + num(position_bytes) +
+            R"(,"target":34962})";
+    if (normals) {
+      json += R"(,{"buffer":0,"byteOffset":)" + num(position_bytes) + R"(,"byteLength":)" +
+              num(normal_bytes) + R"(,"target":34962})";
+    }
+    json += R"(,{"buffer":0,"byteOffset":)" + num(position_bytes + normal_bytes) +
+            R"(,"byteLength":)" + num(index_bytes) + R"(,"target":34963}],)";
+    json += R"("accessors":[{"bufferView":0,"componentType":5126,"count":)" + num(n) +
+            R"(,"type":"VEC3","min":)" + vec(lo) + R"(,"max":)" + vec(hi) + "}";
+    if (normals) {
+      json += R"(,{"bufferView":1,"componentType":5126,"count":)" + num(n) + R"(,"type":"VEC3"})";
+    }
+    json += R"(,{"bufferView":)" + num(normals ? 2 : 1) + R"(,"componentType":5125,"count":)" +
+            num(3 * t) + R"(,"type":"SCALAR"}]})";
+  }
+  while (json.size() % 4 != 0) json += ' ';
+  const bool has_bin = t != 0 && n != 0;
+  const std::uint64_t total = 12 + 8 + json.size() + (has_bin ? 8 + bin : 0);
+  block_writer w(out);
+  w.u32_le(0x46546C67u);  // "glTF"
+  w.u32_le(2);
+  w.u32_le(static_cast<std::uint32_t>(total));
+  w.u32_le(static_cast<std::uint32_t>(json.size()));
+  w.u32_le(0x4E4F534Au);  // "JSON"
+  w.text(json);
+  if (has_bin) {
+    w.u32_le(static_cast<std::uint32_t>(bin));
+    w.u32_le(0x004E4942u);  // "BIN\0"
+    for (const vec3& p : mesh.vertices) {
+      for (const double c : p) w.f32_le(static_cast<float>(c));
+    }
+    if (normals) {
+      for (const vec3& v : mesh.normals) {
+        for (const double c : v) w.f32_le(static_cast<float>(c));
+      }
+    }
+    for (const auto& tri : mesh.triangles) {
+      for (const std::uint32_t v : tri) w.u32_le(v);
+    }
+  }
+  w.flush();
+}
+
+// VTK XML PolyData (.vtp), as ParaView and VTK's vtkXMLPolyDataReader read it: float points,
+// normals as point data when the mesh has them, the triangles as Polys (connectivity and
+// offsets, Int64), in raw appended data (each array behind its UInt64 byte count).
+void write_vtp_to(atomic_output& out, const triangle_mesh& mesh) {
+  check_indices(mesh);
+  const std::string name = out.target().string();
+  check_float_range(name, mesh, "VTP (Float32 points)");
+  const std::uint64_t n = mesh.vertices.size();
+  const std::uint64_t t = mesh.triangles.size();
+  const bool normals = has_normals(mesh);
+  const std::uint64_t point_bytes = 12 * n;
+  const std::uint64_t normal_bytes = normals ? 12 * n : 0;
+  const std::uint64_t conn_bytes = 24 * t;
+  const std::uint64_t offset_bytes = 8 * t;
+  std::uint64_t at = 0;
+  const auto next = [&at](std::uint64_t bytes) {
+    const std::uint64_t here = at;
+    at += 8 + bytes;
+    return std::to_string(here);
+  };
+  std::string xml = "<?xml version=\"1.0\"?>\n";
+  xml +=
+      "<VTKFile type=\"PolyData\" version=\"1.0\" byte_order=\"LittleEndian\" "
+      "header_type=\"UInt64\">\n<PolyData>\n<Piece NumberOfPoints=\"" +
+      std::to_string(n) +
+      "\" NumberOfVerts=\"0\" NumberOfLines=\"0\" NumberOfStrips=\"0\" NumberOfPolys=\"" +
+      std::to_string(t) + "\">\n";
+  if (normals) {
+    xml +=
+        "<PointData Normals=\"Normals\">\n<DataArray type=\"Float32\" Name=\"Normals\" "
+        "NumberOfComponents=\"3\" format=\"appended\" offset=\"" +
+        next(normal_bytes) + "\"/>\n</PointData>\n";
+  }
+  xml +=
+      "<Points>\n<DataArray type=\"Float32\" Name=\"Points\" NumberOfComponents=\"3\" "
+      "format=\"appended\" offset=\"" +
+      next(point_bytes) + "\"/>\n</Points>\n";
+  xml +=
+      "<Polys>\n<DataArray type=\"Int64\" Name=\"connectivity\" format=\"appended\" "
+      "offset=\"" +
+      next(conn_bytes) + "\"/>\n";
+  xml += "<DataArray type=\"Int64\" Name=\"offsets\" format=\"appended\" offset=\"" +
+         next(offset_bytes) + "\"/>\n</Polys>\n";
+  xml += "</Piece>\n</PolyData>\n<AppendedData encoding=\"raw\">\n_";
+  block_writer w(out);
+  w.text(xml);
+  const auto u64 = [&w](std::uint64_t v) {
+    w.u32_le(static_cast<std::uint32_t>(v & 0xffffffffu));
+    w.u32_le(static_cast<std::uint32_t>(v >> 32));
+  };
+  if (normals) {
+    u64(normal_bytes);
+    for (const vec3& v : mesh.normals) {
+      for (const double c : v) w.f32_le(static_cast<float>(c));
+    }
+  }
+  u64(point_bytes);
+  for (const vec3& p : mesh.vertices) {
+    for (const double c : p) w.f32_le(static_cast<float>(c));
+  }
+  u64(conn_bytes);
+  for (const auto& tri : mesh.triangles) {
+    for (const std::uint32_t v : tri) u64(v);
+  }
+  u64(offset_bytes);
+  for (std::uint64_t k = 1; k <= t; ++k) u64(3 * k);
+  w.text("\n</AppendedData>\n</VTKFile>\n");
+  w.flush();
+}
+
 void write_mesh_to(atomic_output& out, const triangle_mesh& mesh) {
   const std::string ext = lower_extension(out.target());
   if (ext == ".ply") return write_ply_to(out, mesh);
   if (ext == ".obj") return write_obj_to(out, mesh);
   if (ext == ".stl") return write_stl_to(out, mesh);
+  if (ext == ".glb") return write_glb_to(out, mesh);
+  if (ext == ".vtp") return write_vtp_to(out, mesh);
   throw error(out.target().string() + ": unknown mesh format \"" +
-              out.target().extension().string() + "\" (expected .ply, .obj or .stl)");
+              out.target().extension().string() + "\" (expected .ply, .obj, .stl, .glb or .vtp)");
 }
 
 }  // namespace detail
@@ -264,13 +430,27 @@ void write_stl(const std::filesystem::path& file, const triangle_mesh& mesh) {
   out.commit();
 }
 
+void write_glb(const std::filesystem::path& file, const triangle_mesh& mesh) {
+  atomic_output out(file);
+  detail::write_glb_to(out, mesh);
+  out.commit();
+}
+
+void write_vtp(const std::filesystem::path& file, const triangle_mesh& mesh) {
+  atomic_output out(file);
+  detail::write_vtp_to(out, mesh);
+  out.commit();
+}
+
 void write_mesh(const std::filesystem::path& file, const triangle_mesh& mesh) {
   const std::string ext = lower_extension(file);
   if (ext == ".ply") return write_ply(file, mesh);
   if (ext == ".obj") return write_obj(file, mesh);
   if (ext == ".stl") return write_stl(file, mesh);
+  if (ext == ".glb") return write_glb(file, mesh);
+  if (ext == ".vtp") return write_vtp(file, mesh);
   throw error(file.string() + ": unknown mesh format \"" + file.extension().string() +
-              "\" (expected .ply, .obj or .stl)");
+              "\" (expected .ply, .obj, .stl, .glb or .vtp)");
 }
 
 // ---------------------------------------------------------------------------------------------

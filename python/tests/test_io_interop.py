@@ -114,3 +114,31 @@ def test_snapshots_are_trimesh_style_pairs():
     assert s.vertices.shape[1] == 3 and s.faces.shape[1] == 3
     assert s.faces.dtype == np.int32 and s.vertices.dtype == np.float32
     assert s.faces.max() < len(s.vertices)
+
+
+def test_vtp_written_by_the_command_opens_in_vtks_xml_reader(tmp_path):
+    pytest.importorskip("vtkmodules")
+    import subprocess
+    from vtkmodules.vtkIOXML import vtkXMLPolyDataReader
+    from vtkmodules.util.numpy_support import vtk_to_numpy
+    from conftest import progiso_exe, read_ply
+    vol, _, _ = load("hipip")
+    raw = tmp_path / "v.raw"
+    vol.tofile(raw)
+    for extra in ([], ["--normals"]):
+        common = [progiso_exe(), "extract", str(raw), "--dims", "68,68,68", "--type", "u8",
+                  "--iso", "128", *extra]
+        subprocess.run(common + ["-o", str(tmp_path / "m.vtp")], check=True, capture_output=True)
+        subprocess.run(common + ["-o", str(tmp_path / "m.ply")], check=True, capture_output=True)
+        reader = vtkXMLPolyDataReader()
+        reader.SetFileName(str(tmp_path / "m.vtp"))
+        reader.Update()
+        poly = reader.GetOutput()
+        verts, faces = read_ply(tmp_path / "m.ply")
+        assert poly.GetNumberOfPoints() == len(verts)
+        assert poly.GetNumberOfCells() == len(faces)
+        np.testing.assert_array_equal(vtk_to_numpy(poly.GetPoints().GetData()), verts)
+        cells = vtk_to_numpy(poly.GetPolys().GetConnectivityArray()).reshape(-1, 3)
+        np.testing.assert_array_equal(cells, faces)
+        normals = poly.GetPointData().GetNormals()
+        assert (normals is not None) == bool(extra)

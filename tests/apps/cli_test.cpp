@@ -240,7 +240,7 @@ TEST_F(Cli, bad_inputs_exit_2_with_one_clear_line_and_no_output) {
   const run_result r =
       run("extract " + g + " --dims 8,8,8 --type u8 --iso 1 -o " + (dir_ / "out.off").string());
   EXPECT_EQ(r.status, 2);
-  EXPECT_NE(r.err.find(".ply, .obj or .stl"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find(".ply, .obj, .stl, .glb or .vtp"), std::string::npos) << r.err;
 }
 
 TEST_F(Cli, full_output_is_identical_for_every_thread_count) {

@@ -452,7 +452,7 @@ TEST(MeshIo, write_mesh_rejects_an_unknown_extension_and_creates_nothing) {
       error_message([&] { progiso::write_mesh(dir / "m.off", two_triangles()); });
   EXPECT_TRUE(contains(msg, (dir / "m.off").string())) << msg;
   EXPECT_TRUE(contains(msg, ".off")) << msg;
-  EXPECT_TRUE(contains(msg, ".ply, .obj or .stl")) << msg;
+  EXPECT_TRUE(contains(msg, ".ply, .obj, .stl, .glb or .vtp")) << msg;
   EXPECT_TRUE(dir.entries().empty());
 
   const std::string none = error_message([&] { progiso::write_mesh(dir / "m", two_triangles()); });
@@ -491,6 +491,95 @@ TEST(MeshIo, failed_rename_leaves_the_target_untouched_and_removes_the_temporary
   EXPECT_TRUE(contains(msg, (dir / "m.obj").string())) << msg;
   EXPECT_EQ(file_text(dir / "m.obj" / "keep.txt"), "keep");
   EXPECT_EQ(dir.entries(), (std::vector<std::string>{"m.obj"}));
+}
+
+}  // namespace
+
+namespace {
+
+std::uint32_t u32_at(const std::string& b, std::size_t at) {
+  std::uint32_t v = 0;
+  std::memcpy(&v, b.data() + at, 4);
+  return v;
+}
+
+TEST(MeshIo, glb_holds_a_json_chunk_and_a_bin_chunk_with_positions_normals_and_indices) {
+  const scratch_dir dir;
+  const triangle_mesh m = two_triangles_with_normals();
+  progiso::write_mesh(dir / "m.GLB", m);
+  const std::string b = file_text(dir / "m.GLB");
+  ASSERT_GE(b.size(), 28u);
+  EXPECT_EQ(b.substr(0, 4), "glTF");
+  EXPECT_EQ(u32_at(b, 4), 2u);
+  EXPECT_EQ(u32_at(b, 8), b.size());
+  const std::uint32_t json_size = u32_at(b, 12);
+  EXPECT_EQ(json_size % 4, 0u);
+  EXPECT_EQ(b.substr(16, 4), "JSON");
+  const std::string json = b.substr(20, json_size);
+  EXPECT_TRUE(contains(json, R"("version":"2.0")")) << json;
+  EXPECT_TRUE(contains(json, R"("POSITION":0,"NORMAL":1)")) << json;
+  EXPECT_TRUE(contains(json, R"("count":6,"type":"SCALAR")")) << json;
+  EXPECT_TRUE(contains(json, R"("min":[-0.125,-2.25,-9.5])")) << json;
+  EXPECT_TRUE(contains(json, R"("max":[7,8,1024])")) << json;
+  const std::size_t bin_at = 20 + json_size;
+  const std::uint32_t bin_size = u32_at(b, bin_at);
+  EXPECT_EQ(bin_size, 4u * 12 + 4u * 12 + 2u * 12);
+  EXPECT_EQ(b.substr(bin_at + 4, 4), std::string("BIN\0", 4));
+  EXPECT_EQ(bin_at + 8 + bin_size, b.size());
+  const std::size_t data = bin_at + 8;
+  for (std::size_t v = 0; v < 4; ++v) {
+    for (std::size_t q = 0; q < 3; ++q) {
+      EXPECT_EQ(f32_at(b, data + 12 * v + 4 * q), static_cast<float>(m.vertices[v][q]));
+      EXPECT_EQ(f32_at(b, data + 48 + 12 * v + 4 * q), static_cast<float>(m.normals[v][q]));
+    }
+  }
+  for (std::size_t t = 0; t < 2; ++t) {
+    for (std::size_t k = 0; k < 3; ++k) {
+      EXPECT_EQ(u32_at(b, data + 96 + 12 * t + 4 * k), m.triangles[t][k]);
+    }
+  }
+}
+
+TEST(MeshIo, glb_of_an_empty_mesh_is_a_scene_without_a_mesh) {
+  const scratch_dir dir;
+  progiso::write_glb(dir / "e.glb", triangle_mesh{});
+  const std::string b = file_text(dir / "e.glb");
+  EXPECT_EQ(u32_at(b, 8), b.size());
+  EXPECT_EQ(20 + u32_at(b, 12), b.size());  // no BIN chunk
+  EXPECT_FALSE(contains(b, "accessors"));
+}
+
+TEST(MeshIo, vtp_declares_its_arrays_and_appends_them_raw_with_byte_counts) {
+  const scratch_dir dir;
+  const triangle_mesh m = two_triangles_with_normals();
+  progiso::write_vtp(dir / "m.vtp", m);
+  const std::string b = file_text(dir / "m.vtp");
+  EXPECT_TRUE(contains(b, R"(NumberOfPoints="4")"));
+  EXPECT_TRUE(contains(b, R"(NumberOfPolys="2")"));
+  EXPECT_TRUE(contains(b, R"(<PointData Normals="Normals">)"));
+  const std::size_t at = b.find("<AppendedData encoding=\"raw\">\n_");
+  ASSERT_NE(at, std::string::npos);
+  std::size_t p = at + std::strlen("<AppendedData encoding=\"raw\">\n_");
+  const auto u64 = [&](std::size_t q) {
+    std::uint64_t v = 0;
+    std::memcpy(&v, b.data() + q, 8);
+    return v;
+  };
+  // Normals, points, connectivity, offsets, in the order of their offsets.
+  ASSERT_EQ(u64(p), 48u);
+  EXPECT_EQ(f32_at(b, p + 8 + 12 * 3 + 4), static_cast<float>(m.normals[3][1]));
+  p += 8 + 48;
+  ASSERT_EQ(u64(p), 48u);
+  EXPECT_EQ(f32_at(b, p + 8 + 12 * 1 + 8), 1024.0f);
+  p += 8 + 48;
+  ASSERT_EQ(u64(p), 48u);
+  EXPECT_EQ(u64(p + 8 + 8 * 3), 2u);  // triangle 1's first corner
+  p += 8 + 48;
+  ASSERT_EQ(u64(p), 16u);
+  EXPECT_EQ(u64(p + 8), 3u);
+  EXPECT_EQ(u64(p + 16), 6u);
+  p += 8 + 16;
+  EXPECT_EQ(b.substr(p), "\n</AppendedData>\n</VTKFile>\n");
 }
 
 }  // namespace

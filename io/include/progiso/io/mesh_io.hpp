@@ -1,5 +1,5 @@
-// progiso/io/mesh_io.hpp — writing triangle meshes as PLY, OBJ or STL, and reading
-// progiso's PLY.
+// progiso/io/mesh_io.hpp — writing triangle meshes as PLY, OBJ, STL, glTF binary (GLB) or VTK
+// XML PolyData (VTP), and reading progiso's PLY.
 //
 // write_ply() writes binary little-endian PLY 1.0 (vertex positions, and normals when the mesh
 // has them, as float; faces as `list uchar int`), the compact choice for large surfaces and the one
@@ -55,9 +55,20 @@ void write_obj(const std::filesystem::path& file, const triangle_mesh& mesh);
 /// left as it was.
 void write_stl(const std::filesystem::path& file, const triangle_mesh& mesh);
 
-/// Writes `mesh` as PLY, OBJ or STL according to the extension of `file` (.ply, .obj or .stl,
-/// any case). Throws progiso::error for any other extension, and whatever the chosen writer
-/// throws.
+/// Writes `mesh` as glTF 2.0 binary (.glb), what web viewers and three.js load: one indexed
+/// triangle primitive, float POSITION (with its min and max), float NORMAL when the mesh has
+/// normals, UNSIGNED_INT indices, in the winding of `mesh` (glTF's front faces are
+/// counter-clockwise: the side out of the region f > isovalue). An empty mesh gives a scene
+/// without a mesh. Throws progiso::error naming the file when it cannot be written, for a
+/// coordinate beyond the float range or a file over 4 GiB; the target is then left as it was.
+void write_glb(const std::filesystem::path& file, const triangle_mesh& mesh);
+/// Writes `mesh` as VTK XML PolyData (.vtp), which ParaView opens: Float32 points, normals as
+/// point data "Normals" when the mesh has them, the triangles as Polys (Int64 connectivity and
+/// offsets), raw appended data with UInt64 headers. Throws as write_glb() (no size limit).
+void write_vtp(const std::filesystem::path& file, const triangle_mesh& mesh);
+/// Writes `mesh` as PLY, OBJ, STL, GLB or VTP according to the extension of `file` (.ply, .obj,
+/// .stl, .glb or .vtp, any case). Throws progiso::error for any other extension, and whatever
+/// the chosen writer throws.
 void write_mesh(const std::filesystem::path& file, const triangle_mesh& mesh);
 
 /// Reads a binary little-endian PLY file with the layout write_ply() writes (a float x/y/z

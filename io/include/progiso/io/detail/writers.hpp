@@ -18,7 +18,11 @@ void write_obj_to(atomic_output& out, const triangle_mesh& mesh);
 /// Binary STL, as write_stl(). Throws progiso::error (naming out.target()) for more than
 /// 2^32 − 1 triangles or a coordinate beyond the float range.
 void write_stl_to(atomic_output& out, const triangle_mesh& mesh);
-/// PLY, OBJ or STL by the extension of out.target(), as write_mesh().
+/// glTF binary, as write_glb().
+void write_glb_to(atomic_output& out, const triangle_mesh& mesh);
+/// VTK XML PolyData, as write_vtp().
+void write_vtp_to(atomic_output& out, const triangle_mesh& mesh);
+/// PLY, OBJ, STL, GLB or VTP by the extension of out.target(), as write_mesh().
 void write_mesh_to(atomic_output& out, const triangle_mesh& mesh);
 
 }  // namespace progiso::detail

@@ -1,0 +1,122 @@
+// `progiso view` in a real browser: Debian's Chromium, headless, with software WebGL, driven by
+// playwright-core. Run by ctest (view.browser):
+//   node web/tests/view.test.mjs PROGISO_EXE VOLUME DIMS TYPE ISO OTHER_ISO [SCREENSHOT.png]
+// Checks that the page shows a surface, that moving the slider shows the new isovalue's surface,
+// that triangles grow while refining, and reports the slider-to-screen latency and the frame rate.
+// Exit 77 (ctest: skipped) when Chromium or the npm modules are not installed.
+import { spawn } from 'node:child_process';
+import { existsSync, writeFileSync } from 'node:fs';
+import { createInterface } from 'node:readline';
+
+const [exe, volume, dims, type, iso, otherIso, screenshot] = process.argv.slice(2);
+const chromium = process.env.PROGISO_CHROMIUM ?? '/usr/bin/chromium';
+if (!existsSync(volume)) { console.log(`skipped: no ${volume}`); process.exit(77); }
+if (!existsSync(chromium)) { console.log(`skipped: no ${chromium}`); process.exit(77); }
+let playwright;
+try { playwright = await import('playwright-core'); } catch { console.log('skipped: no playwright-core (npm ci in web/)'); process.exit(77); }
+
+function fail(message) { console.error(`FAIL: ${message}`); process.exitCode = 1; }
+
+const server = spawn(exe, ['view', volume, '--dims', dims, '--type', type, '--iso', iso, '--port', '0', '--threads', '2'],
+                     { stdio: ['ignore', 'pipe', 'inherit'] });
+const url = await new Promise((resolve, reject) => {
+  const timer = setTimeout(() => reject(new Error('no URL printed in 30 s')), 30000);
+  createInterface({ input: server.stdout }).on('line', (line) => {
+    const m = line.match(/(http:\/\/\S+)/);
+    if (m) { clearTimeout(timer); resolve(m[1]); }
+  });
+  server.on('exit', (code) => reject(new Error(`progiso view exited with ${code}`)));
+});
+console.log(`page: ${url}`);
+
+const browser = await playwright.chromium.launch({
+  executablePath: chromium, headless: true,
+  args: ['--no-sandbox', '--use-angle=swiftshader', '--enable-unsafe-swiftshader', '--ignore-gpu-blocklist',
+         '--disable-background-networking', '--disable-component-update', '--disable-sync', '--no-first-run'],
+});
+try {
+  const page = await browser.newPage({ viewport: { width: 960, height: 640 } });
+  page.on('pageerror', (e) => fail(`page error: ${e.message}`));
+  await page.goto(url);
+  const state = () => page.evaluate(() => ({ ...window.progiso, latencies: window.progiso.latencies.slice() }));
+  const waitFor = async (what, pred, ms = 60000) => {
+    const until = Date.now() + ms;
+    for (;;) {
+      const s = await state();
+      if (pred(s)) return s;
+      if (Date.now() > until) { fail(`timed out waiting for ${what}: ${JSON.stringify({ ...s, latencies: s.latencies.length })}`); return s; }
+      await new Promise((r) => setTimeout(r, 20));
+    }
+  };
+  // Pixels of the canvas that are not the background.
+  const painted = () => page.evaluate(() => {
+    const c = document.getElementById('view');
+    const o = document.createElement('canvas');
+    o.width = c.width; o.height = c.height;
+    const g = o.getContext('2d');
+    g.drawImage(c, 0, 0);
+    const d = g.getImageData(0, 0, o.width, o.height).data;
+    let n = 0;
+    for (let i = 0; i < d.length; i += 4) if (Math.abs(d[i] - 0x15) + Math.abs(d[i + 1] - 0x18) + Math.abs(d[i + 2] - 0x1d) > 24) n++;
+    return n / (o.width * o.height);
+  });
+
+  // 1. A surface on the canvas.
+  const first = await waitFor('a first surface', (s) => s.frames > 0 && s.shown > 0);
+  await waitFor('the end of refinement', (s) => !s.running);
+  await new Promise((r) => setTimeout(r, 200));
+  const cover = await painted();
+  console.log(`surface: ${(await state()).shown} triangles on screen, ${(100 * cover).toFixed(1)}% of the canvas painted`);
+  if (!(cover > 0.02)) fail(`the canvas shows no surface (${cover})`);
+  if (!(first.shown > 0)) fail('no triangles');
+
+  // 2. The slider: the new isovalue's surface appears; latency from the move to it on screen.
+  const moves = Number(process.env.PROGISO_VIEW_MOVES ?? 10);
+  for (let k = 0; k < moves; ++k) {
+    const w = k % 2 === 0 ? Number(otherIso) : Number(iso);
+    await page.evaluate((v) => window.progisoSetIso(v), w);
+    await waitFor(`isovalue ${w}`, (s) => s.isovalue === w && s.latencies.length > k, 20000);
+    if (k === 0) {
+      // Triangles grow while the new isovalue refines: from its coarse surface to the finest.
+      const grow = [];
+      for (;;) {
+        const x = await state();
+        grow.push(x.shown);
+        if (!x.running && x.isovalue === w) break;
+        await new Promise((r) => setTimeout(r, 10));
+      }
+      await new Promise((r) => setTimeout(r, 100));
+      grow.push((await state()).shown);
+      console.log(`triangles while the new isovalue refined: ${grow.filter((v, i) => i === 0 || v !== grow[i - 1]).join(' ')}`);
+      if (!(grow[grow.length - 1] > grow[0])) fail(`triangles did not grow: ${grow.join(' ')}`);
+      const s = await waitFor('the new isovalue refined', (x) => !x.running && x.isovalue === w);
+      await new Promise((r) => setTimeout(r, 200));
+      const c = await painted();
+      console.log(`after the slider: isovalue ${s.isovalue}, ${s.shown} triangles, ${(100 * c).toFixed(1)}% painted`);
+      if (!(c > 0.02)) fail('the new isovalue shows no surface');
+    }
+  }
+  const lat = (await state()).latencies.slice().sort((a, b) => a - b);
+  const pct = (p) => lat[Math.min(lat.length - 1, Math.ceil(p / 100 * lat.length) - 1)];
+  console.log(`slider to screen (${lat.length} moves): median ${pct(50).toFixed(1)} ms, p99 ${pct(99).toFixed(1)} ms, max ${lat[lat.length - 1].toFixed(1)} ms`);
+
+  // 3. Frame rate and bytes while refining (a deep refinement of the last isovalue).
+  await page.evaluate(() => { document.getElementById('goalKind').value = 'error'; document.getElementById('goalValue').value = '0'; });
+  const before = await state();
+  await page.evaluate((v) => window.progisoSetIso(v), Number(otherIso) * 0.5 + Number(iso) * 0.5);
+  const t0 = Date.now();
+  const after = await waitFor('refinement of a third isovalue', (s) => !s.running && s.frames > before.frames + 1);
+  const seconds = (Date.now() - t0) / 1000;
+  console.log(`while refining: ${after.fps.toFixed(0)} fps, ${((after.bytes - before.bytes) / seconds / 1e6).toFixed(2)} MB/s over ${seconds.toFixed(2)} s, ` +
+              `${((after.bytes - before.bytes) / Math.max(1, after.triangles)).toFixed(1)} bytes per final triangle`);
+  if (screenshot) {
+    writeFileSync(screenshot, await page.screenshot());
+    console.log(`screenshot: ${screenshot}`);
+  }
+} catch (e) {
+  fail(e.stack ?? String(e));
+} finally {
+  await browser.close();
+  server.kill('SIGTERM');
+}
+if (!process.exitCode) console.log('ok');
