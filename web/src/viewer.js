@@ -121,7 +121,7 @@ function decode(buffer) {
 // What tests and the status line read.
 const state = window.progiso = {
   frames: 0, bytes: 0, isovalue: NaN, splits: 0, triangles: 0, nextError: 0, running: false,
-  fps: 0, sequence: 0, latencies: [], connected: false,
+  fps: 0, sequence: 0, latencies: [], arrivals: [], connected: false,
 };
 const sentAt = new Map();  // iso request sequence -> time sent
 const pendingLatency = [];  // send times of requests answered by a frame not yet drawn
@@ -141,7 +141,8 @@ function connect() {
     state.isovalue = f.isovalue; state.splits = f.splits; state.triangles = f.triangles;
     state.nextError = f.nextError; state.running = f.running; state.shown = slots.liveTriangles();
     if (f.sequence > state.sequence && sentAt.has(f.sequence)) {
-      // Measured when the frame after this one is drawn: the new isovalue on screen.
+      // On the page now (arrived and applied); on screen when the next frame is drawn.
+      state.arrivals.push(performance.now() - sentAt.get(f.sequence));
       pendingLatency.push(sentAt.get(f.sequence));
       for (const k of sentAt.keys()) if (k <= f.sequence) sentAt.delete(k);
     }

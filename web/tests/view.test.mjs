@@ -38,7 +38,8 @@ try {
   const page = await browser.newPage({ viewport: { width: 960, height: 640 } });
   page.on('pageerror', (e) => fail(`page error: ${e.message}`));
   await page.goto(url);
-  const state = () => page.evaluate(() => ({ ...window.progiso, latencies: window.progiso.latencies.slice() }));
+  const state = () => page.evaluate(() => ({ ...window.progiso, latencies: window.progiso.latencies.slice(),
+                                             arrivals: window.progiso.arrivals.slice() }));
   const waitFor = async (what, pred, ms = 60000) => {
     const until = Date.now() + ms;
     for (;;) {
@@ -79,9 +80,16 @@ try {
     if (k === 0) {
       // Triangles grow while the new isovalue refines: from its coarse surface to the finest.
       const grow = [];
+      let shot = false;
       for (;;) {
         const x = await state();
         grow.push(x.shown);
+        // The README's screenshot: the viewer in the middle of a refinement.
+        if (screenshot && !shot && x.running && x.isovalue === w && grow.length > 1 && x.shown > grow[0]) {
+          writeFileSync(screenshot, await page.screenshot());
+          console.log(`screenshot (refining, ${x.shown} triangles): ${screenshot}`);
+          shot = true;
+        }
         if (!x.running && x.isovalue === w) break;
         await new Promise((r) => setTimeout(r, 10));
       }
@@ -96,9 +104,14 @@ try {
       if (!(c > 0.02)) fail('the new isovalue shows no surface');
     }
   }
-  const lat = (await state()).latencies.slice().sort((a, b) => a - b);
-  const pct = (p) => lat[Math.min(lat.length - 1, Math.ceil(p / 100 * lat.length) - 1)];
-  console.log(`slider to screen (${lat.length} moves): median ${pct(50).toFixed(1)} ms, p99 ${pct(99).toFixed(1)} ms, max ${lat[lat.length - 1].toFixed(1)} ms`);
+  const report = (what, values) => {
+    const v = values.slice().sort((a, b) => a - b);
+    const pct = (p) => v[Math.min(v.length - 1, Math.ceil(p / 100 * v.length) - 1)];
+    console.log(`${what} (${v.length} moves): median ${pct(50).toFixed(1)} ms, p99 ${pct(99).toFixed(1)} ms, max ${v[v.length - 1].toFixed(1)} ms`);
+  };
+  const end = await state();
+  report('slider to the new isovalue\'s first frame on the page', end.arrivals);
+  report('slider to that frame on screen', end.latencies);
 
   // 3. Frame rate and bytes while refining (a deep refinement of the last isovalue).
   await page.evaluate(() => { document.getElementById('goalKind').value = 'error'; document.getElementById('goalValue').value = '0'; });
@@ -109,9 +122,19 @@ try {
   const seconds = (Date.now() - t0) / 1000;
   console.log(`while refining: ${after.fps.toFixed(0)} fps, ${((after.bytes - before.bytes) / seconds / 1e6).toFixed(2)} MB/s over ${seconds.toFixed(2)} s, ` +
               `${((after.bytes - before.bytes) / Math.max(1, after.triangles)).toFixed(1)} bytes per final triangle`);
-  if (screenshot) {
+  // 4. The README's screenshot, in the middle of a refinement: paused part way.
+  if (screenshot && !existsSync(screenshot)) {
+    await page.click('#pause');
+    const w = Number(iso) * 0.6 + Number(otherIso) * 0.4;
+    await page.evaluate((v) => window.progisoSetIso(v), w);
+    await waitFor('the paused isovalue', (s) => s.isovalue === w);
+    await page.click('#pause');  // resume
+    await new Promise((r) => setTimeout(r, Number(process.env.PROGISO_VIEW_SHOT_MS ?? 30)));
+    await page.click('#pause');
+    await new Promise((r) => setTimeout(r, 1500));
+    const x = await state();
     writeFileSync(screenshot, await page.screenshot());
-    console.log(`screenshot: ${screenshot}`);
+    console.log(`screenshot (paused part way: ${x.splits} splits, ${x.shown} triangles): ${screenshot}`);
   }
 } catch (e) {
   fail(e.stack ?? String(e));

@@ -45,8 +45,6 @@ struct server::impl {
   engine& eng;
   refine_goal goal;
   server_options opt;
-  net::io_context ioc{1};
-  tcp::acceptor acceptor{ioc};
   std::mutex pages_mutex;
   std::vector<std::weak_ptr<page_session>> pages;
   std::atomic<bool> stopping{false};
@@ -64,6 +62,10 @@ struct server::impl {
   std::atomic<std::uint64_t> skipped{0};
   std::atomic<std::uint64_t> refused{0};
   std::atomic<std::uint64_t> closed_hostile{0};
+  // Last, so destroyed first: the handlers the context still holds destroy their sessions, which
+  // count themselves out of page_count above.
+  net::io_context ioc{1};
+  tcp::acceptor acceptor{ioc};
 
   void accept();
   void apply(const command& c, page_session& from);
