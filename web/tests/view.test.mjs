@@ -62,6 +62,7 @@ try {
     return n / (o.width * o.height);
   });
 
+  const moves = Number(process.env.PROGISO_VIEW_MOVES ?? 10);
   // 1. A surface on the canvas.
   const first = await waitFor('a first surface', (s) => s.frames > 0 && s.shown > 0);
   await waitFor('the end of refinement', (s) => !s.running);
@@ -71,38 +72,34 @@ try {
   if (!(cover > 0.02)) fail(`the canvas shows no surface (${cover})`);
   if (!(first.shown > 0)) fail('no triangles');
 
-  // 2. The slider: the new isovalue's surface appears; latency from the move to it on screen.
-  const moves = Number(process.env.PROGISO_VIEW_MOVES ?? 10);
+  // 2. Triangles grow while refining: paused, a new isovalue shows its coarse cut; resumed, it
+  // refines to the finest.
+  await page.click('#pause');
+  const w0 = Number(otherIso);
+  await page.evaluate((v) => window.progisoSetIso(v), w0);
+  const coarse = await waitFor('the coarse cut of a new isovalue, paused', (s) => s.isovalue === w0 && !s.running);
+  await page.click('#pause');  // resume
+  const grow = [coarse.shown];
+  for (;;) {
+    const x = await state();
+    if (x.shown !== grow[grow.length - 1]) grow.push(x.shown);
+    if (!x.running && x.isovalue === w0 && x.splits > coarse.splits) break;
+    await new Promise((r) => setTimeout(r, 10));
+  }
+  console.log(`triangles while the new isovalue refined: ${grow.join(' ')}`);
+  if (!(grow[grow.length - 1] > grow[0])) fail(`triangles did not grow: ${grow.join(' ')}`);
+  await new Promise((r) => setTimeout(r, 200));
+  const c = await painted();
+  console.log(`after the slider: isovalue ${w0}, ${grow[grow.length - 1]} triangles, ${(100 * c).toFixed(1)}% painted`);
+  if (!(c > 0.02)) fail('the new isovalue shows no surface');
+
+  // 3. The slider: latency from a move to the new isovalue's first frame, on the page and on screen.
+  const before = await state();
+  const base = before.latencies.length, arrivalBase = before.arrivals.length;
   for (let k = 0; k < moves; ++k) {
-    const w = k % 2 === 0 ? Number(otherIso) : Number(iso);
+    const w = k % 2 === 0 ? Number(iso) : Number(otherIso);
     await page.evaluate((v) => window.progisoSetIso(v), w);
-    await waitFor(`isovalue ${w}`, (s) => s.isovalue === w && s.latencies.length > k, 20000);
-    if (k === 0) {
-      // Triangles grow while the new isovalue refines: from its coarse surface to the finest.
-      const grow = [];
-      let shot = false;
-      for (;;) {
-        const x = await state();
-        grow.push(x.shown);
-        // The README's screenshot: the viewer in the middle of a refinement.
-        if (screenshot && !shot && x.running && x.isovalue === w && grow.length > 1 && x.shown > grow[0]) {
-          writeFileSync(screenshot, await page.screenshot());
-          console.log(`screenshot (refining, ${x.shown} triangles): ${screenshot}`);
-          shot = true;
-        }
-        if (!x.running && x.isovalue === w) break;
-        await new Promise((r) => setTimeout(r, 10));
-      }
-      await new Promise((r) => setTimeout(r, 100));
-      grow.push((await state()).shown);
-      console.log(`triangles while the new isovalue refined: ${grow.filter((v, i) => i === 0 || v !== grow[i - 1]).join(' ')}`);
-      if (!(grow[grow.length - 1] > grow[0])) fail(`triangles did not grow: ${grow.join(' ')}`);
-      const s = await waitFor('the new isovalue refined', (x) => !x.running && x.isovalue === w);
-      await new Promise((r) => setTimeout(r, 200));
-      const c = await painted();
-      console.log(`after the slider: isovalue ${s.isovalue}, ${s.shown} triangles, ${(100 * c).toFixed(1)}% painted`);
-      if (!(c > 0.02)) fail('the new isovalue shows no surface');
-    }
+    await waitFor(`isovalue ${w}`, (s) => s.isovalue === w && s.latencies.length > base + k, 20000);
   }
   const report = (what, values) => {
     const v = values.slice().sort((a, b) => a - b);
@@ -110,19 +107,19 @@ try {
     console.log(`${what} (${v.length} moves): median ${pct(50).toFixed(1)} ms, p99 ${pct(99).toFixed(1)} ms, max ${v[v.length - 1].toFixed(1)} ms`);
   };
   const end = await state();
-  report('slider to the new isovalue\'s first frame on the page', end.arrivals);
-  report('slider to that frame on screen', end.latencies);
+  report('slider to the new isovalue\'s first frame on the page', end.arrivals.slice(arrivalBase));
+  report('slider to that frame on screen', end.latencies.slice(base));
 
-  // 3. Frame rate and bytes while refining (a deep refinement of the last isovalue).
+  // 4. Frame rate and bytes while refining (a deep refinement of the last isovalue).
   await page.evaluate(() => { document.getElementById('goalKind').value = 'error'; document.getElementById('goalValue').value = '0'; });
-  const before = await state();
+  const start = await state();
   await page.evaluate((v) => window.progisoSetIso(v), Number(otherIso) * 0.5 + Number(iso) * 0.5);
   const t0 = Date.now();
-  const after = await waitFor('refinement of a third isovalue', (s) => !s.running && s.frames > before.frames + 1);
+  const after = await waitFor('refinement of a third isovalue', (s) => !s.running && s.frames > start.frames + 1);
   const seconds = (Date.now() - t0) / 1000;
-  console.log(`while refining: ${after.fps.toFixed(0)} fps, ${((after.bytes - before.bytes) / seconds / 1e6).toFixed(2)} MB/s over ${seconds.toFixed(2)} s, ` +
-              `${((after.bytes - before.bytes) / Math.max(1, after.triangles)).toFixed(1)} bytes per final triangle`);
-  // 4. The README's screenshot, in the middle of a refinement: paused part way.
+  console.log(`while refining: ${after.fps.toFixed(0)} fps, ${((after.bytes - start.bytes) / seconds / 1e6).toFixed(2)} MB/s over ${seconds.toFixed(2)} s, ` +
+              `${((after.bytes - start.bytes) / Math.max(1, after.triangles)).toFixed(1)} bytes per final triangle`);
+  // 5. The README's screenshot, in the middle of a refinement: paused part way.
   if (screenshot && !existsSync(screenshot)) {
     await page.click('#pause');
     const w = Number(iso) * 0.6 + Number(otherIso) * 0.4;
