@@ -54,15 +54,19 @@ class Slots {
     this.slotsOf.clear();
   }
   apply(frame) {
-    if (frame.rebuilt) this.clear();
+    if (frame.rebuilt) { this.clear(); morphs.length = 0; }
     const pos = () => this.positions.array;
     let lo = Infinity, hi = -1;
+    // The triangles this frame's splits remove: where the coarser surface was (geomorphs).
+    const morph = !frame.rebuilt && frame.added.length <= MORPH_MAX_PIECES;
+    const coarse = morph ? new Coarse() : null;
     for (const id of frame.gone) {
       const slots = this.slotsOf.get(id);
       if (!slots) continue;
       this.slotsOf.delete(id);
       for (const s of slots) {
         const p = pos(), b = s * 9;
+        if (coarse) coarse.add(p, b);
         for (let k = 3; k < 9; ++k) p[b + k] = p[b + (k % 3)];
         this.free.push(s);
         lo = Math.min(lo, s); hi = Math.max(hi, s);
@@ -71,26 +75,135 @@ class Slots {
     const n = frame.added.length;
     if (this.count + n > this.capacity) this.grow(this.count + n);
     const p = this.positions.array, q = this.normals.array;
+    if (coarse) coarse.index();
+    const now = performance.now();
     for (let i = 0; i < n; ++i) {
       const s = this.free.length ? this.free.pop() : this.count++;
-      p.set(frame.positions.subarray(i * 9, i * 9 + 9), s * 9);
+      const end = frame.positions.subarray(i * 9, i * 9 + 9);
+      p.set(end, s * 9);
       if (frame.normals) q.set(frame.normals.subarray(i * 9, i * 9 + 9), s * 9);
+      if (coarse && !coarse.empty()) {
+        // Geomorph: each new vertex starts at its closest point on the removed triangles.
+        const start = new Float32Array(9);
+        for (let c = 0; c < 3; ++c) coarse.closest(end[3 * c], end[3 * c + 1], end[3 * c + 2], start, 3 * c);
+        p.set(start, s * 9);
+        morphs.push({ slot: s, id: frame.added[i], start, end: Float32Array.from(end), t0: now });
+        state.morphed += 1;
+        for (let k = 0; k < 9; k += 3) {
+          state.morphReach = Math.max(state.morphReach, Math.hypot(end[k] - start[k], end[k + 1] - start[k + 1], end[k + 2] - start[k + 2]));
+        }
+      }
       const id = frame.added[i];
       const list = this.slotsOf.get(id);
       if (list) list.push(s); else this.slotsOf.set(id, [s]);
       lo = Math.min(lo, s); hi = Math.max(hi, s);
     }
     this.geometry.setDrawRange(0, this.count * 3);
-    if (hi >= lo) {
-      // Upload only the slots written.
-      for (const attr of [this.positions, this.normals]) {
-        attr.clearUpdateRanges();
-        attr.addUpdateRange(lo * 9, (hi - lo + 1) * 9);
-        attr.needsUpdate = true;
-      }
+    if (hi >= lo) this.upload(lo, hi);
+  }
+  upload(lo, hi) {
+    for (const attr of [this.positions, this.normals]) {
+      attr.clearUpdateRanges();
+      attr.addUpdateRange(lo * 9, (hi - lo + 1) * 9);
+      attr.needsUpdate = true;
     }
   }
   liveTriangles() { let t = 0; for (const v of this.slotsOf.values()) t += v.length; return t; }
+}
+
+// Geomorphs (paper §7: continuous transitions between levels). The rule: a split replaces the
+// triangles of its diamond by finer ones; each vertex of a new triangle starts at its closest
+// point on the triangles the same frame removed (the coarser surface there) and glides to its
+// own position over MORPH_MS, so refinement does not pop. A triangle removed again while gliding
+// simply goes; a rebuilt frame (a new isovalue) and frames of more than MORPH_MAX_PIECES pieces
+// (a change too large to animate smoothly) appear at once.
+const MORPH_MS = 250;
+const MORPH_MAX_PIECES = 20000;
+const morphs = [];
+
+// The removed triangles, hashed by cell, for closest-point queries.
+class Coarse {
+  constructor() { this.tris = []; this.cells = new Map(); this.size = 0; }
+  add(p, b) { this.tris.push(Float32Array.from(p.subarray(b, b + 9))); }
+  empty() { return this.tris.length === 0; }
+  key(x, y, z) { return ((x & 1023) | ((y & 1023) << 10) | ((z & 1023) << 20)) >>> 0; }
+  index() {
+    let sum = 0;
+    for (const t of this.tris) sum += Math.hypot(t[3] - t[0], t[4] - t[1], t[5] - t[2]);
+    this.size = Math.max(1e-6, 2 * sum / Math.max(1, this.tris.length));
+    this.tris.forEach((t, i) => {
+      const lo = [0, 1, 2].map((a) => Math.floor(Math.min(t[a], t[a + 3], t[a + 6]) / this.size));
+      const hi = [0, 1, 2].map((a) => Math.floor(Math.max(t[a], t[a + 3], t[a + 6]) / this.size));
+      for (let x = lo[0]; x <= hi[0]; ++x) for (let y = lo[1]; y <= hi[1]; ++y) for (let z = lo[2]; z <= hi[2]; ++z) {
+        const k = this.key(x, y, z);
+        const l = this.cells.get(k);
+        if (l) l.push(i); else this.cells.set(k, [i]);
+      }
+    });
+  }
+  // The closest point to (x, y, z) on the removed triangles near it, into out[at..at+2]; the
+  // point itself when none is near.
+  closest(x, y, z, out, at) {
+    const cx = Math.floor(x / this.size), cy = Math.floor(y / this.size), cz = Math.floor(z / this.size);
+    let best = Infinity;
+    out[at] = x; out[at + 1] = y; out[at + 2] = z;
+    for (let dx = -1; dx <= 1; ++dx) for (let dy = -1; dy <= 1; ++dy) for (let dz = -1; dz <= 1; ++dz) {
+      const l = this.cells.get(this.key(cx + dx, cy + dy, cz + dz));
+      if (!l) continue;
+      for (const i of l) {
+        const c = closestOnTriangle(x, y, z, this.tris[i]);
+        const d = (c[0] - x) ** 2 + (c[1] - y) ** 2 + (c[2] - z) ** 2;
+        if (d < best) { best = d; out[at] = c[0]; out[at + 1] = c[1]; out[at + 2] = c[2]; }
+      }
+    }
+  }
+}
+
+// The closest point of triangle t (9 floats) to p (Ericson, Real-Time Collision Detection 5.1.5).
+function closestOnTriangle(px, py, pz, t) {
+  const ax = t[0], ay = t[1], az = t[2], bx = t[3], by = t[4], bz = t[5], cx = t[6], cy = t[7], cz = t[8];
+  const abx = bx - ax, aby = by - ay, abz = bz - az, acx = cx - ax, acy = cy - ay, acz = cz - az;
+  const apx = px - ax, apy = py - ay, apz = pz - az;
+  const d1 = abx * apx + aby * apy + abz * apz, d2 = acx * apx + acy * apy + acz * apz;
+  if (d1 <= 0 && d2 <= 0) return [ax, ay, az];
+  const bpx = px - bx, bpy = py - by, bpz = pz - bz;
+  const d3 = abx * bpx + aby * bpy + abz * bpz, d4 = acx * bpx + acy * bpy + acz * bpz;
+  if (d3 >= 0 && d4 <= d3) return [bx, by, bz];
+  const vc = d1 * d4 - d3 * d2;
+  if (vc <= 0 && d1 >= 0 && d3 <= 0) { const v = d1 / (d1 - d3); return [ax + v * abx, ay + v * aby, az + v * abz]; }
+  const cpx = px - cx, cpy = py - cy, cpz = pz - cz;
+  const d5 = abx * cpx + aby * cpy + abz * cpz, d6 = acx * cpx + acy * cpy + acz * cpz;
+  if (d6 >= 0 && d5 <= d6) return [cx, cy, cz];
+  const vb = d5 * d2 - d1 * d6;
+  if (vb <= 0 && d2 >= 0 && d6 <= 0) { const w = d2 / (d2 - d6); return [ax + w * acx, ay + w * acy, az + w * acz]; }
+  const va = d3 * d6 - d5 * d4;
+  if (va <= 0 && d4 - d3 >= 0 && d5 - d6 >= 0) {
+    const w = (d4 - d3) / ((d4 - d3) + (d5 - d6));
+    return [bx + w * (cx - bx), by + w * (cy - by), bz + w * (cz - bz)];
+  }
+  const denom = 1 / (va + vb + vc), v = vb * denom, w = vc * denom;
+  return [ax + abx * v + acx * w, ay + aby * v + acy * w, az + abz * v + acz * w];
+}
+
+// Moves every gliding vertex to where it is at `now`; finished ones end at their own position.
+function glide(now) {
+  if (!morphs.length) return;
+  const p = slots.positions.array;
+  let lo = Infinity, hi = -1, keep = 0;
+  for (const m of morphs) {
+    // A slot freed or reused since (its triangle removed again) is not this morph's any more.
+    const owner = slots.slotsOf.get(m.id);
+    if (!owner || !owner.includes(m.slot)) continue;
+    const t = Math.min(1, (now - m.t0) / MORPH_MS);
+    const e = t * t * (3 - 2 * t);
+    const b = m.slot * 9;
+    for (let k = 0; k < 9; ++k) p[b + k] = m.start[k] + (m.end[k] - m.start[k]) * e;
+    lo = Math.min(lo, m.slot); hi = Math.max(hi, m.slot);
+    if (t < 1) morphs[keep++] = m;
+  }
+  morphs.length = keep;
+  state.morphing = keep;
+  if (hi >= lo) slots.upload(lo, hi);
 }
 
 const slots = new Slots();
@@ -121,7 +234,7 @@ function decode(buffer) {
 // What tests and the status line read.
 const state = window.progiso = {
   frames: 0, bytes: 0, isovalue: NaN, splits: 0, triangles: 0, nextError: 0, running: false,
-  fps: 0, sequence: 0, latencies: [], arrivals: [], connected: false,
+  fps: 0, sequence: 0, latencies: [], arrivals: [], connected: false, morphing: 0, morphed: 0, morphReach: 0,
 };
 const sentAt = new Map();  // iso request sequence -> time sent
 const pendingLatency = [];  // send times of requests answered by a frame not yet drawn
@@ -224,6 +337,7 @@ function resize() {
 }
 function loop(now) {
   resize();
+  glide(performance.now());
   light.position.copy(camera.position);
   controls.update();
   renderer.render(scene, camera);

@@ -88,6 +88,13 @@ try {
   }
   console.log(`triangles while the new isovalue refined: ${grow.join(' ')}`);
   if (!(grow[grow.length - 1] > grow[0])) fail(`triangles did not grow: ${grow.join(' ')}`);
+  // Geomorphs: pieces of the refinement glided in from the coarser surface.
+  // (A frame may bring the whole refinement at once when the engine outruns the frame thread;
+  // such a frame, and a new isovalue's, appear at once by design: then there is nothing to check.)
+  const g = await state();
+  console.log(`pieces that glided in from the coarser surface (geomorphs): ${g.morphed}, ` +
+              `the farthest start ${g.morphReach.toFixed(3)} from its end`);
+  if (g.morphed > 0 && !(g.morphReach > 0)) fail('geomorphs started every vertex at its own position');
   await new Promise((r) => setTimeout(r, 200));
   const c = await painted();
   console.log(`after the slider: isovalue ${w0}, ${grow[grow.length - 1]} triangles, ${(100 * c).toFixed(1)}% painted`);
