@@ -95,9 +95,10 @@ class page_session : public std::enable_shared_from_this<page_session> {
                      beast::bind_front_handler(&page_session::on_accept, shared_from_this()));
   }
 
-  // The frame thread's side (it alone touches mark and sent_sequence).
+  // The frame thread's side (it alone touches these): what the page was last sent.
   cut_mark mark{};
   std::uint32_t sent_sequence = 0;
+  bool sent_running = false;
   /// A write is in flight. Set by the frame thread before it posts a write; cleared by the
   /// write's handler with release, which the frame thread's acquire load pairs with, so the
   /// frame thread sees the session's buffer released before it hands over the next frame.
@@ -351,6 +352,9 @@ void server::impl::frame_loop() {
       // Partner: the release store in apply(), after the engine published the isovalue.
       sequences.push_back(p->requested_sequence.load(std::memory_order_acquire));
     }
+    // Read before the snapshot: a run that had ended then has published its last cut, so a frame
+    // saying "not running" holds the final cut.
+    const bool running = eng.running();
     const surface_snapshot snap = eng.snapshot();
     const cut_mark now = snap.mark();
     frame_state state;
@@ -359,7 +363,7 @@ void server::impl::frame_loop() {
     state.splits = snap.split_count();
     state.triangles = snap.triangle_count();
     state.uniform_stride = static_cast<std::uint32_t>(std::max(0, snap.uniform_stride()));
-    state.running = eng.running();
+    state.running = running;
     state.next_error = opt.next_error ? opt.next_error() : 0.0;
     for (std::size_t i = 0; i < live.size(); ++i) {
       page_session& p = *live[i];
@@ -368,7 +372,12 @@ void server::impl::frame_loop() {
         if (!same_mark(p.mark, now)) skipped.fetch_add(1, std::memory_order_relaxed);
         continue;
       }
-      if (same_mark(p.mark, now) && p.sent_sequence == sequences[i]) continue;
+      // Also when only the run's state changed: a page must learn that refinement has ended
+      // even when the last cut it was sent is the final one (an empty change then).
+      if (same_mark(p.mark, now) && p.sent_sequence == sequences[i] &&
+          p.sent_running == state.running) {
+        continue;
+      }
       change.clear();
       snap.change_since(p.mark, change, vertex_normals::gradient);
       state.iso_sequence = sequences[i];
@@ -376,6 +385,7 @@ void server::impl::frame_loop() {
       encode_frame(change, state, *frame);
       p.mark = now;
       p.sent_sequence = sequences[i];
+      p.sent_running = state.running;
       frames.fetch_add(1, std::memory_order_relaxed);
       frame_bytes.fetch_add(frame->size(), std::memory_order_relaxed);
       // Relaxed: only this thread sets it; the handler's release store clears it.
