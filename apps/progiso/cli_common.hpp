@@ -1,8 +1,10 @@
-// apps/progiso/cli_common.hpp — JSON formatting shared by the command's subcommands.
+// apps/progiso/cli_common.hpp — JSON formatting and the refined field, shared by the command's
+// subcommands.
 #pragma once
 
 #include <cmath>
 #include <cstdio>
+#include <memory>
 #include <sstream>
 #include <string>
 
@@ -11,6 +13,19 @@
 #include <progiso/core/field/volume.hpp>
 
 namespace progiso::cli {
+
+/// The field a subcommand refines: `data`, or its smoothed field when `s` is active (samples
+/// computed on demand). A smoothing the data cannot take throws progiso::error naming `input`.
+inline std::shared_ptr<const volume> smoothed_field(std::shared_ptr<const volume> data,
+                                                    const smoothing& s, const std::string& input) {
+  if (!s.active()) return data;
+  try {
+    check_smoothing(data->dims(), s);
+  } catch (const error& e) {
+    throw error(input + ": " + e.what());
+  }
+  return std::make_shared<const volume>(smooth(std::move(data), s));
+}
 
 inline std::string json_number(double v) {
   if (!std::isfinite(v)) return "null";

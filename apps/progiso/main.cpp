@@ -443,15 +443,7 @@ int run(const std::vector<std::string>& args) {
     iso = *a.iso;
   }
   // The field refined: the data, or its smoothed field (samples computed on demand).
-  std::shared_ptr<const progiso::volume> vol = data;
-  if (a.smooth.active()) {
-    try {
-      progiso::check_smoothing(data->dims(), a.smooth);
-    } catch (const progiso::error& e) {
-      throw error(input + ": " + e.what());
-    }
-    vol = std::make_shared<const progiso::volume>(progiso::smooth(data, a.smooth));
-  }
+  const std::shared_ptr<const progiso::volume> vol = smoothed_field(data, a.smooth, input);
   check_float_range(*a.output, *data, world);
   std::cerr << "progiso: " << input;
   if (a.volume) std::cerr << " volume " << *a.volume;

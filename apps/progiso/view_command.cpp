@@ -24,6 +24,7 @@
 #include <progiso/io/volume_io.hpp>
 #include <progiso/scheduler/engine.hpp>
 
+#include "cli_common.hpp"
 #include "cli_options.hpp"
 #include "view/view_assets.hpp"
 #include "view/view_server.hpp"
@@ -100,15 +101,8 @@ int run_view(const std::vector<std::string>& args) {
   }
   const auto [lo, hi] = data->value_range();
   const double iso = a.iso_given ? *in.iso : in.demo ? progiso::demo_isovalue : 0.5 * (lo + hi);
-  std::shared_ptr<const progiso::volume> field = data;
-  if (in.smooth.active()) {
-    try {
-      progiso::check_smoothing(data->dims(), in.smooth);
-    } catch (const progiso::error& e) {
-      throw error(name + ": " + e.what());
-    }
-    field = std::make_shared<const progiso::volume>(progiso::smooth(data, in.smooth));
-  }
+  const std::shared_ptr<const progiso::volume> field =
+      progiso::cli::smoothed_field(data, in.smooth, name);
   // Refinement split by split, largest error first: each frame a change of the surface, the
   // progressive surface the page shows (uniform cuts would arrive as whole new surfaces).
   progiso::engine_options options;

@@ -571,16 +571,18 @@ class finest_mesher {
 
 namespace {
 
-triangle_mesh finest_surface_hooked(const volume& field, double isovalue, const parallel_loop& run,
-                                    std::size_t parts, const finest_progress& progress,
-                                    const interrupts& stop) {
+// Mesh: triangle_mesh, or detail::float_mesh (finest_mesher::run()).
+template <class Mesh = triangle_mesh>
+Mesh finest_surface_hooked(const volume& field, double isovalue, const parallel_loop& run,
+                           std::size_t parts, const finest_progress& progress,
+                           const interrupts& stop) {
   if (!std::isfinite(isovalue)) {
     throw error("finest surface: the isovalue must be finite, found " + std::to_string(isovalue));
   }
   return detail::visit_field(field, [&](const auto samples) {
     finest_mesher<std::remove_cv_t<decltype(samples)>> m(field.dims(), field.spacing(),
                                                          field.origin(), samples, isovalue);
-    return m.run(run, parts, progress, stop);
+    return m.template run<Mesh>(run, parts, progress, stop);
   });
 }
 
@@ -602,14 +604,7 @@ triangle_mesh detail::finest_surface(const volume& field, double isovalue, const
 detail::float_mesh detail::finest_surface_floats(const volume& field, double isovalue,
                                                  const parallel_loop& run, std::size_t parts,
                                                  const finest_progress& progress) {
-  if (!std::isfinite(isovalue)) {
-    throw error("finest surface: the isovalue must be finite, found " + std::to_string(isovalue));
-  }
-  return detail::visit_field(field, [&](const auto samples) {
-    finest_mesher<std::remove_cv_t<decltype(samples)>> m(field.dims(), field.spacing(),
-                                                         field.origin(), samples, isovalue);
-    return m.template run<float_mesh>(run, parts, progress);
-  });
+  return finest_surface_hooked<float_mesh>(field, isovalue, run, parts, progress, {});
 }
 
 index3 uniform_grid_dims(const index3& dims, std::int32_t stride) noexcept {
