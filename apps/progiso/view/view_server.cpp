@@ -332,6 +332,12 @@ void server::impl::frame_loop() {
   surface_change change;
   std::vector<std::shared_ptr<page_session>> live;
   std::vector<std::uint32_t> sequences;
+  struct made {
+    cut_mark from;
+    std::uint32_t sequence;
+    std::shared_ptr<std::vector<std::byte>> frame;
+  };
+  std::vector<made> made_now;  // this round's frames, by the cut they start from
   while (!stopping.load(std::memory_order_relaxed)) {
     {
       std::unique_lock w(wake_mutex);
@@ -365,6 +371,7 @@ void server::impl::frame_loop() {
     state.uniform_stride = static_cast<std::uint32_t>(std::max(0, snap.uniform_stride()));
     state.running = running;
     state.next_error = opt.next_error ? opt.next_error() : 0.0;
+    made_now.clear();
     for (std::size_t i = 0; i < live.size(); ++i) {
       page_session& p = *live[i];
       // Partner: the release store in the write's handler.
@@ -378,11 +385,19 @@ void server::impl::frame_loop() {
           p.sent_running == state.running) {
         continue;
       }
-      change.clear();
-      snap.change_since(p.mark, change, vertex_normals::gradient);
-      state.iso_sequence = sequences[i];
-      auto frame = std::make_shared<std::vector<std::byte>>();
-      encode_frame(change, state, *frame);
+      // Pages that hold the same cut and asked the same get the same frame: made once.
+      std::shared_ptr<std::vector<std::byte>> frame;
+      for (const made& m : made_now) {
+        if (same_mark(m.from, p.mark) && m.sequence == sequences[i]) frame = m.frame;
+      }
+      if (!frame) {
+        change.clear();
+        snap.change_since(p.mark, change, vertex_normals::gradient);
+        state.iso_sequence = sequences[i];
+        frame = std::make_shared<std::vector<std::byte>>();
+        encode_frame(change, state, *frame);
+        made_now.push_back({p.mark, sequences[i], frame});
+      }
       p.mark = now;
       p.sent_sequence = sequences[i];
       p.sent_running = state.running;
