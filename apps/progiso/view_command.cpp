@@ -115,13 +115,18 @@ int run_view(const std::vector<std::string>& args) {
   };
   options.progress_interval = 1024;
   progiso::engine eng(field, iso, options);
-  const progiso::refine_goal goal = progiso::refine_goal::error(0.0);
+  // Until a page says what it can draw (its "fit the display" budget, web/src/viewer.js), a cut
+  // a software renderer still draws at interactive rates: the engine only refines, so a first
+  // goal of everything would leave a slow display a surface it cannot draw.
+  const progiso::refine_goal goal = progiso::refine_goal::triangles(50000);
 
   progiso::view::server_options so;
   so.bind = a.bind;
   so.port = a.port;
   so.assets = progiso::view::page_assets();
   so.next_error = [next_error] { return next_error->load(std::memory_order_relaxed); };
+  so.spacing = field->spacing();
+  so.origin = field->origin();
   progiso::view::server srv(eng, goal, so);
   eng.start(goal);
   std::ostringstream url;

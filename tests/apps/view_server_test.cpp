@@ -3,6 +3,7 @@
 // mid-stream, hostile messages and origins, and the page's files only.
 #include <gtest/gtest.h>
 
+#include <array>
 #include <atomic>
 #include <chrono>
 #include <cstring>
@@ -42,7 +43,7 @@ class served {
  public:
   explicit served(int n = 41)
       : eng_(make_demo_volume(n), demo_isovalue, options()),
-        server_(eng_, refine_goal::error(0.0), server_options()) {
+        server_(eng_, refine_goal::error(0.0), server_options(eng_.field())) {
     eng_.start(refine_goal::error(0.0));
     thread_ = std::thread([this] { server_.run(); });
   }
@@ -64,8 +65,10 @@ class served {
     o.uniform_cuts = false;
     return o;
   }
-  static view::server_options server_options() {
+  static view::server_options server_options(const volume& field) {
     view::server_options o;
+    o.spacing = field.spacing();
+    o.origin = field.origin();
     o.port = 0;
     o.assets = view::page_assets();
     o.frame_interval = 5ms;
@@ -111,6 +114,7 @@ class page {
     c.positions = f->positions;
     c.normals = f->normal_values;
     slots.apply(c);
+    if (acks) say("ack");  // applied: a page that draws acknowledges here
     static_cast<view::decoded_frame&>(last) = *f;
     last.magic_seen = true;
     bytes_read += bytes.size();
@@ -134,6 +138,7 @@ class page {
     bool magic_seen = false;
   } last;
   std::size_t bytes_read = 0;
+  bool acks = true;
 
  private:
   net::io_context ioc_;
@@ -222,10 +227,16 @@ TEST(ViewServer, pause_resume_and_goals_drive_the_engine) {
   EXPECT_TRUE(follow_to_the_end(p, s.eng()));
   EXPECT_EQ(p.last.state.iso_sequence, 1u);
   EXPECT_EQ(p.last.state.splits, 0u);
+  say_and_wait_for_a_run(p, s.eng(), "goal triangles 20000");
+  EXPECT_TRUE(follow_to_the_end(p, s.eng()));
+  EXPECT_LE(p.last.state.triangles, 20000u);
+  EXPECT_GT(p.last.state.triangles, 15000u);
+  const std::uint64_t budgeted = p.last.state.splits;
+  EXPECT_GT(budgeted, 0u);
   say_and_wait_for_a_run(p, s.eng(), "goal error 0.02");
   EXPECT_TRUE(follow_to_the_end(p, s.eng()));
   const std::uint64_t coarse = p.last.state.splits;
-  EXPECT_GT(coarse, 0u);
+  EXPECT_GT(coarse, budgeted);
   say_and_wait_for_a_run(p, s.eng(), "goal error 0");
   EXPECT_TRUE(follow_to_the_end(p, s.eng()));
   EXPECT_GT(p.last.state.splits, coarse);
@@ -235,6 +246,61 @@ TEST(ViewServer, pause_resume_and_goals_drive_the_engine) {
   EXPECT_TRUE(follow_to_the_end(p, s.eng()));
   EXPECT_EQ(p.last.state.isovalue, 0.4);
   EXPECT_GT(p.last.state.splits, 0u);
+}
+
+// The triangles of the page's surface whose centroid lies below x = mid, and the others.
+std::array<std::size_t, 2> halves(const page& p, float mid) {
+  std::array<std::size_t, 2> n{};
+  for (const auto& [t, count] : test::slot_triangles(p.slots, false)) {
+    n[(t[0] + t[3] + t[6]) / 3.0f < mid ? 0 : 1] += static_cast<std::size_t>(count);
+  }
+  return n;
+}
+
+TEST(ViewServer, a_view_refines_what_it_looks_at_and_leaves_the_rest_coarser) {
+  served s(65);  // grid 0 … 64, spacing 1
+  page p(s.port());
+  ASSERT_TRUE(p.next());
+  p.say("pause");
+  const auto until = std::chrono::steady_clock::now() + 10s;
+  while (s.eng().running() && std::chrono::steady_clock::now() < until) {
+    std::this_thread::sleep_for(1ms);
+  }
+  // A camera looking at the centre along x, with one frustum plane: the half it faces.
+  const auto refine_seen_from = [&](const std::string& view, std::uint32_t sequence, double w) {
+    p.say(view);
+    p.say("iso " + std::to_string(w) + " " + std::to_string(sequence));
+    while (p.last.state.iso_sequence != sequence) EXPECT_TRUE(p.next());
+    say_and_wait_for_a_run(p, s.eng(), "goal error 0.1");
+    EXPECT_TRUE(follow_to_the_end(p, s.eng()));
+    return halves(p, 32.0f);
+  };
+  const auto from_right = refine_seen_from("view 232 32 32 32 32 32 1 0 0 -32", 1, 0.31);
+  const auto from_left = refine_seen_from("view -168 32 32 32 32 32 -1 0 0 32", 2, 0.3);
+  ASSERT_GT(from_right[0] + from_right[1], 1000u);
+  EXPECT_GT(from_right[1], 2 * from_right[0]);
+  EXPECT_GT(from_left[0], 2 * from_left[1]);
+  // The same view again does not restart the finished run; another view does (once).
+  const std::uint64_t runs = s.eng().statistics().runs;
+  p.say("view -168 32 32 32 32 32 -1 0 0 32");
+  say_and_wait_for_a_run(p, s.eng(), "view -168 32 32 32 32 32 -1 0 0 31");
+  std::this_thread::sleep_for(50ms);
+  EXPECT_EQ(s.eng().statistics().runs, runs + 1);
+}
+
+TEST(ViewServer, a_page_is_sent_its_next_frame_only_once_it_has_drawn_the_last) {
+  served s(65);
+  page p(s.port());
+  p.acks = false;
+  ASSERT_TRUE(p.next());
+  // However long the engine refines, nothing more comes until the page acknowledges.
+  std::this_thread::sleep_for(300ms);
+  EXPECT_EQ(s.srv().statistics().frames, 1u);
+  EXPECT_GT(s.srv().statistics().skipped, 0u);
+  p.acks = true;
+  p.say("ack");
+  EXPECT_TRUE(follow_to_the_end(p, s.eng()));
+  EXPECT_GT(s.srv().statistics().frames, 1u);
 }
 
 TEST(ViewServer, eight_pages_and_a_stalled_one_each_get_the_latest_cut_and_the_stall_costs_none) {
@@ -378,9 +444,36 @@ TEST(FrameCodec, commands_parse_strictly) {
   EXPECT_TRUE(view::parse_command("iso 0.5 3").has_value());
   EXPECT_EQ(view::parse_command("iso -1e3 4294967295")->sequence, 4294967295u);
   EXPECT_TRUE(view::parse_command("goal deadline 200").has_value());
+  EXPECT_EQ(view::parse_command("ack")->what, view::command::kind::ack);
+  EXPECT_EQ(view::parse_command("goal triangles 5000")->value, 5000.0);
+  const auto v = view::parse_command("view 1 2 3 4 5 6 0 1 0 -2.5 0 0 -1 7");
+  ASSERT_TRUE(v.has_value());
+  EXPECT_EQ(v->plane_count, 2u);
+  EXPECT_EQ(v->target[2], 6.0);
+  EXPECT_EQ(v->planes[0][3], -2.5);
+  EXPECT_EQ(v->planes[1][3], 7.0);
+  EXPECT_TRUE(view::parse_command("view 1 2 3 4 5 6").has_value());
   for (const char* bad :
-       {"iso 0.5", "iso  0.5 3", "iso 0.5 3 ", " pause", "pause ", "Pause", "iso inf 1",
-        "iso 0x1p3 1", "goal error", "goal deadline 1e9", "resume now"}) {
+       {"iso 0.5",
+        "iso  0.5 3",
+        "iso 0.5 3 ",
+        " pause",
+        "pause ",
+        "Pause",
+        "iso inf 1",
+        "iso 0x1p3 1",
+        "goal error",
+        "goal deadline 1e9",
+        "resume now",
+        "view 1 2 3 4 5",
+        "view 1 2 3 4 5 6 1 0 0",
+        "view 1 2 3 4 5 6 0 0 0 1",
+        "view 1 2 3 4 5 nan",
+        "goal triangles 0",
+        "goal triangles -3",
+        "goal triangles 1.5",
+        "goal triangles 2000000000000",
+        "view 0 0 0 0 0 0 1 0 0 0 1 0 0 0 1 0 0 0 1 0 0 0 1 0 0 0 1 0 0 0 1 0 0 0"}) {
     EXPECT_FALSE(view::parse_command(bad).has_value()) << bad;
   }
 }

@@ -21,7 +21,6 @@ namespace {
 engine_options with_threads(unsigned n) {
   engine_options o;
   o.uniform_cuts = false;  // these tests are of split records (uniform_cuts_test.cpp: the passes)
-  o.uniform_cuts = false;  // these tests are of split records (uniform_cuts_test.cpp: the passes)
   o.threads = n;
   return o;
 }
@@ -40,6 +39,19 @@ std::vector<test::position_triangle> inside(const triangle_mesh& m, const box3& 
     if (in) out.push_back(t);
   }
   return out;
+}
+
+// The triangles with some corner where a·x + b·y + c·z + d ≥ 0.
+std::size_t touching(const triangle_mesh& m, const std::array<double, 4>& plane) {
+  std::size_t n = 0;
+  for (const test::position_triangle& t : test::canonical_triangles(m)) {
+    bool any = false;
+    for (const vec3& p : t) {
+      any = any || plane[0] * p[0] + plane[1] * p[1] + plane[2] * p[2] + plane[3] >= 0.0;
+    }
+    n += any ? 1 : 0;
+  }
+  return n;
 }
 
 // A box of half-side r around a vertex of the mesh (a third of the way through its vertices).
@@ -72,6 +84,82 @@ TEST(Focus, EachDiamondsReachLiesInEachParentsReach) {
     }
     EXPECT_GT(pairs, 1000u);
   }
+}
+
+TEST(Focus, AViewsWeightsNeverGrowFromAParentToItsChildren) {
+  // The keys of a view stay nested: distance and frustum alike (the cut stays parent-closed).
+  const hierarchy h(index3{33, 29, 37});
+  const std::array<std::array<double, 4>, 4> frustum{{{1.0, 0.2, 0.0, -12.0},
+                                                      {-0.3, 1.0, 0.1, -4.0},
+                                                      {0.0, -0.5, 1.0, -9.0},
+                                                      {-1.0, 0.0, 0.3, 30.0}}};
+  const refine_goal g = refine_goal::error(0.0).viewed({40.0, 2.0, 18.0}, 1.5, frustum, 0.25);
+  std::size_t pairs = 0;
+  std::size_t out_of_view = 0;
+  for (std::uint64_t i = 0; i < h.vertex_count(); ++i) {
+    const ipoint c = h.point(i);
+    if (!h.is_diamond(c)) continue;
+    const diamond d = h.make_diamond(c);
+    const double wc = focus_weight(*g.focus, c, d.scale, d.type);
+    ASSERT_GT(wc, 0.0);
+    ASSERT_LE(wc, 1.0);
+    std::array<ipoint, 4> parents{};
+    const int n = h.parents(d, parents);
+    for (int k = 0; k < n; ++k) {
+      const diamond p = h.make_diamond(parents[static_cast<std::size_t>(k)]);
+      const double wp = focus_weight(*g.focus, p.centre, p.scale, p.type);
+      ASSERT_LE(wc, wp) << "child " << i;
+      ++pairs;
+      // The frustum culls (a quarter of the distance weight) where a parent is in view.
+      refine_focus seen = *g.focus;
+      seen.plane_count = 0;
+      if (wc < focus_weight(seen, c, d.scale, d.type) &&
+          wp == focus_weight(seen, p.centre, p.scale, p.type))
+        ++out_of_view;
+    }
+  }
+  EXPECT_GT(pairs, 1000u);
+  EXPECT_GT(out_of_view, 10u);
+}
+
+TEST(Focus, AViewSplitsWhatItSeesAsWithoutAFocusAndLessOutOfView) {
+  const volume v = make_gaussian_blobs({48, 44, 40}, 9, 5u);
+  const double w = 0.35;
+  const double eps = 0.002;
+  engine plain(v, w, with_threads(2));
+  plain.refine_until(eps);
+  // Everything at x ≥ 30 in view, weight 1 there (the box is the whole grid); nothing else.
+  const std::array<double, 4> plane{1.0, 0.0, 0.0, -30.0};
+  const std::array<double, 4> far_side{-1.0, 0.0, 0.0, 18.0};  // x ≤ 18
+  refine_goal g = refine_goal::error(eps).focused({0, 0, 0}, {47, 43, 39});
+  g.focus->planes[0] = plane;
+  g.focus->plane_count = 1;
+  g.focus->outside = 0.0;
+  engine viewed(v, w, with_threads(2));
+  ASSERT_TRUE(viewed.refine(g));
+  const triangle_mesh a = plain.snapshot().mesh();
+  const triangle_mesh b = viewed.snapshot().mesh();
+  const auto want = inside(a, {30, 0, 0}, {47, 43, 39});
+  ASSERT_GT(want.size(), 200u);
+  EXPECT_TRUE(want == inside(b, {30, 0, 0}, {47, 43, 39}));
+  // Out of view (reach cubes below x = 30: no finest diamond centred below x = 22) the cut
+  // stays coarser.
+  EXPECT_LT(touching(b, far_side), touching(a, far_side) / 2);
+  EXPECT_GT(touching(a, far_side), 100u);
+  const auto box = test::data_box(v);
+  EXPECT_TRUE(test::check_valid_cut(b, box[0], box[1]));
+  // From an eye: the budget goes to what the frustum holds and is near.
+  const std::array<std::array<double, 4>, 1> half{{plane}};
+  engine budget_plain(v, w, with_threads(2));
+  budget_plain.refine(refine_goal::triangles(a.triangles.size() / 6));
+  engine budget_viewed(v, w, with_threads(2));
+  budget_viewed.refine(
+      refine_goal::triangles(a.triangles.size() / 6).viewed({60.0, 22.0, 20.0}, 2.0, half, 0.1));
+  const triangle_mesh c = budget_plain.snapshot().mesh();
+  const triangle_mesh d = budget_viewed.snapshot().mesh();
+  EXPECT_GT(inside(d, {30, 0, 0}, {47, 43, 39}).size(),
+            2 * inside(c, {30, 0, 0}, {47, 43, 39}).size());
+  EXPECT_TRUE(test::check_valid_cut(d, box[0], box[1]));
 }
 
 TEST(Focus, ErrorTargetInsideTheBoxIsTheUnfocusedOne) {
@@ -144,6 +232,17 @@ TEST(Focus, BadFocusIsRefused) {
   EXPECT_THROW(e.refine(refine_goal::triangles(10).focused({1, 1, 1}, -1.0)), error);
   EXPECT_THROW(e.refine(refine_goal::triangles(10).focused({1, 1, 1}, std::nan(""))), error);
   EXPECT_THROW(check_goal(refine_goal::error(1).focused({0, 0, 0}, {1, std::nan(""), 1})), error);
+  const std::array<std::array<double, 4>, 1> good{{{1.0, 0.0, 0.0, -2.0}}};
+  const std::array<std::array<double, 4>, 1> no_normal{{{0.0, 0.0, 0.0, 1.0}}};
+  const std::array<std::array<double, 4>, 1> not_finite{{{1.0, std::nan(""), 0.0, 1.0}}};
+  const std::array<std::array<double, 4>, 7> seven{};
+  EXPECT_NO_THROW(check_goal(refine_goal::error(1).viewed({1, 1, 1}, 1.0, good, 0.5)));
+  EXPECT_THROW(check_goal(refine_goal::error(1).viewed({1, 1, 1}, 1.0, good, 1.5)), error);
+  EXPECT_THROW(check_goal(refine_goal::error(1).viewed({1, 1, 1}, 1.0, good, -0.1)), error);
+  EXPECT_THROW(check_goal(refine_goal::error(1).viewed({1, 1, 1}, 1.0, no_normal, 0.5)), error);
+  EXPECT_THROW(check_goal(refine_goal::error(1).viewed({1, 1, 1}, 1.0, not_finite, 0.5)), error);
+  EXPECT_THROW((void)refine_goal::error(1).viewed({1, 1, 1}, 1.0, seven, 0.5), error);
+  EXPECT_THROW(e.refine(refine_goal::triangles(10).viewed({1, 1, 1}, 1.0, good, 2.0)), error);
 }
 
 }  // namespace

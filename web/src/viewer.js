@@ -11,7 +11,16 @@ const statusLine = document.getElementById('status');
 const slider = document.getElementById('iso');
 const isoText = document.getElementById('isoText');
 
-const renderer = new THREE.WebGLRenderer({ canvas, antialias: true, preserveDrawingBuffer: true });
+// A software rasteriser (SwiftShader, llvmpipe) spends most of a frame on multisampling: without
+// a GPU the page draws without it.
+function softwareRenderer() {
+  const gl = document.createElement('canvas').getContext('webgl2');
+  const info = gl && gl.getExtension('WEBGL_debug_renderer_info');
+  const name = info ? String(gl.getParameter(info.UNMASKED_RENDERER_WEBGL)) : '';
+  gl?.getExtension('WEBGL_lose_context')?.loseContext();
+  return /swiftshader|llvmpipe|softpipe|software/i.test(name);
+}
+const renderer = new THREE.WebGLRenderer({ canvas, antialias: !softwareRenderer(), preserveDrawingBuffer: true });
 renderer.setPixelRatio(window.devicePixelRatio);
 const scene = new THREE.Scene();
 scene.background = new THREE.Color(0x15181d);
@@ -102,6 +111,7 @@ class Slots {
     if (hi >= lo) this.upload(lo, hi);
   }
   upload(lo, hi) {
+    dirty = true;
     for (const attr of [this.positions, this.normals]) {
       attr.clearUpdateRanges();
       attr.addUpdateRange(lo * 9, (hi - lo + 1) * 9);
@@ -118,7 +128,7 @@ class Slots {
 // simply goes; a rebuilt frame (a new isovalue) and frames of more than MORPH_MAX_PIECES pieces
 // (a change too large to animate smoothly) appear at once.
 const MORPH_MS = 250;
-const MORPH_MAX_PIECES = 20000;
+const MORPH_MAX_PIECES = 4096;
 const morphs = [];
 
 // The removed triangles, hashed by cell, for closest-point queries.
@@ -234,22 +244,26 @@ function decode(buffer) {
 // What tests and the status line read.
 const state = window.progiso = {
   frames: 0, bytes: 0, isovalue: NaN, splits: 0, triangles: 0, nextError: 0, running: false,
-  fps: 0, sequence: 0, latencies: [], arrivals: [], connected: false, morphing: 0, morphed: 0, morphReach: 0,
+  fps: 0, sequence: 0, latencies: [], arrivals: [], connected: false, morphing: 0, morphed: 0, morphReach: 0, views: 0, budget: 0,
 };
 const sentAt = new Map();  // iso request sequence -> time sent
 const pendingLatency = [];  // send times of requests answered by a frame not yet drawn
 let sequence = 0;
 let framed = 0;
+// A frame applied and not yet drawn: the server sends the next once the page says "ack" after
+// drawing, so frames never queue up in the socket or the browser when drawing is the slow part.
+let unacknowledged = false;
 let ws;
 
 function connect() {
   ws = new WebSocket(`ws://${location.host}/ws`);
   ws.binaryType = 'arraybuffer';
-  ws.onopen = () => { state.connected = true; };
+  ws.onopen = () => { state.connected = true; fitBudget = 0; fitDisplay(); };
   ws.onclose = () => { state.connected = false; statusLine.textContent = 'disconnected'; };
   ws.onmessage = (event) => {
     const f = decode(event.data);
     slots.apply(f);
+    unacknowledged = true;
     state.frames += 1; state.bytes += f.bytes;
     state.isovalue = f.isovalue; state.splits = f.splits; state.triangles = f.triangles;
     state.nextError = f.nextError; state.running = f.running; state.shown = slots.liveTriangles();
@@ -282,9 +296,33 @@ function frame() {
   camera.near = s.radius / 100; camera.far = s.radius * 100;
   camera.updateProjectionMatrix();
   controls.update();
+  viewChanged();
 }
 
 function send(text) { if (ws && ws.readyState === WebSocket.OPEN) ws.send(text); }
+
+// View-dependent refinement: the camera goes to the server (eye, orbit target, the frustum's four
+// side planes, physical coordinates), at most every VIEW_MS while it moves and once when it
+// stops; the server refines first where it looks (apps/progiso/view/view_server.hpp).
+const VIEW_MS = 100;
+let viewSentAt = -Infinity, viewTimer = null, lastView = '';
+const frustum = new THREE.Frustum(), viewProjection = new THREE.Matrix4();
+function sendView() {
+  viewSentAt = performance.now();
+  camera.updateMatrixWorld();
+  frustum.setFromProjectionMatrix(viewProjection.multiplyMatrices(camera.projectionMatrix, camera.matrixWorldInverse));
+  const words = [...camera.position.toArray(), ...controls.target.toArray()];
+  for (let k = 0; k < 4; ++k) words.push(...frustum.planes[k].normal.toArray(), frustum.planes[k].constant);
+  if (!words.every(Number.isFinite)) return;
+  const text = 'view ' + words.map((x) => String(Number(x.toPrecision(7)))).join(' ');
+  if (text !== lastView && ws && ws.readyState === WebSocket.OPEN) { lastView = text; ws.send(text); state.views += 1; }
+}
+function viewChanged() {
+  const wait = VIEW_MS - (performance.now() - viewSentAt);
+  if (wait <= 0) sendView();
+  else if (!viewTimer) viewTimer = setTimeout(() => { viewTimer = null; sendView(); }, wait);
+}
+controls.addEventListener('change', () => { dirty = true; viewChanged(); });
 
 function setIso(w) {
   sequence += 1;
@@ -303,8 +341,41 @@ document.getElementById('pause').addEventListener('click', (e) => {
 document.getElementById('goal').addEventListener('click', () => {
   const kind = document.getElementById('goalKind').value;
   const value = Number(document.getElementById('goalValue').value) || 0;
-  send(kind === 'full' ? 'goal full' : `goal ${kind} ${value}`);
+  fitting = kind === 'fit';
+  if (fitting) { fitBudget = 0; fitDisplay(); return; }
+  send(kind === 'full' ? 'goal full' : kind === 'triangles' ? `goal triangles ${Math.max(1, Math.round(value))}` : `goal ${kind} ${value}`);
 });
+
+// Fit the display (the default goal): the paper's time-critical scenario from the display's
+// side. The page asks for a cut of at most K triangles, K what it draws in FIT_MS at the rate it
+// measures, so it keeps its frame rate on any GPU or on none; the server spends K where the
+// camera looks (its view). The rate: triangles in the draw range per millisecond of animation
+// frames, over each second (the time a draw call takes says nothing when the GPU runs behind;
+// the time between frames does). Held at the display's refresh rate, the rate understates what
+// it could draw, so K grows by half a second until frames slow. K moves when it is off by more
+// than a quarter; the engine only refines, so a smaller K caps what a new isovalue refines to.
+const FIT_MS = 25, FIT_FIRST = 50000, FIT_MIN = 20000;
+let fitting = true, fitBudget = 0, drawRate = 0, drawnSum = 0, drawTime = 0, lastDrawn = 0;
+// Called after each draw with the time the previous animation frame drew (0: it did not).
+function measureDraw(now, previous) {
+  if (!previous) return;  // the page draws on demand: only back-to-back draws time a draw
+  drawnSum += slots.count;
+  drawTime += now - previous;
+  if (drawTime >= 1000) {
+    drawRate = drawnSum / drawTime;
+    drawnSum = 0;
+    drawTime = 0;
+  }
+}
+function fitDisplay() {
+  if (!fitting) return;
+  const k = drawRate ? Math.max(FIT_MIN, Math.round(drawRate * FIT_MS)) : FIT_FIRST;
+  if (fitBudget && Math.abs(k - fitBudget) <= 0.25 * fitBudget) return;
+  fitBudget = k;
+  send(`goal triangles ${k}`);
+  state.budget = k;
+}
+setInterval(fitDisplay, 1000);
 document.getElementById('save').addEventListener('click', () => {
   // The cut on screen: the live slots as an indexed-by-order mesh, written by three's exporter.
   const n = slots.count * 9;
@@ -333,22 +404,37 @@ function resize() {
     renderer.setSize(w, h, false);
     camera.aspect = w / Math.max(1, h);
     camera.updateProjectionMatrix();
+    dirty = true;
+    viewChanged();
   }
 }
+// Drawn on demand: when a frame changed the surface, a geomorph moved, or the camera or the
+// canvas changed. An idle page leaves the cores to the engine (and to a software rasteriser).
+let dirty = true;
 function loop(now) {
   resize();
   glide(performance.now());
-  light.position.copy(camera.position);
   controls.update();
-  renderer.render(scene, camera);
-  const drawn = performance.now();
-  while (pendingLatency.length) state.latencies.push(drawn - pendingLatency.pop());
-  count += 1;
+  if (dirty) {
+    dirty = false;
+    light.position.copy(camera.position);
+    renderer.render(scene, camera);
+    const drawn = performance.now();
+    measureDraw(drawn, lastDrawn);
+    lastDrawn = drawn;
+    while (pendingLatency.length) state.latencies.push(drawn - pendingLatency.pop());
+    count += 1;
+  } else {
+    lastDrawn = 0;
+  }
+  // Acknowledged once drawn (a frame that changed nothing on screen left nothing to draw).
+  if (unacknowledged) { unacknowledged = false; send('ack'); }
   if (now - last >= 1000) { state.fps = count * 1000 / (now - last); count = 0; last = now; }
   if (state.connected) {
     statusLine.textContent =
       `isovalue ${state.isovalue.toPrecision(6)} · splits ${state.splits} · triangles ${state.triangles}` +
       ` · next error ${state.nextError.toPrecision(3)} · ${state.fps.toFixed(0)} fps` +
+      (fitting ? ` · fit ${state.budget}` : '') +
       ` · ${state.running ? 'refining' : 'idle'} · ${(state.bytes / 1048576).toFixed(1)} MiB received`;
   }
   requestAnimationFrame(loop);

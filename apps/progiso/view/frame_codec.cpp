@@ -118,6 +118,10 @@ std::optional<command> parse_command(std::string_view text) {
     c.what = command::kind::pause;
     return c;
   }
+  if (w.size() == 1 && w[0] == "ack") {
+    c.what = command::kind::ack;
+    return c;
+  }
   if (w.size() == 1 && w[0] == "resume") {
     c.what = command::kind::resume;
     return c;
@@ -136,11 +140,40 @@ std::optional<command> parse_command(std::string_view text) {
     c.what = command::kind::goal_full;
     return c;
   }
+  if (w.size() == 3 && w[0] == "goal" && w[1] == "triangles") {
+    std::uint64_t k = 0;
+    const auto r = std::from_chars(w[2].data(), w[2].data() + w[2].size(), k);
+    if (r.ec != std::errc{} || r.ptr != w[2].data() + w[2].size() || k == 0 ||
+        k > (std::uint64_t{1} << 40)) {
+      return {};
+    }
+    c.what = command::kind::goal_triangles;
+    c.value = static_cast<double>(k);
+    return c;
+  }
   if (w.size() == 3 && w[0] == "goal" && (w[1] == "error" || w[1] == "deadline")) {
     const auto v = finite_number(w[2]);
     if (!v || *v < 0.0 || (w[1] == "deadline" && *v > 3.6e6)) return {};
     c.what = w[1] == "error" ? command::kind::goal_error : command::kind::goal_deadline;
     c.value = *v;
+    return c;
+  }
+  if (w.size() >= 7 && w[0] == "view" && (w.size() - 7) % 4 == 0 && (w.size() - 7) / 4 <= 6) {
+    std::array<double, 3 + 3 + 24> v{};
+    for (std::size_t i = 1; i < w.size(); ++i) {
+      const auto x = finite_number(w[i]);
+      if (!x) return {};
+      v[i - 1] = *x;
+    }
+    c.what = command::kind::view;
+    c.eye = {v[0], v[1], v[2]};
+    c.target = {v[3], v[4], v[5]};
+    c.plane_count = static_cast<std::uint32_t>((w.size() - 7) / 4);
+    for (std::uint32_t k = 0; k < c.plane_count; ++k) {
+      std::array<double, 4>& p = c.planes[k];
+      for (std::size_t q = 0; q < 4; ++q) p[q] = v[6 + 4 * k + q];
+      if (p[0] == 0.0 && p[1] == 0.0 && p[2] == 0.0) return {};
+    }
     return c;
   }
   return {};

@@ -21,12 +21,19 @@
 //   …       f32[9A]    normals, when flag 2
 //
 // Page to server: short text commands, one per message (at most max_command_bytes):
-//   "iso W SEQ"         move the isovalue to W (finite), SEQ a u32 the frames echo back
+//   "iso W SEQ"         move the isovalue to W (finite), SEQ a u32 the frames echo back; it
+//                       acknowledges too (the new isovalue's frame does not wait for a draw)
+//   "ack"               the page has drawn the last frame it was sent: the server sends the
+//                       next only then, so a page holds at most one frame it has not drawn
 //   "pause", "resume"   cancel the run / start the goal again
-//   "goal full" | "goal error E" | "goal deadline MS"
+//   "goal full" | "goal error E" | "goal deadline MS" | "goal triangles K" (1 ≤ K ≤ 2^40)
+//   "view EX EY EZ TX TY TZ [A B C D]…"   the camera: eye, the point it orbits, and 0 to 6
+//                       frustum planes A·x + B·y + C·z + D ≥ 0 inside (physical coordinates);
+//                       refinement goes first where it looks (server.hpp)
 // Anything else is malformed: the server closes that connection.
 #pragma once
 
+#include <array>
 #include <cstddef>
 #include <cstdint>
 #include <optional>
@@ -40,7 +47,7 @@ namespace progiso::view {
 
 inline constexpr std::uint32_t frame_magic = 0x31564750u;
 inline constexpr std::size_t frame_header_bytes = 64;
-inline constexpr std::size_t max_command_bytes = 256;
+inline constexpr std::size_t max_command_bytes = 1024;
 
 /// The cut a frame brings the page to.
 struct frame_state {
@@ -73,10 +80,26 @@ struct decoded_frame {
 
 /// A page's command.
 struct command {
-  enum class kind { iso, pause, resume, goal_full, goal_error, goal_deadline };
+  enum class kind {
+    iso,
+    ack,
+    pause,
+    resume,
+    goal_full,
+    goal_error,
+    goal_deadline,
+    goal_triangles,
+    view
+  };
   kind what = kind::pause;
-  double value = 0.0;          // iso: the isovalue; goal_error: E; goal_deadline: milliseconds
+  double value =
+      0.0;  // iso: the isovalue; goal_error: E; goal_deadline: milliseconds; goal_triangles: K
   std::uint32_t sequence = 0;  // iso
+  // view: physical coordinates; planes with a non-zero normal
+  std::array<double, 3> eye{};
+  std::array<double, 3> target{};
+  std::array<std::array<double, 4>, 6> planes{};
+  std::uint32_t plane_count = 0;
 };
 /// Parses one command (see the file comment); nullopt for anything malformed.
 [[nodiscard]] std::optional<command> parse_command(std::string_view text);

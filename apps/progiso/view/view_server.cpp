@@ -1,6 +1,7 @@
 #include "view_server.hpp"
 
 #include <algorithm>
+#include <cmath>
 #include <condition_variable>
 #include <mutex>
 #include <optional>
@@ -53,8 +54,12 @@ struct server::impl {
   std::mutex wake_mutex;
   std::condition_variable wake;
   bool woken = false;
-  std::mutex control;  // the goal and the paused flag, with the engine calls they go with
+  std::mutex control;  // the goal, the view and the paused flag, with the engine calls they go with
   bool paused = false;
+  std::optional<command> view;  // the last page's camera
+
+  /// The goal with the view's focus (under `control`).
+  refine_goal viewed_goal() const;
   // Counters: relaxed, each exact at some moment.
   std::atomic<std::uint64_t> page_count{0};
   std::atomic<std::uint64_t> frames{0};
@@ -103,6 +108,10 @@ class page_session : public std::enable_shared_from_this<page_session> {
   /// write's handler with release, which the frame thread's acquire load pairs with, so the
   /// frame thread sees the session's buffer released before it hands over the next frame.
   std::atomic<bool> busy{false};
+  /// A frame was sent that the page has not acknowledged ("ack": drawn). Set by the frame
+  /// thread as it sends, cleared by the page's ack. Relaxed: no data hangs on it (the write's
+  /// buffer is guarded by `busy`), and a stale read only delays the next frame by one round.
+  std::atomic<bool> unacknowledged{false};
   /// The sequence number of this page's last isovalue request, stored with release once the
   /// engine has published the new isovalue's surface; the frame thread's acquire load, taken
   /// before its snapshot, then guarantees the snapshot is of that isovalue or a later one.
@@ -287,19 +296,55 @@ void server::impl::accept() {
   });
 }
 
+refine_goal server::impl::viewed_goal() const {
+  if (!view || goal.what == refine_goal::kind::full) return goal;
+  // Physical to grid coordinates: x = origin + g × spacing, so a plane n·x + d ≥ 0 is
+  // (n × spacing)·g + (n·origin + d) ≥ 0.
+  std::array<double, 3> eye{};
+  double target_distance2 = 0.0;
+  for (std::size_t q = 0; q < 3; ++q) {
+    eye[q] = (view->eye[q] - opt.origin[q]) / opt.spacing[q];
+    const double t = (view->target[q] - view->eye[q]) / opt.spacing[q];
+    target_distance2 += t * t;
+  }
+  std::array<std::array<double, 4>, 6> planes{};
+  for (std::uint32_t k = 0; k < view->plane_count; ++k) {
+    const std::array<double, 4>& p = view->planes[k];
+    planes[k] = {p[0] * opt.spacing[0], p[1] * opt.spacing[1], p[2] * opt.spacing[2],
+                 p[0] * opt.origin[0] + p[1] * opt.origin[1] + p[2] * opt.origin[2] + p[3]};
+  }
+  refine_goal g = goal;
+  if (g.what == refine_goal::kind::error) {
+    g.max_error *= opt.view_falloff / (opt.view_falloff + std::sqrt(target_distance2));
+  }
+  return g.viewed(eye, opt.view_falloff,
+                  std::span<const std::array<double, 4>>(planes.data(), view->plane_count),
+                  opt.view_outside);
+}
+
 void server::impl::apply(const command& c, page_session& from) {
   std::lock_guard lock(control);
   try {
     switch (c.what) {
       case command::kind::iso:
-        eng.set_isovalue(c.value);
-        // set_isovalue resumes a run it interrupted; a finished one is started again.
-        if (!paused && !eng.running()) eng.start(goal);
-        // Partner: the frame thread's acquire load, before its snapshot.
+        eng.set_isovalue(c.value);  // publishes the new isovalue's root surface
+        // The frame thread sends that surface now, while a finished run is started again below
+        // (set_isovalue resumes a run it interrupted). Partner: the frame thread's acquire load,
+        // before its snapshot.
         from.requested_sequence.store(c.sequence, std::memory_order_release);
+        from.unacknowledged.store(false, std::memory_order_relaxed);  // the new isovalue: now
         {
           std::lock_guard w(wake_mutex);
           woken = true;
+        }
+        wake.notify_one();
+        if (!paused && !eng.running()) eng.start(viewed_goal());
+        break;
+      case command::kind::ack:
+        from.unacknowledged.store(false, std::memory_order_relaxed);
+        {
+          std::lock_guard w(wake_mutex);
+          woken = true;  // the page is ready for what is newest now
         }
         wake.notify_one();
         break;
@@ -309,17 +354,37 @@ void server::impl::apply(const command& c, page_session& from) {
         break;
       case command::kind::resume:
         paused = false;
-        eng.start(goal);
+        eng.start(viewed_goal());
         break;
+      case command::kind::view: {
+        const refine_goal before = viewed_goal();
+        const std::optional<command> previous = view;
+        view = c;
+        refine_goal after;
+        try {
+          after = viewed_goal();
+          check_goal(after);
+        } catch (const error&) {
+          view = previous;  // a view the engine would refuse (coordinates overflowing): dropped
+          throw;
+        }
+        // A new focus re-keys the queue; a run towards the same goal goes on undisturbed.
+        if (!paused && !(before.focus == after.focus && before.max_error == after.max_error)) {
+          eng.start(after);
+        }
+        break;
+      }
       case command::kind::goal_full:
       case command::kind::goal_error:
       case command::kind::goal_deadline:
-        goal = c.what == command::kind::goal_full ? refine_goal::full()
-               : c.what == command::kind::goal_error
-                   ? refine_goal::error(c.value)
+      case command::kind::goal_triangles:
+        goal = c.what == command::kind::goal_full    ? refine_goal::full()
+               : c.what == command::kind::goal_error ? refine_goal::error(c.value)
+               : c.what == command::kind::goal_triangles
+                   ? refine_goal::triangles(static_cast<std::uint64_t>(c.value))
                    : refine_goal::within(std::chrono::duration<double>(c.value / 1000.0));
         paused = false;
-        eng.start(goal);
+        eng.start(viewed_goal());
         break;
     }
   } catch (const error&) {
@@ -375,7 +440,8 @@ void server::impl::frame_loop() {
     for (std::size_t i = 0; i < live.size(); ++i) {
       page_session& p = *live[i];
       // Partner: the release store in the write's handler.
-      if (p.busy.load(std::memory_order_acquire)) {
+      if (p.busy.load(std::memory_order_acquire) ||
+          p.unacknowledged.load(std::memory_order_relaxed)) {
         if (!same_mark(p.mark, now)) skipped.fetch_add(1, std::memory_order_relaxed);
         continue;
       }
@@ -405,6 +471,7 @@ void server::impl::frame_loop() {
       frame_bytes.fetch_add(frame->size(), std::memory_order_relaxed);
       // Relaxed: only this thread sets it; the handler's release store clears it.
       p.busy.store(true, std::memory_order_relaxed);
+      p.unacknowledged.store(true, std::memory_order_relaxed);
       p.send(std::move(frame));
     }
   }

@@ -3,10 +3,18 @@
 //
 // Threads. One I/O thread runs every connection (Boost.Asio, each connection on a strand of its
 // own); one frame thread takes the engine's snapshots (a snapshot stays on the thread that took
-// it) and, for every page not busy sending, encodes the change from the cut that page holds to
-// the newest and starts its write. A page busy with a write is skipped: when it is done it gets
-// the change to whatever is newest then, so a slow page skips versions instead of queueing them,
-// holds at most one frame in memory, and never delays the engine or another page.
+// it) and, for every page ready, encodes the change from the cut that page holds to the newest
+// and starts its write. A page is ready once its last write is done and it has acknowledged
+// (drawn) its last frame; until then it is skipped, and then gets the change to whatever is
+// newest. So a slow page, slow on the wire or slow to draw, skips versions instead of queueing
+// them (in the server, the socket or the browser), holds at most one frame, and never delays the
+// engine or another page.
+//
+// The view. A page sends its camera (frame_codec.hpp, "view"); the engine's goal then carries it
+// as a focus (refine_goal::viewed(): screen-space error, culled to the frustum) and the run is
+// restarted so its queue is keyed for the new view: refinement goes first where the camera looks
+// and, for an error, budget or deadline goal, the cut stays coarser out of view. The last view
+// received wins (pages share one engine). A full goal ignores views.
 //
 // Hostile clients. Requests: GET or HEAD of the page's own files only (a fixed table; no path
 // reaches the file system), headers of at most 8 KiB, no body. WebSockets: an Origin other than
@@ -14,6 +22,7 @@
 // that does not parse closes that connection. Timeouts close idle HTTP connections.
 #pragma once
 
+#include <array>
 #include <atomic>
 #include <chrono>
 #include <cstddef>
@@ -46,6 +55,15 @@ struct server_options {
   /// The error of the engine's next split, for the status line (from its progress hook); empty:
   /// 0.
   std::function<double()> next_error;
+  /// The field's grid: physical = origin + index × spacing (a page's camera is physical).
+  std::array<double, 3> spacing{1.0, 1.0, 1.0};
+  std::array<double, 3> origin{0.0, 0.0, 0.0};
+  /// A page's view weights each diamond's error by falloff / (falloff + d), d its distance from
+  /// the eye in grid units (screen-space error), and out of its frustum by `view_outside`
+  /// (refine_focus). An error goal E then means E where the camera orbits: the target there is
+  /// scaled by the weight at that distance.
+  double view_falloff = 1.0;
+  double view_outside = 0.25;
 };
 
 /// Counters, readable from any thread.

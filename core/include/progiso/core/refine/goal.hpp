@@ -16,6 +16,7 @@
 #include <cmath>
 #include <cstdint>
 #include <optional>
+#include <span>
 #include <string>
 
 #include <progiso/core/base/config.hpp>
@@ -35,10 +36,21 @@ namespace progiso {
 /// split everything), and an error target in any order is taken by priority. The 3D engine
 /// honours it (scheduler/engine.hpp); core's sequential extract_isosurface() and the 2D paths
 /// ignore it.
+///
+/// A view adds its frustum: planes a·x + b·y + c·z + d ≥ 0 (grid coordinates) that the part of
+/// the box on screen lies inside. A diamond whose reach lies wholly outside one of them is out of
+/// view, and its weight is multiplied by `outside` (0: never split for this focus). Out of view
+/// is nested too (a child's reach lies in its parent's, so a parent out of view has its children
+/// out of view), so the cut stays closed under parents. With the eye as the point and a falloff
+/// small beside the distances, error × weight is the error over the distance to the eye, the
+/// screen-space error of a diamond hierarchy (Gregorski et al. 2002), culled to the frustum.
 struct refine_focus {
   std::array<double, 3> lo{};
   std::array<double, 3> hi{};
-  double falloff = 0.0;  ///< grid units, non-negative
+  double falloff = 0.0;                           ///< grid units, non-negative
+  std::array<std::array<double, 4>, 6> planes{};  ///< the first plane_count are the frustum's
+  std::uint32_t plane_count = 0;                  ///< at most 6
+  double outside = 1.0;                           ///< weight factor out of view, in [0, 1]
   friend bool operator==(const refine_focus&, const refine_focus&) = default;
 };
 
@@ -62,9 +74,19 @@ struct refine_focus {
     const double gap = lo > f.hi[q] ? lo - f.hi[q] : (hi < f.lo[q] ? f.lo[q] - hi : 0.0);
     d2 += gap * gap;
   }
-  if (d2 == 0.0) return 1.0;
-  if (f.falloff <= 0.0) return 0.0;
-  return f.falloff / (f.falloff + std::sqrt(d2));
+  double w = 1.0;
+  if (d2 != 0.0) {
+    if (f.falloff <= 0.0) return 0.0;
+    w = f.falloff / (f.falloff + std::sqrt(d2));
+  }
+  for (std::uint32_t k = 0; k < f.plane_count && k < f.planes.size(); ++k) {
+    const std::array<double, 4>& p = f.planes[k];
+    // The reach cube's corner farthest along the plane's normal: below the plane, all is.
+    const double farthest = p[0] * c[0] + p[1] * c[1] + p[2] * c[2] + p[3] +
+                            r * (std::abs(p[0]) + std::abs(p[1]) + std::abs(p[2]));
+    if (farthest < 0.0) return w * f.outside;
+  }
+  return w;
 }
 
 struct refine_goal {
@@ -116,6 +138,18 @@ struct refine_goal {
   [[nodiscard]] refine_goal focused(const std::array<double, 3>& point, double falloff) const {
     return focused(point, point, falloff);
   }
+  /// … or as a view sees it: around the eye, and `outside` times as much out of the frustum
+  /// (at most six planes, grid coordinates; see refine_focus).
+  [[nodiscard]] refine_goal viewed(const std::array<double, 3>& eye, double falloff,
+                                   std::span<const std::array<double, 4>> frustum,
+                                   double outside) const {
+    if (frustum.size() > 6) throw progiso::error("focus: expected at most 6 frustum planes");
+    refine_goal g = focused(eye, falloff);
+    for (std::size_t k = 0; k < frustum.size(); ++k) g.focus->planes[k] = frustum[k];
+    g.focus->plane_count = static_cast<std::uint32_t>(frustum.size());
+    g.focus->outside = outside;
+    return g;
+  }
 };
 
 /// Throws progiso::error for a goal no run can take: an error target that is negative or NaN.
@@ -134,6 +168,21 @@ inline void check_goal(const refine_goal& goal) {
     if (!(f.falloff >= 0.0) || !std::isfinite(f.falloff)) {
       throw error("focus: expected a finite non-negative falloff, found " +
                   std::to_string(f.falloff));
+    }
+    if (f.plane_count > f.planes.size()) {
+      throw error("focus: expected at most 6 frustum planes, found " +
+                  std::to_string(f.plane_count));
+    }
+    for (std::uint32_t k = 0; k < f.plane_count; ++k) {
+      const std::array<double, 4>& p = f.planes[k];
+      if (!std::isfinite(p[0]) || !std::isfinite(p[1]) || !std::isfinite(p[2]) ||
+          !std::isfinite(p[3]) || (p[0] == 0.0 && p[1] == 0.0 && p[2] == 0.0)) {
+        throw error("focus: expected frustum planes of finite coefficients and a normal");
+      }
+    }
+    if (!(f.outside >= 0.0 && f.outside <= 1.0)) {
+      throw error("focus: expected an out-of-view factor in [0, 1], found " +
+                  std::to_string(f.outside));
     }
   }
 }
