@@ -211,15 +211,20 @@ void say_and_wait_for_a_run(page& p, engine& eng, const std::string& text) {
   EXPECT_GT(eng.statistics().runs, runs) << text;
 }
 
+// Pauses the run and waits until the engine is quiet.
+void pause_and_wait(page& p, engine& eng) {
+  p.say("pause");
+  const auto until = std::chrono::steady_clock::now() + 10s;
+  while (eng.running() && std::chrono::steady_clock::now() < until) {
+    std::this_thread::sleep_for(1ms);
+  }
+}
+
 TEST(ViewServer, pause_resume_and_goals_drive_the_engine) {
   served s(65);
   page p(s.port());
   ASSERT_TRUE(p.next());
-  p.say("pause");
-  const auto until = std::chrono::steady_clock::now() + 10s;
-  while (s.eng().running() && std::chrono::steady_clock::now() < until) {
-    std::this_thread::sleep_for(1ms);
-  }
+  pause_and_wait(p, s.eng());
   EXPECT_FALSE(s.eng().running());
   // Paused, a new isovalue shows its root surface and refines nothing.
   p.say("iso 0.31 1");
@@ -261,11 +266,7 @@ TEST(ViewServer, a_view_refines_what_it_looks_at_and_leaves_the_rest_coarser) {
   served s(65);  // grid 0 … 64, spacing 1
   page p(s.port());
   ASSERT_TRUE(p.next());
-  p.say("pause");
-  const auto until = std::chrono::steady_clock::now() + 10s;
-  while (s.eng().running() && std::chrono::steady_clock::now() < until) {
-    std::this_thread::sleep_for(1ms);
-  }
+  pause_and_wait(p, s.eng());
   // A camera looking at the centre along x, with one frustum plane: the half it faces.
   const auto refine_seen_from = [&](const std::string& view, std::uint32_t sequence, double w) {
     p.say(view);
