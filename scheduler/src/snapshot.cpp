@@ -2,6 +2,8 @@
 
 #include "engine_impl.hpp"
 
+#include <algorithm>
+
 #include <progiso/core/surface/detail/cut_mesher.hpp>
 
 namespace progiso {
@@ -16,6 +18,11 @@ std::uint64_t surface_snapshot::triangle_count() const noexcept {
 }
 
 std::int32_t surface_snapshot::uniform_stride() const noexcept { return root_->base_stride; }
+
+void surface_snapshot::truncate(std::uint64_t records) noexcept {
+  if (root_ == nullptr || root_->base_stride > 0) return;
+  published_ = std::clamp<std::uint64_t>(records, 1, published_);
+}
 
 bool surface_snapshot::is_split(std::uint64_t index) const noexcept {
   if (root_->base_stride > 0) {

@@ -195,8 +195,32 @@ TEST(ViewServer, an_isovalue_request_is_answered_by_a_frame_of_the_new_isovalue)
   } while (f.state.iso_sequence != 7);
   EXPECT_EQ(f.state.isovalue, 0.31);
   EXPECT_TRUE(f.rebuilt);
+  EXPECT_EQ(f.state.splits, 0u);  // the new isovalue's root surface first, however far it went
   EXPECT_TRUE(follow_to_the_end(p, s.eng()));
   EXPECT_EQ(s.eng().isovalue(), 0.31);
+}
+
+TEST(ViewServer, a_page_far_behind_catches_up_by_valid_cuts_of_bounded_size) {
+  served s(65);
+  s.eng().wait();  // the whole refinement is done before the page asks
+  page p(s.port());
+  view::decoded_frame f;
+  std::uint64_t frames = 0;
+  std::uint64_t splits = 0;
+  do {
+    ASSERT_TRUE(p.next(&f));
+    ++frames;
+    EXPECT_LE(f.state.splits - splits, view::server_options{}.max_frame_records);
+    splits = f.state.splits;
+    // What the page holds is the engine's cut of that many records (a prefix: a valid cut).
+    surface_snapshot prefix = s.eng().snapshot();
+    prefix.truncate(f.state.splits + 1);
+    render_buffers b;
+    prefix.mesh_into(b, vertex_normals::gradient);
+    ASSERT_EQ(test::slot_triangles(p.slots, true), test::buffer_triangles(b, true)) << splits;
+  } while (f.state.running);
+  EXPECT_EQ(splits, s.eng().snapshot().split_count());
+  EXPECT_GT(frames, 3u);
 }
 
 // Says `text` and waits until the engine has started a run since (the command is applied on

@@ -15,6 +15,7 @@
 
 #include <gtest/gtest.h>
 
+#include "support/mesh_checks.hpp"
 #include "support/render_checks.hpp"
 
 namespace progiso {
@@ -74,7 +75,6 @@ std::vector<refine_goal> budget_steps(std::uint64_t first, std::uint64_t last) {
 engine_options with_threads(unsigned n) {
   engine_options o;
   o.uniform_cuts = false;  // these tests are of split records (uniform_cuts_test.cpp: the passes)
-  o.uniform_cuts = false;  // these tests are of split records (uniform_cuts_test.cpp: the passes)
   o.threads = n;
   return o;
 }
@@ -110,6 +110,43 @@ TEST(SurfaceChange, clipped_pieces_hidden_triangles_and_normals_follow_on_padded
   }
   EXPECT_GT(seen.shared, 0U) << "no triangle was clipped into pieces: the test shows nothing";
   EXPECT_GT(seen.hidden_then_gone, 0U) << "no hidden triangle was removed later";
+}
+
+TEST(SurfaceChange, every_prefix_of_the_publication_order_is_a_valid_cut_and_prefixes_chain) {
+  // Two threads publish records as they finish; every prefix is still a cut (a record comes
+  // after its parents'), so a renderer may catch up by prefixes (truncate()).
+  const volume v = make_gaussian_blobs({33, 31, 35}, 6, 9u);
+  engine e(v, 0.35, with_threads(2));
+  e.refine_full();
+  const std::uint64_t records = e.snapshot().mark().records;
+  ASSERT_GT(records, 2000u);
+  const auto box = test::data_box(v);
+  render_slots slots;
+  surface_change change;
+  cut_mark mark;
+  render_buffers whole;
+  std::vector<std::uint64_t> prefixes{1, 2, 3};
+  for (std::uint64_t k = 5; k < records; k = k * 3 / 2) prefixes.push_back(k);
+  prefixes.push_back(records);
+  for (const std::uint64_t k : prefixes) {
+    surface_snapshot s = e.snapshot();
+    s.truncate(k);
+    ASSERT_EQ(s.mark().records, k);
+    ASSERT_EQ(s.split_count(), k - 1);
+    const triangle_mesh m = s.mesh();
+    EXPECT_TRUE(test::check_valid_cut(m, box[0], box[1])) << "prefix " << k;
+    s.change_since(mark, change, vertex_normals::gradient);
+    slots.apply(change);
+    mark = s.mark();
+    s.mesh_into(whole, vertex_normals::gradient);
+    EXPECT_EQ(slot_triangles(slots, true), buffer_triangles(whole, true)) << "prefix " << k;
+  }
+  surface_snapshot s = e.snapshot();
+  s.truncate(0);
+  EXPECT_EQ(s.mark().records, 1u);  // the root surface at least
+  surface_snapshot t = e.snapshot();
+  t.truncate(records + 10);
+  EXPECT_EQ(t.mark().records, records);  // no more than it holds
 }
 
 TEST(SurfaceChange, an_unchanged_cut_gives_an_empty_change_and_an_isovalue_change_a_rebuild) {

@@ -86,12 +86,14 @@ class Slots {
     const p = this.positions.array, q = this.normals.array;
     if (coarse) coarse.index();
     const now = performance.now();
+    let gliding = coarse !== null && !coarse.empty();
     for (let i = 0; i < n; ++i) {
       const s = this.free.length ? this.free.pop() : this.count++;
       const end = frame.positions.subarray(i * 9, i * 9 + 9);
       p.set(end, s * 9);
       if (frame.normals) q.set(frame.normals.subarray(i * 9, i * 9 + 9), s * 9);
-      if (coarse && !coarse.empty()) {
+      if (gliding && (i & 63) === 0 && performance.now() > now + MORPH_BUDGET_MS) gliding = false;
+      if (gliding) {
         // Geomorph: each new vertex starts at its closest point on the removed triangles.
         const start = new Float32Array(9);
         for (let c = 0; c < 3; ++c) coarse.closest(end[3 * c], end[3 * c + 1], end[3 * c + 2], start, 3 * c);
@@ -126,9 +128,11 @@ class Slots {
 // point on the triangles the same frame removed (the coarser surface there) and glides to its
 // own position over MORPH_MS, so refinement does not pop. A triangle removed again while gliding
 // simply goes; a rebuilt frame (a new isovalue) and frames of more than MORPH_MAX_PIECES pieces
-// (a change too large to animate smoothly) appear at once.
+// (a change too large to animate smoothly) appear at once, as do a frame's pieces past
+// MORPH_BUDGET_MS of geomorph work (the page keeps its frame rate).
 const MORPH_MS = 250;
 const MORPH_MAX_PIECES = 4096;
+const MORPH_BUDGET_MS = 4;  // per frame: pieces past it appear at once, so a frame applies fast
 const morphs = [];
 
 // The removed triangles, hashed by cell, for closest-point queries.
@@ -141,9 +145,12 @@ class Coarse {
     let sum = 0;
     for (const t of this.tris) sum += Math.hypot(t[3] - t[0], t[4] - t[1], t[5] - t[2]);
     this.size = Math.max(1e-6, 2 * sum / Math.max(1, this.tris.length));
+    // Each triangle goes into every cell its box, grown by half a cell, meets: a point's own cell
+    // then lists every triangle within half a cell of it, each once, so a query reads one cell.
+    const m = this.size / 2;
     this.tris.forEach((t, i) => {
-      const lo = [0, 1, 2].map((a) => Math.floor(Math.min(t[a], t[a + 3], t[a + 6]) / this.size));
-      const hi = [0, 1, 2].map((a) => Math.floor(Math.max(t[a], t[a + 3], t[a + 6]) / this.size));
+      const lo = [0, 1, 2].map((a) => Math.floor((Math.min(t[a], t[a + 3], t[a + 6]) - m) / this.size));
+      const hi = [0, 1, 2].map((a) => Math.floor((Math.max(t[a], t[a + 3], t[a + 6]) + m) / this.size));
       for (let x = lo[0]; x <= hi[0]; ++x) for (let y = lo[1]; y <= hi[1]; ++y) for (let z = lo[2]; z <= hi[2]; ++z) {
         const k = this.key(x, y, z);
         const l = this.cells.get(k);
@@ -154,45 +161,45 @@ class Coarse {
   // The closest point to (x, y, z) on the removed triangles near it, into out[at..at+2]; the
   // point itself when none is near.
   closest(x, y, z, out, at) {
-    const cx = Math.floor(x / this.size), cy = Math.floor(y / this.size), cz = Math.floor(z / this.size);
-    let best = Infinity;
     out[at] = x; out[at + 1] = y; out[at + 2] = z;
-    for (let dx = -1; dx <= 1; ++dx) for (let dy = -1; dy <= 1; ++dy) for (let dz = -1; dz <= 1; ++dz) {
-      const l = this.cells.get(this.key(cx + dx, cy + dy, cz + dz));
-      if (!l) continue;
-      for (const i of l) {
-        const c = closestOnTriangle(x, y, z, this.tris[i]);
-        const d = (c[0] - x) ** 2 + (c[1] - y) ** 2 + (c[2] - z) ** 2;
-        if (d < best) { best = d; out[at] = c[0]; out[at + 1] = c[1]; out[at + 2] = c[2]; }
-      }
+    const l = this.cells.get(this.key(Math.floor(x / this.size), Math.floor(y / this.size), Math.floor(z / this.size)));
+    if (!l) return;
+    let best = Infinity;
+    for (const i of l) {
+      closestOnTriangle(x, y, z, this.tris[i], nearest);
+      const d = (nearest[0] - x) ** 2 + (nearest[1] - y) ** 2 + (nearest[2] - z) ** 2;
+      if (d < best) { best = d; out[at] = nearest[0]; out[at + 1] = nearest[1]; out[at + 2] = nearest[2]; }
     }
   }
 }
+const nearest = new Float64Array(3);
 
-// The closest point of triangle t (9 floats) to p (Ericson, Real-Time Collision Detection 5.1.5).
-function closestOnTriangle(px, py, pz, t) {
+// The closest point of triangle t (9 floats) to p, into o (Ericson, Real-Time Collision Detection
+// 5.1.5).
+function closestOnTriangle(px, py, pz, t, o) {
   const ax = t[0], ay = t[1], az = t[2], bx = t[3], by = t[4], bz = t[5], cx = t[6], cy = t[7], cz = t[8];
   const abx = bx - ax, aby = by - ay, abz = bz - az, acx = cx - ax, acy = cy - ay, acz = cz - az;
   const apx = px - ax, apy = py - ay, apz = pz - az;
   const d1 = abx * apx + aby * apy + abz * apz, d2 = acx * apx + acy * apy + acz * apz;
-  if (d1 <= 0 && d2 <= 0) return [ax, ay, az];
+  if (d1 <= 0 && d2 <= 0) { o[0] = ax; o[1] = ay; o[2] = az; return; }
   const bpx = px - bx, bpy = py - by, bpz = pz - bz;
   const d3 = abx * bpx + aby * bpy + abz * bpz, d4 = acx * bpx + acy * bpy + acz * bpz;
-  if (d3 >= 0 && d4 <= d3) return [bx, by, bz];
+  if (d3 >= 0 && d4 <= d3) { o[0] = bx; o[1] = by; o[2] = bz; return; }
   const vc = d1 * d4 - d3 * d2;
-  if (vc <= 0 && d1 >= 0 && d3 <= 0) { const v = d1 / (d1 - d3); return [ax + v * abx, ay + v * aby, az + v * abz]; }
+  if (vc <= 0 && d1 >= 0 && d3 <= 0) { const v = d1 / (d1 - d3); o[0] = ax + v * abx; o[1] = ay + v * aby; o[2] = az + v * abz; return; }
   const cpx = px - cx, cpy = py - cy, cpz = pz - cz;
   const d5 = abx * cpx + aby * cpy + abz * cpz, d6 = acx * cpx + acy * cpy + acz * cpz;
-  if (d6 >= 0 && d5 <= d6) return [cx, cy, cz];
+  if (d6 >= 0 && d5 <= d6) { o[0] = cx; o[1] = cy; o[2] = cz; return; }
   const vb = d5 * d2 - d1 * d6;
-  if (vb <= 0 && d2 >= 0 && d6 <= 0) { const w = d2 / (d2 - d6); return [ax + w * acx, ay + w * acy, az + w * acz]; }
+  if (vb <= 0 && d2 >= 0 && d6 <= 0) { const w = d2 / (d2 - d6); o[0] = ax + w * acx; o[1] = ay + w * acy; o[2] = az + w * acz; return; }
   const va = d3 * d6 - d5 * d4;
   if (va <= 0 && d4 - d3 >= 0 && d5 - d6 >= 0) {
     const w = (d4 - d3) / ((d4 - d3) + (d5 - d6));
-    return [bx + w * (cx - bx), by + w * (cy - by), bz + w * (cz - bz)];
+    o[0] = bx + w * (cx - bx); o[1] = by + w * (cy - by); o[2] = bz + w * (cz - bz);
+    return;
   }
   const denom = 1 / (va + vb + vc), v = vb * denom, w = vc * denom;
-  return [ax + abx * v + acx * w, ay + aby * v + acy * w, az + abz * v + acz * w];
+  o[0] = ax + abx * v + acx * w; o[1] = ay + aby * v + acy * w; o[2] = az + abz * v + acz * w;
 }
 
 // Moves every gliding vertex to where it is at `now`; finished ones end at their own position.

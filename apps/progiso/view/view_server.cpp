@@ -75,6 +75,16 @@ struct server::impl {
   void accept();
   void apply(const command& c, page_session& from);
   void frame_loop();
+  struct made_frame {
+    cut_mark from;
+    std::uint32_t sequence;
+    std::shared_ptr<std::vector<std::byte>> frame;
+    cut_mark to;
+    bool running;  // the run, or more of this cut to come
+  };
+  made_frame make_frame(const surface_snapshot& snap, bool running, const cut_mark& from,
+                        std::uint32_t sequence, surface_change& change);
+  std::uint64_t frame_target(const cut_mark& from, const surface_snapshot& s) const;
   void add(const std::shared_ptr<page_session>& p) {
     std::lock_guard lock(pages_mutex);
     std::erase_if(pages, [](const std::weak_ptr<page_session>& w) { return w.expired(); });
@@ -93,6 +103,11 @@ class page_session : public std::enable_shared_from_this<page_session> {
   page_session& operator=(const page_session&) = delete;
 
   void run(http::request<http::empty_body> request) {
+    // Frames go out as soon as they are written: with Nagle's algorithm a frame's last segment
+    // waits for the acknowledgement of the one before, which the page's TCP delays (delayed
+    // ACK, about 40 ms on Linux), and an isovalue's first frame is that late.
+    beast::error_code ignored;
+    ws_.next_layer().socket().set_option(tcp::no_delay(true), ignored);
     ws_.set_option(websocket::stream_base::timeout::suggested(beast::role_type::server));
     ws_.read_message_max(max_command_bytes);
     ws_.binary(true);
@@ -393,16 +408,55 @@ void server::impl::apply(const command& c, page_session& from) {
   }
 }
 
+// The cut a page holding `from` is brought to, as records of s: all of them, except that a page
+// holding another root (a new isovalue, a page just connected) gets the root surface first, and
+// one holding this root at most max_frame_records more. Each is a prefix of the publication
+// order, so a valid cut (surface_snapshot::truncate()): frames stay small, and a new isovalue's
+// first frame never waits behind a large one.
+std::uint64_t server::impl::frame_target(const cut_mark& from, const surface_snapshot& s) const {
+  const cut_mark now = s.mark();
+  if (s.uniform_stride() > 0 || opt.max_frame_records == 0) return now.records;
+  const bool same_root = from.owner == now.owner && from.generation == now.generation &&
+                         from.root == now.root && from.records != 0 && from.records <= now.records;
+  if (!same_root) return 1;
+  return now.records - from.records <= opt.max_frame_records ? now.records
+                                                             : from.records + opt.max_frame_records;
+}
+
+server::impl::made_frame server::impl::make_frame(const surface_snapshot& snap, bool running,
+                                                  const cut_mark& from, std::uint32_t sequence,
+                                                  surface_change& change) {
+  const surface_snapshot* s = &snap;
+  surface_snapshot part;
+  bool more = false;
+  if (frame_target(from, snap) < snap.mark().records) {
+    part = eng.snapshot();  // of the same root, or of a newer one: either way the target is its
+    const std::uint64_t records = part.mark().records;
+    part.truncate(frame_target(from, part));
+    more = part.mark().records < records;
+    s = &part;
+  }
+  frame_state state;
+  state.isovalue = s->isovalue();
+  state.generation = s->generation();
+  state.splits = s->split_count();
+  state.triangles = s->triangle_count();
+  state.uniform_stride = static_cast<std::uint32_t>(std::max(0, s->uniform_stride()));
+  state.running = running || more;
+  state.next_error = opt.next_error ? opt.next_error() : 0.0;
+  state.iso_sequence = sequence;
+  change.clear();
+  s->change_since(from, change, vertex_normals::gradient);
+  auto frame = std::make_shared<std::vector<std::byte>>();
+  encode_frame(change, state, *frame);
+  return {from, sequence, std::move(frame), s->mark(), state.running};
+}
+
 void server::impl::frame_loop() {
   surface_change change;
   std::vector<std::shared_ptr<page_session>> live;
   std::vector<std::uint32_t> sequences;
-  struct made {
-    cut_mark from;
-    std::uint32_t sequence;
-    std::shared_ptr<std::vector<std::byte>> frame;
-  };
-  std::vector<made> made_now;  // this round's frames, by the cut they start from
+  std::vector<made_frame> made_now;  // this round's frames, by the cut they start from
   while (!stopping.load(std::memory_order_relaxed)) {
     {
       std::unique_lock w(wake_mutex);
@@ -428,14 +482,6 @@ void server::impl::frame_loop() {
     const bool running = eng.running();
     const surface_snapshot snap = eng.snapshot();
     const cut_mark now = snap.mark();
-    frame_state state;
-    state.isovalue = snap.isovalue();
-    state.generation = snap.generation();
-    state.splits = snap.split_count();
-    state.triangles = snap.triangle_count();
-    state.uniform_stride = static_cast<std::uint32_t>(std::max(0, snap.uniform_stride()));
-    state.running = running;
-    state.next_error = opt.next_error ? opt.next_error() : 0.0;
     made_now.clear();
     for (std::size_t i = 0; i < live.size(); ++i) {
       page_session& p = *live[i];
@@ -447,32 +493,27 @@ void server::impl::frame_loop() {
       }
       // Also when only the run's state changed: a page must learn that refinement has ended
       // even when the last cut it was sent is the final one (an empty change then).
-      if (same_mark(p.mark, now) && p.sent_sequence == sequences[i] &&
-          p.sent_running == state.running) {
+      if (same_mark(p.mark, now) && p.sent_sequence == sequences[i] && p.sent_running == running) {
         continue;
       }
       // Pages that hold the same cut and asked the same get the same frame: made once.
-      std::shared_ptr<std::vector<std::byte>> frame;
-      for (const made& m : made_now) {
-        if (same_mark(m.from, p.mark) && m.sequence == sequences[i]) frame = m.frame;
+      const made_frame* m = nullptr;
+      for (const made_frame& x : made_now) {
+        if (same_mark(x.from, p.mark) && x.sequence == sequences[i]) m = &x;
       }
-      if (!frame) {
-        change.clear();
-        snap.change_since(p.mark, change, vertex_normals::gradient);
-        state.iso_sequence = sequences[i];
-        frame = std::make_shared<std::vector<std::byte>>();
-        encode_frame(change, state, *frame);
-        made_now.push_back({p.mark, sequences[i], frame});
+      if (m == nullptr) {
+        made_now.push_back(make_frame(snap, running, p.mark, sequences[i], change));
+        m = &made_now.back();
       }
-      p.mark = now;
+      p.mark = m->to;
       p.sent_sequence = sequences[i];
-      p.sent_running = state.running;
+      p.sent_running = m->running;
       frames.fetch_add(1, std::memory_order_relaxed);
-      frame_bytes.fetch_add(frame->size(), std::memory_order_relaxed);
+      frame_bytes.fetch_add(m->frame->size(), std::memory_order_relaxed);
       // Relaxed: only this thread sets it; the handler's release store clears it.
       p.busy.store(true, std::memory_order_relaxed);
       p.unacknowledged.store(true, std::memory_order_relaxed);
-      p.send(std::move(frame));
+      p.send(m->frame);
     }
   }
 }

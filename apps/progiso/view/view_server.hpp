@@ -52,6 +52,10 @@ struct server_options {
   std::vector<asset> assets;
   std::chrono::milliseconds frame_interval{15};
   std::size_t max_pages = 64;  ///< WebSocket connections at once; more are refused (503)
+  /// Split records a frame may add to the cut a page holds (0: no bound). A page further behind
+  /// catches up by prefixes of the publication order, each a valid cut, and a new isovalue's
+  /// root surface goes first: no frame is so large that a new isovalue waits long behind it.
+  std::uint64_t max_frame_records = 2048;
   /// The error of the engine's next split, for the status line (from its progress hook); empty:
   /// 0.
   std::function<double()> next_error;

@@ -240,6 +240,12 @@ class surface_snapshot {
   [[nodiscard]] triangle_mesh mesh_of_records(const std::vector<std::uint8_t>& split) const;
   /// Where this cut stands, for change_since() on a later snapshot. O(1).
   [[nodiscard]] cut_mark mark() const noexcept;
+  /// Makes this snapshot the cut of its first `records` records (at least 1, the root surface;
+  /// no more than it holds): a cut the engine published on its way here, since a record is
+  /// published after its parents', so every prefix of the publication order is closed under
+  /// parents. A renderer that cannot take a large change at once catches up by prefixes, each
+  /// a valid surface. A uniform cut (no records) is left as it is. O(1).
+  void truncate(std::uint64_t records) noexcept;
   /// What changed from the cut `earlier` marked to this one (surface_change.hpp): the ids of the
   /// triangles gone and the pieces added, float positions clipped to the data box in physical
   /// coordinates as mesh_into() gives them, and with vertex_normals::gradient their normals.
