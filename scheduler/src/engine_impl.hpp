@@ -38,6 +38,7 @@
 #include <progiso/core/refine/detail/plane_lists.hpp>
 #include <progiso/core/refine/detail/prefetch.hpp>
 #include <progiso/core/refine/detail/ready_queue.hpp>
+#include <progiso/core/refine/detail/vertex_pages.hpp>
 #include <progiso/scheduler/engine.hpp>
 #include <progiso/scheduler/tbb_environment.hpp>
 
@@ -83,15 +84,14 @@ struct ready_item {
 inline constexpr std::uint64_t root_alive = 0x70726f6769736f31;  // "progiso1"
 
 // A root's memory that does not depend on its isovalue, handed from a reclaimed root to the next
-// one: the per-grid-vertex array (engine_root::record_of), all zero, and the records' chunk
-// directory, all null. Mapping them fresh would make the next root wait for the address space's
-// lock, which a running refinement's page faults hold (set_isovalue() publishes the new root
-// before it stops the run: swap_root), and would pay a page fault for every page the next
-// refinement touches, and a TLB flush interrupt on every core for each page first read (by a
-// compute task's hint load or a reader) and then written.
+// one: the per-grid-vertex words' brick table (engine_root::record_of), every brick freed, and
+// the records' chunk directory, all null. Mapping the directory fresh would make the next root
+// wait for the address space's lock, which a running refinement's page faults hold
+// (set_isovalue() publishes the new root before it stops the run: swap_root).
 struct vertex_state {
-  zeroed_array<std::uint32_t> record_of;
+  detail::vertex_pages<std::uint32_t> record_of;
   zeroed_array<struct engine_record*> record_chunks;
+  std::uint64_t vertices = 0;  // the grid's (sizes the groups' chunks)
 };
 
 // A grid vertex's word in engine_root::record_of. 0 while none of the diamond's parents is
@@ -100,8 +100,9 @@ struct vertex_state {
 // count. Readers take a diamond as split in a cut when its word is non-zero and below the cut's
 // watermark, so a count (≥ 2^32 − 4: a diamond has at most 4 parents) reads as "not in this cut",
 // as 0 does. One word where there were two arrays (a 4-byte record index and a 1-byte count):
-// the count and the record of a diamond share a cache line, and a fresh root maps 4 bytes per
-// vertex instead of 5.
+// the count and the record of a diamond share a cache line, and a brick holds 4 bytes per vertex
+// instead of 5. Words live in bricks made when first written (vertex_pages.hpp), so a root's
+// memory follows its surface, not the grid.
 inline constexpr std::size_t max_records = (std::size_t{1} << 32) - 8;
 // Parents counted so far in an unsplit diamond's word.
 [[nodiscard]] constexpr std::uint32_t parents_counted(std::uint32_t word) noexcept {
@@ -120,7 +121,7 @@ struct engine_root : epoch_object {
         generation(gen),
         records(std::move(state.record_chunks)),
         record_of(std::move(state.record_of)),
-        groups(detail::chunked_store<packed_group>::bits_for(record_of.size())) {}
+        groups(detail::chunked_store<packed_group>::bits_for(state.vertices)) {}
 
   std::uint64_t magic = root_alive;
   engine_impl* impl;
@@ -147,7 +148,7 @@ struct engine_root : epoch_object {
   // it (full-refinement tasks: ordered before it by publish_mutex); readers load it through
   // atomic_ref (relaxed: a value below the reader's watermark was written before that watermark's
   // release, which orders it after every count before it; any other value means "not in this cut").
-  zeroed_array<std::uint32_t> record_of;
+  detail::vertex_pages<std::uint32_t> record_of;
   // Root surface: set before the root is published, immutable afterwards.
   std::vector<owned_triangle> root_triangles;
   // The root diamonds, queued (or culled) by the first run, once the range data exists: the root
@@ -202,9 +203,14 @@ struct engine_root : epoch_object {
   std::uint64_t retired_bytes = 0;  // bytes() when retired
 
   [[nodiscard]] std::uint32_t record_index(std::uint64_t vertex) const noexcept {
-    // relaxed: see record_of.
-    return std::atomic_ref<std::uint32_t>(record_of[vertex]).load(std::memory_order_relaxed);
+    std::uint32_t* word = record_of.find(vertex);
+    // relaxed: see record_of (a word never written reads 0: not split in any cut).
+    return word == nullptr ? 0
+                           : std::atomic_ref<std::uint32_t>(*word).load(std::memory_order_relaxed);
   }
+  // The word of a grid point, made when missing (writers).
+  [[nodiscard]] std::uint32_t& word(const ipoint& p) { return record_of.at(p); }
+  [[nodiscard]] std::uint32_t& word(std::uint64_t vertex) { return record_of.at(vertex); }
 };
 
 // What a run's splits add to a root's statistics, counted by one thread and added to the root's
@@ -265,6 +271,9 @@ struct split_tally {
 
 struct child_info {
   std::uint64_t index;
+  // The child's word in the root's record_of, found (its brick made) by the compute task, so
+  // the serial commit step neither looks it up nor allocates.
+  std::uint32_t* word;
   double error;
   std::uint8_t parents_needed;
   bool known;  // error and straddles were looked up (else the commit step looks them up)
@@ -277,6 +286,7 @@ struct batch_item {
   // Written by the compute task for the items it computes; left unset for the rest, which the
   // commit step only queues again (item): an item is ~300 bytes, zeroing it cost more than the
   // dispatch loop's other work.
+  std::uint32_t* word;  // the diamond's own, as child_info::word
   std::uint32_t first;  // groups in the batch's buffer
   std::uint32_t count;
   std::int32_t scale;
@@ -448,7 +458,7 @@ struct engine_impl : run_control {
                                               std::int32_t scale) const noexcept {
     const child_list children = hier.children_of(centre, scale, hierarchy::type_of(centre, scale));
     for (int i = 0; i < children.count; ++i) {
-      __builtin_prefetch(&r.record_of[hier.index(children.centre[static_cast<std::size_t>(i)])], 1);
+      r.record_of.prefetch(children.centre[static_cast<std::size_t>(i)]);
     }
     return children;
   }
@@ -468,8 +478,8 @@ struct engine_impl : run_control {
       const std::int32_t z = std::clamp(c[2] + dz, 0, g[2]);
       for (std::int32_t dy = -h; dy <= h; dy += h) {
         const std::int32_t y = std::clamp(c[1] + dy, 0, g[1]);
-        __builtin_prefetch(&r.record_of[hier.index({x0, y, z})], 1);
-        __builtin_prefetch(&r.record_of[hier.index({x1, y, z})], 1);
+        r.record_of.prefetch({x0, y, z});
+        r.record_of.prefetch({x1, y, z});
       }
     }
   }
@@ -504,7 +514,7 @@ struct engine_impl : run_control {
       // same word (a count reads as "not in this cut" to readers). One read-modify-write
       // instruction, not a load and a store: a fresh page of the words is first touched by a
       // write (add_in_place() says why that matters).
-      const std::uint32_t word = add_in_place(r.record_of[ci], ~std::uint32_t{0});
+      const std::uint32_t word = add_in_place(r.word(c), ~std::uint32_t{0});
       if (parents_counted(word) != children.parents[ui]) continue;
       ++tally.visited;
       const std::optional<ready_item> child = ready_child(

@@ -449,7 +449,7 @@ bool engine_impl::publish_full_task(full_task& t, bool wait, bool stopped) {
     std::copy_n(t.groups.data() + p.first, p.count, p.dest);
     r.records.at_unpublished(first_record + i) = {
         p.item.index, p.dest, p.count, p.item.depth, p.scale, p.crossed, p.cut_triangles};
-    std::atomic_ref<std::uint32_t>(r.record_of[p.item.index])
+    std::atomic_ref<std::uint32_t>(r.word(p.item.index))
         .store(static_cast<std::uint32_t>(first_record + i),
                // relaxed: published by the release in records.publish() below, which the
                // mutex orders after this (this task's unlock, the publisher's lock).
@@ -538,7 +538,7 @@ std::int64_t engine_impl::count_full_task_children(full_task& t, std::size_t fir
       // parents in the records, and the watermark moves over the log in order. Partner: this
       // same fetch_sub by the tasks of the child's other parents.
       const std::uint32_t before =
-          std::atomic_ref<std::uint32_t>(r.record_of[ci]).fetch_sub(1, std::memory_order_acq_rel);
+          std::atomic_ref<std::uint32_t>(r.word(c)).fetch_sub(1, std::memory_order_acq_rel);
       if (parents_counted(before - 1) != children.parents[ui]) continue;
       ++t.tally.visited;
       const std::optional<ready_item> child =

@@ -69,6 +69,7 @@ batch* engine_impl::compute_batch(batch* b) {
     batch_item& it = b->items[j];
     const ipoint centre = hier.point(it.item.index);
     const std::int32_t scale = hier.scale_of(centre);
+    it.word = &b->root->word(centre);
     const std::size_t first = b->groups.size();
     const split_summary s = compute_split(hier, vol, w, centre, scale, b->groups);
     it.first = static_cast<std::uint32_t>(first);
@@ -86,13 +87,14 @@ batch* engine_impl::compute_batch(batch* b) {
       const ipoint& c = children.centre[static_cast<std::size_t>(i)];
       child_info& ci = it.child[static_cast<std::size_t>(i)];
       ci.index = hier.index(c);
+      ci.word = &b->root->word(c);
       ci.parents_needed = children.parents[static_cast<std::size_t>(i)];
       // The child's range is needed once, when its last parent commits. The parent that
       // finds all the others already committed looks it up here, in parallel; for the other
       // parents it would be wasted work (a child has up to four). When two last parents are
       // in flight together, neither may look: the commit step then does.
       const std::uint32_t split_parents = parents_counted(
-          std::atomic_ref<std::uint32_t>(b->root->record_of[ci.index])
+          std::atomic_ref<std::uint32_t>(*ci.word)
               // relaxed: a hint only; the commit step, the sole writer, decides readiness,
               // and a stale count just moves the lookup to the commit step or repeats it.
               .load(std::memory_order_relaxed));
@@ -131,10 +133,8 @@ void engine_impl::commit_batch(batch* b) {
     // diamonds lie all over the grid, and these lines are the serial step's cache misses.
     for (std::size_t i = 0; i < b->computed; ++i) {
       const batch_item& it = b->items[i];
-      __builtin_prefetch(&r.record_of[it.item.index], 1);
-      for (std::size_t c = 0; c < it.children; ++c) {
-        __builtin_prefetch(&r.record_of[it.child[c].index], 1);
-      }
+      __builtin_prefetch(it.word, 1);
+      for (std::size_t c = 0; c < it.children; ++c) __builtin_prefetch(it.child[c].word, 1);
     }
     for (std::size_t i = 0; i < b->computed; ++i) {
       const batch_item& it = b->items[i];
@@ -155,10 +155,10 @@ void engine_impl::commit_batch(batch* b) {
       r.records.push_back({it.item.index,
                            r.groups.append_contiguous(b->groups.data() + it.first, it.count),
                            it.count, it.item.depth, it.scale, it.crossed, after});
-      std::atomic_ref<std::uint32_t>(r.record_of[it.item.index])
-          .store(static_cast<std::uint32_t>(index),
-                 // relaxed: published by the release in records.publish() below.
-                 std::memory_order_relaxed);
+      std::atomic_ref<std::uint32_t>(*it.word).store(
+          static_cast<std::uint32_t>(index),
+          // relaxed: published by the release in records.publish() below.
+          std::memory_order_relaxed);
       ++tally.splits;
       tally.added += static_cast<unsigned>(it.added);
       for (std::size_t k = 0; k < tet_case_count; ++k) tally.cases[k] += it.cases[k];
@@ -167,7 +167,7 @@ void engine_impl::commit_batch(batch* b) {
       for (std::size_t c = 0; c < it.children; ++c) {
         const child_info& ci = it.child[c];
         // The commit step is the only writer; compute tasks read a hint (relaxed atomic loads).
-        const std::uint32_t word = add_in_place(r.record_of[ci.index], ~std::uint32_t{0});
+        const std::uint32_t word = add_in_place(*ci.word, ~std::uint32_t{0});
         if (parents_counted(word) != ci.parents_needed) continue;
         ++tally.visited;
         if (ci.known) {

@@ -11,8 +11,8 @@
 namespace progiso::detail {
 
 engine_root* engine_impl::make_base_root(double w, std::uint64_t gen) {
-  vertex_state none{zeroed_array<std::uint32_t>(0),
-                    zeroed_array<engine_record*>(append_log<engine_record>::max_chunks)};
+  vertex_state none{detail::vertex_pages<std::uint32_t>(),
+                    zeroed_array<engine_record*>(append_log<engine_record>::max_chunks), 0};
   auto* r = make_managed<engine_root>(domain, *this, w, gen, std::move(none));
   r->seeded = true;
   // Its first chunk of records, allocated now (set_base() only writes record 0 into it).
@@ -170,8 +170,8 @@ vertex_state engine_impl::take_vertex_state() {
 }
 
 vertex_state engine_impl::fresh_vertex_state() const {
-  return {zeroed_array<std::uint32_t>(hier.vertex_count()),
-          zeroed_array<engine_record*>(append_log<engine_record>::max_chunks)};
+  return {detail::vertex_pages<std::uint32_t>(hier),
+          zeroed_array<engine_record*>(append_log<engine_record>::max_chunks), hier.vertex_count()};
 }
 
 bool engine_impl::hand_over(engine_root* r) noexcept {
@@ -239,23 +239,8 @@ void engine_impl::reclaim(engine_root& r, bool keep) noexcept {
     keep = !spare || spare_fresh;  // one spare set at most, a cleared one rather than a fresh one
   }
   if (keep) {
-    // Before the records are poisoned or freed: they say which words were written.
-    const std::size_t n = r.records.size();
-    zeroed_array<std::uint32_t>& words = r.record_of;
-    if (n * 64 >= words.size()) {
-      if (n > 1) words.zero();
-    } else {
-      for (std::size_t i = 1; i < n; ++i) {
-        const engine_record& rec = r.records.at_unpublished(i);
-        words[rec.diamond] = 0;
-        const ipoint c = hier.point(rec.diamond);
-        const child_list children =
-            hier.children_of(c, rec.scale, hierarchy::type_of(c, rec.scale));
-        for (int k = 0; k < children.count; ++k) {
-          words[hier.index(children.centre[static_cast<std::size_t>(k)])] = 0;
-        }
-      }
-    }
+    // Every brick freed: the next root's words follow its own surface.
+    r.record_of.clear();
   }
   if (r.base_stride > 0 && recycle && !opt.poison_retired) {
     // The mesh's storage kept for a later cut (take_mesh_storage()): the larger of it and the
@@ -277,7 +262,7 @@ void engine_impl::reclaim(engine_root& r, bool keep) noexcept {
   }
   if (keep) {
     std::optional<vertex_state> replaced;  // unmapped after the lock is released
-    vertex_state s{std::move(r.record_of), r.records.release_directory()};
+    vertex_state s{std::move(r.record_of), r.records.release_directory(), hier.vertex_count()};
     const std::lock_guard lock(reclaim_mutex);
     if (!spare || spare_fresh) {
       replaced = std::move(spare);

@@ -62,7 +62,7 @@ bool engine_impl::split_on_one_thread(engine_root& r, const ready_item& item, co
   r.records.push_back({item.index, r.groups.append_contiguous(groups.data(), groups.size()),
                        static_cast<std::uint32_t>(groups.size()), item.depth, scale, s.crossed,
                        after});
-  std::atomic_ref<std::uint32_t>(r.record_of[item.index])
+  std::atomic_ref<std::uint32_t>(r.word(item.index))
       .store(static_cast<std::uint32_t>(index),
              // relaxed: published by the release in records.publish() (the caller's publish).
              std::memory_order_relaxed);

@@ -19,7 +19,7 @@
 namespace progiso {
 namespace {
 
-// Per-diamond state, one byte per grid vertex (zeroed lazily, page by page).
+// Per-diamond state, one byte per grid vertex (in bricks made when first written).
 constexpr std::uint8_t split_bit = 0x80;
 // Set on a diamond when one of its tetrahedra holds surface (it owns a group of a split
 // record): its range then straddles the isovalue. Kept in breadth- and depth-first order only.
@@ -54,7 +54,7 @@ refiner::refiner(const volume& vol, const hierarchy& hier, const range_data& ran
       hier_(hier),
       ranges_(ranges),
       isovalue_(isovalue),
-      state_(hier.vertex_count()),
+      state_(hier),
       groups_(detail::chunked_store<packed_group>::bits_for(vol.voxel_count())),
       records_(detail::chunked_store<record>::bits_for(vol.voxel_count())),
       queue_(std::make_unique<queue>(discipline_of(order))),
@@ -119,7 +119,9 @@ const refine_statistics& refiner::statistics() const noexcept {
 int refiner::next_depth() const noexcept { return done() ? -1 : queue_->top().depth; }
 
 bool refiner::is_split(const ipoint& centre) const noexcept {
-  return hier_.in_grid(centre) && (state_.get()[hier_.index(centre)] & split_bit) != 0;
+  if (!hier_.in_grid(centre)) return false;
+  const std::uint8_t* word = state_.find(centre);
+  return word != nullptr && (*word & split_bit) != 0;
 }
 
 bool refiner::split_next() { return split(~std::uint64_t{0}); }
@@ -141,11 +143,13 @@ bool refiner::split(std::uint64_t max_triangles) {
   const packed_group* groups =
       scratch_.empty() ? nullptr : groups_.append_contiguous(scratch_.data(), scratch_.size());
   queue_->pop();
-  std::uint8_t* state = state_.get();
-  state[next.index] = static_cast<std::uint8_t>(state[next.index] | split_bit);
+  std::uint8_t& split_word = state_.at(next.centre);
+  split_word = static_cast<std::uint8_t>(split_word | split_bit);
   for (const packed_group& g : scratch_) {
     const std::uint64_t owner = group_owner(hier_, next.index, next.scale, g);
-    if (owner != no_owner) state[owner] = static_cast<std::uint8_t>(state[owner] | surface_bit);
+    if (owner == no_owner) continue;
+    std::uint8_t& word = state_.at(owner);
+    word = static_cast<std::uint8_t>(word | surface_bit);
   }
   records_.push_back({next.index, groups, next.error, static_cast<std::uint32_t>(scratch_.size()),
                       s.crossed, next.scale});
@@ -168,17 +172,18 @@ bool refiner::split(std::uint64_t max_triangles) {
     const auto ui = static_cast<std::size_t>(i);
     const ipoint& c = children.centre[ui];
     const std::uint64_t ci = hier_.index(c);
+    std::uint8_t& word = state_.at(c);
     // The count is the low bits and never exceeds the parent count: the add carries into
-    // nothing else. One read-modify-write, so a fresh page is first touched by a write.
+    // nothing else.
     const auto count =
-        static_cast<std::uint8_t>(add_in_place(state[ci], std::uint8_t{1}) & parent_count_mask);
+        static_cast<std::uint8_t>(add_in_place(word, std::uint8_t{1}) & parent_count_mask);
     if (count != children.parents[ui]) continue;
     ++stats_.visited;
     // The rule the engine applies too (refine/detail/readiness.hpp). In breadth- and depth-first
     // order the error is left unknown and computed if asked for: next_error(), extract_cut().
     const detail::readiness rule =
-        detail::ready_rule(ranges_, c, children.scale, (state[ci] & surface_bit) != 0,
-                           errors_needed_, isovalue_, threshold_);
+        detail::ready_rule(ranges_, c, children.scale, (word & surface_bit) != 0, errors_needed_,
+                           isovalue_, threshold_);
     if (!rule.keep) {
       ++stats_.culled;
       continue;

@@ -36,10 +36,10 @@
 #include <progiso/core/base/detail/borrow.hpp>
 #include <progiso/core/base/detail/chunked_store.hpp>
 #include <progiso/core/base/error.hpp>
-#include <progiso/core/base/zeroed_array.hpp>
 #include <progiso/core/field/volume.hpp>
 #include <progiso/core/hierarchy/hierarchy.hpp>
 #include <progiso/core/ranges/range_data.hpp>
+#include <progiso/core/refine/detail/vertex_pages.hpp>
 #include <progiso/core/refine/goal.hpp>
 #include <progiso/core/surface/finest_surface.hpp>
 #include <progiso/core/surface/mesh.hpp>
@@ -152,7 +152,7 @@ class refiner {
   const hierarchy& hier_;
   const range_data& ranges_;
   double isovalue_;
-  zeroed_array<std::uint8_t> state_;  // per grid vertex: split flag, split parents
+  detail::vertex_pages<std::uint8_t> state_;  // per grid vertex: split flag, split parents
 
   std::vector<owned_triangle> root_triangles_;
   detail::chunked_store<packed_group> groups_;  // packed_group: one word for one or two triangles
