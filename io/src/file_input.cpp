@@ -1,10 +1,12 @@
 #include <progiso/io/detail/file_input.hpp>
 
 #include <fcntl.h>
+#include <sys/mman.h>
 #include <sys/stat.h>
 #include <unistd.h>
 
 #include <cerrno>
+#include <limits>
 #include <string>
 
 #include <progiso/core/base/error.hpp>
@@ -108,6 +110,34 @@ std::vector<char> input_file::read_all() {
   std::vector<char> data(static_cast<std::size_t>(size_));
   data.resize(read(data.data(), data.size()));
   return data;
+}
+
+std::optional<mapped_bytes> map_bytes(const input_file& in, std::uint64_t offset,
+                                      std::uint64_t n) noexcept {
+  if (n == 0 || offset > in.size() || n > in.size() - offset) return std::nullopt;
+  const auto page = static_cast<std::uint64_t>(::sysconf(_SC_PAGESIZE));
+  const std::uint64_t start = offset - offset % page;
+  const std::uint64_t length = n + (offset - start);
+  if (length > std::numeric_limits<std::size_t>::max()) return std::nullopt;
+  void* base = ::mmap(nullptr, static_cast<std::size_t>(length), PROT_READ, MAP_PRIVATE,
+                      ::fileno(in.stream()), static_cast<off_t>(start));
+  if (base == MAP_FAILED) return std::nullopt;
+  struct mapping {
+    void* base;
+    std::size_t length;
+    mapping(void* b, std::size_t l) noexcept : base(b), length(l) {}
+    mapping(const mapping&) = delete;
+    mapping& operator=(const mapping&) = delete;
+    ~mapping() { ::munmap(base, length); }
+  };
+  try {
+    auto keeper = std::make_shared<const mapping>(base, static_cast<std::size_t>(length));
+    const auto* first = static_cast<const std::byte*>(base) + (offset - start);
+    return mapped_bytes{{first, static_cast<std::size_t>(n)}, std::move(keeper)};
+  } catch (...) {
+    ::munmap(base, static_cast<std::size_t>(length));
+    return std::nullopt;
+  }
 }
 
 }  // namespace progiso::detail

@@ -404,14 +404,24 @@ volume read_raw(const std::filesystem::path& file, const raw_layout& layout,
                 (expected ? std::to_string(*expected) : std::string("more than 2^64")) + " bytes");
   }
 
+  const bool host_big = std::endian::native == std::endian::big;
+  const bool swap = item > 1 && layout.big_endian != host_big;
+  if (!swap && size >= detail::map_min_bytes) {
+    if (std::optional<detail::mapped_bytes> m = detail::map_bytes(in, 0, size)) {
+      try {
+        return volume::borrow(dims, layout.type, m->bytes, std::move(m->keeper), spacing, origin);
+      } catch (const error& e) {
+        throw error(name + ": " + e.what());
+      }
+    }
+  }
   std::vector<std::byte> samples(static_cast<std::size_t>(*expected));
   const std::size_t got = in.read(samples.data(), samples.size());
   if (got != samples.size()) {
     throw error(name + ": read only " + std::to_string(got) + " of " +
                 std::to_string(samples.size()) + " bytes");
   }
-  const bool host_big = std::endian::native == std::endian::big;
-  if (item > 1 && layout.big_endian != host_big) detail::swap_sample_bytes(samples, item);
+  if (swap) detail::swap_sample_bytes(samples, item);
   return make_volume(file, dims, layout.type, std::move(samples), spacing, origin);
 }
 

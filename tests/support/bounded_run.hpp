@@ -36,6 +36,9 @@ struct bounded_result {
 struct bounds {
   std::chrono::milliseconds wall{std::chrono::seconds(60)};
   std::uint64_t address_space_bytes = 0;  ///< 0: no limit
+  /// RLIMIT_DATA: the heap and private writable mappings, which is what a process allocates;
+  /// read-only file mappings (a mapped input) and the page cache are not counted. 0: no limit.
+  std::uint64_t data_bytes = 0;
   /// Called with the child's pid while it runs, every 5 ms (to send it signals); return false
   /// to stop calling.
   std::function<bool(pid_t)> while_running;
@@ -80,6 +83,10 @@ inline bounded_result run_bounded(const std::string& program, const std::vector<
     if (b.address_space_bytes != 0) {
       const rlimit lim{b.address_space_bytes, b.address_space_bytes};
       ::setrlimit(RLIMIT_AS, &lim);
+    }
+    if (b.data_bytes != 0) {
+      const rlimit lim{b.data_bytes, b.data_bytes};
+      ::setrlimit(RLIMIT_DATA, &lim);
     }
 #endif
     ::execv(program.c_str(), argv.data());

@@ -18,6 +18,9 @@
 #include <cstdint>
 #include <cstdio>
 #include <filesystem>
+#include <memory>
+#include <optional>
+#include <span>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -56,6 +59,24 @@ class input_file {
   std::FILE* file_ = nullptr;
   std::uint64_t size_ = 0;
 };
+
+/// A byte range of a file mapped read-only in place; `keeper` unmaps it when the last copy goes.
+struct mapped_bytes {
+  std::span<const std::byte> bytes;
+  std::shared_ptr<const void> keeper;
+};
+/// Inputs at least this large are mapped rather than read (map_bytes()): their samples then live
+/// in the page cache, which the kernel fills as refinement reads them and may evict again, so a
+/// volume larger than the memory a process may allocate still refines. Smaller ones are read: a
+/// read costs less than the page faults of a mapping.
+inline constexpr std::uint64_t map_min_bytes = std::uint64_t{64} << 20;
+/// Bytes [offset, offset + n) of `in` mapped read-only (private: a write elsewhere to the file is
+/// not promised to show, and the mapping is never written); nullopt when they cannot be mapped
+/// (the caller reads them instead). The range must lie within in.size(). A file shortened by
+/// another program while it is mapped ends the process at the next read of a lost page
+/// (SIGBUS), as for every memory-mapped reader: inputs are not to be truncated in use.
+[[nodiscard]] std::optional<mapped_bytes> map_bytes(const input_file& in, std::uint64_t offset,
+                                                    std::uint64_t n) noexcept;
 
 /// Up to `limit` bytes of `bytes` for a one-line message, in double quotes: printable ASCII as
 /// is, every other byte as \xNN, "..." after the limit. Untrusted text never breaks the line.
