@@ -75,9 +75,9 @@ class vertex_pages {
   /// table: a default-constructed one, as a uniform cut's root has).
   [[nodiscard]] T* find(const ipoint& p) const noexcept {
     if (top_ == nullptr) return nullptr;
-    const block* b = top_[block_of(p)].load(std::memory_order_acquire);  // partner: make_block()
+    const block* b = top_[block_of(p)].load(std::memory_order_acquire);  // partner: install()
     if (b == nullptr) return nullptr;
-    T* brick = b->bricks[brick_of(p)].load(std::memory_order_acquire);  // partner: make_brick()
+    T* brick = b->bricks[brick_of(p)].load(std::memory_order_acquire);  // partner: install()
     return brick == nullptr ? nullptr : brick + offset_of(p);
   }
   [[nodiscard]] T* find(std::uint64_t index) const noexcept { return find(hier_->point(index)); }
@@ -85,12 +85,12 @@ class vertex_pages {
   /// The word of grid point p, made (zeroed) when missing. Any thread.
   [[nodiscard]] T& at(const ipoint& p) {
     std::atomic<block*>& top = top_[block_of(p)];
-    block* b = top.load(std::memory_order_acquire);  // partner: make_block()
+    block* b = top.load(std::memory_order_acquire);  // partner: install()
     if (b == nullptr) [[unlikely]] {
       b = make_block(top);
     }
     std::atomic<T*>& slot = b->bricks[brick_of(p)];
-    T* brick = slot.load(std::memory_order_acquire);  // partner: make_brick()
+    T* brick = slot.load(std::memory_order_acquire);  // partner: install()
     if (brick == nullptr) [[unlikely]] {
       brick = make_brick(slot);
     }
@@ -158,49 +158,52 @@ class vertex_pages {
     return static_cast<std::size_t>(c(p[0]) | c(p[1]) << brick_bits | c(p[2]) << (2 * brick_bits));
   }
 
-  block* make_block(std::atomic<block*>& slot) {
-    auto* fresh = new block;
-    block* seen = nullptr;
-    // acq_rel: the release publishes the zeroed table to find()'s and at()'s acquire loads; on
-    // failure the acquire reads the winner's, zeroed before its release.
+  // Installs `fresh` (zeroed) in an empty slot and returns true; or, when another thread
+  // installed one first, sets `fresh` to that one and returns false (the caller frees its own).
+  template <class P>
+  static bool install(std::atomic<P*>& slot, P*& fresh) noexcept {
+    P* seen = nullptr;
+    // acq_rel: the release publishes the zeroed memory to the acquire loads of find(), at() and
+    // make_brick(); on failure the acquire reads the winner's, zeroed before its release.
     if (slot.compare_exchange_strong(seen, fresh, std::memory_order_acq_rel,
                                      std::memory_order_acquire)) {
-      blocks_made_.fetch_add(1, std::memory_order_relaxed);  // relaxed: a statistic
-      return fresh;
+      return true;
     }
-    delete fresh;
-    return seen;
+    fresh = seen;
+    return false;
+  }
+
+  block* make_block(std::atomic<block*>& slot) {
+    block* const mine = new block;
+    block* b = mine;
+    if (install(slot, b)) {
+      blocks_made_.fetch_add(1, std::memory_order_relaxed);  // relaxed: a statistic
+    } else {
+      delete mine;
+    }
+    return b;
   }
   // A zeroed brick from the chunks: a malloc per brick cost more than the refinement's own work
   // on the words. A brick lost to a racing thread stays unused (rare: two threads making the
   // same brick at once).
   T* make_brick(std::atomic<T*>& slot) {
-    // relaxed: a ticket; the chunk it falls in is published by its own CAS below.
+    // relaxed: a ticket; the chunk it falls in is published by install().
     const std::uint64_t n = next_brick_.fetch_add(1, std::memory_order_relaxed);
     const std::uint64_t c = n / chunk_bricks;
     if (c >= chunk_count_) throw std::bad_alloc();          // more racing losses than provisioned
-    T* chunk = chunks_[c].load(std::memory_order_acquire);  // partner: the CAS below
+    T* chunk = chunks_[c].load(std::memory_order_acquire);  // partner: install()
     if (chunk == nullptr) {
       // calloc: a chunk this large is mapped fresh, its pages zeroed by the kernel when touched.
-      T* fresh = static_cast<T*>(std::calloc(chunk_bricks * brick_words, sizeof(T)));
-      if (fresh == nullptr) throw std::bad_alloc();
-      // acq_rel: publishes the chunk to the acquire load above; on failure reads the winner's.
-      if (chunks_[c].compare_exchange_strong(chunk, fresh, std::memory_order_acq_rel,
-                                             std::memory_order_acquire)) {
-        chunk = fresh;
-      } else {
-        std::free(fresh);
-      }
+      T* const mine = static_cast<T*>(std::calloc(chunk_bricks * brick_words, sizeof(T)));
+      if (mine == nullptr) throw std::bad_alloc();
+      chunk = mine;
+      if (!install(chunks_[c], chunk)) std::free(mine);
     }
-    T* fresh = chunk + (n % chunk_bricks) * brick_words;
-    T* seen = nullptr;
-    // acq_rel: as in make_block(), for the zeroed brick.
-    if (slot.compare_exchange_strong(seen, fresh, std::memory_order_acq_rel,
-                                     std::memory_order_acquire)) {
+    T* brick = chunk + (n % chunk_bricks) * brick_words;
+    if (install(slot, brick)) {
       bricks_made_.fetch_add(1, std::memory_order_relaxed);  // relaxed: a statistic
-      return fresh;
     }
-    return seen;
+    return brick;
   }
 
   void take(vertex_pages& o) noexcept {
