@@ -105,7 +105,7 @@ class page_session : public std::enable_shared_from_this<page_session> {
   void run(http::request<http::empty_body> request) {
     // Frames go out as soon as they are written: with Nagle's algorithm a frame's last segment
     // waits for the acknowledgement of the one before, which the page's TCP delays (delayed
-    // ACK, about 40 ms on Linux), and an isovalue's first frame is that late.
+    // ACK), and an isovalue's first frame would wait that long.
     beast::error_code ignored;
     ws_.next_layer().socket().set_option(tcp::no_delay(true), ignored);
     ws_.set_option(websocket::stream_base::timeout::suggested(beast::role_type::server));
