@@ -24,12 +24,12 @@ namespace {
 namespace fs = std::filesystem;
 
 constexpr int n = 576;  // 576³ bytes: 182 MiB
-constexpr std::uint64_t volume_bytes = std::uint64_t{n} * n * n;
-constexpr std::uint64_t cap = std::uint64_t{150} << 20;
+[[maybe_unused]] constexpr std::uint64_t volume_bytes = std::uint64_t{n} * n * n;
+[[maybe_unused]] constexpr std::uint64_t cap = std::uint64_t{150} << 20;
 
 // A ball of radius about 44 at the isovalue 40 (samples 0.9 × the distance from an off-grid
 // centre), written slice by slice.
-void write_ball(const fs::path& p) {
+[[maybe_unused]] void write_ball(const fs::path& p) {
   std::ofstream out(p, std::ios::binary);
   std::vector<char> slice(static_cast<std::size_t>(n) * n);
   const double c = n / 2.0 + 0.3;
