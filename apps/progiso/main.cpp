@@ -38,7 +38,9 @@
 #include <progiso/core/base/error.hpp>
 #include <progiso/core/field/analytic.hpp>
 #include <progiso/core/field/smoothing.hpp>
+#include <progiso/core/hierarchy/hierarchy.hpp>
 #include <progiso/core/refine/refiner.hpp>
+#include <progiso/core/surface/finest_surface.hpp>
 #include <progiso/io/detail/file_output.hpp>
 #include <progiso/io/detail/writers.hpp>
 #include <progiso/io/hierarchy_io.hpp>
@@ -69,9 +71,16 @@ std::vector<std::string> argument_list(int argc, char** argv) {
   return args;
 }
 
+/// The finest surface written piece by piece (run_finest_in_pieces()): its counts, since the
+/// result then holds no mesh.
+struct pieces_written {
+  std::uint64_t triangles = 0, vertices = 0;
+};
+
 std::string stats_json(const arguments& a, const std::string& input, double iso,
                        const progiso::volume& data, const progiso::volume& vol,
-                       const progiso::extract_result& r) {
+                       const progiso::extract_result& r,
+                       const std::optional<pieces_written>& pieces = std::nullopt) {
   std::ostringstream o;
   o << "{\n";
   o << "  \"input\": \"" << json_escape(input) << "\",\n";
@@ -90,8 +99,10 @@ std::string stats_json(const arguments& a, const std::string& input, double iso,
   o << "  \"diamonds_visited\": " << r.stats.visited << ",\n";
   o << "  \"diamonds_culled\": " << r.stats.culled << ",\n";
   o << "  \"voxels\": " << vol.voxel_count() << ",\n";
-  o << "  \"triangles\": " << r.mesh.triangles.size() << ",\n";
-  o << "  \"vertices\": " << r.mesh.vertices.size() << ",\n";
+  // "streamed": written slab by slab through scratch files, never whole in memory.
+  o << "  \"streamed\": " << (pieces ? "true" : "false") << ",\n";
+  o << "  \"triangles\": " << (pieces ? pieces->triangles : r.mesh.triangles.size()) << ",\n";
+  o << "  \"vertices\": " << (pieces ? pieces->vertices : r.mesh.vertices.size()) << ",\n";
   o << "  \"time_to_first_surface_ms\": " << json_number(r.first_surface_seconds * 1e3) << ",\n";
   o << "  \"range_build_ms\": " << json_number(r.range_build_seconds * 1e3) << ",\n";
   o << "  \"refine_ms\": " << json_number(r.refine_seconds * 1e3) << ",\n";
@@ -325,6 +336,71 @@ int run_with_hierarchy(arguments& a, const std::shared_ptr<const progiso::volume
   return 0;
 }
 
+/// Whether the run writes the finest surface slab by slab (run_finest_in_pieces()): a full goal
+/// into a PLY, on a grid that the finest surface's passes take in more than one slab (larger than
+/// detail::finest_whole_grid_bytes points), so that neither the passes nor the output hold more
+/// than a slab. Normals need their neighbours' triangles where the gradient vanishes, some in
+/// another slab: with --normals the surface is held whole (its passes still slab by slab).
+bool writes_in_pieces(const arguments& a, const progiso::volume& vol) {
+  return a.options.goal.what == progiso::refine_goal::kind::full && !a.options.normals &&
+         progiso::detail::lower_extension(*a.output) == ".ply" &&
+         progiso::detail::finest_slab_planes(vol.dims()) < vol.dims()[2];
+}
+
+/// A full goal's finest surface (finest_surface(), the direct path) made slab by slab and
+/// written to the PLY as it is made (ply_pieces_writer), each piece mapped to scanner
+/// coordinates when asked: the same file as the whole surface's.
+int run_finest_in_pieces(arguments& a, const std::string& input, const progiso::volume& data,
+                         const progiso::volume& vol, double iso,
+                         const std::optional<progiso::index_to_world>& world,
+                         progiso::detail::atomic_output& mesh_out,
+                         std::optional<progiso::detail::atomic_output>& stats_out) {
+  using clock = std::chrono::steady_clock;
+  progress_bar bar;
+  a.options.progress = [&bar](const progiso::extract_progress& p) { bar.update(p); };
+  const progiso::finest_progress progress =
+      progiso::direct_progress(a.options, progiso::hierarchy(vol.dims()).max_depth());
+  progiso::detail::ply_pieces_writer ply(mesh_out, false);
+  const auto t0 = clock::now();
+  progiso::scheduler::run_on_threads(
+      a.threads, [&](const progiso::parallel_loop& loop, std::size_t parts) {
+        progiso::detail::finest_surface_pieces(vol, iso, loop, parts, progress,
+                                               [&](progiso::triangle_mesh& piece, std::uint64_t) {
+                                                 if (world) to_world(piece, data, *world);
+                                                 ply.add(piece);
+                                               });
+      });
+  const double made = std::chrono::duration<double>(clock::now() - t0).count();
+  bar.finish();
+  ply.write_into(mesh_out);
+  const double seconds = std::chrono::duration<double>(clock::now() - t0).count();
+  progiso::extract_result r;
+  r.finest_direct = true;
+  r.stats.triangles = ply.triangles();
+  r.extract_seconds = made;
+  r.total_seconds = seconds;
+  r.pipeline_seconds = seconds;
+  const auto [lo, hi] = vol.value_range();
+  r.isovalue_outside_data = !(lo <= iso && iso < hi);
+  if (r.isovalue_outside_data) {
+    std::cerr << "progiso: isovalue " << iso << " is outside the data range [" << lo << ", " << hi
+              << "): the surface is empty\n";
+  }
+  const pieces_written counts{ply.triangles(), ply.vertices()};
+  if (stats_out) stats_out->write(stats_json(a, input, iso, data, vol, r, counts));
+  mesh_out.finish();
+  if (stats_out) stats_out->finish();
+  mesh_out.publish();
+  if (stats_out) stats_out->publish();
+  std::printf(
+      "progiso: %llu triangles, %llu vertices (%zu voxels); finest surface %.1f ms (two passes "
+      "over the samples, slab by slab), written in %.1f ms in all; wrote %s\n",
+      static_cast<unsigned long long>(counts.triangles),
+      static_cast<unsigned long long>(counts.vertices), vol.voxel_count(), made * 1e3,
+      seconds * 1e3, a.output->c_str());
+  return 0;
+}
+
 /// progiso cut: a cut of a hierarchy stream, without the volume.
 int run_cut(const std::vector<std::string>& args) {
   const progiso::cli::cut_arguments a = progiso::cli::parse_cut(args);
@@ -457,6 +533,9 @@ int run(const std::vector<std::string>& args) {
   std::cerr << "\n";
   if (hierarchy_out) {
     return run_with_hierarchy(a, vol, iso, mesh_out, stats_out, *hierarchy_out);
+  }
+  if (writes_in_pieces(a, *vol)) {
+    return run_finest_in_pieces(a, input, *data, *vol, iso, world, mesh_out, stats_out);
   }
   progress_bar bar;
   a.options.progress = [&bar](const progiso::extract_progress& p) { bar.update(p); };

@@ -15,6 +15,7 @@
 #include <cstring>
 #include <random>
 #include <system_error>
+#include <vector>
 
 #include <progiso/core/base/assert.hpp>
 #include <progiso/core/base/error.hpp>
@@ -247,6 +248,72 @@ atomic_output::~atomic_output() {
 void atomic_output::write(const void* data, std::size_t size) {
   PROGISO_ASSERT(file_ != nullptr);
   if (std::fwrite(data, 1, size, file_) != size) fail("cannot write", errno);
+}
+
+fs::path atomic_output::scratch_directory() const {
+  if (direct_) return fs::temp_directory_path();
+  const fs::path dir = final_.parent_path();
+  return dir.empty() ? fs::path(".") : dir;
+}
+
+scratch_file::scratch_file(const fs::path& directory, std::string for_errors)
+    : name_(std::move(for_errors)) {
+  fd_ = ::open(directory.c_str(), O_TMPFILE | O_RDWR | O_CLOEXEC, 0600);
+  if (fd_ < 0 && (errno == EOPNOTSUPP || errno == EISDIR || errno == EINVAL)) {
+    // No O_TMPFILE here: a named file, unlinked as soon as it exists (a signal in between
+    // leaves it behind; the registry's slot removes it).
+    for (int attempt = 0; attempt < 64 && fd_ < 0; ++attempt) {
+      const fs::path named = temporary_beside(directory / "scratch");
+      const int slot = register_path(named, slot_file);
+      fd_ = ::open(named.c_str(), O_RDWR | O_CREAT | O_EXCL | O_CLOEXEC, 0600);
+      const int code = errno;
+      if (fd_ >= 0) ::unlink(named.c_str());
+      unregister_path(slot);
+      if (fd_ < 0 && code != EEXIST) {
+        errno = code;
+        break;
+      }
+    }
+  }
+  if (fd_ < 0) {
+    throw error(name_ + ": cannot make a scratch file in \"" + directory_text(directory) + "\" (" +
+                errno_text(errno) + ")");
+  }
+}
+
+scratch_file::~scratch_file() {
+  if (fd_ >= 0) ::close(fd_);
+}
+
+void scratch_file::write(const void* data, std::size_t size) {
+  const auto* p = static_cast<const char*>(data);
+  while (size > 0) {
+    const ::ssize_t n = ::write(fd_, p, size);
+    if (n < 0 && errno == EINTR) continue;
+    if (n <= 0) {
+      throw error(name_ + ": cannot write a scratch file (" + errno_text(n < 0 ? errno : ENOSPC) +
+                  ")");
+    }
+    p += n;
+    size -= static_cast<std::size_t>(n);
+    size_ += static_cast<std::uint64_t>(n);
+  }
+}
+
+void scratch_file::copy_into(atomic_output& out) {
+  std::vector<char> block(std::size_t{1} << 20);
+  std::uint64_t at = 0;
+  while (at < size_) {
+    const auto want = static_cast<std::size_t>(std::min<std::uint64_t>(block.size(), size_ - at));
+    const ::ssize_t n = ::pread(fd_, block.data(), want, static_cast<::off_t>(at));
+    if (n < 0 && errno == EINTR) continue;
+    if (n <= 0) {
+      throw error(name_ + ": cannot read back a scratch file (" +
+                  (n < 0 ? errno_text(errno) : std::string("it is shorter than written")) + ")");
+    }
+    out.write(block.data(), static_cast<std::size_t>(n));
+    at += static_cast<std::uint64_t>(n);
+  }
 }
 
 void atomic_output::finish() {

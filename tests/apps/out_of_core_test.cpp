@@ -2,9 +2,11 @@
 // detail::map_min_bytes is mapped, not read, and the engine's per-vertex words follow what it
 // writes (vertex_pages), so the command refines it under an RLIMIT_DATA below the volume's size,
 // and writes the same surface as without the limit (an error goal), or a surface by a deadline.
-// (The finest surface's one-shot path still keeps a byte per sample: not run here.) The same bytes
-// as an input that must be read (big-endian 16-bit samples, swapped into memory) are refused under
-// that limit: the limit is real, and the mapping is what lets the first run through.
+// The same bytes as an input that must be read (big-endian 16-bit samples, swapped into memory)
+// are refused under that limit: the limit is real, and the mapping is what lets the first run
+// through. The finest surface of a grid beyond detail::finest_whole_grid_bytes points is made in
+// slabs and streamed to the PLY through scratch files, under the same limit: the file is the one
+// the whole surface gives; with --normals it is held whole, its passes still in slabs.
 
 #include <cmath>
 #include <cstdint>
@@ -14,6 +16,10 @@
 #include <vector>
 
 #include <gtest/gtest.h>
+
+#include <progiso/core/surface/finest_surface.hpp>
+#include <progiso/io/mesh_io.hpp>
+#include <progiso/io/volume_io.hpp>
 
 #include "support/bounded_run.hpp"
 #include "support/scratch_dir.hpp"
@@ -28,16 +34,18 @@ constexpr int n = 576;  // 576³ bytes: 182 MiB
 [[maybe_unused]] constexpr std::uint64_t cap = std::uint64_t{150} << 20;
 
 // A ball of radius about 44 at the isovalue 40 (samples 0.9 × the distance from an off-grid
-// centre), written slice by slice.
-[[maybe_unused]] void write_ball(const fs::path& p) {
+// centre) in an n³ grid, written slice by slice.
+[[maybe_unused]] void write_ball(const fs::path& p, std::size_t side = n) {
   std::ofstream out(p, std::ios::binary);
-  std::vector<char> slice(static_cast<std::size_t>(n) * n);
-  const double c = n / 2.0 + 0.3;
-  for (int z = 0; z < n; ++z) {
-    for (int y = 0; y < n; ++y) {
-      for (int x = 0; x < n; ++x) {
-        const double r = std::sqrt((x - c) * (x - c) + (y - c) * (y - c) + (z - c) * (z - c));
-        slice[static_cast<std::size_t>(y) * n + static_cast<std::size_t>(x)] =
+  std::vector<char> slice(side * side);
+  const double c = static_cast<double>(side) / 2.0 + 0.3;
+  for (std::size_t z = 0; z < side; ++z) {
+    for (std::size_t y = 0; y < side; ++y) {
+      for (std::size_t x = 0; x < side; ++x) {
+        const double dx = static_cast<double>(x) - c, dy = static_cast<double>(y) - c,
+                     dz = static_cast<double>(z) - c;
+        const double r = std::sqrt(dx * dx + dy * dy + dz * dz);
+        slice[y * side + x] =
             static_cast<char>(static_cast<unsigned char>(std::min(255.0, 0.9 * r)));
       }
     }
@@ -97,6 +105,80 @@ TEST(OutOfCore, a_mapped_volume_larger_than_the_allowed_memory_refines_to_the_sa
   EXPECT_NE(read_run.status, 0);
   EXPECT_NE(read_run.err.find("out of memory"), std::string::npos) << read_run.err;
   EXPECT_FALSE(fs::exists(dir.path() / "read.ply"));
+#endif
+}
+
+TEST(OutOfCore, the_finest_surface_of_a_volume_larger_than_the_allowed_memory_streams_to_a_ply) {
+#if defined(PROGISO_SANITIZER_BUILD)
+  GTEST_SKIP() << "sanitizer builds run without memory limits (their shadow memory)";
+#else
+  constexpr int big = 648;  // 648³ bytes: 259 MiB, past finest_whole_grid_bytes
+  static_assert(std::uint64_t{big} * big * big > detail::finest_whole_grid_bytes);
+  static_assert(cap < std::uint64_t{big} * big * big);
+  const test::scratch_dir dir("progiso-out-of-core-");
+  const test::scratch_dir runs("progiso-out-of-core-runs-");
+  const fs::path input = dir.path() / "ball.raw";
+  write_ball(input, big);
+  const std::string dims =
+      std::to_string(big) + "," + std::to_string(big) + "," + std::to_string(big);
+  test::bounds capped = test::limited(std::chrono::seconds(240));
+  capped.data_bytes = cap;
+  const auto args = [&](const std::string& out) {
+    return std::vector<std::string>{"extract",
+                                    input.string(),
+                                    "--dims",
+                                    dims,
+                                    "--type",
+                                    "u8",
+                                    "--iso",
+                                    "40",
+                                    "--full",
+                                    "--threads",
+                                    "2",
+                                    "-o",
+                                    (dir.path() / out).string(),
+                                    "--stats-json",
+                                    (dir.path() / (out + ".json")).string()};
+  };
+  const test::bounded_result streamed =
+      test::run_bounded(PROGISO_CLI, args("streamed.ply"), runs.path(), capped);
+  ASSERT_EQ(streamed.status, 0) << streamed.err;
+  const std::string stats = test::read_whole(dir.path() / "streamed.ply.json");
+  EXPECT_NE(stats.find("\"streamed\": true"), std::string::npos) << stats;
+  // No scratch file left beside the output: the PLY and its statistics alone.
+  std::size_t files = 0;
+  for ([[maybe_unused]] const auto& e : fs::directory_iterator(dir.path())) ++files;
+  EXPECT_EQ(files, 3U);
+
+  // The file write_ply() writes for the whole surface (made here, without a limit).
+  const volume v = read_raw(input, raw_layout{{big, big, big}, sample_type::u8});
+  const triangle_mesh whole = finest_surface(v, 40.0);
+  EXPECT_GT(whole.triangles.size(), 10000U);
+  write_ply(dir.path() / "whole.ply", whole);
+  EXPECT_TRUE(test::read_whole(dir.path() / "streamed.ply") ==
+              test::read_whole(dir.path() / "whole.ply"))
+      << "the streamed PLY is not the whole surface's";
+
+  // --normals holds the surface whole in memory (normals need the triangles around a vertex
+  // where the gradient vanishes, some in another slab); its passes still go slab by slab, so it
+  // runs under the limit too, to the same vertices and triangles.
+  std::vector<std::string> whole_args = args("normals.ply");
+  whole_args.emplace_back("--normals");
+  const test::bounded_result in_memory =
+      test::run_bounded(PROGISO_CLI, whole_args, runs.path(), capped);
+  ASSERT_EQ(in_memory.status, 0) << in_memory.err;
+  EXPECT_NE(test::read_whole(dir.path() / "normals.ply.json").find("\"streamed\": false"),
+            std::string::npos);
+  const triangle_mesh with_normals = read_ply(dir.path() / "normals.ply");
+  EXPECT_EQ(with_normals.normals.size(), with_normals.vertices.size());
+  EXPECT_EQ(with_normals.triangles, whole.triangles);
+  ASSERT_EQ(with_normals.vertices.size(), whole.vertices.size());
+  for (std::size_t i = 0; i < whole.vertices.size(); ++i) {
+    for (std::size_t a = 0; a < 3; ++a) {
+      ASSERT_EQ(with_normals.vertices[i][a],
+                static_cast<double>(static_cast<float>(whole.vertices[i][a])));
+    }
+  }
 #endif
 }
 

@@ -200,6 +200,83 @@ TEST(FinestSurface, reports_the_rows_of_both_passes_one_call_at_a_time_and_stops
   }
 }
 
+// ---- In slabs of z planes (detail::finest_slab_planes()): what a grid larger than memory
+// takes. Every slab size gives the same surface, ids and order, and the pieces join to it.
+
+// Returns how many triangle corners named a vertex of the next piece.
+std::size_t expect_slabs_give_the_same_surface(const volume& v, double w) {
+  const triangle_mesh whole = finest_surface(v, w);
+  const detail::float_mesh whole_floats = detail::finest_surface_floats(v, w);
+  const auto plane = static_cast<std::size_t>(v.dims()[0] * v.dims()[1]);
+  std::size_t forward = 0;
+  for (const std::size_t planes : {std::size_t{1}, std::size_t{2}, std::size_t{5}}) {
+    SCOPED_TRACE("slabs of " + std::to_string(planes) + " planes");
+    EXPECT_EQ(detail::finest_slab_planes(v.dims(), planes * plane),
+              std::min<std::int64_t>(static_cast<std::int64_t>(planes), v.dims()[2]));
+    const detail::float_mesh floats =
+        detail::finest_surface_floats(v, w, scrambled_loop, 7, {}, planes * plane);
+    EXPECT_EQ(floats.vertices, whole_floats.vertices);
+    EXPECT_EQ(floats.triangles, whole_floats.triangles);
+    // The pieces, joined in order, are the whole surface; each piece's triangles name vertices
+    // of that piece or of the next (the slab's last plane of cubes), never of an earlier one.
+    triangle_mesh joined;
+    std::size_t pieces = 0;
+    std::uint64_t progress_total = 0, progress_last = 0;
+    const finest_progress progress = [&](std::uint64_t done, std::uint64_t total) {
+      progress_total = total;
+      progress_last = done;
+    };
+    detail::finest_surface_pieces(
+        v, w, scrambled_loop, 7, progress,
+        [&](triangle_mesh& piece, std::uint64_t first_vertex) {
+          ++pieces;
+          EXPECT_EQ(first_vertex, joined.vertices.size());
+          EXPECT_TRUE(piece.normals.empty());
+          for (const auto& t : piece.triangles) {
+            for (const std::uint32_t i : t) {
+              EXPECT_GE(i, first_vertex);
+              if (i >= first_vertex + piece.vertices.size()) ++forward;
+            }
+          }
+          joined.vertices.insert(joined.vertices.end(), piece.vertices.begin(),
+                                 piece.vertices.end());
+          joined.triangles.insert(joined.triangles.end(), piece.triangles.begin(),
+                                  piece.triangles.end());
+          piece.vertices.assign(3, vec3{});  // the callee may change the piece: cleared after
+        },
+        planes * plane);
+    const auto nz = static_cast<std::size_t>(v.dims()[2]);
+    EXPECT_EQ(pieces, (nz + planes - 1) / planes);
+    EXPECT_TRUE(same_bytes(whole, joined));
+    // Each slab's first pass counts the plane after it too: the progress total says so.
+    const std::uint64_t rows = static_cast<std::uint64_t>(v.dims()[1]) * nz;
+    EXPECT_EQ(progress_total, 2 * rows + (pieces - 1) * static_cast<std::uint64_t>(v.dims()[1]));
+    EXPECT_EQ(progress_last, progress_total);
+  }
+  return forward;
+}
+
+TEST(FinestSurface, in_slabs_of_any_plane_count_is_the_same_surface_and_its_pieces_join_to_it) {
+  // A sphere crosses every slab boundary: triangles there name the next piece's vertices.
+  EXPECT_GT(
+      expect_slabs_give_the_same_surface(make_sphere_field({33, 33, 33}, {16.3, 15.8, 16.1}), 11.0),
+      0U);
+  expect_slabs_give_the_same_surface(make_torus_field({40, 40, 24}, {19.5, 20.2, 11.7}, 12.0), 4.0);
+  expect_slabs_give_the_same_surface(make_gyroid_field({35, 29, 33}, 11.0), 0.2);
+  expect_slabs_give_the_same_surface(make_gaussian_blobs({2, 17, 9}, 3, 5), 0.4);
+}
+
+TEST(FinestSurface, slabs_are_chosen_by_the_grid_corner_bytes) {
+  // Up to finest_whole_grid_bytes points: one slab; beyond: finest_slab_bytes of planes.
+  EXPECT_EQ(detail::finest_slab_planes({513, 513, 513}), 513);
+  EXPECT_EQ(detail::finest_slab_planes({1024, 1024, 1024}), 64);
+  EXPECT_EQ(detail::finest_slab_planes({1024, 1024, 1024}, std::size_t{1} << 20), 1);
+  EXPECT_EQ(detail::finest_slab_planes({1024, 1024, 1024}, 1), 1);  // at least a plane
+  EXPECT_EQ(detail::finest_slab_planes({20000, 20000, 3}), 1);
+  EXPECT_EQ(detail::finest_slab_planes({8, 8, 8}, std::size_t{1} << 30), 8);
+  EXPECT_EQ(detail::finest_slab_planes({30000, 30000, 1}), 1);  // an image: its one plane
+}
+
 // ---- uniform_surface(): a uniform cut above the finest, by the same passes on every
 // stride-th sample.
 

@@ -21,6 +21,7 @@
 #include <vector>
 
 #include <progiso/core/base/error.hpp>
+#include <progiso/io/detail/writers.hpp>
 
 namespace {
 
@@ -272,6 +273,67 @@ TEST(MeshIo, read_ply_rejects_anything_but_write_ply_layout_with_one_line_errors
 
 // =============================================================================================
 // OBJ.
+
+// ply_pieces_writer (io/detail/writers.hpp): a mesh in pieces, each piece's triangles naming
+// vertices by their ids in the whole mesh (some in a later piece), makes write_ply()'s file.
+TEST(MeshIo, ply_written_in_pieces_is_the_file_of_the_joined_mesh) {
+  const scratch_dir dir;
+  std::mt19937 random(7);
+  std::uniform_real_distribution<double> coordinate(-100.0, 100.0);
+  for (const bool normals : {false, true}) {
+    SCOPED_TRACE(normals ? "with normals" : "without normals");
+    triangle_mesh whole;
+    std::vector<triangle_mesh> pieces(5);
+    std::uint32_t first = 0;
+    for (std::size_t k = 0; k < pieces.size(); ++k) {
+      triangle_mesh& piece = pieces[k];
+      const std::uint32_t count = k == 2 ? 0 : 3000 + static_cast<std::uint32_t>(k) * 17;
+      for (std::uint32_t i = 0; i < count; ++i) {
+        piece.vertices.push_back({coordinate(random), coordinate(random), coordinate(random)});
+        if (normals) piece.normals.push_back({0.0, 0.6, 0.8});
+      }
+      first += count;
+      whole.vertices.insert(whole.vertices.end(), piece.vertices.begin(), piece.vertices.end());
+      whole.normals.insert(whole.normals.end(), piece.normals.begin(), piece.normals.end());
+    }
+    // Triangles in each piece naming any vertex up to a few of the next piece's.
+    std::uint32_t end = 0;
+    for (std::size_t k = 0; k < pieces.size(); ++k) {
+      end += static_cast<std::uint32_t>(pieces[k].vertices.size());
+      const std::uint32_t reach = std::min(first, end + 5);
+      if (reach == 0) continue;
+      for (int t = 0; t < 4000; ++t) {
+        std::uniform_int_distribution<std::uint32_t> id(0, reach - 1);
+        pieces[k].triangles.push_back({id(random), id(random), id(random)});
+      }
+      whole.triangles.insert(whole.triangles.end(), pieces[k].triangles.begin(),
+                             pieces[k].triangles.end());
+    }
+    progiso::write_ply(dir.path() / "whole.ply", whole);
+    progiso::detail::atomic_output out(dir.path() / "pieces.ply");
+    progiso::detail::ply_pieces_writer writer(out, normals);
+    for (const triangle_mesh& piece : pieces) writer.add(piece);
+    EXPECT_EQ(writer.vertices(), whole.vertices.size());
+    EXPECT_EQ(writer.triangles(), whole.triangles.size());
+    writer.write_into(out);
+    out.commit();
+    EXPECT_EQ(file_text(dir.path() / "pieces.ply"), file_text(dir.path() / "whole.ply"));
+    // Nothing else in the directory: the scratch files had no names.
+    std::size_t files = 0;
+    for ([[maybe_unused]] const auto& e : fs::directory_iterator(dir.path())) ++files;
+    EXPECT_EQ(files, 2U);
+  }
+  // A triangle naming a vertex no piece brought is refused, and the target is not written.
+  progiso::detail::atomic_output out(dir.path() / "short.ply");
+  progiso::detail::ply_pieces_writer writer(out, false);
+  triangle_mesh piece = two_triangles();
+  piece.triangles.push_back({0, 1, 4});
+  writer.add(piece);
+  const std::string message = error_message([&] { writer.write_into(out); });
+  EXPECT_TRUE(contains(message, "short.ply")) << message;
+  EXPECT_TRUE(contains(message, "vertex 4 of 4")) << message;
+  EXPECT_FALSE(fs::exists(dir.path() / "short.ply"));
+}
 
 TEST(MeshIo, obj_lists_vertices_then_one_based_faces) {
   const scratch_dir dir;

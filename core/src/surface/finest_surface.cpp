@@ -41,6 +41,12 @@ struct interrupts {
   // caller that adds to them in place (clip_to_data_box()): growing past capacity would copy
   // the arrays into fresh pages.
   bool slack = false;
+  // Corner bytes a slab of z planes may hold (0: finest_slab_planes()'s default).
+  std::size_t slab_bytes = 0;
+  // Each slab's piece, handed over once written (its vertices follow the last piece's; its
+  // triangles name vertices by their ids in the whole surface, some in the next piece): the
+  // output then holds one slab at a time, and run() returns an empty mesh.
+  std::function<void(triangle_mesh& piece, std::uint64_t first_vertex)> piece;
 };
 
 // A grid point's owned edges, by slot: 0 +x, 1 +y, 2 +z, 3 the diagonal of its xy square,
@@ -210,20 +216,32 @@ class finest_mesher {
     ny_ = d[1];
     nz_ = d[2];
     rows_ = static_cast<std::size_t>(ny_ * nz_);
-    // Written by the first pass, every byte (not zeroed first: a byte per sample).
-    corners_ =
-        std::make_unique_for_overwrite<std::uint8_t[]>(static_cast<std::size_t>(nx_) * rows_);
-    row_vertices_.assign(rows_ + 1, 0);
-    row_triangles_.assign(rows_ + 1, 0);
   }
 
   // Mesh: triangle_mesh (double positions), or detail::float_mesh (float positions, without
   // normals or the storage, slack and poll hooks, which serve the engine's cuts).
+  //
+  // In slabs of z planes (detail::finest_slab_planes()): each slab's first pass also covers the
+  // plane after it (its cubes' triangles name that plane's vertices), whose counts then give the
+  // next slab its first ids; so the corner bytes and row counts held are one slab's, and the ids
+  // are those of a single slab over the whole grid. Hooks other than `piece` keep one slab.
   template <class Mesh = triangle_mesh>
   Mesh run(const parallel_loop& loop, std::size_t parts, const finest_progress& to,
            const interrupts& stop = {}) {
+    const bool hooked = stop.sized || stop.poll || stop.storage || stop.slack;
+    const auto plane = static_cast<std::size_t>(ny_);
+    const auto planes = static_cast<std::size_t>(
+        hooked ? nz_ : detail::finest_slab_planes({nx_, ny_, nz_}, stop.slab_bytes));
+    const std::size_t slabs = (static_cast<std::size_t>(nz_) + planes - 1) / planes;
+    // A slab's planes, and the one after it when there is a next slab.
+    const std::size_t held = std::min(static_cast<std::size_t>(nz_), planes + (slabs > 1 ? 1 : 0));
+    const std::size_t held_bytes = static_cast<std::size_t>(nx_) * plane * held;
+    // Written by each first pass, every byte (not zeroed first: a byte per sample).
+    corners_ = std::make_unique_for_overwrite<std::uint8_t[]>(held_bytes);
+    row_vertices_.assign(plane * held + 1, 0);
+    row_triangles_.assign(plane * held + 1, 0);
     parts = std::max<std::size_t>(1, std::min(parts, rows_));
-    progress_relay progress(to, 2 * static_cast<std::uint64_t>(rows_));
+    progress_relay progress(to, 2 * static_cast<std::uint64_t>(rows_) + (slabs - 1) * plane);
     // Rows [first, last) of the second pass, `step` rows at a time, each step reported.
     const auto in_steps = [&](std::size_t first, std::size_t last, const auto& pass) {
       if (!progress.active()) {
@@ -239,36 +257,89 @@ class finest_mesher {
     // The corner bytes' pages mapped before the first pass writes them all (prefault.hpp); not
     // when the caller polls: mapping a large grid's corner bytes in one go would keep the poll
     // waiting too long.
-    if (!stop.poll) {
-      detail::prefault_in_parts(loop, parts, corners_.get(), static_cast<std::size_t>(nx_) * rows_);
-    }
-    run_loop(loop, parts, [&](std::size_t k) {
-      count_rows(piece_begin(rows_, parts, k), piece_begin(rows_, parts, k + 1), progress);
-    });
-    // Each row's first vertex and triangle.
-    std::uint64_t v = 0, t = 0;
-    for (std::size_t r = 0; r <= rows_; ++r) {
-      const std::uint64_t nv = row_vertices_[r], nt = row_triangles_[r];
-      row_vertices_[r] = v;
-      row_triangles_[r] = t;
-      v += nv;
-      t += nt;
-    }
-    if (v > std::numeric_limits<std::uint32_t>::max()) {
-      throw error("finest surface: " + std::to_string(v) +
-                  " vertices, beyond the 2^32 a mesh's 32-bit ids can name");
-    }
-    if (stop.sized) stop.sized(v, t);
-    // The two arrays are sized into capacity whose pages are mapped first (prefault.hpp): a
-    // std::vector zeroes what it sizes, and zeroing fresh pages took a fault per page, one array
-    // per thread, which made sizing a large field's output a long step, slower still on two
-    // threads (bench/README.md). Mapped in slices over the threads, then zeroed side by side. In
-    // steps of 1 M elements, each mapped then zeroed, when the caller polls between them.
-    const std::uint64_t nv = row_vertices_[rows_];
-    const std::uint64_t nt = row_triangles_[rows_];
-    // Recycled storage, when the caller has some: its pages are mapped already, so sizing and
-    // writing it fault nothing, and nothing was unmapped to make room for it.
+    if (!stop.poll) detail::prefault_in_parts(loop, parts, corners_.get(), held_bytes);
     Mesh mesh{};
+    std::uint64_t first_vertex = 0, first_triangle = 0;  // the slab's first ids
+    for (std::size_t slab = 0; slab < slabs; ++slab) {
+      base_ = slab * planes * plane;
+      const std::size_t written = std::min(rows_, base_ + planes * plane);  // pass 2's rows
+      const std::size_t counted = std::min(rows_, written + (slab + 1 < slabs ? plane : 0));
+      const std::size_t rows = counted - base_;
+      const std::size_t pieces = std::max<std::size_t>(1, std::min(parts, rows));
+      run_loop(loop, pieces, [&](std::size_t k) {
+        count_rows(base_ + piece_begin(rows, pieces, k), base_ + piece_begin(rows, pieces, k + 1),
+                   progress);
+      });
+      // Each held row's first vertex and triangle.
+      std::uint64_t v = first_vertex, t = first_triangle;
+      for (std::size_t r = 0; r <= rows; ++r) {
+        const std::uint64_t nv = r < rows ? row_vertices_[r] : 0;
+        const std::uint64_t nt = r < rows ? row_triangles_[r] : 0;
+        row_vertices_[r] = v;
+        row_triangles_[r] = t;
+        v += nv;
+        t += nt;
+      }
+      if (v > std::numeric_limits<std::uint32_t>::max()) {
+        throw error("finest surface: " + std::to_string(v) +
+                    " vertices, beyond the 2^32 a mesh's 32-bit ids can name");
+      }
+      const std::uint64_t next_vertex = vertex_id(written);
+      const std::uint64_t next_triangle = row_triangles_[written - base_];
+      if (slabs == 1) {
+        size_whole(loop, parts, mesh, next_vertex, next_triangle, stop);
+      } else if (stop.piece) {
+        out_vertex_ = first_vertex;
+        out_triangle_ = first_triangle;
+        mesh.vertices.resize(static_cast<std::size_t>(next_vertex - first_vertex));
+        mesh.triangles.resize(static_cast<std::size_t>(next_triangle - first_triangle));
+      } else {
+        mesh.vertices.resize(static_cast<std::size_t>(next_vertex));
+        mesh.triangles.resize(static_cast<std::size_t>(next_triangle));
+      }
+      const std::size_t rows_written = written - base_;
+      const std::size_t writers = std::max<std::size_t>(1, std::min(parts, rows_written));
+      run_loop(loop, writers, [&](std::size_t k) {
+        in_steps(base_ + piece_begin(rows_written, writers, k),
+                 base_ + piece_begin(rows_written, writers, k + 1),
+                 [&](std::size_t first, std::size_t last) {
+                   for (std::size_t r = first; r < last; ++r) {
+                     write_vertices(r, mesh);
+                     write_triangles(r, mesh);
+                   }
+                 });
+      });
+      if constexpr (std::is_same_v<Mesh, triangle_mesh>) {
+        if (stop.piece) {
+          stop.piece(mesh, first_vertex);
+          mesh.vertices.clear();
+          mesh.triangles.clear();
+          mesh.normals.clear();
+        }
+      }
+      first_vertex = next_vertex;
+      first_triangle = next_triangle;
+    }
+    // The corner bytes are read no more: their pages freed by slices over the threads, not
+    // one by one on this thread by the destructor (release_in_parts()).
+    detail::release_in_parts(loop, parts, corners_.get(), held_bytes);
+    if (progress.active()) progress.finish();
+    return mesh;
+  }
+
+ private:
+  // The whole output of a single slab sized at once, `nv` vertices and `nt` triangles, into
+  // capacity whose pages are mapped first (prefault.hpp): a std::vector zeroes what it sizes,
+  // and zeroing fresh pages took a fault per page, one array per thread, which made sizing a
+  // large field's output a long step, slower still on two threads (bench/README.md). Mapped in
+  // slices over the threads, then zeroed side by side. In steps of 1 M elements, each mapped
+  // then zeroed, when the caller polls between them. Recycled storage, when the caller has
+  // some (`mesh` came from stop.storage): its pages are mapped already, so sizing and writing it
+  // fault nothing, and nothing was unmapped to make room for it.
+  template <class Mesh>
+  static void size_whole(const parallel_loop& loop, std::size_t parts, Mesh& mesh, std::uint64_t nv,
+                         std::uint64_t nt, const interrupts& stop) {
+    if (stop.sized) stop.sized(nv, nt);
     if constexpr (std::is_same_v<Mesh, triangle_mesh>) {
       if (stop.storage) mesh = stop.storage(nv, nt);
       mesh.vertices.clear();
@@ -305,23 +376,19 @@ class finest_mesher {
       }
     });
     if (stop.poll) stop.poll(2.0);
-    run_loop(loop, parts, [&](std::size_t k) {
-      in_steps(piece_begin(rows_, parts, k), piece_begin(rows_, parts, k + 1),
-               [&](std::size_t first, std::size_t last) {
-                 for (std::size_t r = first; r < last; ++r) {
-                   write_vertices(r, mesh);
-                   write_triangles(r, mesh);
-                 }
-               });
-    });
-    // The corner bytes are read no more: their pages freed by slices over the threads, not
-    // one by one on this thread by the destructor (release_in_parts()).
-    detail::release_in_parts(loop, parts, corners_.get(), static_cast<std::size_t>(nx_) * rows_);
-    if (progress.active()) progress.finish();
-    return mesh;
   }
 
- private:
+  // Row r's (a held row's) corner bytes, and its first vertex and triangle ids.
+  [[nodiscard]] std::uint8_t* corner_row(std::size_t r) const noexcept {
+    return corners_.get() + static_cast<std::size_t>(nx_) * (r - base_);
+  }
+  [[nodiscard]] std::uint64_t vertex_id(std::size_t r) const noexcept {
+    return row_vertices_[r - base_];
+  }
+  [[nodiscard]] std::uint64_t triangle_id(std::size_t r) const noexcept {
+    return row_triangles_[r - base_];
+  }
+
   [[nodiscard]] bool black(std::int64_t i) const noexcept {
     return static_cast<double>(s_[i]) > w_;
   }
@@ -362,7 +429,7 @@ class finest_mesher {
     const bool up_y = y + 1 < ny_, up_z = z + 1 < nz_;
     const auto cls_yz = static_cast<std::size_t>(((y & 1) << 1) | ((z & 1) << 2));
     point_masks m{};
-    m.corners = corners_.get() + n * r;
+    m.corners = corner_row(r);
     m.crossed[0] = &t_.crossed[cls_yz];
     m.crossed[1] = &t_.crossed[cls_yz | 1];
     // Slots whose ends exist, with and without the next point along x.
@@ -409,7 +476,7 @@ class finest_mesher {
         std::fill(c[2].begin(), c[2].end(), std::uint8_t{0});
       }
       // Corners of the cube at each x (at the last x: the corners dx = 0 alone).
-      std::uint8_t* corners = corners_.get() + n * r;
+      std::uint8_t* corners = corner_row(r);
       const std::uint8_t *c0 = c[0].data(), *c1 = c[1].data(), *c2 = c[2].data(), *c3 = c[3].data();
       for (std::size_t x = 0; x < n; ++x) {
         corners[x] = static_cast<std::uint8_t>(c0[x] | (c1[x] << 2) | (c2[x] << 4) | (c3[x] << 6));
@@ -429,8 +496,8 @@ class finest_mesher {
         ++x;
       }
       vertices += bits(masks.at(n - 1));  // no cube beyond the last point
-      row_vertices_[r] = vertices;
-      row_triangles_[r] = triangles;
+      row_vertices_[r - base_] = vertices;
+      row_triangles_[r - base_] = triangles;
       if (++unreported == progress_relay::step || r + 1 == last) {
         if (progress.active()) progress.add(unreported);
         unreported = 0;
@@ -441,7 +508,7 @@ class finest_mesher {
   // Pass 2: row r's vertex positions.
   template <class Mesh>
   void write_vertices(std::size_t r, Mesh& mesh) const {
-    if (row_vertices_[r + 1] == row_vertices_[r]) return;
+    if (vertex_id(r + 1) == vertex_id(r)) return;
     const auto n = static_cast<std::size_t>(nx_);
     const auto y = static_cast<std::int64_t>(r) % ny_;
     const auto z = static_cast<std::int64_t>(r) / ny_;
@@ -449,7 +516,7 @@ class finest_mesher {
     const std::int64_t dy = nx_, dz = nx_ * ny_;
     const point_masks masks = masks_of(r);
     const std::array<std::int64_t, 8> offset{0, 1, dy, dy + 1, dz, dz + 1, dy + dz, dy + dz + 1};
-    auto id = static_cast<std::size_t>(row_vertices_[r]);
+    auto id = static_cast<std::size_t>(vertex_id(r) - out_vertex_);
     for (std::size_t x = 0; x < n; ++x) {
       if (x + 9 <= n && masks.uniform8(x)) {
         x += 7;
@@ -492,7 +559,7 @@ class finest_mesher {
   void write_triangles(std::size_t r, Mesh& mesh) const {
     const auto y = static_cast<std::int64_t>(r) % ny_;
     const auto z = static_cast<std::int64_t>(r) / ny_;
-    if (y + 1 >= ny_ || z + 1 >= nz_ || row_triangles_[r + 1] == row_triangles_[r]) return;
+    if (y + 1 >= ny_ || z + 1 >= nz_ || triangle_id(r + 1) == triangle_id(r)) return;
     const auto n = static_cast<std::size_t>(nx_);
     const std::array<std::size_t, 4> rows{r, r + 1, r + static_cast<std::size_t>(ny_),
                                           r + static_cast<std::size_t>(ny_) + 1};
@@ -501,7 +568,7 @@ class finest_mesher {
     std::array<std::size_t, 4> pos{};
     for (std::size_t j = 0; j < 4; ++j) {
       masks[j] = masks_of(rows[j]);
-      first[j] = row_vertices_[rows[j]];
+      first[j] = vertex_id(rows[j]);
     }
     const auto advance = [&](std::size_t j, std::size_t to) {
       std::size_t p = pos[j];
@@ -518,8 +585,8 @@ class finest_mesher {
       pos[j] = p;
       first[j] = f;
     };
-    const std::uint8_t* corners = corners_.get() + n * r;
-    auto out = static_cast<std::size_t>(row_triangles_[r]);
+    const std::uint8_t* corners = corner_row(r);
+    auto out = static_cast<std::size_t>(triangle_id(r) - out_triangle_);
     const std::size_t cls_yz = static_cast<std::size_t>(((y & 1) << 1) | ((z & 1) << 2));
     for (std::size_t x = 0; x + 1 < n; ++x) {
       if (x + 9 <= n) {
@@ -562,9 +629,14 @@ class finest_mesher {
   const tables& t_;
   std::int64_t nx_ = 0, ny_ = 0, nz_ = 0;
   std::size_t rows_ = 0;
-  std::unique_ptr<std::uint8_t[]> corners_;  // corner colours of the cube at each point
+  // Of the held rows, from row base_ (the slab's first): the corner colours of the cube at each
+  // point, and each row's vertex and triangle counts, then (after the prefix sums) first ids.
+  std::size_t base_ = 0;
+  std::unique_ptr<std::uint8_t[]> corners_;
   std::vector<std::uint64_t> row_vertices_;
   std::vector<std::uint64_t> row_triangles_;
+  // The ids of the output's first vertex and triangle (a piece's, in the whole surface).
+  std::uint64_t out_vertex_ = 0, out_triangle_ = 0;
 };
 
 }  // namespace
@@ -603,8 +675,38 @@ triangle_mesh detail::finest_surface(const volume& field, double isovalue, const
 
 detail::float_mesh detail::finest_surface_floats(const volume& field, double isovalue,
                                                  const parallel_loop& run, std::size_t parts,
-                                                 const finest_progress& progress) {
-  return finest_surface_hooked<float_mesh>(field, isovalue, run, parts, progress, {});
+                                                 const finest_progress& progress,
+                                                 std::size_t slab_bytes) {
+  interrupts hooks;
+  hooks.slab_bytes = slab_bytes;
+  return finest_surface_hooked<float_mesh>(field, isovalue, run, parts, progress, hooks);
+}
+
+std::int64_t detail::finest_slab_planes(const index3& dims, std::size_t slab_bytes) noexcept {
+  const std::uint64_t plane = static_cast<std::uint64_t>(std::max<std::int64_t>(1, dims[0])) *
+                              static_cast<std::uint64_t>(std::max<std::int64_t>(1, dims[1]));
+  const auto nz = std::max<std::int64_t>(1, dims[2]);
+  if (slab_bytes == 0) {
+    if (plane * static_cast<std::uint64_t>(nz) <= finest_whole_grid_bytes) return nz;
+    slab_bytes = finest_slab_bytes;
+  }
+  return std::clamp<std::int64_t>(static_cast<std::int64_t>(slab_bytes / plane), 1, nz);
+}
+
+void detail::finest_surface_pieces(const volume& field, double isovalue, const parallel_loop& run,
+                                   std::size_t parts, const finest_progress& progress,
+                                   const finest_piece& piece, std::size_t slab_bytes) {
+  PROGISO_ASSERT(piece);
+  interrupts hooks;
+  hooks.slab_bytes = slab_bytes;
+  // One slab: its piece is the whole surface.
+  if (finest_slab_planes(field.dims(), slab_bytes) >= field.dims()[2]) {
+    triangle_mesh whole = finest_surface_hooked(field, isovalue, run, parts, progress, hooks);
+    piece(whole, 0);
+    return;
+  }
+  hooks.piece = piece;
+  (void)finest_surface_hooked(field, isovalue, run, parts, progress, hooks);
 }
 
 index3 uniform_grid_dims(const index3& dims, std::int32_t stride) noexcept {

@@ -24,7 +24,9 @@
 // optional callback (a command's progress bar over a 1024³ volume's seconds).
 //
 // Cost: the samples are read twice, each pass in row order; one byte per grid point and two
-// counts per row beside the output. No allocation per vertex or triangle.
+// counts per row beside the output, for a grid of up to detail::finest_whole_grid_bytes points,
+// and a larger grid in slabs of z planes that hold a bounded number of those bytes (the plane
+// after each slab counted twice). No allocation per vertex or triangle.
 // Thread safety: reads `field` only.
 #pragma once
 
@@ -140,9 +142,37 @@ struct float_mesh {
 };
 /// finest_surface() with each position rounded to the nearest float as it is written: the
 /// same triangles, and positions equal to finest_surface()'s rounded, in half its vertex memory.
+/// `slab_bytes` as finest_slab_planes()'s.
 [[nodiscard]] float_mesh finest_surface_floats(const volume& field, double isovalue,
                                                const parallel_loop& run = {}, std::size_t parts = 1,
-                                               const finest_progress& progress = {});
+                                               const finest_progress& progress = {},
+                                               std::size_t slab_bytes = 0);
+
+/// A grid whose corner bytes (one per grid point) are at most this is meshed in one slab.
+inline constexpr std::uint64_t finest_whole_grid_bytes = std::uint64_t{256} << 20;
+/// A larger grid's slabs hold at most this many corner bytes (at least one plane).
+inline constexpr std::uint64_t finest_slab_bytes = std::uint64_t{64} << 20;
+/// The z planes of each slab the finest surface is made in: all of them when the grid's corner
+/// bytes are at most finest_whole_grid_bytes, else as many as finest_slab_bytes hold, or, when
+/// `slab_bytes` is not 0, as many as it holds (at least one, at most dims[2]). A slab's first
+/// pass also covers the plane after it, whose vertices its cubes' triangles name; so what the
+/// passes hold beside the output is one slab's corner bytes and row counts, and the surface,
+/// its ids and its order are the same for every slab size.
+[[nodiscard]] std::int64_t finest_slab_planes(const index3& dims,
+                                              std::size_t slab_bytes = 0) noexcept;
+
+/// A piece of the finest surface: a slab's vertices, whose ids begin at `first_vertex` (each
+/// piece's follow the last one's), and the triangles of its cubes, naming vertices by their ids
+/// in the whole surface (those of the slab's last plane of cubes name vertices of the next
+/// piece). The callee may change or take the piece's arrays (they are cleared after it returns).
+using finest_piece = std::function<void(triangle_mesh& piece, std::uint64_t first_vertex)>;
+/// finest_surface() handed over slab by slab (finest_slab_planes()), so that the output held is
+/// one slab's: a surface larger than memory goes to a file as it is made. The pieces, joined in
+/// order, are finest_surface()'s mesh. One slab gives one piece, the whole surface. Called on the
+/// calling thread, between the slabs' passes; throws as finest_surface(), and what `piece` throws.
+void finest_surface_pieces(const volume& field, double isovalue, const parallel_loop& run,
+                           std::size_t parts, const finest_progress& progress,
+                           const finest_piece& piece, std::size_t slab_bytes = 0);
 /// finest_surface() writing into storage from `storage` (when it is not empty).
 [[nodiscard]] triangle_mesh finest_surface(const volume& field, double isovalue,
                                            const parallel_loop& run, std::size_t parts,

@@ -22,6 +22,7 @@
 #pragma once
 
 #include <cstddef>
+#include <cstdint>
 #include <cstdio>
 #include <filesystem>
 #include <string>
@@ -60,6 +61,10 @@ class atomic_output {
     finish();
     publish();
   }
+  /// Where scratch files for this output go (scratch_file): the directory of the file the
+  /// rename replaces, whose file system takes the output; the system's temporary directory for
+  /// direct output.
+  [[nodiscard]] std::filesystem::path scratch_directory() const;
 
  private:
   [[noreturn]] void fail(const char* what, int code) const;
@@ -72,6 +77,29 @@ class atomic_output {
   bool direct_ = false;
   bool finished_ = false;
   bool published_ = false;
+};
+
+/// An unnamed file for bytes that must wait before they go to an output (a PLY's triangles,
+/// which come after all its vertices): appended to, then copied into the output from its first
+/// byte. Made with O_TMPFILE in `directory` (or, where the file system lacks it, made and unlinked
+/// at once), so no name of it outlives the object, nor anything of it the process. Errors throw
+/// progiso::error naming `for_errors` (the output it serves). Not thread-safe.
+class scratch_file {
+ public:
+  scratch_file(const std::filesystem::path& directory, std::string for_errors);
+  scratch_file(const scratch_file&) = delete;
+  scratch_file& operator=(const scratch_file&) = delete;
+  ~scratch_file();
+
+  void write(const void* data, std::size_t size);
+  [[nodiscard]] std::uint64_t size() const noexcept { return size_; }
+  /// Every byte written so far, in order, written into `out`.
+  void copy_into(atomic_output& out);
+
+ private:
+  int fd_ = -1;
+  std::string name_;
+  std::uint64_t size_ = 0;
 };
 
 /// A directory that is filled in a staging directory beside it ("DIR.tmp-XXXXXX") and appears

@@ -5,6 +5,9 @@
 // temporary before computing anything and publish them all at the end (file_output.hpp).
 #pragma once
 
+#include <cstdint>
+#include <string>
+
 #include <progiso/core/surface/mesh.hpp>
 #include <progiso/io/detail/file_output.hpp>
 
@@ -13,6 +16,32 @@ namespace progiso::detail {
 /// Binary PLY, as write_ply(). Throws progiso::error (naming out.target()) for more than
 /// 2^31 − 1 vertices or a coordinate beyond the float range.
 void write_ply_to(atomic_output& out, const triangle_mesh& mesh);
+/// A binary PLY as write_ply_to() writes it, from a mesh that comes in pieces (a surface larger
+/// than memory, detail::finest_surface_pieces()): each piece's vertices follow the last piece's,
+/// and its triangles name vertices by their ids in the whole mesh. The pieces wait in two
+/// scratch files (out.scratch_directory()): vertices and faces, since a PLY's header counts both
+/// and its faces follow every vertex; write_into() then writes the header and copies both. So
+/// memory holds one piece at a time, and the file is the one write_ply_to() writes for the
+/// joined mesh, byte for byte. Throws progiso::error naming the output for more than 2^31 − 1
+/// vertices, a coordinate beyond the float range, a scratch file that cannot be made or
+/// written, or (write_into()) a triangle naming a vertex no piece brought.
+class ply_pieces_writer {
+ public:
+  /// `normals`: every piece carries vertex normals (write_ply_to()'s nx, ny, nz).
+  ply_pieces_writer(const atomic_output& out, bool normals);
+  void add(const triangle_mesh& piece);
+  void write_into(atomic_output& out);
+  [[nodiscard]] std::uint64_t vertices() const noexcept { return vertex_count_; }
+  [[nodiscard]] std::uint64_t triangles() const noexcept { return triangle_count_; }
+
+ private:
+  std::string name_;
+  bool normals_;
+  scratch_file vertices_;
+  scratch_file faces_;
+  std::uint64_t vertex_count_ = 0, triangle_count_ = 0, largest_index_ = 0;
+};
+
 /// OBJ, as write_obj().
 void write_obj_to(atomic_output& out, const triangle_mesh& mesh);
 /// Binary STL, as write_stl(). Throws progiso::error (naming out.target()) for more than
