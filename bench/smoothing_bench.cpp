@@ -43,98 +43,11 @@
 #include <malloc.h>
 
 #include "bench_common.hpp"
+#include "heap_meter.hpp"
 #include "steady_allocator.hpp"
-
-// ---- Heap meter: every operator new and delete of the process, counted by the block's usable
-// size; the peak is reset before a measured run. Relaxed atomics: the counts are read on the
-// benchmark thread after the run's threads have joined (the engine's join orders them).
-namespace {
-std::atomic<std::int64_t> heap_live{0};
-std::atomic<std::int64_t> heap_peak{0};
-
-void note_alloc(void* p) noexcept {
-  if (p == nullptr) return;
-  const auto n = static_cast<std::int64_t>(malloc_usable_size(p));
-  // relaxed: see above.
-  const std::int64_t live = heap_live.fetch_add(n, std::memory_order_relaxed) + n;
-  std::int64_t peak = heap_peak.load(std::memory_order_relaxed);
-  // relaxed: see above.
-  while (live > peak && !heap_peak.compare_exchange_weak(peak, live, std::memory_order_relaxed)) {
-  }
-}
-void note_free(void* p) noexcept {
-  if (p == nullptr) return;
-  // relaxed: see above.
-  heap_live.fetch_sub(static_cast<std::int64_t>(malloc_usable_size(p)), std::memory_order_relaxed);
-}
-void* counted_alloc(std::size_t n, std::size_t align) {
-  void* p = nullptr;
-  if (align <= alignof(std::max_align_t)) {
-    p = std::malloc(n == 0 ? 1 : n);
-  } else if (posix_memalign(&p, align, n == 0 ? align : n) != 0) {
-    p = nullptr;
-  }
-  if (p == nullptr) throw std::bad_alloc();
-  note_alloc(p);
-  return p;
-}
-void counted_free(void* p) noexcept {
-  note_free(p);
-  std::free(p);
-}
-}  // namespace
-
-void* operator new(std::size_t n) { return counted_alloc(n, 1); }
-void* operator new[](std::size_t n) { return counted_alloc(n, 1); }
-void* operator new(std::size_t n, std::align_val_t a) {
-  return counted_alloc(n, static_cast<std::size_t>(a));
-}
-void* operator new[](std::size_t n, std::align_val_t a) {
-  return counted_alloc(n, static_cast<std::size_t>(a));
-}
-void* operator new(std::size_t n, const std::nothrow_t&) noexcept {
-  try {
-    return counted_alloc(n, 1);
-  } catch (...) {
-    return nullptr;
-  }
-}
-void* operator new[](std::size_t n, const std::nothrow_t&) noexcept {
-  try {
-    return counted_alloc(n, 1);
-  } catch (...) {
-    return nullptr;
-  }
-}
-void operator delete(void* p) noexcept { counted_free(p); }
-void operator delete[](void* p) noexcept { counted_free(p); }
-void operator delete(void* p, std::size_t) noexcept { counted_free(p); }
-void operator delete[](void* p, std::size_t) noexcept { counted_free(p); }
-void operator delete(void* p, std::align_val_t) noexcept { counted_free(p); }
-void operator delete[](void* p, std::align_val_t) noexcept { counted_free(p); }
-void operator delete(void* p, std::size_t, std::align_val_t) noexcept { counted_free(p); }
-void operator delete[](void* p, std::size_t, std::align_val_t) noexcept { counted_free(p); }
-void operator delete(void* p, const std::nothrow_t&) noexcept { counted_free(p); }
-void operator delete[](void* p, const std::nothrow_t&) noexcept { counted_free(p); }
 
 namespace progiso::bench {
 namespace {
-
-/// Starts a heap measurement; peak() is the most heap in use since, beyond the start's.
-class heap_window {
- public:
-  heap_window() : base_(heap_live.load(std::memory_order_relaxed)) {
-    // relaxed: single-threaded here (no run in flight).
-    heap_peak.store(base_, std::memory_order_relaxed);
-  }
-  [[nodiscard]] double peak_mib() const {
-    // relaxed: read after the run's threads joined.
-    return static_cast<double>(heap_peak.load(std::memory_order_relaxed) - base_) / (1 << 20);
-  }
-
- private:
-  std::int64_t base_;
-};
 
 struct field_spec {
   const char* name;
