@@ -55,9 +55,20 @@ struct field_spec {
 
 const std::vector<field_spec>& fields() {
   static const std::vector<field_spec> list = {
-      {"ml257", [] { return make_marschner_lobb({257, 257, 257}); }, 0.5, 0.01},
-      {"ml513", [] { return make_marschner_lobb({513, 513, 513}); }, 0.5, 0.01},
-      {"sphere1024", [] { return make_sphere_field({1024, 1024, 1024}, {511.3, 512.6, 511.8}); },
+      {"ml257",
+       [] {
+         return make_marschner_lobb({257, 257, 257});
+       },
+       0.5, 0.01},
+      {"ml513",
+       [] {
+         return make_marschner_lobb({513, 513, 513});
+       },
+       0.5, 0.01},
+      {"sphere1024",
+       [] {
+         return make_sphere_field({1024, 1024, 1024}, {511.3, 512.6, 511.8});
+       },
        400.0, 0.5},
   };
   return list;
@@ -187,10 +198,11 @@ void BM_peak_memory(benchmark::State& state, const field_spec& f, path p) {
 }
 
 void register_all() {
-  const std::array<std::pair<const char*, path>, 4> paths{{{"finest", path::finest},
-                                                           {"finest_streamed", path::finest_streamed},
-                                                           {"refinement", path::refinement},
-                                                           {"refinement_error", path::refinement_error}}};
+  const std::array<std::pair<const char*, path>, 4> paths{
+      {{"finest", path::finest},
+       {"finest_streamed", path::finest_streamed},
+       {"refinement", path::refinement},
+       {"refinement_error", path::refinement_error}}};
   for (const field_spec& f : fields()) {
     for (const auto& [name, p] : paths) {
       benchmark::RegisterBenchmark((std::string("BM_peak_memory/") + f.name + "/" + name).c_str(),

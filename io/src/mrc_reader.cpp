@@ -307,6 +307,27 @@ mrc_header read_mrc_header(const fs::path& file) {
   return h;
 }
 
+std::optional<mapped_bytes> map_mrc_samples(const mrc_header& h, const fs::path& file,
+                                            std::int64_t volume) {
+  PROGISO_ASSERT(volume >= 0 && volume < h.volumes);
+  if (h.half || h.axis != std::array<int, 3>{0, 1, 2} || h.volume_type() != h.stored) {
+    return std::nullopt;
+  }
+  const std::size_t item = sample_size(h.stored);
+  if (item > 1 && h.big_endian != (std::endian::native == std::endian::big)) return std::nullopt;
+  const std::uint64_t bytes = static_cast<std::uint64_t>(h.stored_dims[0]) *
+                              static_cast<std::uint64_t>(h.stored_dims[1]) *
+                              static_cast<std::uint64_t>(h.stored_dims[2]) * item;
+  if (bytes < map_min_bytes) return std::nullopt;
+  const sequential_input in(file, "MRC", "MRC gzip data");
+  if (in.plain() == nullptr) return std::nullopt;
+  const auto volumes = static_cast<std::uint64_t>(h.volumes);
+  if (h.data_offset > in.size() || volumes > (in.size() - h.data_offset) / bytes) {
+    return std::nullopt;
+  }
+  return map_bytes(*in.plain(), h.data_offset + static_cast<std::uint64_t>(volume) * bytes, bytes);
+}
+
 std::vector<std::byte> read_mrc_samples(const mrc_header& h, const fs::path& file,
                                         std::int64_t volume) {
   PROGISO_ASSERT(volume >= 0 && volume < h.volumes);

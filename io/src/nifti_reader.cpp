@@ -324,6 +324,25 @@ nifti_header read_nifti_header(const fs::path& file) {
   return h;
 }
 
+std::optional<mapped_bytes> map_nifti_samples(const nifti_header& h, const fs::path& file,
+                                              std::int64_t volume) {
+  PROGISO_ASSERT(volume >= 0 && volume < h.volumes);
+  const std::size_t item = sample_size(h.stored);
+  if (h.scaled || h.volume_type() != h.stored) return std::nullopt;
+  if (item > 1 && h.big_endian != (std::endian::native == std::endian::big)) return std::nullopt;
+  const std::uint64_t bytes = static_cast<std::uint64_t>(h.dims[0]) *
+                              static_cast<std::uint64_t>(h.dims[1]) *
+                              static_cast<std::uint64_t>(h.dims[2]) * item;
+  if (bytes < map_min_bytes) return std::nullopt;
+  const fs::path& source = h.data_file ? *h.data_file : file;
+  const sequential_input in(source, h.data_file ? "NIfTI data" : "NIfTI", "NIfTI gzip data");
+  if (in.plain() == nullptr) return std::nullopt;
+  const std::uint64_t start = h.vox_offset;
+  const auto volumes = static_cast<std::uint64_t>(h.volumes);
+  if (start > in.size() || volumes > (in.size() - start) / bytes) return std::nullopt;
+  return map_bytes(*in.plain(), start + static_cast<std::uint64_t>(volume) * bytes, bytes);
+}
+
 std::vector<std::byte> read_nifti_samples(const nifti_header& h, const fs::path& file,
                                           std::int64_t volume) {
   PROGISO_ASSERT(volume >= 0 && volume < h.volumes);

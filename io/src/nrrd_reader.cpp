@@ -1284,6 +1284,38 @@ nrrd_header parse_nrrd_header(input_file& header_file) {
   return header_parser(header_file.path(), read_header_lines(header_file)).run();
 }
 
+std::optional<mapped_bytes> map_nrrd_samples(const nrrd_header& header,
+                                             const input_file& header_file, std::int64_t volume) {
+  PROGISO_ASSERT(volume >= 0 && volume < header.volumes);
+  const std::size_t item = sample_size(header.type);
+  if (header.encoding != nrrd_encoding::raw || header.interleaved || header.data_files.size() > 1 ||
+      header.line_skip != 0) {
+    return std::nullopt;
+  }
+  if (item > 1 && header.big_endian != (std::endian::native == std::endian::big)) {
+    return std::nullopt;
+  }
+  std::uint64_t bytes = item;  // of one volume: ≤ 32769³ × 8 < 2^48
+  for (std::int64_t d : header.dims) bytes *= static_cast<std::uint64_t>(d);
+  if (bytes < map_min_bytes) return std::nullopt;
+  const auto volumes = static_cast<std::uint64_t>(header.volumes);
+  std::optional<input_file> detached;
+  if (!header.data_files.empty()) {
+    detached.emplace(header.data_files[0], std::string(header.format) + " data");
+  }
+  const input_file& in = detached ? *detached : header_file;
+  const std::uint64_t start = detached ? 0 : header.data_offset;
+  if (start > in.size() || volumes > (in.size() - start) / bytes) return std::nullopt;
+  const std::uint64_t total = bytes * volumes;
+  std::uint64_t first = in.size() - total;  // byte skip -1: the data ends the file
+  if (header.byte_skip >= 0) {
+    const auto skip = static_cast<std::uint64_t>(header.byte_skip);
+    if (skip > in.size() - start - total) return std::nullopt;
+    first = start + skip;
+  }
+  return map_bytes(in, first + static_cast<std::uint64_t>(volume) * bytes, bytes);
+}
+
 std::vector<std::byte> read_nrrd_samples(const nrrd_header& header, input_file& header_file,
                                          std::int64_t volume) {
   PROGISO_ASSERT(volume >= 0 && volume < header.volumes);

@@ -53,6 +53,17 @@ volume make_volume(const fs::path& file, const index3& dims, sample_type type,
   }
 }
 
+/// A volume over mapped samples (map_bytes()), errors naming `file`.
+volume borrowed_volume(const fs::path& file, const index3& dims, sample_type type,
+                       detail::mapped_bytes mapped, const std::array<double, 3>& spacing,
+                       const std::array<double, 3>& origin) {
+  try {
+    return volume::borrow(dims, type, mapped.bytes, std::move(mapped.keeper), spacing, origin);
+  } catch (const error& e) {
+    throw error(file.string() + ": " + e.what());
+  }
+}
+
 enum class volume_format { nrrd, nifti, metaimage, vtk_legacy, vti, pvti, dicom, tiff, mrc };
 
 /// The format a file name asks for; throws "FILE: unknown volume format (…)" for any other.
@@ -209,6 +220,11 @@ struct text_source final : source_state {
     files.insert(files.end(), header.data_files.begin(), header.data_files.end());
   }
   volume read(const spacing_override& spacing) override {
+    if (std::optional<detail::mapped_bytes> m =
+            detail::map_nrrd_samples(header, in, volume_index)) {
+      return borrowed_volume(file, header.dims, header.type, std::move(*m),
+                             spacing.value_or(header.spacing), header.origin);
+    }
     std::vector<std::byte> samples = detail::read_nrrd_samples(header, in, volume_index);
     return make_volume(file, header.dims, header.type, std::move(samples),
                        spacing.value_or(header.spacing), header.origin);
@@ -227,6 +243,12 @@ struct nifti_source final : source_state {
     if (header.data_file) files.push_back(*header.data_file);
   }
   volume read(const spacing_override& spacing) override {
+    if (std::optional<detail::mapped_bytes> m =
+            detail::map_nifti_samples(header, file, volume_index)) {
+      return borrowed_volume(header.data_file ? *header.data_file : file, header.dims,
+                             header.volume_type(), std::move(*m), spacing.value_or(header.spacing),
+                             header.origin);
+    }
     std::vector<std::byte> samples = detail::read_nifti_samples(header, file, volume_index);
     return make_volume(header.data_file ? *header.data_file : file, header.dims,
                        header.volume_type(), std::move(samples), spacing.value_or(header.spacing),
@@ -246,6 +268,11 @@ struct mrc_source final : source_state {
     files = {f};
   }
   volume read(const spacing_override& spacing) override {
+    if (std::optional<detail::mapped_bytes> m =
+            detail::map_mrc_samples(header, file, volume_index)) {
+      return borrowed_volume(file, header.dims, header.volume_type(), std::move(*m),
+                             spacing.value_or(header.spacing), header.origin);
+    }
     std::vector<std::byte> samples = detail::read_mrc_samples(header, file, volume_index);
     return make_volume(file, header.dims, header.volume_type(), std::move(samples),
                        spacing.value_or(header.spacing), header.origin);
@@ -408,11 +435,7 @@ volume read_raw(const std::filesystem::path& file, const raw_layout& layout,
   const bool swap = item > 1 && layout.big_endian != host_big;
   if (!swap && size >= detail::map_min_bytes) {
     if (std::optional<detail::mapped_bytes> m = detail::map_bytes(in, 0, size)) {
-      try {
-        return volume::borrow(dims, layout.type, m->bytes, std::move(m->keeper), spacing, origin);
-      } catch (const error& e) {
-        throw error(name + ": " + e.what());
-      }
+      return borrowed_volume(file, dims, layout.type, std::move(*m), spacing, origin);
     }
   }
   std::vector<std::byte> samples(static_cast<std::size_t>(*expected));

@@ -67,6 +67,8 @@ class sequential_input {
                    std::string gzip_label);
   [[nodiscard]] bool gzipped() const noexcept { return gz_ != nullptr; }
   [[nodiscard]] const std::filesystem::path& path() const noexcept { return in_.path(); }
+  /// The file itself when its data is not gzip (a caller may map it), else null.
+  [[nodiscard]] const input_file* plain() const noexcept { return gz_ ? nullptr : &in_; }
   /// The file's size (compressed, for gzip).
   [[nodiscard]] std::uint64_t size() const noexcept { return in_.size(); }
   /// Reads up to out.size() bytes; fewer only at the end.

@@ -47,6 +47,7 @@
 #include <vector>
 
 #include <progiso/core/field/volume.hpp>
+#include <progiso/io/detail/file_input.hpp>
 #include <progiso/io/volume_io.hpp>
 
 namespace progiso::detail {
@@ -90,6 +91,13 @@ struct mrc_header {
 /// Reads volume `volume` (0 ≤ volume < header.volumes) of what `header` describes from `file`,
 /// x fastest, in host byte order, half floats widened. Throws progiso::error naming the file
 /// when it cannot hold every declared volume, ends early or is corrupt.
+/// Volume `volume`'s samples mapped in place (map_bytes()) instead of read, when they can be:
+/// at least map_min_bytes of them, stored uncompressed, x fastest, not half floats, in host byte
+/// order, and every declared volume present as the read requires; nullopt otherwise (read the
+/// samples: that read says what is wrong with a file that cannot hold them).
+[[nodiscard]] std::optional<mapped_bytes> map_mrc_samples(const mrc_header& header,
+                                                          const std::filesystem::path& file,
+                                                          std::int64_t volume);
 [[nodiscard]] std::vector<std::byte> read_mrc_samples(const mrc_header& header,
                                                       const std::filesystem::path& file,
                                                       std::int64_t volume = 0);

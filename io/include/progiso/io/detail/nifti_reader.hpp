@@ -89,6 +89,13 @@ struct nifti_header {
 /// describes from `file` (or its data file) in host byte order, scaled when the header says so.
 /// Throws progiso::error naming the data file when it cannot hold every declared volume, ends
 /// early or is corrupt.
+/// Volume `volume`'s samples mapped in place (map_bytes()) instead of read, when they can be:
+/// at least map_min_bytes of them, stored uncompressed, unscaled, in host byte order, and every
+/// declared volume present as the read requires; nullopt otherwise (read the samples: that read
+/// says what is wrong with a file that cannot hold them).
+[[nodiscard]] std::optional<mapped_bytes> map_nifti_samples(const nifti_header& header,
+                                                            const std::filesystem::path& file,
+                                                            std::int64_t volume);
 [[nodiscard]] std::vector<std::byte> read_nifti_samples(const nifti_header& header,
                                                         const std::filesystem::path& file,
                                                         std::int64_t volume = 0);

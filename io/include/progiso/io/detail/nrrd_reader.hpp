@@ -103,6 +103,14 @@ struct nrrd_header {
 /// gzip_max_ratio times its size plus slack, ascii 2 bytes per value, hex 2 digits per
 /// byte; throws "FILE: … cannot hold …" otherwise. Throws "FILE: NRRD data ends after X of Y
 /// bytes" for data that ends early, and names zlib's message for corrupt gzip data.
+/// Volume `volume`'s samples mapped in place (map_bytes()) instead of read, when they can be:
+/// at least map_min_bytes of them, stored uncompressed, raw (neither interleaved nor split over
+/// data files, no line skip), in host byte order, and every declared volume present as the read
+/// requires; nullopt otherwise (read the samples: that read says what is wrong with a file that
+/// cannot hold them).
+[[nodiscard]] std::optional<mapped_bytes> map_nrrd_samples(const nrrd_header& header,
+                                                           const input_file& header_file,
+                                                           std::int64_t volume);
 [[nodiscard]] std::vector<std::byte> read_nrrd_samples(const nrrd_header& header,
                                                        input_file& header_file,
                                                        std::int64_t volume = 0);
