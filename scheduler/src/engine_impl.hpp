@@ -155,6 +155,9 @@ struct engine_root : epoch_object {
   // surface needs none, so it is published before any pass over the volume. Commit step only.
   std::vector<ipoint> root_centres;
   bool seeded = false;
+  // A run on this root threw (drive()): it refines no further. Written by the driver, read by the
+  // control thread after joining it.
+  bool failed = false;
   // Some queued diamond is keyed by placeholder (placeholder_key): made ready without the range
   // data (a deadline run before it was built: never culled), or by full refinement, which
   // needs no errors (culled by a straddle test that stops at the first samples on both sides).
@@ -703,8 +706,14 @@ struct engine_impl : run_control {
 
   // The driver thread of one run. With `replaces`, r is a root of records made for this run,
   // unpublished, in place of the uniform cut `replaces` shows: published by the driver once
-  // the goal is reached (replace_root()), else destroyed.
+  // the goal is reached (replace_root()), else destroyed. What refinement throws (memory for
+  // its words, records or queue, beyond what the process may have) ends the run there, for
+  // wait() or refine() to rethrow: what was published stays readable, and the root, which may
+  // hold a split begun and not ended, is marked failed (launch() refuses to refine it further;
+  // a new isovalue makes a fresh root), or destroyed when it was never published.
   void drive(engine_root* r, engine_root* replaces = nullptr);
+  // drive() without the failure handling.
+  void drive_records(engine_root* r, engine_root* replaces);
 
   // Control (caller holds `control`).
   void launch(std::unique_lock<std::mutex>& lock, const refine_goal& g);

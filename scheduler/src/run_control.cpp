@@ -346,6 +346,23 @@ void engine_impl::drive_uniform(engine_root* r, std::vector<engine_root*> made) 
 }
 
 void engine_impl::drive(engine_root* r, engine_root* replaces) {
+  try {
+    drive_records(r, replaces);
+  } catch (...) {
+    // The graph's tasks have ended (its wait rethrew): this thread is the run's only publisher
+    // now, the one writer of callback_error. Nothing after replace_root() throws, so a root
+    // made for this run (`replaces`) was never published: no reader holds it.
+    callback_error = std::current_exception();
+    if (replaces != nullptr) {
+      destroy_root(r);
+    } else {
+      r->failed = true;
+    }
+    end_run(false);
+  }
+}
+
+void engine_impl::drive_records(engine_root* r, engine_root* replaces) {
   slice_end = goal.deadline;
   if (goal.what == refine_goal::kind::full) {
     // Full refinement splits every straddling diamond whatever the errors: ranges only.
@@ -404,6 +421,11 @@ void engine_impl::drive(engine_root* r, engine_root* replaces) {
 void engine_impl::launch(std::unique_lock<std::mutex>& lock, const refine_goal& g) {
   stop_and_join(lock);
   engine_root* r = current();
+  if (r->failed) {
+    throw error(
+        "engine: an earlier run on this isovalue failed (its surface stays readable); set the "
+        "isovalue to refine afresh");
+  }
   goal = g;
   // A focus weights the keys: an error target is then taken by priority (its split set depends on
   // the weights, which the plane sweep does not know).

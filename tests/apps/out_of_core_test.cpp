@@ -182,5 +182,47 @@ TEST(OutOfCore, the_finest_surface_of_a_volume_larger_than_the_allowed_memory_st
 #endif
 }
 
+TEST(OutOfCore, refinement_beyond_the_allowed_memory_ends_with_one_error_and_no_output) {
+#if defined(PROGISO_SANITIZER_BUILD)
+  GTEST_SKIP() << "sanitizer builds run without memory limits (their shadow memory)";
+#else
+  // Noise: full refinement makes a surface in nearly every cell, its records far beyond the
+  // limit, in the engine's driver thread. That failure reaches the command (wait() rethrows it)
+  // as one line and exit status 2, with no output, not a terminate() from the thread.
+  constexpr std::size_t side = 192;
+  const test::scratch_dir dir("progiso-out-of-core-");
+  const test::scratch_dir runs("progiso-out-of-core-runs-");
+  const fs::path input = dir.path() / "noise.raw";
+  {
+    std::string bytes(side * side * side, '\0');
+    std::uint32_t x = 12345;
+    for (char& c : bytes) {
+      x = x * 1664525u + 1013904223u;
+      c = static_cast<char>(x >> 24);
+    }
+    std::ofstream(input, std::ios::binary)
+        .write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
+  }
+  test::bounds capped = test::limited(std::chrono::seconds(240));
+  capped.data_bytes = std::uint64_t{96} << 20;
+  const std::string dims =
+      std::to_string(side) + "," + std::to_string(side) + "," + std::to_string(side);
+  for (const std::string threads : {"1", "2"}) {
+    SCOPED_TRACE(threads + " threads");
+    const test::bounded_result run = test::run_bounded(
+        PROGISO_CLI,
+        {"extract", input.string(), "--dims", dims, "--type", "u8", "--iso", "127.5", "--error",
+         "0", "--threads", threads, "-o", (dir.path() / "noise.ply").string()},
+        runs.path(), capped);
+    EXPECT_EQ(run.status, 2) << run.err;
+    EXPECT_NE(run.err.find("progiso: error: out of memory"), std::string::npos) << run.err;
+    EXPECT_EQ(run.err.find("terminate"), std::string::npos) << run.err;
+    std::size_t files = 0;
+    for ([[maybe_unused]] const auto& e : fs::directory_iterator(dir.path())) ++files;
+    EXPECT_EQ(files, 1U) << "an output or a temporary was left";
+  }
+#endif
+}
+
 }  // namespace
 }  // namespace progiso
