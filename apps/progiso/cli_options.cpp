@@ -16,7 +16,7 @@ const char* const usage_text =
     "usage:\n"
     "  progiso extract INPUT -o OUT.ply|OUT.obj|OUT.stl|OUT.glb|OUT.vtp --iso W\n"
     "          [--dims NX,NY,NZ --type u8|i8|u16|i16|u32|i32|f32|f64 [--big-endian]]\n"
-    "          [--spacing SX,SY,SZ | --world] [--series N|UID] [--volume K]\n"
+    "          [--spacing SX,SY,SZ | --world] [--series N|UID] [--volume K] [--level L]\n"
     "          [--full | --error E | --max-triangles K | --time-ms T [--by-priority]]\n"
     "          [--stats-json FILE] [--threads N] [--normals] [--hierarchy OUT.pgh]\n"
     "          [--smooth S] [--smooth-from K] [--smooth-region X0,Y0,Z0,X1,Y1,Z1] [--alpha A]\n"
@@ -42,13 +42,16 @@ const char* const usage_text =
     "UID the error lists), a TIFF stack (a multi-page .tif/.tiff, or a directory of .tif\n"
     "slices in natural order of their names: micro-CT, microscopy, ImageJ/Fiji; one grey\n"
     "channel), an MRC or CCP4 map (.mrc, .map, .ccp4, .rec, plain or .gz: cryo-EM maps,\n"
-    "tomograms, electron density; any axis order), or a headerless raw file described by\n"
-    "--dims and --type (x fastest, little-endian unless --big-endian).\n"
+    "tomograms, electron density; any axis order), a Zarr array or OME-Zarr image (the\n"
+    "directory; blosc, zstd, zlib, gzip or raw chunks: light-sheet and electron microscopy),\n"
+    "or a headerless raw file described by --dims and --type (x fastest, little-endian\n"
+    "unless --big-endian).\n"
     "--volume K reads volume K (0-based) of a NIfTI time series (dim[4] > 1), a MetaImage\n"
     "series (NDims 4), a 4-D NRRD (Slicer sequences, diffusion MRI), a DICOM series of\n"
     "time points (as many frames at every position: 4-D CT, cine MR; ordered by\n"
-    "TemporalPositionIndex, else InstanceNumber), an ImageJ hyperstack of frames or an MRC\n"
-    "volume stack.\n"
+    "TemporalPositionIndex, else InstanceNumber), an ImageJ hyperstack of frames, an MRC\n"
+    "volume stack or an OME-Zarr image's time points and channels (row-major).\n"
+    "--level L reads level L of an OME-Zarr image's pyramid (0, the default: the finest).\n"
     "--world writes the vertices in the coordinates the file declares (a NIfTI sform, else\n"
     "qform; NRRD space directions and origin; MetaImage TransformMatrix and Offset; .vti\n"
     "Direction; DICOM patient coordinates; an MRC map's unit cell, oblique cells skewed):\n"
@@ -341,6 +344,11 @@ extract_arguments parse_extract(const std::vector<std::string>& args) {
         throw error("--volume: expected an index from 0 to 2147483647, found " + shown(k));
       }
       a.volume = static_cast<std::int64_t>(n);
+    } else if (f == "--level") {
+      const std::string k = value();
+      const std::uint64_t n = parse_count(f, k);
+      if (n > 31) throw error("--level: expected a level from 0 to 31, found " + shown(k));
+      a.level = static_cast<std::int64_t>(n);
     } else if (f == "--spacing") {
       const auto parts = split_three(f, value());
       std::array<double, 3> s{};
@@ -385,6 +393,9 @@ extract_arguments parse_extract(const std::vector<std::string>& args) {
     throw error("--series picks a series of a DICOM directory, not of a raw or demo volume");
   }
   if (a.volume && a.demo) throw error("--volume picks a volume of an input file, not of --demo");
+  if (a.level && (a.demo || a.dims)) {
+    throw error("--level picks a level of an OME-Zarr image, not of a raw or demo volume");
+  }
   if (a.world && a.spacing) {
     throw error("--world and --spacing: the orientation the file declares sets the spacing");
   }

@@ -44,6 +44,7 @@ struct extract_arguments {
   bool world = false;                  // --world: vertices in the file's scanner coordinates
   std::optional<std::string> series;   // --series: which series of a DICOM directory
   std::optional<std::int64_t> volume;  // --volume: which volume of a NIfTI time series
+  std::optional<std::int64_t> level;   // --level: which level of an OME-Zarr pyramid
   extract_options options;
   std::chrono::duration<double> time_budget{0.0};  // --time-ms, until the volume is in memory
   std::optional<std::string> stats_json;

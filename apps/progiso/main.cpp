@@ -85,6 +85,7 @@ std::string stats_json(const arguments& a, const std::string& input, double iso,
   o << "{\n";
   o << "  \"input\": \"" << json_escape(input) << "\",\n";
   if (a.volume) o << "  \"volume\": " << *a.volume << ",\n";
+  if (a.level) o << "  \"level\": " << *a.level << ",\n";
   o << "  \"dims\": [" << vol.dims()[0] << ", " << vol.dims()[1] << ", " << vol.dims()[2] << "],\n";
   o << "  \"isovalue\": " << json_number(iso) << ",\n";
   o << "  \"mode\": \"" << goal_name(a.options.goal, "triangles") << "\",\n";
@@ -481,7 +482,9 @@ int run(const std::vector<std::string>& args) {
 
   // The input's headers are parsed once, here; its files, orientation and data come from them.
   std::optional<progiso::volume_source> source;
-  if (!a.demo) source.emplace(*a.input, raw, progiso::volume_choice{a.series, a.volume});
+  if (!a.demo) {
+    source.emplace(*a.input, raw, progiso::volume_choice{a.series, a.volume, a.level});
+  }
 
   // ---- Outputs: checked against the inputs and each other, then created (as temporaries)
   // before anything is read or computed.
@@ -523,6 +526,7 @@ int run(const std::vector<std::string>& args) {
   check_float_range(*a.output, *data, world);
   std::cerr << "progiso: " << input;
   if (a.volume) std::cerr << " volume " << *a.volume;
+  if (a.level) std::cerr << " level " << *a.level;
   std::cerr << ", " << data->dims()[0] << "x" << data->dims()[1] << "x" << data->dims()[2] << " "
             << progiso::to_string(data->type()) << ", isovalue " << iso;
   if (a.smooth.active()) {

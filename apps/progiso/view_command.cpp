@@ -95,7 +95,8 @@ int run_view(const std::vector<std::string>& args) {
   } else {
     std::optional<progiso::raw_layout> raw;
     if (in.dims) raw = progiso::raw_layout{*in.dims, *in.type, in.big_endian};
-    progiso::volume_source source(*in.input, raw, progiso::volume_choice{in.series, in.volume});
+    progiso::volume_source source(*in.input, raw,
+                                  progiso::volume_choice{in.series, in.volume, in.level});
     data = std::make_shared<const progiso::volume>(source.read(in.spacing));
     name = *in.input;
   }

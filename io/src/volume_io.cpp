@@ -23,6 +23,7 @@
 #include <progiso/io/detail/tiff_reader.hpp>
 #include <progiso/io/detail/vti_reader.hpp>
 #include <progiso/io/detail/vtk_legacy_reader.hpp>
+#include <progiso/io/detail/zarr_reader.hpp>
 
 namespace progiso {
 namespace {
@@ -64,13 +65,14 @@ volume borrowed_volume(const fs::path& file, const index3& dims, sample_type typ
   }
 }
 
-enum class volume_format { nrrd, nifti, metaimage, vtk_legacy, vti, pvti, dicom, tiff, mrc };
+enum class volume_format { nrrd, nifti, metaimage, vtk_legacy, vti, pvti, dicom, tiff, mrc, zarr };
 
 /// The format a file name asks for; throws "FILE: unknown volume format (…)" for any other.
 volume_format format_of(const fs::path& file) {
   std::error_code ec;
   // A directory of TIFF slices (a micro-CT or microscope's export), else of DICOM files.
   if (fs::is_directory(file, ec)) {
+    if (detail::is_zarr_directory(file)) return volume_format::zarr;
     return detail::is_tiff_directory(file) ? volume_format::tiff : volume_format::dicom;
   }
   if (detail::has_tiff_name(file)) return volume_format::tiff;
@@ -92,7 +94,8 @@ volume_format format_of(const fs::path& file) {
       file.string() +
       ": unknown volume format (expected .nrrd, .nhdr, .nii, .nii.gz, .hdr, .mha, .mhd, "
       ".vtk, .vti, .pvti, .tif, .tiff, .mrc, .map, .ccp4, .rec, a directory of DICOM files or of "
-      "TIFF slices, an enhanced DICOM file, or a raw file with --dims and --type)");
+      "TIFF slices, a Zarr or OME-Zarr directory, an enhanced DICOM file, or a raw file with "
+      "--dims and --type)");
 }
 
 /// The header of a NRRD, MetaImage or legacy VTK file (each reads its data through
@@ -110,6 +113,7 @@ detail::nrrd_header parse_text_header(detail::input_file& in, volume_format form
     case volume_format::dicom:
     case volume_format::tiff:
     case volume_format::mrc:
+    case volume_format::zarr:
       break;
   }
   return detail::parse_nrrd_header(in);
@@ -129,6 +133,7 @@ std::string_view format_kind(volume_format format) {
     case volume_format::dicom:
     case volume_format::tiff:
     case volume_format::mrc:
+    case volume_format::zarr:
       break;
   }
   return "NRRD";
@@ -279,6 +284,34 @@ struct mrc_source final : source_state {
   }
 };
 
+/// A Zarr array or OME-Zarr image: its metadata read once; a level and a volume chosen.
+struct zarr_source final : source_state {
+  fs::path dir;
+  detail::zarr_image image;
+  std::int64_t volume_index = 0;
+  std::size_t level = 0;
+  zarr_source(const fs::path& d, const volume_choice& choice)
+      : dir(d), image(detail::read_zarr_header(d)) {
+    volume_index = pick_volume(d, image.volumes, choice, "its leading axes");
+    const auto levels = static_cast<std::int64_t>(image.levels.size());
+    const std::int64_t k = choice.level.value_or(0);
+    if (k < 0 || k >= levels) {
+      throw error(d.string() + ": level " + std::to_string(k) + " was chosen, but the image has " +
+                  (levels == 1 ? std::string("one level (0)")
+                               : std::to_string(levels) + " levels (0 to " +
+                                     std::to_string(levels - 1) + ")"));
+    }
+    level = static_cast<std::size_t>(k);
+    files = image.files;
+  }
+  volume read(const spacing_override& spacing) override {
+    const detail::zarr_level& l = image.levels[level];
+    std::vector<std::byte> samples = detail::read_zarr_samples(image, level, volume_index);
+    return make_volume(l.dir, l.dims(), l.type, std::move(samples), spacing.value_or(l.spacing),
+                       l.origin);
+  }
+};
+
 struct dicom_source final : source_state {
   fs::path directory;
   detail::dicom_series series;
@@ -357,6 +390,11 @@ struct pvti_source final : source_state {
 std::unique_ptr<source_state> open_source(const fs::path& file,
                                           const std::optional<raw_layout>& raw,
                                           const volume_choice& choice) {
+  if (choice.level && *choice.level != 0 && !(!raw && detail::is_zarr_directory(file))) {
+    throw error(file.string() + ": level " + std::to_string(*choice.level) +
+                " was chosen, but the input is not a multiscale (OME-Zarr) image: it has level 0 "
+                "alone");
+  }
   if (raw) {
     check_choice(file, false, choice);
     (void)pick_volume(file, 1, choice);
@@ -373,6 +411,8 @@ std::unique_ptr<source_state> open_source(const fs::path& file,
       return std::make_unique<tiff_source>(file, choice);
     case volume_format::mrc:
       return std::make_unique<mrc_source>(file, choice);
+    case volume_format::zarr:
+      return std::make_unique<zarr_source>(file, choice);
     case volume_format::vti:
       (void)pick_volume(file, 1, choice);
       return std::make_unique<vti_source>(file);
@@ -478,6 +518,10 @@ volume read_vtk_legacy(const std::filesystem::path& file) {
 volume read_vti(const std::filesystem::path& file) { return vti_source(file).read(std::nullopt); }
 
 volume read_pvti(const std::filesystem::path& file) { return pvti_source(file).read(std::nullopt); }
+
+volume read_zarr(const std::filesystem::path& dir, const volume_choice& choice) {
+  return zarr_source(dir, choice).read(std::nullopt);
+}
 
 volume read_nifti(const std::filesystem::path& file, const volume_choice& choice) {
   return nifti_source(file, choice).read(std::nullopt);

@@ -1261,5 +1261,55 @@ TEST_F(Cli, contour_bad_inputs_exit_2_with_one_clear_line_and_no_output) {
   EXPECT_NE(r.err.find(".obj or .svg"), std::string::npos) << r.err;
 }
 
+TEST_F(Cli, extract_reads_an_ome_zarr_level_and_refuses_a_level_it_lacks) {
+  // Two levels of cube_bytes(9), raw chunks: level 0 the cube, level 1 every second sample.
+  const std::string cube = cube_bytes(9);
+  std::string half;
+  for (int z = 0; z < 9; z += 2) {
+    for (int y = 0; y < 9; y += 2) {
+      for (int x = 0; x < 9; x += 2) half += cube[static_cast<std::size_t>((z * 9 + y) * 9 + x)];
+    }
+  }
+  const fs::path img = dir_ / "img.zarr";
+  fs::create_directories(img / "0");
+  fs::create_directories(img / "1");
+  const auto zarray = [](int n) {
+    const std::string s = std::to_string(n);
+    return "{\"zarr_format\": 2, \"shape\": [" + s + ", " + s + ", " + s + "], \"chunks\": [" + s +
+           ", " + s + ", " + s +
+           "], \"dtype\": \"|u1\", \"compressor\": null, \"fill_value\": 0, \"order\": "
+           "\"C\", \"filters\": null}";
+  };
+  write_file("img.zarr/.zattrs",
+             "{\"multiscales\": [{\"version\": \"0.4\", \"axes\": [{\"name\": \"z\", "
+             "\"type\": \"space\"}, {\"name\": \"y\", \"type\": \"space\"}, {\"name\": \"x\", "
+             "\"type\": \"space\"}], \"datasets\": [{\"path\": \"0\"}, {\"path\": \"1\", "
+             "\"coordinateTransformations\": [{\"type\": \"scale\", \"scale\": [2, 2, 2]}]}]}]}");
+  write_file("img.zarr/0/.zarray", zarray(9));
+  write_file("img.zarr/0/0.0.0", cube);
+  write_file("img.zarr/1/.zarray", zarray(5));
+  write_file("img.zarr/1/0.0.0", half);
+  // Level 0 is the raw cube: the same mesh.
+  expect_same_mesh(img, raw_cube_mesh("1,1,1"));
+  // Level 1: its grid and spacing, named in the report and the statistics.
+  const fs::path coarse = dir_ / "coarse.ply";
+  const fs::path stats = dir_ / "coarse.json";
+  const run_result r = run("extract " + img.string() + " --level 1 --iso 100 --full -o " +
+                           coarse.string() + " --stats-json " + stats.string());
+  ASSERT_EQ(r.status, 0) << r.err;
+  EXPECT_NE(r.err.find("img.zarr level 1, 5x5x5 u8"), std::string::npos) << r.err;
+  EXPECT_NE(slurp(stats).find("\"level\": 1,"), std::string::npos) << slurp(stats);
+  expect_bad_input("extract " + img.string() + " --iso 100 --level 2",
+                   "img.zarr: level 2 was chosen, but the image has 2 levels (0 to 1)");
+  expect_bad_input("extract " + img.string() + " --iso 100 --level x", "--level");
+  expect_bad_input("extract " + (dir_ / "c.raw").string() +
+                       " --dims 9,9,9 --type u8 --iso 100 "
+                       "--level 1",
+                   "--level picks a level of an OME-Zarr image");
+  fs::remove(img / "1" / "0.0.0");
+  expect_bad_input("extract " + img.string() + " --iso 100 --level 1",
+                   "0 of the 1 chunks of the array are present");
+}
+
 }  // namespace
 }  // namespace progiso

@@ -3,7 +3,7 @@
 
     make_seeds.py OUT_DIR [SHARED_DATA_DIR]
 
-writes OUT_DIR/<harness>/<name> for the harnesses raw, extract, nrrd, nifti, metaimage, vtk, vti, pvti, dicom, tiff, mrc, jpeg, pgm, png, ply, obj and cli: small
+writes OUT_DIR/<harness>/<name> for the harnesses raw, extract, nrrd, nifti, metaimage, vtk, vti, pvti, dicom, tiff, mrc, zarr, jpeg, pgm, png, ply, obj and cli: small
 valid files of every kind the readers accept, and the hostile cases of issue 11 (printf field
 widths in data file names, declared sizes far beyond the data, NaN samples, numbers beyond
 their types …). With SHARED_DATA_DIR (../shared/data), it adds crops of the real volumes and
@@ -746,6 +746,46 @@ def mrc_seeds(out, crops):
         put(out, "mrc", "shared_%s_gzip" % name, gzip.compress(mrc(dims, 0, data, imod_unsigned=True)))
 
 
+# ---- zarr: ".zarray \0DATA\0 chunk" (the harness writes the chunk as 0.0.0 and 0.1.0).
+
+def zarray(shape, chunks, dtype, compressor, fill=0, order="C"):
+    import json
+    return json.dumps({"zarr_format": 2, "shape": shape, "chunks": chunks, "dtype": dtype,
+                       "compressor": compressor, "fill_value": fill, "order": order,
+                       "filters": None}).encode()
+
+
+def zarr_seeds(out, crops):
+    sep = b"\0DATA\0"
+    u8 = bytes((i * 37) % 251 for i in range(4 * 4 * 4))
+    put(out, "zarr", "u8_raw", zarray([4, 8, 4], [4, 4, 4], "|u1", None) + sep + u8)
+    put(out, "zarr", "u8_zlib", zarray([4, 8, 4], [4, 4, 4], "|u1", {"id": "zlib", "level": 5}) +
+        sep + zlib.compress(u8))
+    i16 = b"".join(struct.pack(">h", (i * 997) % 4000 - 2000) for i in range(4 * 4 * 4))
+    put(out, "zarr", "i16_big_gzip_fortran", zarray([4, 8, 4], [4, 4, 4], ">i2", {"id": "gzip"},
+                                                   order="F") + sep + gzip.compress(i16))
+    f32 = b"".join(struct.pack("<f", math.sin(i * 0.37)) for i in range(4 * 4 * 4))
+    put(out, "zarr", "f32_fill_nan", zarray([4, 12, 4], [4, 4, 4], "<f4", None, fill="NaN") +
+        sep + f32)
+    put(out, "zarr", "declared_32769", zarray([32769, 32769, 32769], [4, 4, 4], "|u1", None) +
+        sep + u8)
+    put(out, "zarr", "series", zarray([2, 3, 4, 8, 4], [1, 1, 4, 4, 4], "<u2", None) + sep +
+        u8 + u8)
+    try:
+        import numcodecs
+        put(out, "zarr", "u8_blosc", zarray([4, 8, 4], [4, 4, 4], "|u1", {"id": "blosc"}) + sep +
+            numcodecs.Blosc(cname="lz4").encode(u8))
+        put(out, "zarr", "f32_zstd", zarray([4, 8, 4], [4, 4, 4], "<f4", {"id": "zstd"}) + sep +
+            numcodecs.Zstd().encode(f32))
+    except ImportError:
+        pass
+    for name, (dims, data) in sorted(crops.items()):
+        shape = [dims[2], dims[1], dims[0]]
+        put(out, "zarr", "shared_%s_zlib" % name,
+            zarray(shape, [shape[0], (shape[1] + 1) // 2, shape[2]], "|u1", {"id": "zlib"}) +
+            sep + zlib.compress(data[:shape[0] * ((shape[1] + 1) // 2) * shape[2]]))
+
+
 # ---- mesh and contour files.
 
 def ply(vertices, faces, normals=None):
@@ -856,6 +896,7 @@ def main():
     dicom_seeds(out)
     tiff_seeds(out, crops)
     mrc_seeds(out, crops)
+    zarr_seeds(out, crops)
     image_seeds(out, images)
     mesh_seeds(out)
     cli_seeds(out)

@@ -572,7 +572,8 @@ TEST(VolumeIo, read_volume_rejects_an_unknown_format) {
             (dir / "v.xyz").string() +
                 ": unknown volume format (expected .nrrd, .nhdr, .nii, .nii.gz, .hdr, .mha, "
                 ".mhd, .vtk, .vti, .pvti, .tif, .tiff, .mrc, .map, .ccp4, .rec, a directory of "
-                "DICOM files or of TIFF slices, an enhanced DICOM file, or a raw file with "
+                "DICOM files or of TIFF slices, a Zarr or OME-Zarr directory, an enhanced DICOM "
+                "file, or a raw file with "
                 "--dims and --type)");
 }
 

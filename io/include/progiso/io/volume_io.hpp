@@ -64,10 +64,13 @@ namespace progiso {
 /// index FSL, AFNI and nibabel give), and the same for a MetaImage series (NDims 4, the fourth
 /// size > 1), a 4-D NRRD (its series axis, see read_nrrd()) and a DICOM series that holds as
 /// many frames at every position (time points of a 4-D CT or cine MR, echoes: see read_dicom()).
-/// Empty: the input must hold one, which `volume` 0 also names for any input.
+/// Empty: the input must hold one, which `volume` 0 also names for any input. For an OME-Zarr
+/// image, `volume` indexes its leading axes (time, channel) in row-major order, and `level` picks
+/// a pyramid level (0, the default: the finest); any other input has level 0 alone.
 struct volume_choice {
   std::optional<std::string> series = {};
   std::optional<std::int64_t> volume = {};
+  std::optional<std::int64_t> level = {};
 };
 
 /// The layout of a headerless raw file: grid dims (x fastest), sample type and byte order.
@@ -221,9 +224,18 @@ struct index_to_world {
 /// docs/formats.md "Reading MRC maps".
 [[nodiscard]] volume read_mrc(const std::filesystem::path& file, const volume_choice& choice = {});
 
+/// Reads a Zarr v2 array or an OME-Zarr multiscale image (OME-NGFF 0.1–0.4): the directory that
+/// holds `.zarray`, or `.zattrs` with "multiscales". Level `choice.level` (0: the finest) of
+/// volume `choice.volume` (over the leading axes); blosc, zstd, zlib, gzip or no compression;
+/// u8 i8 u16 i16 u32 i32 f32 f64 (and bool as u8), either byte order, C or F order; missing
+/// chunks are fill_value. Spacing and origin from the level's scale and translation. Throws
+/// progiso::error naming the file on any failure; see detail/zarr_reader.hpp and docs/formats.md.
+[[nodiscard]] volume read_zarr(const std::filesystem::path& dir, const volume_choice& choice = {});
+
 /// Reads a volume the way the command-line tool does: with a raw layout, read_raw(); else, for
-/// a directory holding .tif or .tiff files or for a .tif or .tiff file, read_tiff(); for another
-/// directory or a .dcm file, read_dicom(); for the extensions .nrrd and .nhdr, read_nrrd(); for
+/// a directory holding .tif or .tiff files or for a .tif or .tiff file, read_tiff(); for a
+/// directory holding .zattrs or .zarray, read_zarr(); for another directory or a .dcm file,
+/// read_dicom(); for the extensions .nrrd and .nhdr, read_nrrd(); for
 /// .nii, .nii.gz, .hdr and .hdr.gz, read_nifti(); for .mha and .mhd, read_metaimage(); for .vtk,
 /// read_vtk_legacy(); for .vti, read_vti(); for .pvti, read_pvti(); for .mrc, .mrcs, .map, .ccp4
 /// and .rec (each optionally .gz), read_mrc() (case-insensitive); any other file that starts as
