@@ -4,7 +4,7 @@
 #
 #   scripts/fuzz.sh [SECONDS_PER_HARNESS] [HARNESS ...]     (default: 60 s, every harness)
 #
-# Harnesses: raw nrrd nifti metaimage vtk vti pvti dicom jpeg tiff mrc pgm png ply obj cli extract hierarchy (tests/fuzz/*_fuzz.cpp). Each starts from a working
+# Harnesses: raw nrrd nifti metaimage vtk vti pvti dicom jpeg tiff mrc zarr pgm png ply obj cli extract hierarchy (tests/fuzz/*_fuzz.cpp). Each starts from a working
 # corpus in build/fuzz/corpus/<harness> (or $PROGISO_FUZZ_BUILD/corpus/<harness>, see below): the committed seeds and regressions
 # (tests/fuzz/corpus/<harness>), plus crops of the real data in ../shared/data (or
 # $PROGISO_DATA_DIR) made by tests/fuzz/make_seeds.py; the corpus grows across runs. An input
@@ -19,7 +19,7 @@ cd "$(dirname "$0")/.."
 seconds="${1:-60}"
 shift || true
 harnesses=("$@")
-[ ${#harnesses[@]} -gt 0 ] || harnesses=(raw nrrd nifti metaimage vtk vti pvti dicom jpeg tiff mrc pgm png ply obj cli extract hierarchy)
+[ ${#harnesses[@]} -gt 0 ] || harnesses=(raw nrrd nifti metaimage vtk vti pvti dicom jpeg tiff mrc zarr pgm png ply obj cli extract hierarchy)
 jobs="${PROGISO_FUZZ_JOBS:-2}"
 
 ./scripts/install-deps.sh --fuzz >/dev/null
