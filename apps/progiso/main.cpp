@@ -80,12 +80,16 @@ struct pieces_written {
 std::string stats_json(const arguments& a, const std::string& input, double iso,
                        const progiso::volume& data, const progiso::volume& vol,
                        const progiso::extract_result& r,
-                       const std::optional<pieces_written>& pieces = std::nullopt) {
+                       const std::optional<pieces_written>& pieces = std::nullopt,
+                       std::size_t levels_read = 0) {
   std::ostringstream o;
   o << "{\n";
   o << "  \"input\": \"" << json_escape(input) << "\",\n";
   if (a.volume) o << "  \"volume\": " << *a.volume << ",\n";
   if (a.level) o << "  \"level\": " << *a.level << ",\n";
+  // Coarse first (run_coarse_first()): the pyramid levels read by the deadline, coarsest first.
+  if (levels_read > 0)
+    o << "  \"coarse_first\": true,\n  \"levels_read\": " << levels_read << ",\n";
   o << "  \"dims\": [" << vol.dims()[0] << ", " << vol.dims()[1] << ", " << vol.dims()[2] << "],\n";
   o << "  \"isovalue\": " << json_number(iso) << ",\n";
   o << "  \"mode\": \"" << goal_name(a.options.goal, "triangles") << "\",\n";
@@ -402,6 +406,66 @@ int run_finest_in_pieces(arguments& a, const std::string& input, const progiso::
   return 0;
 }
 
+/// A deadline on a multiscale input (an OME-Zarr pyramid) without --level: coarse first. The
+/// budget starts before any read. The coarsest level is read and its finest surface made
+/// whatever the deadline (a surface is always given); then each finer level, read while time is
+/// left (a read stops between chunks at the deadline), gets the deadline's ladder of uniform cuts
+/// for the time that remains, and replaces the surface when its cut has more triangles. Each
+/// level is a field of its own (a pyramid level need not subsample the finer one: writers
+/// average), so the result is one level's surface, a valid cut of that field, never a mix.
+int run_coarse_first(arguments& a, progiso::volume_source& source, const std::string& input,
+                     double iso, progiso::detail::atomic_output& mesh_out,
+                     std::optional<progiso::detail::atomic_output>& stats_out) {
+  using clock = std::chrono::steady_clock;
+  const auto t0 = clock::now();
+  start_deadline(a);
+  const clock::time_point deadline = a.options.goal.deadline;
+  const auto passed = [deadline] { return clock::now() >= deadline; };
+  const std::size_t levels = source.levels();
+  std::optional<progiso::extract_result> best;
+  std::shared_ptr<const progiso::volume> best_data, best_field;
+  std::size_t best_level = levels - 1, read = 0;
+  for (std::size_t k = levels; k-- > 0;) {
+    const bool first = !best;
+    if (!first && passed()) break;
+    std::optional<progiso::volume> v =
+        source.read_level(k, a.spacing, first ? std::function<bool()>{} : passed);
+    if (!v) break;
+    ++read;
+    auto data = std::make_shared<const progiso::volume>(std::move(*v));
+    const std::shared_ptr<const progiso::volume> field = smoothed_field(data, a.smooth, input);
+    progiso::extract_options o = a.options;
+    if (first) o.goal = progiso::refine_goal::full();  // always made: the coarsest surface
+    o.progress = {};
+    progiso::extract_result r = progiso::extract_isosurface_parallel(*field, iso, o, a.threads);
+    const bool finest = first || r.ladder_stride == 1;
+    if (!best || r.mesh.triangles.size() > best->mesh.triangles.size()) {
+      best = std::move(r);
+      best_data = data;
+      best_field = field;
+      best_level = k;
+    }
+    if (!finest) break;  // the deadline came inside this level's ladder
+  }
+  best->total_seconds = std::chrono::duration<double>(clock::now() - t0).count();
+  a.level = static_cast<std::int64_t>(best_level);
+  check_float_range(*a.output, *best_data, std::nullopt);
+  progiso::detail::write_mesh_to(mesh_out, best->mesh);
+  if (stats_out) {
+    stats_out->write(stats_json(a, input, iso, *best_data, *best_field, *best, std::nullopt, read));
+  }
+  mesh_out.finish();
+  if (stats_out) stats_out->finish();
+  mesh_out.publish();
+  if (stats_out) stats_out->publish();
+  std::printf(
+      "progiso: %zu triangles, %zu vertices; level %zu of %zu (coarse first: %zu levels read, "
+      "coarsest first) by the deadline, in %.1f ms; wrote %s\n",
+      best->mesh.triangles.size(), best->mesh.vertices.size(), best_level, levels, read,
+      best->total_seconds * 1e3, a.output->c_str());
+  return 0;
+}
+
 /// progiso cut: a cut of a hierarchy stream, without the volume.
 int run_cut(const std::vector<std::string>& args) {
   const progiso::cli::cut_arguments a = progiso::cli::parse_cut(args);
@@ -512,6 +576,12 @@ int run(const std::vector<std::string>& args) {
   if (a.hierarchy) hierarchy_out.emplace(*a.hierarchy);
 
   const std::string input = a.demo ? std::string("demo: Marschner-Lobb 129^3") : *a.input;
+  if (source && source->levels() > 1 && !a.level && !a.hierarchy && !a.world &&
+      a.options.goal.what == progiso::refine_goal::kind::deadline) {
+    std::cerr << "progiso: " << input << ", " << source->levels()
+              << " levels, coarse first, isovalue " << *a.iso << "\n";
+    return run_coarse_first(a, *source, input, *a.iso, mesh_out, stats_out);
+  }
   std::shared_ptr<const progiso::volume> data;
   double iso = 0.0;
   if (a.demo) {

@@ -194,6 +194,15 @@ struct detail::volume_source_state {
   volume_source_state& operator=(const volume_source_state&) = delete;
   virtual ~volume_source_state() = default;
   virtual volume read(const spacing_override& spacing) = 0;
+  // Pyramid levels (volume_source::levels()); the inputs that have one level read it whole.
+  [[nodiscard]] virtual std::size_t levels() const noexcept { return 1; }
+  virtual std::optional<volume> read_level(std::size_t level, const spacing_override& spacing,
+                                           const std::function<bool()>& stop) {
+    PROGISO_ASSERT(level == 0);
+    (void)level;
+    (void)stop;
+    return read(spacing);
+  }
 };
 
 namespace {
@@ -304,11 +313,22 @@ struct zarr_source final : source_state {
     level = static_cast<std::size_t>(k);
     files = image.files;
   }
-  volume read(const spacing_override& spacing) override {
-    const detail::zarr_level& l = image.levels[level];
-    std::vector<std::byte> samples = detail::read_zarr_samples(image, level, volume_index);
-    return make_volume(l.dir, l.dims(), l.type, std::move(samples), spacing.value_or(l.spacing),
-                       l.origin);
+  volume read(const spacing_override& spacing) override { return *read_level(level, spacing, {}); }
+  [[nodiscard]] std::size_t levels() const noexcept override { return image.levels.size(); }
+  std::optional<volume> read_level(std::size_t k, const spacing_override& spacing,
+                                   const std::function<bool()>& stop) override {
+    PROGISO_ASSERT(k < image.levels.size());
+    const detail::zarr_level& l = image.levels[k];
+    std::optional<std::vector<std::byte>> samples =
+        detail::read_zarr_samples(image, k, volume_index, stop);
+    if (!samples) return std::nullopt;
+    std::array<double, 3> s = l.spacing;
+    if (spacing) {
+      // The given spacing is level 0's: level k's is it times the header's ratio.
+      for (std::size_t q = 0; q < 3; ++q)
+        s[q] = (*spacing)[q] * l.spacing[q] / image.levels[0].spacing[q];
+    }
+    return make_volume(l.dir, l.dims(), l.type, std::move(*samples), s, l.origin);
   }
 };
 
@@ -445,6 +465,15 @@ const std::optional<index_to_world>& volume_source::world() const noexcept { ret
 
 volume volume_source::read(std::optional<std::array<double, 3>> spacing) {
   return state_->read(spacing);
+}
+
+std::size_t volume_source::levels() const noexcept { return state_->levels(); }
+
+std::optional<volume> volume_source::read_level(std::size_t level,
+                                                std::optional<std::array<double, 3>> spacing,
+                                                const std::function<bool()>& stop) {
+  PROGISO_ASSERT(level < levels());
+  return state_->read_level(level, spacing, stop);
 }
 
 // ---------------------------------------------------------------------------------------------

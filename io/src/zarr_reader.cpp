@@ -613,8 +613,9 @@ std::array<std::byte, 8> sample_bytes(sample_type type, double value) {
 
 }  // namespace
 
-std::vector<std::byte> read_zarr_samples(const zarr_image& image, std::size_t level,
-                                         std::int64_t volume) {
+std::optional<std::vector<std::byte>> read_zarr_samples(const zarr_image& image, std::size_t level,
+                                                        std::int64_t volume,
+                                                        const std::function<bool()>& stop) {
   PROGISO_ASSERT(level < image.levels.size());
   PROGISO_ASSERT(volume >= 0 && volume < image.volumes);
   const zarr_level& a = image.levels[level];
@@ -678,6 +679,7 @@ std::vector<std::byte> read_zarr_samples(const zarr_image& image, std::size_t le
         index[n - 3] = z0 / cz;
         index[n - 2] = y0 / cy;
         index[n - 1] = x0 / cx;
+        if (stop && stop()) return std::nullopt;
         const fs::path file = chunk_path(a, index);
         std::error_code ec;
         const fs::file_status st = fs::symlink_status(file, ec);

@@ -1311,5 +1311,84 @@ TEST_F(Cli, extract_reads_an_ome_zarr_level_and_refuses_a_level_it_lacks) {
                    "0 of the 1 chunks of the array are present");
 }
 
+TEST_F(Cli, a_deadline_on_an_ome_zarr_pyramid_reads_and_meshes_coarse_first) {
+  // Three levels of a ball, each sampled at its own cells' centres: level k is not every 2^k-th
+  // sample of level 0, but a field of its own (as averaging writers make them).
+  const fs::path img = dir_ / "ball.zarr";
+  std::string datasets;
+  for (int k = 0; k < 3; ++k) {
+    const int n = (32 >> k) + 1;
+    const double step = static_cast<double>(1 << k);
+    std::string samples;
+    for (int z = 0; z < n; ++z) {
+      for (int y = 0; y < n; ++y) {
+        for (int x = 0; x < n; ++x) {
+          const double cx = (x + 0.25 * k) * step - 16.3, cy = (y + 0.25 * k) * step - 15.8,
+                       cz = (z + 0.25 * k) * step - 16.1;
+          samples += static_cast<char>(static_cast<unsigned char>(
+              std::min(255.0, 8.0 * std::sqrt(cx * cx + cy * cy + cz * cz))));
+        }
+      }
+    }
+    const std::string d = std::to_string(k), ns = std::to_string(n);
+    fs::create_directories(img / d);
+    write_file("ball.zarr/" + d + "/.zarray",
+               "{\"zarr_format\": 2, \"shape\": [" + ns + ", " + ns + ", " + ns +
+                   "], \"chunks\": [8, 8, 8], \"dtype\": \"|u1\", \"compressor\": null, "
+                   "\"fill_value\": 0, \"order\": \"C\", \"filters\": null}");
+    const int chunks = (n + 7) / 8;
+    for (int cz = 0; cz < chunks; ++cz) {
+      for (int cy = 0; cy < chunks; ++cy) {
+        for (int cx = 0; cx < chunks; ++cx) {
+          std::string chunk(512, '\0');
+          for (int z = 0; z < 8; ++z) {
+            for (int y = 0; y < 8; ++y) {
+              for (int x = 0; x < 8; ++x) {
+                const int gz = cz * 8 + z, gy = cy * 8 + y, gx = cx * 8 + x;
+                if (gz < n && gy < n && gx < n) {
+                  chunk[static_cast<std::size_t>((z * 8 + y) * 8 + x)] =
+                      samples[static_cast<std::size_t>((gz * n + gy) * n + gx)];
+                }
+              }
+            }
+          }
+          write_file("ball.zarr/" + d + "/" + std::to_string(cz) + "." + std::to_string(cy) + "." +
+                         std::to_string(cx),
+                     chunk);
+        }
+      }
+    }
+    datasets += std::string(k > 0 ? ", " : "") + "{\"path\": \"" + d +
+                "\", \"coordinateTransformations\": [{\"type\": \"scale\", \"scale\": [" +
+                std::to_string(step) + ", " + std::to_string(step) + ", " + std::to_string(step) +
+                "]}]}";
+  }
+  write_file("ball.zarr/.zattrs",
+             "{\"multiscales\": [{\"version\": \"0.4\", \"axes\": [\"z\", "
+             "\"y\", \"x\"], \"datasets\": [" +
+                 datasets + "]}]}");
+  const auto extract = [&](const std::string& how, const std::string& name) {
+    const run_result r = run("extract " + img.string() + " --iso 120 " + how + " -o " +
+                             (dir_ / (name + ".ply")).string() + " --stats-json " +
+                             (dir_ / (name + ".json")).string());
+    EXPECT_EQ(r.status, 0) << how << ": " << r.err;
+    return std::make_pair(slurp(dir_ / (name + ".ply")), slurp(dir_ / (name + ".json")));
+  };
+  const auto level2 = extract("--level 2 --full", "level2");
+  const auto level0 = extract("--level 0 --full", "level0");
+  ASSERT_NE(level2.first, level0.first);
+  // A deadline already passed: the coarsest level, read and meshed whole, nothing else read.
+  const auto passed = extract("--time-ms 0", "passed");
+  EXPECT_EQ(passed.first, level2.first);
+  EXPECT_NE(passed.second.find("\"level\": 2,"), std::string::npos) << passed.second;
+  EXPECT_NE(passed.second.find("\"levels_read\": 1,"), std::string::npos) << passed.second;
+  // Time enough: every level read, coarsest first, and the finest level's finest surface.
+  const auto ample = extract("--time-ms 60000", "ample");
+  EXPECT_EQ(ample.first, level0.first);
+  EXPECT_NE(ample.second.find("\"level\": 0,"), std::string::npos) << ample.second;
+  EXPECT_NE(ample.second.find("\"levels_read\": 3,"), std::string::npos) << ample.second;
+  EXPECT_NE(ample.second.find("\"coarse_first\": true,"), std::string::npos) << ample.second;
+}
+
 }  // namespace
 }  // namespace progiso

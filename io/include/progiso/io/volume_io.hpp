@@ -46,6 +46,7 @@
 
 #include <array>
 #include <filesystem>
+#include <functional>
 #include <memory>
 #include <optional>
 #include <string>
@@ -278,6 +279,15 @@ class volume_source {
   [[nodiscard]] const std::optional<index_to_world>& world() const noexcept;
   /// The volume, as read_volume() returns it (a given `spacing` replaces the header's).
   [[nodiscard]] volume read(std::optional<std::array<double, 3>> spacing = std::nullopt);
+  /// The pyramid levels the input holds: an OME-Zarr image's datasets, 1 for any other input.
+  [[nodiscard]] std::size_t levels() const noexcept;
+  /// Level `level` (0: the finest; below levels()) of the chosen volume, whatever level the
+  /// choice named, with its own spacing (a given `spacing` is level 0's, scaled as the header
+  /// scales the level's). `stop`, when not empty, is asked between chunks; once it answers true
+  /// the read ends and nothing is returned. Throws as read().
+  [[nodiscard]] std::optional<volume> read_level(
+      std::size_t level, std::optional<std::array<double, 3>> spacing = std::nullopt,
+      const std::function<bool()>& stop = {});
 
  private:
   std::unique_ptr<detail::volume_source_state> state_;

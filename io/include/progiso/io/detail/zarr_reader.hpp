@@ -34,6 +34,8 @@
 #include <array>
 #include <cstdint>
 #include <filesystem>
+#include <functional>
+#include <optional>
 #include <vector>
 
 #include <progiso/core/field/volume.hpp>
@@ -74,10 +76,12 @@ struct zarr_image {
 /// Reads and checks the metadata of the image or array at `dir` (see the file comment).
 [[nodiscard]] zarr_image read_zarr_header(const std::filesystem::path& dir);
 /// The samples of volume `volume` (0 ≤ volume < image.volumes) of level `level`, x fastest, in
-/// host byte order, missing chunks filled. Throws progiso::error naming the chunk file for a
-/// chunk that is too large, corrupt, or decodes to another size than the chunk's, and naming the
-/// array when no chunk of the volume is present.
-[[nodiscard]] std::vector<std::byte> read_zarr_samples(const zarr_image& image, std::size_t level,
-                                                       std::int64_t volume);
+/// host byte order, missing chunks filled; nullopt when `stop` (asked before each chunk, when not
+/// empty) answers true. Throws progiso::error naming the chunk file for a chunk that is too
+/// large, corrupt, or decodes to another size than the chunk's, and naming the array when too
+/// few of the volume's chunks are present.
+[[nodiscard]] std::optional<std::vector<std::byte>> read_zarr_samples(
+    const zarr_image& image, std::size_t level, std::int64_t volume,
+    const std::function<bool()>& stop = {});
 
 }  // namespace progiso::detail

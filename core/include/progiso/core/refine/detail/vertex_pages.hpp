@@ -101,9 +101,11 @@ class vertex_pages {
   /// Asks for the cache line of p's word when its brick exists (a hint; never allocates).
   void prefetch(const ipoint& p) const noexcept {
     if (top_ == nullptr) return;
-    // relaxed (both): a hint; a stale null only skips the prefetch.
-    const block* b = top_[block_of(p)].load(std::memory_order_relaxed);
+    // acquire: partner install(); the block's slots are read next, so its zeroing must be
+    // ordered before that read. A stale null only skips the prefetch.
+    const block* b = top_[block_of(p)].load(std::memory_order_acquire);
     if (b == nullptr) return;
+    // relaxed: the brick is only prefetched, never read here.
     T* brick = b->bricks[brick_of(p)].load(std::memory_order_relaxed);
     if (brick != nullptr) __builtin_prefetch(brick + offset_of(p), 1);
   }
