@@ -68,6 +68,9 @@ struct contour_root : epoch_object {
   contour_engine_impl* impl;
   double isovalue;
   std::uint64_t generation;
+  // A run on this root threw (drive()): it refines no further. Written by the driver, read by the
+  // control thread after joining it.
+  bool failed = false;
   // When the root surface was published (make_root(), just before the store that publishes it).
   clock::time_point published_at{};
   append_log<contour_record> records;
@@ -205,9 +208,23 @@ struct contour_engine_impl : run_control {
     });
   }
 
-  // The driver thread of one run: the split loop of contour_refiner::split_next(), records
-  // published every publish_every splits and at the end.
+  // The driver thread of one run. What the run throws (memory, beyond what the process may have)
+  // ends it for wait() or refine() to rethrow, as in the 3D engine: the published cut stays
+  // readable, and the root, perhaps mid-split, is marked failed (launch() refuses it).
   void drive(contour_root* r) {
+    try {
+      drive_splits(r);
+    } catch (...) {
+      // This thread is the run's only publisher, the one writer of callback_error.
+      callback_error = std::current_exception();
+      r->failed = true;
+      end_run(false);
+    }
+  }
+
+  // drive() without the failure handling: the split loop of contour_refiner::split_next(),
+  // records published every publish_every splits and at the end.
+  void drive_splits(contour_root* r) {
     const range_data2d& rd = ranges();
     contour_tally t;
     seed(*r, rd, t);
@@ -275,6 +292,11 @@ struct contour_engine_impl : run_control {
   void launch(std::unique_lock<std::mutex>& lock, const refine_goal& g) {
     stop_and_join(lock);
     contour_root* r = current();
+    if (r->failed) {
+      throw error(
+          "contour engine: an earlier run on this isovalue failed (its contours stay readable); "
+          "set the isovalue to refine afresh");
+    }
     goal = g;
     r->queue.set_discipline(g.what == refine_goal::kind::full ? queue_discipline::lifo
                                                               : queue_discipline::largest_error);
