@@ -17,16 +17,19 @@ world: a 4x4 float64 matrix mapping (i, j, k, 1) of array indices to the world (
 """
 
 
-def read_volume(path, *, raw=None, spacing=None, series=None, volume=None):
+def read_volume(path, *, raw=None, spacing=None, series=None, volume=None, level=None):
     """Read a volume file: NRRD (.nrrd, .nhdr), NIfTI (.nii, .nii.gz, .hdr/.img), MetaImage
     (.mha, .mhd), legacy VTK (.vtk), VTK XML image data (.vti, .pvti), a DICOM series (a
-    directory) or enhanced multi-frame DICOM file, TIFF stacks (.tif, or a directory) and MRC
-    maps (.mrc, .map, .ccp4, .rec); or a headerless raw file with
+    directory) or enhanced multi-frame DICOM file, TIFF stacks (.tif, or a directory), MRC
+    maps (.mrc, .map, .ccp4, .rec) and Zarr arrays or OME-Zarr images (the directory); or a
+    headerless raw file with
     ``raw={'shape': (nz, ny, nx), 'dtype': 'u16', 'big_endian': False}``.
 
     ``spacing`` (per axis) replaces the header's. ``series`` picks one series of a DICOM
     directory (its number or UID); ``volume`` one volume of a 4-D file (a NIfTI or MetaImage
-    time series, a 4-D NRRD). Returns a ``VolumeFile`` (array, spacing, origin, world).
+    time series, a 4-D NRRD; an OME-Zarr image's time points and channels, row-major);
+    ``level`` one level of an OME-Zarr pyramid (0, the default: the finest). Returns a
+    ``VolumeFile`` (array, spacing, origin, world).
 
     Raises OSError with one line naming the file, what was expected and what was found, for a
     missing, unreadable, malformed or unsupported file; ValueError for bad arguments.
@@ -56,4 +59,6 @@ def read_volume(path, *, raw=None, spacing=None, series=None, volume=None):
         if len(spacing) != 3:
             raise ValueError("spacing: expected three numbers, found %r" % (spacing,))
         spacing = tuple(float(s) for s in spacing)
-    return VolumeFile(*_progiso._read_volume(path, raw, spacing, series, volume))
+    if level is not None and (not isinstance(level, int) or level < 0):
+        raise ValueError("level: expected a non-negative integer, found %r" % (level,))
+    return VolumeFile(*_progiso._read_volume(path, raw, spacing, series, volume, level))

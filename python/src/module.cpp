@@ -596,7 +596,8 @@ class py_engine {
 
 // (array, spacing, origin, world 4×4 or None), all in axis order.
 py::tuple read_file(const std::string& path, const py::object& raw, const py::object& spacing_arg,
-                    const py::object& series, const py::object& volume_index) {
+                    const py::object& series, const py::object& volume_index,
+                    const py::object& level) {
   std::optional<raw_layout> layout;
   if (!raw.is_none()) {
     const auto d = raw.cast<py::dict>();
@@ -622,6 +623,7 @@ py::tuple read_file(const std::string& path, const py::object& raw, const py::ob
   volume_choice choice;
   if (!series.is_none()) choice.series = py::str(series).cast<std::string>();
   if (!volume_index.is_none()) choice.volume = volume_index.cast<std::int64_t>();
+  if (!level.is_none()) choice.level = level.cast<std::int64_t>();
   std::shared_ptr<const volume> vol;
   std::optional<index_to_world> world;
   try {
@@ -706,7 +708,7 @@ PYBIND11_MODULE(_progiso, m) {
         py::arg("threads"), py::arg("goal"), py::arg("goal_value"), py::arg("smooth"),
         py::arg("mask"), py::arg("allow_degenerate"), py::arg("ascent"));
   m.def("_read_volume", &read_file, py::arg("path"), py::arg("raw"), py::arg("spacing"),
-        py::arg("series"), py::arg("volume"));
+        py::arg("series"), py::arg("volume"), py::arg("level"));
   m.def("_default_threads", [] { return progiso::scheduler::default_concurrency(); });
   m.def("_view_address", [](const py::handle& data) {
     const sample_array a = as_samples(data, 3, "volume");

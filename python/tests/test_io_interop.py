@@ -63,6 +63,35 @@ def test_metaimage_and_legacy_vtk_read_in_axis_order(tmp_path, kind):
     np.testing.assert_array_equal(v, v2)
 
 
+def test_ome_zarr_levels_and_time_points_read_as_zarr_reads_them(tmp_path):
+    zarr = pytest.importorskip("zarr")
+    numcodecs = pytest.importorskip("numcodecs")
+    rng = np.random.default_rng(5)
+    full = rng.integers(0, 60000, size=(2, 1, 12, 10, 9)).astype("<u2")
+    root = zarr.open_group(str(tmp_path / "img.zarr"), mode="w")
+    datasets = []
+    for k in range(2):
+        root.create_dataset(str(k), data=full[:, :, ::2 ** k, ::2 ** k, ::2 ** k],
+                            chunks=(1, 1, 5, 5, 5), compressor=numcodecs.Zstd())
+        datasets.append({"path": str(k), "coordinateTransformations": [
+            {"type": "scale", "scale": [1, 1, 2.0 * 2 ** k, 1.5 * 2 ** k, 2 ** k]}]})
+    root.attrs["multiscales"] = [{"version": "0.4", "datasets": datasets, "axes": [
+        {"name": "t", "type": "time"}, {"name": "c", "type": "channel"},
+        {"name": "z", "type": "space"}, {"name": "y", "type": "space"},
+        {"name": "x", "type": "space"}]}]
+    for k in range(2):
+        for t in range(2):
+            f = progiso.read_volume(tmp_path / "img.zarr", volume=t, level=k)
+            want = zarr.open(str(tmp_path / "img.zarr" / str(k)))[t, 0]
+            assert f.array.dtype == np.uint16
+            np.testing.assert_array_equal(f.array, want)
+            assert f.spacing == pytest.approx((2.0 * 2 ** k, 1.5 * 2 ** k, 2 ** k))
+    with pytest.raises(OSError, match="img.zarr: level 2 was chosen"):
+        progiso.read_volume(tmp_path / "img.zarr", volume=0, level=2)
+    with pytest.raises(ValueError, match="level"):
+        progiso.read_volume(tmp_path / "img.zarr", volume=0, level=-1)
+
+
 def test_file_errors_are_os_errors_naming_the_file(tmp_path):
     missing = tmp_path / "nope.nrrd"
     with pytest.raises(OSError, match="nope.nrrd"):
