@@ -266,6 +266,46 @@ TEST(FinestSurface, in_slabs_of_any_plane_count_is_the_same_surface_and_its_piec
   expect_slabs_give_the_same_surface(make_gaussian_blobs({2, 17, 9}, 3, 5), 0.4);
 }
 
+TEST(FinestSurface, shares_of_the_planes_counted_then_meshed_join_to_the_whole_surface) {
+  // What MPI ranks do: each counts its planes, takes the counts before it as its first ids, and
+  // meshes its planes alone; joined in rank order the pieces are finest_surface()'s mesh.
+  const volume v = make_torus_field({40, 37, 29}, {19.5, 18.2, 14.7}, 12.0);
+  const double w = 4.0;
+  const triangle_mesh whole = finest_surface(v, w);
+  const auto plane = static_cast<std::size_t>(v.dims()[0] * v.dims()[1]);
+  for (const std::vector<std::int64_t>& cuts :
+       {std::vector<std::int64_t>{0, 29}, {0, 10, 29}, {0, 7, 7, 16, 28, 29}, {0, 1, 2, 3, 29}}) {
+    for (const std::size_t slab : {std::size_t{0}, 2 * plane}) {
+      SCOPED_TRACE(testing::PrintToString(cuts) + " slab bytes " + std::to_string(slab));
+      std::uint64_t first_vertex = 0, first_triangle = 0;
+      triangle_mesh joined;
+      for (std::size_t r = 0; r + 1 < cuts.size(); ++r) {
+        detail::finest_share share{cuts[r], cuts[r + 1], first_vertex, first_triangle};
+        const std::array<std::uint64_t, 2> counts =
+            detail::finest_share_counts(v, w, scrambled_loop, 5, share, slab);
+        const std::size_t before = joined.vertices.size(), before_t = joined.triangles.size();
+        detail::finest_surface_pieces(
+            v, w, scrambled_loop, 5, {},
+            [&](triangle_mesh& piece, std::uint64_t first) {
+              EXPECT_EQ(first, joined.vertices.size());
+              joined.vertices.insert(joined.vertices.end(), piece.vertices.begin(),
+                                     piece.vertices.end());
+              joined.triangles.insert(joined.triangles.end(), piece.triangles.begin(),
+                                      piece.triangles.end());
+            },
+            slab, share);
+        EXPECT_EQ(joined.vertices.size() - before, counts[0]);
+        EXPECT_EQ(joined.triangles.size() - before_t, counts[1]);
+        first_vertex += counts[0];
+        first_triangle += counts[1];
+      }
+      EXPECT_TRUE(same_bytes(whole, joined));
+    }
+  }
+  EXPECT_THROW((void)detail::finest_share_counts(v, w, {}, 1, {5, 30, 0, 0}), error);
+  EXPECT_THROW((void)detail::finest_share_counts(v, w, {}, 1, {6, 5, 0, 0}), error);
+}
+
 TEST(FinestSurface, slabs_are_chosen_by_the_grid_corner_bytes) {
   // Up to finest_whole_grid_bytes points: one slab; beyond: finest_slab_bytes of planes.
   EXPECT_EQ(detail::finest_slab_planes({513, 513, 513}), 513);

@@ -47,6 +47,11 @@ struct interrupts {
   // triangles name vertices by their ids in the whole surface, some in the next piece): the
   // output then holds one slab at a time, and run() returns an empty mesh.
   std::function<void(triangle_mesh& piece, std::uint64_t first_vertex)> piece;
+  // A share of the grid (detail::finest_share): the planes written and their first ids.
+  std::int64_t z_begin = 0, z_end = -1;  // z_end −1: to the last plane
+  std::uint64_t first_vertex = 0, first_triangle = 0;
+  // Counts alone: the share's vertices and triangles, told here; nothing is sized or written.
+  std::function<void(std::uint64_t vertices, std::uint64_t triangles)> counted;
 };
 
 // A grid point's owned edges, by slot: 0 +x, 1 +y, 2 +z, 3 the diagonal of its xy square,
@@ -230,18 +235,29 @@ class finest_mesher {
            const interrupts& stop = {}) {
     const bool hooked = stop.sized || stop.poll || stop.storage || stop.slack;
     const auto plane = static_cast<std::size_t>(ny_);
+    const auto z_begin = static_cast<std::size_t>(stop.z_begin);
+    const auto z_end = static_cast<std::size_t>(stop.z_end < 0 ? nz_ : stop.z_end);
+    PROGISO_ASSERT(z_begin <= z_end && z_end <= static_cast<std::size_t>(nz_));
+    const bool whole = z_begin == 0 && z_end == static_cast<std::size_t>(nz_);
     const auto planes = static_cast<std::size_t>(
         hooked ? nz_ : detail::finest_slab_planes({nx_, ny_, nz_}, stop.slab_bytes));
-    const std::size_t slabs = (static_cast<std::size_t>(nz_) + planes - 1) / planes;
-    // A slab's planes, and the one after it when there is a next slab.
-    const std::size_t held = std::min(static_cast<std::size_t>(nz_), planes + (slabs > 1 ? 1 : 0));
+    const std::size_t slabs = (z_end - z_begin + planes - 1) / planes;
+    // A slab's planes, and the one after it when there is one (the next slab's, or the next
+    // share's).
+    const std::size_t held =
+        std::min(static_cast<std::size_t>(nz_) - z_begin,
+                 planes + (z_end < static_cast<std::size_t>(nz_) || slabs > 1 ? 1 : 0));
     const std::size_t held_bytes = static_cast<std::size_t>(nx_) * plane * held;
     // Written by each first pass, every byte (not zeroed first: a byte per sample).
     corners_ = std::make_unique_for_overwrite<std::uint8_t[]>(held_bytes);
     row_vertices_.assign(plane * held + 1, 0);
     row_triangles_.assign(plane * held + 1, 0);
     parts = std::max<std::size_t>(1, std::min(parts, rows_));
-    progress_relay progress(to, 2 * static_cast<std::uint64_t>(rows_) + (slabs - 1) * plane);
+    // Both passes' rows, and the plane after each slab that has one, counted twice.
+    const std::size_t after = slabs - (z_end == static_cast<std::size_t>(nz_) && slabs > 0 ? 1 : 0);
+    progress_relay progress(
+        to, (stop.counted ? 1 : 2) * static_cast<std::uint64_t>((z_end - z_begin) * plane) +
+                after * plane);
     // Rows [first, last) of the second pass, `step` rows at a time, each step reported.
     const auto in_steps = [&](std::size_t first, std::size_t last, const auto& pass) {
       if (!progress.active()) {
@@ -259,11 +275,12 @@ class finest_mesher {
     // waiting too long.
     if (!stop.poll) detail::prefault_in_parts(loop, parts, corners_.get(), held_bytes);
     Mesh mesh{};
-    std::uint64_t first_vertex = 0, first_triangle = 0;  // the slab's first ids
+    // The slab's first ids.
+    std::uint64_t first_vertex = stop.first_vertex, first_triangle = stop.first_triangle;
     for (std::size_t slab = 0; slab < slabs; ++slab) {
-      base_ = slab * planes * plane;
-      const std::size_t written = std::min(rows_, base_ + planes * plane);  // pass 2's rows
-      const std::size_t counted = std::min(rows_, written + (slab + 1 < slabs ? plane : 0));
+      base_ = (z_begin + slab * planes) * plane;
+      const std::size_t written = std::min(z_end * plane, base_ + planes * plane);  // pass 2's rows
+      const std::size_t counted = std::min(rows_, written + plane);
       const std::size_t rows = counted - base_;
       const std::size_t pieces = std::max<std::size_t>(1, std::min(parts, rows));
       run_loop(loop, pieces, [&](std::size_t k) {
@@ -286,7 +303,12 @@ class finest_mesher {
       }
       const std::uint64_t next_vertex = vertex_id(written);
       const std::uint64_t next_triangle = row_triangles_[written - base_];
-      if (slabs == 1) {
+      if (stop.counted) {  // counts alone
+        first_vertex = next_vertex;
+        first_triangle = next_triangle;
+        continue;
+      }
+      if (slabs == 1 && whole && !stop.piece) {
         size_whole(loop, parts, mesh, next_vertex, next_triangle, stop);
       } else if (stop.piece) {
         out_vertex_ = first_vertex;
@@ -320,6 +342,8 @@ class finest_mesher {
       first_vertex = next_vertex;
       first_triangle = next_triangle;
     }
+    if (stop.counted)
+      stop.counted(first_vertex - stop.first_vertex, first_triangle - stop.first_triangle);
     // The corner bytes are read no more: their pages freed by slices over the threads, not
     // one by one on this thread by the destructor (release_in_parts()).
     detail::release_in_parts(loop, parts, corners_.get(), held_bytes);
@@ -693,19 +717,58 @@ std::int64_t detail::finest_slab_planes(const index3& dims, std::size_t slab_byt
   return std::clamp<std::int64_t>(static_cast<std::int64_t>(slab_bytes / plane), 1, nz);
 }
 
-void detail::finest_surface_pieces(const volume& field, double isovalue, const parallel_loop& run,
-                                   std::size_t parts, const finest_progress& progress,
-                                   const finest_piece& piece, std::size_t slab_bytes) {
-  PROGISO_ASSERT(piece);
+namespace {
+
+// The share's planes, checked.
+void check_share(const volume& field, const detail::finest_share& share) {
+  const std::int64_t nz = field.dims()[2];
+  const std::int64_t end = share.z_end < 0 ? nz : share.z_end;
+  if (share.z_begin < 0 || share.z_begin > end || end > nz) {
+    throw error("finest surface: planes [" + std::to_string(share.z_begin) + ", " +
+                std::to_string(end) + ") are not a share of the " + std::to_string(nz) +
+                " planes of the grid");
+  }
+}
+
+}  // namespace
+
+std::array<std::uint64_t, 2> detail::finest_share_counts(const volume& field, double isovalue,
+                                                         const parallel_loop& run,
+                                                         std::size_t parts,
+                                                         const finest_share& share,
+                                                         std::size_t slab_bytes) {
+  check_share(field, share);
+  std::array<std::uint64_t, 2> counts{};
   interrupts hooks;
   hooks.slab_bytes = slab_bytes;
-  // One slab: its piece is the whole surface.
-  if (finest_slab_planes(field.dims(), slab_bytes) >= field.dims()[2]) {
+  hooks.z_begin = share.z_begin;
+  hooks.z_end = share.z_end;
+  hooks.counted = [&counts](std::uint64_t v, std::uint64_t t) { counts = {v, t}; };
+  (void)finest_surface_hooked(field, isovalue, run, parts, {}, hooks);
+  return counts;
+}
+
+void detail::finest_surface_pieces(const volume& field, double isovalue, const parallel_loop& run,
+                                   std::size_t parts, const finest_progress& progress,
+                                   const finest_piece& piece, std::size_t slab_bytes,
+                                   const finest_share& share) {
+  PROGISO_ASSERT(piece);
+  check_share(field, share);
+  interrupts hooks;
+  hooks.slab_bytes = slab_bytes;
+  const bool all = share.z_begin == 0 && (share.z_end < 0 || share.z_end == field.dims()[2]) &&
+                   share.first_vertex == 0 && share.first_triangle == 0;
+  // One slab of the whole grid: its piece is the whole surface.
+  if (all && finest_slab_planes(field.dims(), slab_bytes) >= field.dims()[2]) {
     triangle_mesh whole = finest_surface_hooked(field, isovalue, run, parts, progress, hooks);
     piece(whole, 0);
     return;
   }
   hooks.piece = piece;
+  hooks.z_begin = share.z_begin;
+  hooks.z_end = share.z_end;
+  hooks.first_vertex = share.first_vertex;
+  hooks.first_triangle = share.first_triangle;
   (void)finest_surface_hooked(field, isovalue, run, parts, progress, hooks);
 }
 

@@ -170,9 +170,29 @@ using finest_piece = std::function<void(triangle_mesh& piece, std::uint64_t firs
 /// one slab's: a surface larger than memory goes to a file as it is made. The pieces, joined in
 /// order, are finest_surface()'s mesh. One slab gives one piece, the whole surface. Called on the
 /// calling thread, between the slabs' passes; throws as finest_surface(), and what `piece` throws.
+/// A share of the finest surface for one of several processes (MPI ranks, each meshing planes of
+/// one grid): the planes [z_begin, z_end) whose grid points' owned edges give its vertices and
+/// whose cubes give its triangles (z_end −1: to the last plane), their ids starting at
+/// first_vertex and first_triangle (the counts of the shares before it). The shares of a
+/// partition of the planes, joined in order, are finest_surface()'s mesh, ids and all. A share
+/// reads the samples of planes [z_begin, z_end + 2) alone.
+struct finest_share {
+  std::int64_t z_begin = 0;
+  std::int64_t z_end = -1;
+  std::uint64_t first_vertex = 0;
+  std::uint64_t first_triangle = 0;
+};
+/// The vertices and triangles of `share`'s planes (its ids ignored): one pass over its samples,
+/// slab by slab, nothing written. Throws as finest_surface().
+[[nodiscard]] std::array<std::uint64_t, 2> finest_share_counts(const volume& field, double isovalue,
+                                                               const parallel_loop& run,
+                                                               std::size_t parts,
+                                                               const finest_share& share,
+                                                               std::size_t slab_bytes = 0);
 void finest_surface_pieces(const volume& field, double isovalue, const parallel_loop& run,
                            std::size_t parts, const finest_progress& progress,
-                           const finest_piece& piece, std::size_t slab_bytes = 0);
+                           const finest_piece& piece, std::size_t slab_bytes = 0,
+                           const finest_share& share = {});
 /// finest_surface() writing into storage from `storage` (when it is not empty).
 [[nodiscard]] triangle_mesh finest_surface(const volume& field, double isovalue,
                                            const parallel_loop& run, std::size_t parts,
