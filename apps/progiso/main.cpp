@@ -53,6 +53,7 @@
 #include "cli_common.hpp"
 #include "cli_options.hpp"
 #include "cli_outputs.hpp"
+#include "mpi_extract.hpp"
 
 int run_contour(const std::vector<std::string>& args);
 int run_view(const std::vector<std::string>& args);
@@ -675,6 +676,12 @@ int main(int argc, char** argv) {
     if (first == "contour") return run_contour(args);
     if (first == "cut") return run_cut(args);
     if (first == "view") return run_view(args);
+    // Started by mpirun: one rank of an MPI job (mpi_extract.hpp). A build without MPI refuses a
+    // job of several ranks (each would write the same output alone).
+    if (progiso::cli::launched_by_mpi() &&
+        (progiso::cli::have_mpi() || progiso::cli::mpi_job_size() > 1)) {
+      return progiso::cli::run_mpi_extract(args);
+    }
     return run(args);
   } catch (const progiso::error& e) {
     // One line whatever the message quotes (file names and arguments are the user's text).

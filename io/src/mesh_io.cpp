@@ -191,6 +191,41 @@ void write_ply_to(atomic_output& out, const triangle_mesh& mesh) {
   w.flush();
 }
 
+namespace {
+
+// A block_writer's output into memory.
+struct bytes_sink {
+  std::vector<char>& to;
+  void write(const void* data, std::size_t size) {
+    const auto* p = static_cast<const char*>(data);
+    to.insert(to.end(), p, p + size);
+  }
+};
+
+}  // namespace
+
+std::string ply_header_text(std::uint64_t vertices, std::uint64_t triangles, bool normals) {
+  std::vector<char> bytes;
+  bytes_sink sink{bytes};
+  block_writer w(sink);
+  write_ply_header(w, vertices, triangles, normals);
+  w.flush();
+  return {bytes.begin(), bytes.end()};
+}
+
+void append_ply_records(const std::string& name, const triangle_mesh& piece,
+                        std::vector<char>& vertices, std::vector<char>& faces) {
+  check_float_range(name, piece, "PLY");
+  bytes_sink v{vertices};
+  block_writer vw(v);
+  write_ply_vertices(vw, piece, has_normals(piece));
+  vw.flush();
+  bytes_sink f{faces};
+  block_writer fw(f);
+  write_ply_faces(fw, piece);
+  fw.flush();
+}
+
 ply_pieces_writer::ply_pieces_writer(const atomic_output& out, bool normals)
     : name_(out.target().string()),
       normals_(normals),

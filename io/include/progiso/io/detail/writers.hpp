@@ -7,6 +7,7 @@
 
 #include <cstdint>
 #include <string>
+#include <vector>
 
 #include <progiso/core/surface/mesh.hpp>
 #include <progiso/io/detail/file_output.hpp>
@@ -41,6 +42,15 @@ class ply_pieces_writer {
   scratch_file faces_;
   std::uint64_t vertex_count_ = 0, triangle_count_ = 0, largest_index_ = 0;
 };
+
+/// write_ply_to()'s parts, for a PLY assembled from pieces made elsewhere (MPI ranks): the
+/// header for these counts, and a piece's vertex and face records appended to `vertices` and
+/// `faces` (triangle ids as the piece has them). Throws progiso::error naming `name` for a
+/// coordinate beyond the float range.
+[[nodiscard]] std::string ply_header_text(std::uint64_t vertices, std::uint64_t triangles,
+                                          bool normals);
+void append_ply_records(const std::string& name, const triangle_mesh& piece,
+                        std::vector<char>& vertices, std::vector<char>& faces);
 
 /// OBJ, as write_obj().
 void write_obj_to(atomic_output& out, const triangle_mesh& mesh);

@@ -1,0 +1,292 @@
+#include "mpi_extract.hpp"
+
+#include <algorithm>
+#include <chrono>
+#include <csignal>
+#include <cstdint>
+#include <cstdio>
+#include <cstdlib>
+#include <iostream>
+#include <memory>
+#include <new>
+#include <optional>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include <progiso/core/base/error.hpp>
+#include <progiso/core/field/analytic.hpp>
+#include <progiso/core/surface/finest_surface.hpp>
+#include <progiso/io/detail/file_output.hpp>
+#include <progiso/io/detail/writers.hpp>
+#include <progiso/io/volume_io.hpp>
+#include <progiso/scheduler/tbb_environment.hpp>
+
+#include "cli_common.hpp"
+#include "cli_options.hpp"
+#include "cli_outputs.hpp"
+
+#if defined(PROGISO_HAVE_MPI)
+#include <mpi.h>
+#endif
+
+namespace progiso::cli {
+
+namespace {
+
+int env_int(const char* name) {
+  const char* v = std::getenv(name);
+  return v == nullptr ? -1 : std::atoi(v);
+}
+
+}  // namespace
+
+bool launched_by_mpi() noexcept {
+  return std::getenv("OMPI_COMM_WORLD_SIZE") != nullptr || std::getenv("PMI_SIZE") != nullptr ||
+         std::getenv("PMIX_RANK") != nullptr;
+}
+
+int mpi_job_size() noexcept {
+  for (const char* name : {"OMPI_COMM_WORLD_SIZE", "PMI_SIZE"}) {
+    if (const int n = env_int(name); n > 0) return n;
+  }
+  return 1;
+}
+
+#if !defined(PROGISO_HAVE_MPI)
+
+bool have_mpi() noexcept { return false; }
+
+int run_mpi_extract(const std::vector<std::string>&) {
+  std::cerr << "progiso: error: started by mpirun with " << mpi_job_size()
+            << " ranks, but this progiso was built without MPI (install libopenmpi-dev and "
+               "configure again)\n";
+  return 2;
+}
+
+#else
+
+bool have_mpi() noexcept { return true; }
+
+namespace {
+
+/// MPI_Init and MPI_Finalize around the command.
+struct mpi_session {
+  mpi_session() { MPI_Init(nullptr, nullptr); }
+  mpi_session(const mpi_session&) = delete;
+  mpi_session& operator=(const mpi_session&) = delete;
+  ~mpi_session() { MPI_Finalize(); }
+};
+
+// Byte buffers in messages of at most 1 GiB (MPI counts are int): the size first.
+constexpr std::uint64_t message_bytes = std::uint64_t{1} << 30;
+
+void send_bytes(const std::vector<char>& bytes, int to, int tag) {
+  const std::uint64_t n = bytes.size();
+  MPI_Send(&n, 1, MPI_UINT64_T, to, tag, MPI_COMM_WORLD);
+  for (std::uint64_t at = 0; at < n; at += message_bytes) {
+    const auto count = static_cast<int>(std::min(message_bytes, n - at));
+    MPI_Send(bytes.data() + at, count, MPI_BYTE, to, tag, MPI_COMM_WORLD);
+  }
+}
+
+/// Receives what send_bytes() sent and hands it to `write` message by message.
+template <class Write>
+void receive_bytes(int from, int tag, const Write& write) {
+  std::uint64_t n = 0;
+  MPI_Recv(&n, 1, MPI_UINT64_T, from, tag, MPI_COMM_WORLD, MPI_STATUS_IGNORE);
+  std::vector<char> block(static_cast<std::size_t>(std::min(message_bytes, n)));
+  for (std::uint64_t at = 0; at < n; at += message_bytes) {
+    const auto count = static_cast<int>(std::min(message_bytes, n - at));
+    MPI_Recv(block.data(), count, MPI_BYTE, from, tag, MPI_COMM_WORLD, MPI_STATUS_IGNORE);
+    write(block.data(), static_cast<std::size_t>(count));
+  }
+}
+
+/// One line for an error, whatever it quotes.
+std::string one_line(std::string s) {
+  for (char& c : s) {
+    if (c == '\n' || c == '\r') c = ' ';
+  }
+  return s;
+}
+
+/// What every rank sets up: the options, the input's samples and (rank 0) the outputs.
+struct setup {
+  extract_arguments a;
+  std::shared_ptr<const volume> data, field;
+  std::string input;
+  double iso = 0.0;
+  std::optional<detail::atomic_output> mesh_out, stats_out;
+};
+
+void set_up(setup& s, const std::vector<std::string>& args, int rank) {
+  s.a = parse_extract(args);
+  extract_arguments& a = s.a;
+  using kind = refine_goal::kind;
+  if (a.options.goal.what != kind::full) {
+    throw error(
+        "under MPI, extract makes the finest surface only (--full): error goals, budgets and "
+        "deadlines across ranks are not built yet");
+  }
+  if (a.hierarchy || a.world || a.options.normals) {
+    throw error(
+        "under MPI, extract writes positions alone: --hierarchy, --world and --normals "
+        "are not built across ranks yet");
+  }
+  if (detail::lower_extension(*a.output) != ".ply") {
+    throw error(std::string(*a.output) +
+                ": under MPI, extract writes .ply (found another "
+                "extension)");
+  }
+  std::optional<raw_layout> raw;
+  if (a.dims) raw = raw_layout{*a.dims, *a.type, a.big_endian};
+  std::optional<volume_source> source;
+  if (!a.demo) source.emplace(*a.input, raw, volume_choice{a.series, a.volume, a.level});
+  if (rank == 0) {
+    std::vector<std::filesystem::path> inputs;
+    if (source) inputs = source->files();
+    std::vector<named_output> outputs{{"-o", *a.output}};
+    if (a.stats_json) outputs.push_back({"--stats-json", *a.stats_json});
+    refuse_clashing_outputs(inputs, outputs);
+    s.mesh_out.emplace(*a.output);
+    if (a.stats_json) s.stats_out.emplace(*a.stats_json);
+  }
+  s.input = a.demo ? std::string("demo: Marschner-Lobb 129^3") : *a.input;
+  if (a.demo) {
+    s.data = std::make_shared<const volume>(make_demo_volume());
+    s.iso = a.iso.value_or(demo_isovalue);
+  } else {
+    // A mapped input is read only where this rank's share lies (the pages it touches).
+    s.data = std::make_shared<const volume>(source->read(a.spacing));
+    s.iso = *a.iso;
+  }
+  s.field = smoothed_field(s.data, a.smooth, s.input);
+}
+
+}  // namespace
+
+int run_mpi_extract(const std::vector<std::string>& args) {
+  const mpi_session mpi;
+  int rank = 0, size = 1;
+  MPI_Comm_rank(MPI_COMM_WORLD, &rank);
+  MPI_Comm_size(MPI_COMM_WORLD, &size);
+  using clock = std::chrono::steady_clock;
+  const auto t0 = clock::now();
+
+  // ---- Set-up, agreed on: the lowest rank that failed says why, every rank returns 2.
+  setup s;
+  std::string failure;
+  bool help = false;
+  try {
+    set_up(s, args, rank);
+    help = s.a.help;
+  } catch (const error& e) {
+    failure = e.what();
+  } catch (const std::bad_alloc&) {
+    failure = "out of memory";
+  }
+  int first_failed = failure.empty() ? size : rank;
+  MPI_Allreduce(MPI_IN_PLACE, &first_failed, 1, MPI_INT, MPI_MIN, MPI_COMM_WORLD);
+  if (first_failed < size) {
+    if (rank == first_failed) std::cerr << "progiso: error: " << one_line(failure) << "\n";
+    return 2;
+  }
+  if (help) {
+    if (rank == 0) std::cout << usage_text;
+    return 0;
+  }
+
+  try {
+    const volume& field = *s.field;
+    const std::int64_t nz = field.dims()[2];
+    detail::finest_share share{nz * rank / size, nz * (rank + 1) / size, 0, 0};
+    const unsigned threads =
+        s.a.threads != 0 ? s.a.threads
+                         : std::max(1u, static_cast<unsigned>(scheduler::default_concurrency()) /
+                                            static_cast<unsigned>(size));
+    // Counts, then the ranks before this one's as first ids, and the totals.
+    std::uint64_t counts[2] = {0, 0}, first[2] = {0, 0}, totals[2] = {0, 0};
+    scheduler::run_on_threads(threads, [&](const parallel_loop& loop, std::size_t parts) {
+      const std::array<std::uint64_t, 2> c =
+          detail::finest_share_counts(field, s.iso, loop, parts, share);
+      counts[0] = c[0];
+      counts[1] = c[1];
+    });
+    MPI_Exscan(counts, first, 2, MPI_UINT64_T, MPI_SUM, MPI_COMM_WORLD);
+    if (rank == 0) first[0] = first[1] = 0;  // MPI_Exscan leaves rank 0's undefined
+    MPI_Allreduce(counts, totals, 2, MPI_UINT64_T, MPI_SUM, MPI_COMM_WORLD);
+    if (totals[0] > 2147483647u) {
+      // Every rank knows the totals: one says it, all end alike.
+      if (rank == 0) {
+        std::cerr << "progiso: error: " << *s.a.output
+                  << ": PLY int indices allow at most 2147483647 vertices, the surface has "
+                  << totals[0] << "\n";
+      }
+      return 2;
+    }
+    // A fault for the tests: this rank dies here, after the others have its counts.
+    if (env_int("PROGISO_MPI_FAULT_RANK") == rank) std::raise(SIGKILL);
+    share.first_vertex = first[0];
+    share.first_triangle = first[1];
+    std::vector<char> vertices, faces;
+    const std::string name = *s.a.output;
+    scheduler::run_on_threads(threads, [&](const parallel_loop& loop, std::size_t parts) {
+      detail::finest_surface_pieces(
+          field, s.iso, loop, parts, {},
+          [&](triangle_mesh& piece, std::uint64_t) {
+            detail::append_ply_records(name, piece, vertices, faces);
+          },
+          0, share);
+    });
+    const double meshed = std::chrono::duration<double>(clock::now() - t0).count();
+    if (rank != 0) {
+      send_bytes(vertices, 0, 1);
+      send_bytes(faces, 0, 2);
+      return 0;
+    }
+    // Rank 0: the header, every rank's vertices, then every rank's faces.
+    detail::atomic_output& out = *s.mesh_out;
+    out.write(detail::ply_header_text(totals[0], totals[1], false));
+    const auto write = [&out](const char* p, std::size_t n) { out.write(p, n); };
+    out.write(vertices.data(), vertices.size());
+    for (int r = 1; r < size; ++r) receive_bytes(r, 1, write);
+    out.write(faces.data(), faces.size());
+    for (int r = 1; r < size; ++r) receive_bytes(r, 2, write);
+    const double seconds = std::chrono::duration<double>(clock::now() - t0).count();
+    if (s.stats_out) {
+      std::ostringstream o;
+      o << "{\n  \"input\": \"" << json_escape(s.input) << "\",\n  \"dims\": [" << field.dims()[0]
+        << ", " << field.dims()[1] << ", " << field.dims()[2]
+        << "],\n  \"isovalue\": " << json_number(s.iso)
+        << ",\n  \"mode\": \"full\",\n  \"path\": \"finest\",\n  \"ranks\": " << size
+        << ",\n  \"threads_per_rank\": " << threads << ",\n  \"triangles\": " << totals[1]
+        << ",\n  \"vertices\": " << totals[0]
+        << ",\n  \"rank0_mesh_ms\": " << json_number(meshed * 1e3)
+        << ",\n  \"total_ms\": " << json_number(seconds * 1e3) << "\n}\n";
+      s.stats_out->write(o.str());
+    }
+    out.finish();
+    if (s.stats_out) s.stats_out->finish();
+    out.publish();
+    if (s.stats_out) s.stats_out->publish();
+    std::printf(
+        "progiso: %llu triangles, %llu vertices (%zu voxels); finest surface on %d ranks, %.1f "
+        "ms; wrote %s\n",
+        static_cast<unsigned long long>(totals[1]), static_cast<unsigned long long>(totals[0]),
+        field.voxel_count(), size, seconds * 1e3, name.c_str());
+    return 0;
+  } catch (const error& e) {
+    std::cerr << "progiso: error: rank " << rank << ": " << one_line(e.what()) << "\n";
+  } catch (const std::bad_alloc&) {
+    std::cerr << "progiso: error: rank " << rank << ": out of memory\n";
+  }
+  // One rank's failure mid-run: the others may wait on it, so the job ends here.
+  std::cerr.flush();
+  MPI_Abort(MPI_COMM_WORLD, 2);
+  return 2;
+}
+
+#endif
+
+}  // namespace progiso::cli
