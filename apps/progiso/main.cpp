@@ -272,6 +272,15 @@ void to_world(progiso::triangle_mesh& mesh, const progiso::volume& data,
   }
 }
 
+/// Everything is written: the mesh and the statistics finished, then published together.
+void publish_outputs(progiso::detail::atomic_output& mesh_out,
+                     std::optional<progiso::detail::atomic_output>& stats_out) {
+  mesh_out.finish();
+  if (stats_out) stats_out->finish();
+  mesh_out.publish();
+  if (stats_out) stats_out->publish();
+}
+
 /// extract --hierarchy: the engine refines towards the goal while this thread writes the records
 /// it publishes, a chunk every few milliseconds, so that the stream grows with the run (into a
 /// FIFO or device it is readable while the run goes on; a file appears, complete, at the end).
@@ -394,10 +403,7 @@ int run_finest_in_pieces(arguments& a, const std::string& input, const progiso::
   }
   const pieces_written counts{ply.triangles(), ply.vertices()};
   if (stats_out) stats_out->write(stats_json(a, input, iso, data, vol, r, counts));
-  mesh_out.finish();
-  if (stats_out) stats_out->finish();
-  mesh_out.publish();
-  if (stats_out) stats_out->publish();
+  publish_outputs(mesh_out, stats_out);
   std::printf(
       "progiso: %llu triangles, %llu vertices (%zu voxels); finest surface %.1f ms (two passes "
       "over the samples, slab by slab), written in %.1f ms in all; wrote %s\n",
@@ -455,10 +461,7 @@ int run_coarse_first(arguments& a, progiso::volume_source& source, const std::st
   if (stats_out) {
     stats_out->write(stats_json(a, input, iso, *best_data, *best_field, *best, std::nullopt, read));
   }
-  mesh_out.finish();
-  if (stats_out) stats_out->finish();
-  mesh_out.publish();
-  if (stats_out) stats_out->publish();
+  publish_outputs(mesh_out, stats_out);
   std::printf(
       "progiso: %zu triangles, %zu vertices; level %zu of %zu (coarse first: %zu levels read, "
       "coarsest first) by the deadline, in %.1f ms; wrote %s\n",
@@ -523,10 +526,7 @@ int run_cut(const std::vector<std::string>& args) {
       << "\n}\n";
     stats_out->write(o.str());
   }
-  mesh_out.finish();
-  if (stats_out) stats_out->finish();
-  mesh_out.publish();
-  if (stats_out) stats_out->publish();
+  publish_outputs(mesh_out, stats_out);
   std::printf(
       "progiso: cut of %llu of %llu records (%s), %zu triangles, %zu vertices; read %.1f ms, "
       "cut %.1f ms; wrote %s\n",
@@ -626,10 +626,7 @@ int run(const std::vector<std::string>& args) {
   progiso::detail::write_mesh_to(mesh_out, r.mesh);
   if (stats_out) stats_out->write(stats_json(a, input, iso, *data, *vol, r));
   // Everything is written: publish the outputs together.
-  mesh_out.finish();
-  if (stats_out) stats_out->finish();
-  mesh_out.publish();
-  if (stats_out) stats_out->publish();
+  publish_outputs(mesh_out, stats_out);
   if (r.finest_direct) {
     std::printf(
         "progiso: %zu triangles, %zu vertices (%zu voxels); first surface %.3f ms, finest "
