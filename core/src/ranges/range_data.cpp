@@ -11,6 +11,7 @@
 #include <limits>
 #include <memory>
 #include <new>
+#include <span>
 #include <type_traits>
 #include <utility>
 #include <vector>
@@ -54,6 +55,11 @@ struct range_data::impl {
   virtual void build_error_pieces(std::size_t first, std::size_t last,
                                   const parallel_loop& run) = 0;
   virtual void finish_errors(const parallel_loop& run) = 0;
+  // range_data::piece_bytes(): none unless an implementation's pieces are plain bytes.
+  [[nodiscard]] virtual std::span<std::byte> piece_bytes(std::size_t /*first*/,
+                                                         std::size_t /*last*/) noexcept {
+    return {};
+  }
   // Both passes for pieces [first, last) (one task per piece reads its slab once into cache).
   virtual void build_both(std::size_t first, std::size_t last, const parallel_loop& run) {
     build_pieces(first, last, run);
@@ -273,6 +279,15 @@ class typed_range_data final : public range_data::impl {
     });
   }
   [[nodiscard]] std::size_t error_piece_count() const noexcept override { return piece_count(); }
+  // Piece kz is plane kz of level 0 (build_minmax_slab and build_error_slab write nothing else).
+  [[nodiscard]] std::span<std::byte> piece_bytes(std::size_t first,
+                                                 std::size_t last) noexcept override {
+    static_assert(std::is_trivially_copyable_v<brick>);
+    level& l0 = levels_[0];
+    const std::size_t plane = static_cast<std::size_t>(l0.n[0]) * static_cast<std::size_t>(l0.n[1]);
+    return {reinterpret_cast<std::byte*>(l0.bricks.data() + first * plane),
+            (last - first) * plane * sizeof(brick)};
+  }
   void build_both(std::size_t first, std::size_t last,
                   const range_data::parallel_loop& run) override {
     run_loop(run, last - first, [this, first](std::size_t k) {
@@ -1085,6 +1100,10 @@ void range_data::finish(const parallel_loop& run) {
   PROGISO_ASSERT(!complete_);
   impl_->finish(run);
   complete_ = true;
+}
+std::span<std::byte> range_data::piece_bytes(std::size_t first, std::size_t last) noexcept {
+  PROGISO_ASSERT(!complete_ && first <= last && last <= piece_count());
+  return impl_->piece_bytes(first, last);
 }
 std::size_t range_data::error_piece_count() const noexcept { return impl_->error_piece_count(); }
 void range_data::build_pieces_with_errors(std::size_t first, std::size_t last,

@@ -31,6 +31,7 @@
 #include <cstdint>
 #include <functional>
 #include <memory>
+#include <span>
 
 #include <progiso/core/base/config.hpp>
 #include <progiso/core/base/detail/borrow.hpp>
@@ -100,6 +101,12 @@ class range_data {
   /// Both passes of pieces [first, last) at once, each piece's samples read into cache once;
   /// only when error_piece_count() == piece_count() (no error pass counts as already done).
   void build_pieces_with_errors(std::size_t first, std::size_t last, const parallel_loop& run = {});
+  /// The bytes that pieces [first, last) of a staged build hold (both passes), contiguous: for
+  /// processes that each build different pieces (MPI ranks) and copy every piece's bytes to the
+  /// others before finish() and finish_errors(), which then make the same data as one process.
+  /// A piece's bytes depend only on the volume, so a copy is as good as a build. Empty where the
+  /// data has no such pieces (a smoothed field's bound needs no pass to share).
+  [[nodiscard]] std::span<std::byte> piece_bytes(std::size_t first, std::size_t last) noexcept;
   /// Refused at compile time: the range data keeps pointers to both (detail/borrow.hpp).
   template <class V, class H>
   requires detail::any_rvalue<V, H> range_data(V&&, H&&)
