@@ -6,17 +6,23 @@
 #include <cstdint>
 #include <cstdio>
 #include <cstdlib>
+#include <cstring>
 #include <iostream>
 #include <memory>
 #include <new>
 #include <optional>
 #include <sstream>
 #include <string>
+#include <type_traits>
 #include <vector>
 
 #include <progiso/core/base/error.hpp>
 #include <progiso/core/field/analytic.hpp>
+#include <progiso/core/hierarchy/hierarchy.hpp>
+#include <progiso/core/ranges/range_data.hpp>
+#include <progiso/core/refine/error_cut_share.hpp>
 #include <progiso/core/surface/finest_surface.hpp>
+#include <progiso/core/surface/hierarchy_stream.hpp>
 #include <progiso/io/detail/file_output.hpp>
 #include <progiso/io/detail/writers.hpp>
 #include <progiso/io/volume_io.hpp>
@@ -117,27 +123,30 @@ struct setup {
   std::shared_ptr<const volume> data, field;
   std::string input;
   double iso = 0.0;
-  std::optional<detail::atomic_output> mesh_out, stats_out;
+  std::optional<detail::atomic_output> mesh_out, stats_out, hierarchy_out;
 };
 
 void set_up(setup& s, const std::vector<std::string>& args, int rank) {
   s.a = parse_extract(args);
   extract_arguments& a = s.a;
   using kind = refine_goal::kind;
-  if (a.options.goal.what != kind::full) {
+  const bool error_goal = a.options.goal.what == kind::error;
+  if (a.options.goal.what != kind::full && !error_goal) {
     throw error(
-        "under MPI, extract makes the finest surface only (--full): error goals, budgets and "
-        "deadlines across ranks are not built yet");
+        "under MPI, extract makes the finest surface (--full) or an error-driven cut (--error "
+        "E): triangle budgets and deadlines across ranks are not built yet");
   }
-  if (a.hierarchy || a.world || a.options.normals) {
+  if (a.world || a.options.normals || (a.hierarchy && !error_goal)) {
     throw error(
-        "under MPI, extract writes positions alone: --hierarchy, --world and --normals "
-        "are not built across ranks yet");
+        "under MPI, extract writes positions alone (--world and --normals are not built across "
+        "ranks yet), and --hierarchy only with --error");
   }
-  if (detail::lower_extension(*a.output) != ".ply") {
+  if (error_goal && a.smooth.active()) {
+    throw error("under MPI, --error refines the data as read: --smooth is not built across ranks");
+  }
+  if (!error_goal && detail::lower_extension(*a.output) != ".ply") {
     throw error(std::string(*a.output) +
-                ": under MPI, extract writes .ply (found another "
-                "extension)");
+                ": under MPI, the finest surface is written as .ply (found another extension)");
   }
   std::optional<raw_layout> raw;
   if (a.dims) raw = raw_layout{*a.dims, *a.type, a.big_endian};
@@ -148,9 +157,11 @@ void set_up(setup& s, const std::vector<std::string>& args, int rank) {
     if (source) inputs = source->files();
     std::vector<named_output> outputs{{"-o", *a.output}};
     if (a.stats_json) outputs.push_back({"--stats-json", *a.stats_json});
+    if (a.hierarchy) outputs.push_back({"--hierarchy", *a.hierarchy});
     refuse_clashing_outputs(inputs, outputs);
     s.mesh_out.emplace(*a.output);
     if (a.stats_json) s.stats_out.emplace(*a.stats_json);
+    if (a.hierarchy) s.hierarchy_out.emplace(*a.hierarchy);
   }
   s.input = a.demo ? std::string("demo: Marschner-Lobb 129^3") : *a.input;
   if (a.demo) {
@@ -162,6 +173,134 @@ void set_up(setup& s, const std::vector<std::string>& args, int rank) {
     s.iso = *a.iso;
   }
   s.field = smoothed_field(s.data, a.smooth, s.input);
+}
+
+/// A trivially copyable vector's bytes, and back.
+template <class T>
+std::vector<char> bytes_of(const std::vector<T>& v) {
+  static_assert(std::is_trivially_copyable_v<T>);
+  std::vector<char> b(v.size() * sizeof(T));
+  if (!b.empty()) std::memcpy(b.data(), v.data(), b.size());
+  return b;
+}
+template <class T>
+std::vector<T> receive_vector(int from, int tag) {
+  std::vector<char> b;
+  receive_bytes(from, tag, [&b](const char* p, std::size_t n) { b.insert(b.end(), p, p + n); });
+  if (b.size() % sizeof(T) != 0) throw error("a rank sent a record list of a wrong size");
+  std::vector<T> v(b.size() / sizeof(T));
+  if (!b.empty()) std::memcpy(v.data(), b.data(), b.size());
+  return v;
+}
+
+/// An error-driven cut across ranks (docs/MPI.md): each rank builds the range data's pieces of
+/// its planes, the ranks copy them to each other (every rank then holds the one process's range
+/// data), each rank finds and computes the splits centred in its planes, and rank 0 merges them
+/// into a hierarchy stream whose cut of all records it meshes and writes.
+int run_error_cut(setup& s, int rank, int size, unsigned threads,
+                  std::chrono::steady_clock::time_point t0) {
+  using clock = std::chrono::steady_clock;
+  const auto ms_since = [](clock::time_point t) {
+    return std::chrono::duration<double, std::milli>(clock::now() - t).count();
+  };
+  const volume& field = *s.field;
+  const hierarchy hier(field.dims());
+  const double max_error = s.a.options.goal.max_error;
+  range_data rd(field, hier, range_data::staged);
+  const detail::cut_share share = detail::error_cut_share(
+      hier, rd.piece_count(), static_cast<std::size_t>(rank), static_cast<std::size_t>(size));
+  scheduler::run_on_threads(threads, [&](const parallel_loop& loop, std::size_t) {
+    rd.build_pieces_with_errors(share.piece_begin, share.piece_end, loop);
+  });
+  // Every rank's pieces to every rank, in place: counts and offsets in pieces (one plane of
+  // bricks each), so that no count passes an int however large the grid.
+  const std::size_t piece = rd.piece_bytes(0, 1).size();
+  if (piece == 0 || piece > 2147483647u) {
+    throw error("the range data's pieces cannot be shared across ranks");
+  }
+  MPI_Datatype piece_type = MPI_DATATYPE_NULL;
+  MPI_Type_contiguous(static_cast<int>(piece), MPI_BYTE, &piece_type);
+  MPI_Type_commit(&piece_type);
+  std::vector<int> counts(static_cast<std::size_t>(size)), offsets(static_cast<std::size_t>(size));
+  for (int r = 0; r < size; ++r) {
+    const detail::cut_share o = detail::error_cut_share(
+        hier, rd.piece_count(), static_cast<std::size_t>(r), static_cast<std::size_t>(size));
+    counts[static_cast<std::size_t>(r)] = static_cast<int>(o.piece_end - o.piece_begin);
+    offsets[static_cast<std::size_t>(r)] = static_cast<int>(o.piece_begin);
+  }
+  MPI_Allgatherv(MPI_IN_PLACE, 0, MPI_DATATYPE_NULL, rd.piece_bytes(0, rd.piece_count()).data(),
+                 counts.data(), offsets.data(), piece_type, MPI_COMM_WORLD);
+  MPI_Type_free(&piece_type);
+  detail::share_splits mine;
+  scheduler::run_on_threads(threads, [&](const parallel_loop& loop, std::size_t) {
+    rd.finish(loop);
+    rd.finish_errors(loop);
+  });
+  const double ranges_ms = ms_since(t0);
+  // A fault for the tests: this rank dies here, after the others have its pieces.
+  if (env_int("PROGISO_MPI_FAULT_RANK") == rank) std::raise(SIGKILL);
+  scheduler::run_on_threads(threads, [&](const parallel_loop& loop, std::size_t) {
+    mine = detail::error_cut_splits(hier, field, rd, s.iso, max_error, share.z_begin, share.z_end,
+                                    loop);
+  });
+  const double splits_ms = ms_since(t0);
+  if (rank != 0) {
+    send_bytes(bytes_of(mine.splits), 0, 3);
+    send_bytes(bytes_of(mine.groups), 0, 4);
+    return 0;
+  }
+  std::uint64_t splits = mine.splits.size();
+  std::vector<detail::share_splits> shares;
+  shares.reserve(static_cast<std::size_t>(size));
+  shares.push_back(std::move(mine));
+  for (int r = 1; r < size; ++r) {
+    detail::share_splits& o = shares.emplace_back();
+    o.splits = receive_vector<detail::share_split>(r, 3);
+    o.groups = receive_vector<packed_group>(r, 4);
+    for (const detail::share_split& sp : o.splits) {
+      if (sp.first_group + sp.groups > o.groups.size()) {
+        throw error("rank " + std::to_string(r) + " sent a split whose groups it did not send");
+      }
+    }
+    splits += o.splits.size();
+  }
+  std::vector<std::byte> stream;
+  detail::write_cut_stream(
+      [&stream](std::span<const std::byte> b) { stream.insert(stream.end(), b.begin(), b.end()); },
+      hier, field, s.iso, shares);
+  shares.clear();
+  const hierarchy_stream cut = hierarchy_stream::decode(stream);
+  const triangle_mesh mesh = cut.mesh(cut.all());
+  if (s.hierarchy_out) s.hierarchy_out->write(stream.data(), stream.size());
+  detail::write_mesh_to(*s.mesh_out, mesh);
+  const double total_ms = ms_since(t0);
+  if (s.stats_out) {
+    std::ostringstream o;
+    o << "{\n  \"input\": \"" << json_escape(s.input) << "\",\n  \"dims\": [" << field.dims()[0]
+      << ", " << field.dims()[1] << ", " << field.dims()[2]
+      << "],\n  \"isovalue\": " << json_number(s.iso)
+      << ",\n  \"mode\": \"error\",\n  \"max_error\": " << json_number(max_error)
+      << ",\n  \"path\": \"shares\",\n  \"ranks\": " << size
+      << ",\n  \"threads_per_rank\": " << threads << ",\n  \"splits\": " << splits
+      << ",\n  \"triangles\": " << mesh.triangles.size()
+      << ",\n  \"vertices\": " << mesh.vertices.size()
+      << ",\n  \"rank0_ranges_ms\": " << json_number(ranges_ms)
+      << ",\n  \"rank0_splits_ms\": " << json_number(splits_ms)
+      << ",\n  \"total_ms\": " << json_number(total_ms) << "\n}\n";
+    s.stats_out->write(o.str());
+  }
+  s.mesh_out->finish();
+  if (s.stats_out) s.stats_out->finish();
+  if (s.hierarchy_out) s.hierarchy_out->finish();
+  s.mesh_out->publish();
+  if (s.stats_out) s.stats_out->publish();
+  if (s.hierarchy_out) s.hierarchy_out->publish();
+  std::printf(
+      "progiso: %zu triangles, %zu vertices; %llu splits of error > %g on %d ranks (%zu voxels); "
+      "range data %.1f ms, splits %.1f ms, total %.1f ms; wrote %s\n",
+      mesh.triangles.size(), mesh.vertices.size(), static_cast<unsigned long long>(splits),
+      max_error, size, field.voxel_count(), ranges_ms, splits_ms, total_ms, s.a.output->c_str());
+  return 0;
 }
 
 }  // namespace
@@ -198,13 +337,16 @@ int run_mpi_extract(const std::vector<std::string>& args) {
   }
 
   try {
-    const volume& field = *s.field;
-    const std::int64_t nz = field.dims()[2];
-    detail::finest_share share{nz * rank / size, nz * (rank + 1) / size, 0, 0};
     const unsigned threads =
         s.a.threads != 0 ? s.a.threads
                          : std::max(1u, static_cast<unsigned>(scheduler::default_concurrency()) /
                                             static_cast<unsigned>(size));
+    if (s.a.options.goal.what == refine_goal::kind::error) {
+      return run_error_cut(s, rank, size, threads, t0);
+    }
+    const volume& field = *s.field;
+    const std::int64_t nz = field.dims()[2];
+    detail::finest_share share{nz * rank / size, nz * (rank + 1) / size, 0, 0};
     // Counts, then the ranks before this one's as first ids, and the totals.
     std::uint64_t counts[2] = {0, 0}, first[2] = {0, 0}, totals[2] = {0, 0};
     scheduler::run_on_threads(threads, [&](const parallel_loop& loop, std::size_t parts) {

@@ -1,9 +1,11 @@
-// `mpirun -np N progiso extract … --full` (apps/progiso/mpi_extract.hpp): 1, 2 and 4 ranks, over
-// subscribed on this machine, must write the single process's PLY byte for byte (on a shared
-// volume, whose surface crosses every rank's share, and on a raw file of a size that N does not
-// divide); a goal the ranks cannot share yet, and a missing input, give one error line and a
-// failing status; a rank killed mid-run ends the job (no hang) without an output or a
-// temporary left behind. Skipped where the command was built without MPI or mpiexec is missing.
+// `mpirun -np N progiso extract … --full | --error E` (apps/progiso/mpi_extract.hpp): 1, 2 and 4
+// ranks, over subscribed on this machine, must write the single process's mesh byte for byte (on
+// a shared volume, whose surface crosses every rank's share, and on a raw file of a size that N
+// does not divide), the finest surface and error-driven cuts alike; an error cut's hierarchy
+// stream cuts to the same mesh; a goal the ranks cannot share yet, and a missing input, give one
+// error line and a failing status; a rank killed mid-run ends the job (no hang) without an output
+// or a temporary left behind. Skipped where the command was built without MPI or mpiexec is
+// missing.
 #include <cstdlib>
 #include <filesystem>
 #include <string>
@@ -42,62 +44,81 @@ class Mpi : public ::testing::Test {
   test::scratch_dir runs_{"progiso-mpi-runs-"};
 };
 
-TEST_F(Mpi, one_two_and_four_ranks_write_the_single_process_mesh_byte_for_byte) {
-  struct input {
-    fs::path file;
-    std::string dims, iso;
-  };
-  std::vector<input> inputs;
-  // A raw file of 37 planes (no rank count here divides it), a gyroid-like field.
-  {
-    const fs::path raw = dir_.path() / "waves.raw";
-    std::string bytes;
-    for (int z = 0; z < 37; ++z) {
-      for (int y = 0; y < 29; ++y) {
-        for (int x = 0; x < 31; ++x) {
-          const int v = (x * 7 + y * 11 + z * 13 + (x * y) % 17 + (y * z) % 19) % 256;
-          bytes += static_cast<char>(v);
-        }
+// Inputs whose surfaces cross every rank's share: a raw file of 37 planes (no rank count here
+// divides it), a gyroid-like field, and hipip when the shared data is there.
+struct mpi_input {
+  fs::path file;
+  std::string dims, iso, error;
+};
+
+std::vector<mpi_input> mpi_inputs(const fs::path& dir) {
+  std::vector<mpi_input> inputs;
+  const fs::path raw = dir / "waves.raw";
+  std::string bytes;
+  for (int z = 0; z < 37; ++z) {
+    for (int y = 0; y < 29; ++y) {
+      for (int x = 0; x < 31; ++x) {
+        const int v = (x * 7 + y * 11 + z * 13 + (x * y) % 17 + (y * z) % 19) % 256;
+        bytes += static_cast<char>(v);
       }
     }
-    test::write_file(raw, bytes);
-    inputs.push_back({raw, "31,29,37", "127.5"});
   }
+  test::write_file(raw, bytes);
+  inputs.push_back({raw, "31,29,37", "127.5", "6"});
   if (const auto data = test::shared_data_dir()) {
-    inputs.push_back({*data / "hipip_68x68x68_uint8.raw", "68,68,68", "60"});
+    inputs.push_back({*data / "hipip_68x68x68_uint8.raw", "68,68,68", "60", "2"});
   }
-  for (const input& in : inputs) {
-    SCOPED_TRACE(in.file.filename().string());
-    const auto args = [&](const std::string& out) {
-      return std::vector<std::string>{"extract",
-                                      in.file.string(),
-                                      "--dims",
-                                      in.dims,
-                                      "--type",
-                                      "u8",
-                                      "--iso",
-                                      in.iso,
-                                      "--full",
-                                      "-o",
-                                      (dir_.path() / out).string(),
-                                      "--threads",
-                                      "1"};
-    };
-    const test::bounded_result single =
-        test::run_bounded(PROGISO_CLI, args("single.ply"), runs_.path());
-    ASSERT_EQ(single.status, 0) << single.err;
-    const std::string want = test::read_whole(dir_.path() / "single.ply");
-    ASSERT_GT(want.size(), 1000U);
-    for (const int ranks : {1, 2, 4}) {
-      SCOPED_TRACE(std::to_string(ranks) + " ranks");
-      const std::string out = "mpi" + std::to_string(ranks) + ".ply";
-      const test::bounded_result r =
-          test::run_bounded(PROGISO_MPIEXEC, mpi_args(ranks, args(out)), runs_.path());
-      ASSERT_EQ(r.status, 0) << r.err;
-      EXPECT_TRUE(test::read_whole(dir_.path() / out) == want) << "another file than one process's";
-      EXPECT_NE(r.out.find("on " + std::to_string(ranks) + " ranks"), std::string::npos) << r.out;
+  return inputs;
+}
+
+TEST_F(Mpi, one_two_and_four_ranks_write_the_single_process_mesh_byte_for_byte) {
+  for (const mpi_input& in : mpi_inputs(dir_.path())) {
+    // The finest surface, and error cuts (one that leaves most of the surface coarse).
+    for (const std::string goal : {"--full", "--error"}) {
+      SCOPED_TRACE(in.file.filename().string() + " " + goal);
+      const auto args = [&](const std::string& out) {
+        std::vector<std::string> a{"extract", in.file.string(), "--dims", in.dims, "--type",
+                                   "u8",      "--iso",          in.iso,   goal};
+        if (goal == "--error") a.push_back(in.error);
+        a.insert(a.end(), {"-o", (dir_.path() / out).string(), "--threads", "1"});
+        return a;
+      };
+      const test::bounded_result single =
+          test::run_bounded(PROGISO_CLI, args("single.ply"), runs_.path());
+      ASSERT_EQ(single.status, 0) << single.err;
+      const std::string want = test::read_whole(dir_.path() / "single.ply");
+      ASSERT_GT(want.size(), 1000U);
+      for (const int ranks : {1, 2, 4}) {
+        SCOPED_TRACE(std::to_string(ranks) + " ranks");
+        const std::string out = "mpi" + std::to_string(ranks) + ".ply";
+        const test::bounded_result r =
+            test::run_bounded(PROGISO_MPIEXEC, mpi_args(ranks, args(out)), runs_.path());
+        ASSERT_EQ(r.status, 0) << r.err;
+        EXPECT_TRUE(test::read_whole(dir_.path() / out) == want)
+            << "another file than one process's";
+        EXPECT_NE(r.out.find("on " + std::to_string(ranks) + " ranks"), std::string::npos) << r.out;
+        fs::remove(dir_.path() / out);
+      }
     }
   }
+}
+
+TEST_F(Mpi, an_error_cuts_hierarchy_stream_cuts_to_the_same_mesh) {
+  const mpi_input in = mpi_inputs(dir_.path()).front();
+  const fs::path pgh = dir_.path() / "cut.pgh";
+  const test::bounded_result r = test::run_bounded(
+      PROGISO_MPIEXEC,
+      mpi_args(3, {"extract", in.file.string(), "--dims", in.dims, "--type", "u8", "--iso", in.iso,
+                   "--error", in.error, "-o", (dir_.path() / "mpi.ply").string(), "--hierarchy",
+                   pgh.string(), "--threads", "1"}),
+      runs_.path());
+  ASSERT_EQ(r.status, 0) << r.err;
+  const test::bounded_result c = test::run_bounded(
+      PROGISO_CLI, {"cut", pgh.string(), "-o", (dir_.path() / "cut.ply").string()}, runs_.path());
+  ASSERT_EQ(c.status, 0) << c.err;
+  const std::string want = test::read_whole(dir_.path() / "mpi.ply");
+  ASSERT_GT(want.size(), 1000U);
+  EXPECT_TRUE(test::read_whole(dir_.path() / "cut.ply") == want);
 }
 
 TEST_F(Mpi, refusals_give_one_error_line_and_a_failing_status) {
@@ -116,9 +137,12 @@ TEST_F(Mpi, refusals_give_one_error_line_and_a_failing_status) {
     EXPECT_NE(r.err.find(says), std::string::npos) << r.err;
     EXPECT_FALSE(fs::exists(dir_.path() / "out.ply"));
   };
+  refused({"extract", raw.string(), "--dims", "8,8,8", "--type", "u8", "--iso", "3",
+           "--max-triangles", "100", "-o", (dir_.path() / "out.ply").string()},
+          "triangle budgets and deadlines across ranks are not built yet");
   refused({"extract", raw.string(), "--dims", "8,8,8", "--type", "u8", "--iso", "3", "--error", "1",
-           "-o", (dir_.path() / "out.ply").string()},
-          "under MPI, extract makes the finest surface only (--full)");
+           "--smooth", "1", "-o", (dir_.path() / "out.ply").string()},
+          "--smooth is not built across ranks");
   refused({"extract", (dir_.path() / "missing.raw").string(), "--dims", "8,8,8", "--type", "u8",
            "--iso", "3", "--full", "-o", (dir_.path() / "out.ply").string()},
           "missing.raw: cannot open");
@@ -129,20 +153,26 @@ TEST_F(Mpi, a_rank_killed_mid_run_ends_the_job_without_an_output) {
   std::string bytes;
   for (int i = 0; i < 40 * 40 * 40; ++i) bytes += static_cast<char>((i * 7) % 251);
   test::write_file(raw, bytes);
-  setenv("PROGISO_MPI_FAULT_RANK", "1", 1);
-  test::bounds b;
-  b.wall = std::chrono::seconds(120);
-  const test::bounded_result r = test::run_bounded(
-      PROGISO_MPIEXEC,
-      mpi_args(2, {"extract", raw.string(), "--dims", "40,40,40", "--type", "u8", "--iso", "100",
-                   "--full", "-o", (dir_.path() / "out.ply").string()}),
-      runs_.path(), b);
-  unsetenv("PROGISO_MPI_FAULT_RANK");
-  EXPECT_FALSE(r.timed_out) << "the job hung after a rank died";
-  EXPECT_NE(r.status, 0);
-  for (const auto& e : fs::directory_iterator(dir_.path())) {
-    EXPECT_EQ(e.path().filename().string().find("out.ply"), std::string::npos)
-        << "left " << e.path();
+  // After the counts (finest surface), after the range data's exchange (error cut).
+  for (const std::vector<std::string>& goal :
+       {std::vector<std::string>{"--full"}, std::vector<std::string>{"--error", "3"}}) {
+    SCOPED_TRACE(goal[0]);
+    std::vector<std::string> args{
+        "extract", raw.string(), "--dims", "40,40,40", "--type",
+        "u8",      "--iso",      "100",    "-o",       (dir_.path() / "out.ply").string()};
+    args.insert(args.end(), goal.begin(), goal.end());
+    setenv("PROGISO_MPI_FAULT_RANK", "1", 1);
+    test::bounds b;
+    b.wall = std::chrono::seconds(120);
+    const test::bounded_result r =
+        test::run_bounded(PROGISO_MPIEXEC, mpi_args(2, args), runs_.path(), b);
+    unsetenv("PROGISO_MPI_FAULT_RANK");
+    EXPECT_FALSE(r.timed_out) << "the job hung after a rank died";
+    EXPECT_NE(r.status, 0);
+    for (const auto& e : fs::directory_iterator(dir_.path())) {
+      EXPECT_EQ(e.path().filename().string().find("out.ply"), std::string::npos)
+          << "left " << e.path();
+    }
   }
 }
 
