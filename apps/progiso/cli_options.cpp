@@ -285,7 +285,7 @@ bool parse_smoothing(const std::string& f, const Value& value, smoothing& s, std
 
 }  // namespace
 
-extract_arguments parse_extract(const std::vector<std::string>& args) {
+extract_arguments parse_extract(const std::vector<std::string>& args, bool under_mpi) {
   extract_arguments a;
   if (args.empty()) {
     throw error("missing command (expected 'extract', 'cut' or 'contour'; see progiso --help)");
@@ -400,9 +400,16 @@ extract_arguments parse_extract(const std::vector<std::string>& args) {
     throw error("--world and --spacing: the orientation the file declares sets the spacing");
   }
   const std::string ext = detail::lower_extension(*a.output);
-  if (ext != ".ply" && ext != ".obj" && ext != ".stl" && ext != ".glb" && ext != ".vtp") {
+  if (ext == ".pvtp" && !under_mpi) {
     throw error(*a.output +
-                ": unknown mesh format (expected a .ply, .obj, .stl, .glb or .vtp file name)");
+                ": a .pvtp (one piece per rank) is written under mpirun only (expected a .ply, "
+                ".obj, .stl, .glb or .vtp file name)");
+  }
+  if (ext != ".ply" && ext != ".obj" && ext != ".stl" && ext != ".glb" && ext != ".vtp" &&
+      ext != ".pvtp") {
+    throw error(*a.output +
+                ": unknown mesh format (expected a .ply, .obj, .stl, .glb or .vtp file name, or "
+                "under mpirun .pvtp)");
   }
   if (a.options.normals && ext == ".stl") {
     throw error("--normals: " + *a.output +

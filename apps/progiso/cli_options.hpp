@@ -92,7 +92,9 @@ void start_deadline(Arguments& a) {
 [[nodiscard]] const char* goal_name(const refine_goal& goal, const char* budget_name) noexcept;
 
 /// `args` is argv without the program name, starting with "extract". Throws progiso::error.
-[[nodiscard]] extract_arguments parse_extract(const std::vector<std::string>& args);
+/// `under_mpi`: one rank of an MPI job, which may also write a .pvtp (one piece per rank).
+[[nodiscard]] extract_arguments parse_extract(const std::vector<std::string>& args,
+                                              bool under_mpi = false);
 /// `args` is argv without the program name, starting with "cut". Throws progiso::error.
 [[nodiscard]] cut_arguments parse_cut(const std::vector<std::string>& args);
 /// `args` is argv without the program name, starting with "contour". Throws progiso::error.

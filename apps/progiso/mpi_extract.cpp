@@ -124,10 +124,17 @@ struct setup {
   std::string input;
   double iso = 0.0;
   std::optional<detail::atomic_output> mesh_out, stats_out, hierarchy_out;
+  bool pieces = false;  // -o X.pvtp: each rank writes its piece
+  std::optional<detail::atomic_output> piece_out;
 };
 
-void set_up(setup& s, const std::vector<std::string>& args, int rank) {
-  s.a = parse_extract(args);
+/// Rank r's piece of a .pvtp: X_r.vtp beside X.pvtp (the index names it relative to itself).
+std::filesystem::path piece_path(const std::filesystem::path& pvtp, int r) {
+  return pvtp.parent_path() / (pvtp.stem().string() + "_" + std::to_string(r) + ".vtp");
+}
+
+void set_up(setup& s, const std::vector<std::string>& args, int rank, int size) {
+  s.a = parse_extract(args, true);
   extract_arguments& a = s.a;
   using kind = refine_goal::kind;
   const bool error_goal = a.options.goal.what == kind::error;
@@ -144,9 +151,17 @@ void set_up(setup& s, const std::vector<std::string>& args, int rank) {
   if (error_goal && a.smooth.active()) {
     throw error("under MPI, --error refines the data as read: --smooth is not built across ranks");
   }
-  if (!error_goal && detail::lower_extension(*a.output) != ".ply") {
+  const std::string ext = detail::lower_extension(*a.output);
+  s.pieces = ext == ".pvtp";
+  if (error_goal && s.pieces) {
     throw error(std::string(*a.output) +
-                ": under MPI, the finest surface is written as .ply (found another extension)");
+                ": under MPI, an error cut is meshed whole on rank 0 (write .ply, .obj, .stl, .glb "
+                "or .vtp); a .pvtp of one piece per rank is written for --full");
+  }
+  if (!error_goal && ext != ".ply" && !s.pieces) {
+    throw error(std::string(*a.output) +
+                ": under MPI, the finest surface is written as .ply, or as .pvtp with one piece "
+                "per rank (found another extension)");
   }
   std::optional<raw_layout> raw;
   if (a.dims) raw = raw_layout{*a.dims, *a.type, a.big_endian};
@@ -158,11 +173,15 @@ void set_up(setup& s, const std::vector<std::string>& args, int rank) {
     std::vector<named_output> outputs{{"-o", *a.output}};
     if (a.stats_json) outputs.push_back({"--stats-json", *a.stats_json});
     if (a.hierarchy) outputs.push_back({"--hierarchy", *a.hierarchy});
+    if (s.pieces) {
+      for (int r = 0; r < size; ++r) outputs.push_back({"-o (a piece)", piece_path(*a.output, r)});
+    }
     refuse_clashing_outputs(inputs, outputs);
     s.mesh_out.emplace(*a.output);
     if (a.stats_json) s.stats_out.emplace(*a.stats_json);
     if (a.hierarchy) s.hierarchy_out.emplace(*a.hierarchy);
   }
+  if (s.pieces) s.piece_out.emplace(piece_path(*a.output, rank));
   s.input = a.demo ? std::string("demo: Marschner-Lobb 129^3") : *a.input;
   if (a.demo) {
     s.data = std::make_shared<const volume>(make_demo_volume());
@@ -191,6 +210,111 @@ std::vector<T> receive_vector(int from, int tag) {
   std::vector<T> v(b.size() / sizeof(T));
   if (!b.empty()) std::memcpy(v.data(), b.data(), b.size());
   return v;
+}
+
+/// Text for an XML attribute value.
+std::string xml_attribute(const std::string& text) {
+  std::string out;
+  for (const char c : text) {
+    switch (c) {
+      case '&':
+        out += "&amp;";
+        break;
+      case '<':
+        out += "&lt;";
+        break;
+      case '>':
+        out += "&gt;";
+        break;
+      case '"':
+        out += "&quot;";
+        break;
+      default:
+        out += c;
+    }
+  }
+  return out;
+}
+
+/// A rank's piece of a .pvtp: its share's vertices, then the ghosts its last cubes name (the
+/// next ranks' vertices, asked of their owners: MPI_Alltoallv of ids, then of positions), ids
+/// local to the piece. `mine` holds the share's mesh with global ids, its own vertices being
+/// [first, first + own).
+triangle_mesh piece_with_ghosts(triangle_mesh&& mine, std::uint64_t first, std::uint64_t own,
+                                int size) {
+  std::vector<std::uint64_t> firsts(static_cast<std::size_t>(size));
+  MPI_Allgather(&first, 1, MPI_UINT64_T, firsts.data(), 1, MPI_UINT64_T, MPI_COMM_WORLD);
+  const std::uint64_t end = first + own;
+  std::vector<std::uint64_t> ghosts;
+  for (const auto& t : mine.triangles) {
+    for (const std::uint32_t id : t) {
+      if (id < first) throw error("a piece names a vertex of an earlier rank");
+      if (id >= end) ghosts.push_back(id);
+    }
+  }
+  std::sort(ghosts.begin(), ghosts.end());
+  ghosts.erase(std::unique(ghosts.begin(), ghosts.end()), ghosts.end());
+  // Ghosts by owner (ascending ids: owners ascending), then each rank answers what it was asked.
+  const auto n = static_cast<std::size_t>(size);
+  std::vector<int> ask(n, 0), asked(n, 0), ask_at(n, 0), asked_at(n, 0);
+  for (const std::uint64_t id : ghosts) {
+    const auto owner = static_cast<std::size_t>(std::upper_bound(firsts.begin(), firsts.end(), id) -
+                                                firsts.begin() - 1);
+    ++ask[owner];
+  }
+  MPI_Alltoall(ask.data(), 1, MPI_INT, asked.data(), 1, MPI_INT, MPI_COMM_WORLD);
+  for (std::size_t r = 1; r < n; ++r) {
+    ask_at[r] = ask_at[r - 1] + ask[r - 1];
+    asked_at[r] = asked_at[r - 1] + asked[r - 1];
+  }
+  std::vector<std::uint64_t> wanted(static_cast<std::size_t>(asked_at[n - 1] + asked[n - 1]));
+  MPI_Alltoallv(ghosts.data(), ask.data(), ask_at.data(), MPI_UINT64_T, wanted.data(), asked.data(),
+                asked_at.data(), MPI_UINT64_T, MPI_COMM_WORLD);
+  std::vector<double> answer;
+  answer.reserve(3 * wanted.size());
+  for (const std::uint64_t id : wanted) {
+    if (id < first || id >= end) throw error("a rank asked for a vertex not here");
+    const vec3& p = mine.vertices[static_cast<std::size_t>(id - first)];
+    answer.insert(answer.end(), p.begin(), p.end());
+  }
+  const auto times3 = [](std::vector<int> v) {
+    for (int& x : v) x *= 3;
+    return v;
+  };
+  std::vector<double> got(3 * ghosts.size());
+  MPI_Alltoallv(answer.data(), times3(asked).data(), times3(asked_at).data(), MPI_DOUBLE,
+                got.data(), times3(ask).data(), times3(ask_at).data(), MPI_DOUBLE, MPI_COMM_WORLD);
+  triangle_mesh piece;
+  piece.vertices = std::move(mine.vertices);
+  for (std::size_t i = 0; i < ghosts.size(); ++i) {
+    piece.vertices.push_back({got[3 * i], got[3 * i + 1], got[3 * i + 2]});
+  }
+  piece.triangles = std::move(mine.triangles);
+  for (auto& t : piece.triangles) {
+    for (std::uint32_t& id : t) {
+      id =
+          id < end
+              ? static_cast<std::uint32_t>(id - first)
+              : static_cast<std::uint32_t>(
+                    own + static_cast<std::uint64_t>(
+                              std::lower_bound(ghosts.begin(), ghosts.end(), id) - ghosts.begin()));
+    }
+  }
+  return piece;
+}
+
+/// The .pvtp index of `size` pieces (X_r.vtp beside it), positions alone.
+std::string pvtp_index(const std::filesystem::path& pvtp, int size) {
+  std::string xml =
+      "<?xml version=\"1.0\"?>\n<VTKFile type=\"PPolyData\" version=\"0.1\" "
+      "byte_order=\"LittleEndian\" header_type=\"UInt64\">\n<PPolyData GhostLevel=\"0\">\n"
+      "<PPoints>\n<PDataArray type=\"Float32\" Name=\"Points\" NumberOfComponents=\"3\"/>\n"
+      "</PPoints>\n";
+  for (int r = 0; r < size; ++r) {
+    xml += "<Piece Source=\"" + xml_attribute(piece_path(pvtp, r).filename().string()) + "\"/>\n";
+  }
+  xml += "</PPolyData>\n</VTKFile>\n";
+  return xml;
 }
 
 /// An error-driven cut across ranks (docs/MPI.md): each rank builds the range data's pieces of
@@ -318,7 +442,7 @@ int run_mpi_extract(const std::vector<std::string>& args) {
   std::string failure;
   bool help = false;
   try {
-    set_up(s, args, rank);
+    set_up(s, args, rank, size);
     help = s.a.help;
   } catch (const error& e) {
     failure = e.what();
@@ -371,37 +495,66 @@ int run_mpi_extract(const std::vector<std::string>& args) {
     if (env_int("PROGISO_MPI_FAULT_RANK") == rank) std::raise(SIGKILL);
     share.first_vertex = first[0];
     share.first_triangle = first[1];
-    std::vector<char> vertices, faces;
     const std::string name = *s.a.output;
-    scheduler::run_on_threads(threads, [&](const parallel_loop& loop, std::size_t parts) {
-      detail::finest_surface_pieces(
-          field, s.iso, loop, parts, {},
-          [&](triangle_mesh& piece, std::uint64_t) {
-            detail::append_ply_records(name, piece, vertices, faces);
-          },
-          0, share);
-    });
-    const double meshed = std::chrono::duration<double>(clock::now() - t0).count();
-    if (rank != 0) {
-      send_bytes(vertices, 0, 1);
-      send_bytes(faces, 0, 2);
-      return 0;
+    double meshed = 0.0;
+    if (s.pieces) {
+      triangle_mesh mine;
+      scheduler::run_on_threads(threads, [&](const parallel_loop& loop, std::size_t parts) {
+        detail::finest_surface_pieces(
+            field, s.iso, loop, parts, {},
+            [&](triangle_mesh& piece, std::uint64_t) {
+              mine.vertices.insert(mine.vertices.end(), piece.vertices.begin(),
+                                   piece.vertices.end());
+              mine.triangles.insert(mine.triangles.end(), piece.triangles.begin(),
+                                    piece.triangles.end());
+            },
+            0, share);
+      });
+      const triangle_mesh piece = piece_with_ghosts(std::move(mine), first[0], counts[0], size);
+      detail::write_vtp_to(*s.piece_out, piece);
+      s.piece_out->finish();
+      meshed = std::chrono::duration<double>(clock::now() - t0).count();
+      // Every piece is written before any is published, and every one published before the
+      // index that names them.
+      MPI_Barrier(MPI_COMM_WORLD);
+      s.piece_out->publish();
+      MPI_Barrier(MPI_COMM_WORLD);
+      if (rank != 0) return 0;
+      s.mesh_out->write(pvtp_index(name, size));
+    } else {
+      std::vector<char> vertices, faces;
+      scheduler::run_on_threads(threads, [&](const parallel_loop& loop, std::size_t parts) {
+        detail::finest_surface_pieces(
+            field, s.iso, loop, parts, {},
+            [&](triangle_mesh& piece, std::uint64_t) {
+              detail::append_ply_records(name, piece, vertices, faces);
+            },
+            0, share);
+      });
+      meshed = std::chrono::duration<double>(clock::now() - t0).count();
+      if (rank != 0) {
+        send_bytes(vertices, 0, 1);
+        send_bytes(faces, 0, 2);
+        return 0;
+      }
+      // Rank 0: the header, every rank's vertices, then every rank's faces.
+      detail::atomic_output& out = *s.mesh_out;
+      out.write(detail::ply_header_text(totals[0], totals[1], false));
+      const auto write = [&out](const char* p, std::size_t n) { out.write(p, n); };
+      out.write(vertices.data(), vertices.size());
+      for (int r = 1; r < size; ++r) receive_bytes(r, 1, write);
+      out.write(faces.data(), faces.size());
+      for (int r = 1; r < size; ++r) receive_bytes(r, 2, write);
     }
-    // Rank 0: the header, every rank's vertices, then every rank's faces.
     detail::atomic_output& out = *s.mesh_out;
-    out.write(detail::ply_header_text(totals[0], totals[1], false));
-    const auto write = [&out](const char* p, std::size_t n) { out.write(p, n); };
-    out.write(vertices.data(), vertices.size());
-    for (int r = 1; r < size; ++r) receive_bytes(r, 1, write);
-    out.write(faces.data(), faces.size());
-    for (int r = 1; r < size; ++r) receive_bytes(r, 2, write);
     const double seconds = std::chrono::duration<double>(clock::now() - t0).count();
     if (s.stats_out) {
       std::ostringstream o;
       o << "{\n  \"input\": \"" << json_escape(s.input) << "\",\n  \"dims\": [" << field.dims()[0]
         << ", " << field.dims()[1] << ", " << field.dims()[2]
         << "],\n  \"isovalue\": " << json_number(s.iso)
-        << ",\n  \"mode\": \"full\",\n  \"path\": \"finest\",\n  \"ranks\": " << size
+        << ",\n  \"mode\": \"full\",\n  \"path\": \"finest\",\n  \"pieces\": "
+        << (s.pieces ? "true" : "false") << ",\n  \"ranks\": " << size
         << ",\n  \"threads_per_rank\": " << threads << ",\n  \"triangles\": " << totals[1]
         << ",\n  \"vertices\": " << totals[0]
         << ",\n  \"rank0_mesh_ms\": " << json_number(meshed * 1e3)
