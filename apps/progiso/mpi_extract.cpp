@@ -388,14 +388,17 @@ int run_error_cut(setup& s, int rank, int size, unsigned threads,
     }
     splits += o.splits.size();
   }
-  std::vector<std::byte> stream;
-  detail::write_cut_stream(
-      [&stream](std::span<const std::byte> b) { stream.insert(stream.end(), b.begin(), b.end()); },
-      hier, field, s.iso, shares);
+  // The stream only when asked for: the mesh is made from the records as they came.
+  if (s.hierarchy_out) {
+    detail::write_cut_stream(
+        [&s](std::span<const std::byte> b) { s.hierarchy_out->write(b.data(), b.size()); }, hier,
+        field, s.iso, shares);
+  }
+  triangle_mesh mesh;
+  scheduler::run_on_threads(threads, [&](const parallel_loop& loop, std::size_t parts) {
+    mesh = detail::mesh_of_shares(hier, field, s.iso, shares, loop, parts);
+  });
   shares.clear();
-  const hierarchy_stream cut = hierarchy_stream::decode(stream);
-  const triangle_mesh mesh = cut.mesh(cut.all());
-  if (s.hierarchy_out) s.hierarchy_out->write(stream.data(), stream.size());
   detail::write_mesh_to(*s.mesh_out, mesh);
   const double total_ms = ms_since(t0);
   if (s.stats_out) {

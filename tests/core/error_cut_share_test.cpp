@@ -153,6 +153,12 @@ TEST(ErrorCutShare, the_shares_splits_are_the_one_process_split_set_and_mesh_to_
         ASSERT_EQ(got.triangles.size(), expected.triangles.size());
         EXPECT_TRUE(got.vertices == expected.vertices);
         EXPECT_TRUE(got.triangles == expected.triangles);
+        // The same without a stream, in one piece and in several.
+        for (const std::size_t parts : {1u, 3u}) {
+          const triangle_mesh direct = detail::mesh_of_shares(h, c.vol, c.iso, shares, {}, parts);
+          EXPECT_TRUE(direct.vertices == expected.vertices) << parts << " parts";
+          EXPECT_TRUE(direct.triangles == expected.triangles) << parts << " parts";
+        }
       }
     }
   }

@@ -4,6 +4,8 @@
 #include <optional>
 
 #include <progiso/core/base/assert.hpp>
+#include <progiso/core/base/detail/flat_map.hpp>
+#include <progiso/core/surface/detail/cut_mesher.hpp>
 
 namespace progiso::detail {
 
@@ -147,6 +149,77 @@ void write_cut_stream(const hierarchy_stream_writer::sink& out, const hierarchy&
     writer.add(r);
   }
   writer.finish();
+}
+
+namespace {
+
+// The shares' splits as cut_mesher reads records: record 0 the root surface, then every share's
+// splits in turn (the mesh does not depend on the records' order), all of them split.
+struct shares_cut {
+  struct record {
+    std::uint64_t diamond;
+    const packed_group* groups;
+    std::uint32_t count;
+    std::int32_t scale;
+    std::uint32_t crossed;
+  };
+  std::vector<record> recs;
+  std::vector<owned_triangle> roots;
+  [[nodiscard]] std::uint64_t records() const noexcept { return recs.size(); }
+  [[nodiscard]] const record& record(std::uint64_t r) const noexcept { return recs[r]; }
+  [[nodiscard]] bool split(std::uint64_t r) const noexcept { return r != 0; }
+  [[nodiscard]] const std::vector<owned_triangle>& root_triangles() const noexcept { return roots; }
+};
+
+// The samples a cut of the shares reads: root corners (from the volume) and split centres (from
+// their records), by grid index.
+struct shares_field {
+  const hierarchy& hier;
+  const volume& vol;
+  flat_map slot;
+  std::vector<double> values;
+  [[nodiscard]] double value(std::int64_t x, std::int64_t y, std::int64_t z) const noexcept {
+    const std::uint32_t* s =
+        slot.find(hier.index({static_cast<std::int32_t>(x), static_cast<std::int32_t>(y),
+                              static_cast<std::int32_t>(z)}));
+    // Every vertex of the cut lies between split centres and root corners, all of them here.
+    return s != nullptr ? values[*s] : 0.0;
+  }
+  [[nodiscard]] std::array<double, 3> spacing() const noexcept { return vol.spacing(); }
+  [[nodiscard]] std::array<double, 3> origin() const noexcept { return vol.origin(); }
+};
+
+}  // namespace
+
+triangle_mesh mesh_of_shares(const hierarchy& hier, const volume& vol, double isovalue,
+                             std::span<const share_splits> shares, const parallel_loop& run,
+                             std::size_t parts) {
+  std::uint64_t splits = 0;
+  for (const share_splits& s : shares) splits += s.splits.size();
+  shares_cut cut;
+  cut.recs.reserve(splits + 1);
+  cut.recs.push_back({no_owner, nullptr, 0, 0, 0});
+  for (std::uint64_t r = 0; r < hier.root_count(); ++r) {
+    (void)compute_root(hier, vol, isovalue, r, cut.roots);
+  }
+  const std::uint64_t corners = root_corner_count(hier);
+  shares_field field{hier, vol, flat_map(static_cast<std::size_t>(corners + splits + 16)), {}};
+  field.values.reserve(static_cast<std::size_t>(corners + splits));
+  for (std::uint64_t i = 0; i < corners; ++i) {
+    const ipoint p = root_corner(hier, i);
+    field.slot.try_emplace(hier.index(p), static_cast<std::uint32_t>(field.values.size()));
+    field.values.push_back(vol.value(p[0], p[1], p[2]));
+  }
+  for (const share_splits& s : shares) {
+    for (const share_split& sp : s.splits) {
+      cut.recs.push_back({sp.diamond, s.groups.data() + sp.first_group, sp.groups,
+                          hier.scale_of(hier.point(sp.diamond)), sp.crossed});
+      field.slot.try_emplace(sp.diamond, static_cast<std::uint32_t>(field.values.size()));
+      field.values.push_back(sp.value);
+    }
+  }
+  cut_mesher mesher(cut, hier, field, isovalue);
+  return mesher.build(run, parts);
 }
 
 }  // namespace progiso::detail

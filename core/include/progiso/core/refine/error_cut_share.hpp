@@ -24,6 +24,7 @@
 #include <progiso/core/hierarchy/hierarchy.hpp>
 #include <progiso/core/ranges/range_data.hpp>
 #include <progiso/core/surface/hierarchy_stream.hpp>
+#include <progiso/core/surface/mesh.hpp>
 #include <progiso/core/surface/split_record.hpp>
 
 namespace progiso::detail {
@@ -76,5 +77,13 @@ struct share_splits {
 /// mark. Its cut of all records is the one process's cut of the same goal, vertex for vertex.
 void write_cut_stream(const hierarchy_stream_writer::sink& out, const hierarchy& hier,
                       const volume& vol, double isovalue, std::span<const share_splits> shares);
+
+/// The mesh of the cut made in shares, without a stream: the one process's cut of the same goal
+/// vertex for vertex (canonical order, clipped to the data box, physical coordinates), in `parts`
+/// pieces through `run`. Reads `vol` at the root corners alone: every other sample is a split's
+/// centre, which its share_split carries.
+[[nodiscard]] triangle_mesh mesh_of_shares(const hierarchy& hier, const volume& vol,
+                                           double isovalue, std::span<const share_splits> shares,
+                                           const parallel_loop& run = {}, std::size_t parts = 1);
 
 }  // namespace progiso::detail
