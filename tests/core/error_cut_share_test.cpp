@@ -7,9 +7,11 @@
 #include <progiso/core/surface/hierarchy_stream.hpp>
 
 #include <algorithm>
+#include <cmath>
 #include <cstddef>
 #include <cstdint>
 #include <cstring>
+#include <limits>
 #include <memory>
 #include <random>
 #include <vector>
@@ -162,6 +164,72 @@ TEST(ErrorCutShare, the_shares_splits_are_the_one_process_split_set_and_mesh_to_
       }
     }
   }
+}
+
+TEST(ErrorCutShare, rounds_of_falling_thresholds_add_up_to_each_thresholds_split_set) {
+  for (cut_case& c : cases()) {
+    const hierarchy h(c.vol.dims());
+    const range_data rd(c.vol, h);
+    for (const std::size_t n : {1u, 3u}) {
+      SCOPED_TRACE(std::string(c.name) + ", " + std::to_string(n) + " shares");
+      std::vector<std::unique_ptr<detail::error_cut_walk>> walks;
+      for (std::size_t k = 0; k < n; ++k) {
+        const detail::cut_share s = detail::error_cut_share(h, rd.piece_count(), k, n);
+        walks.push_back(
+            std::make_unique<detail::error_cut_walk>(h, c.vol, rd, c.iso, s.z_begin, s.z_end));
+      }
+      // Thresholds as a deadline run takes them: half the largest error still waiting.
+      double largest = std::numeric_limits<double>::infinity();
+      int rounds = 0;
+      while (largest > 0.0 && rounds < 40) {
+        double waiting = 0.0;
+        for (const auto& w : walks) waiting = std::max(waiting, w->largest_waiting_error());
+        if (std::isinf(waiting)) waiting = 1e300;  // roots untested: a first round that tests them
+        if (!(waiting > 0.0)) break;
+        const double eps = waiting / 2;
+        largest = waiting;
+        std::uint64_t total = 0;
+        std::vector<detail::share_splits> now;
+        for (auto& w : walks) {
+          ASSERT_TRUE(w->extend(eps));
+          EXPECT_EQ(w->round_end(), w->splits().splits.size());
+          now.push_back(w->splits());
+          total += w->round_end();
+        }
+        refiner one(c.vol, h, rd, c.iso);
+        one.refine_to_error(eps);
+        EXPECT_EQ(total, one.statistics().splits) << "round " << rounds << ", error " << eps;
+        for (const auto& sh : now) {
+          for (const auto& sp : sh.splits) EXPECT_TRUE(one.is_split(h.point(sp.diamond)));
+        }
+        const triangle_mesh got = detail::mesh_of_shares(h, c.vol, c.iso, now);
+        const triangle_mesh want = one.extract();
+        EXPECT_TRUE(got.vertices == want.vertices && got.triangles == want.triangles)
+            << "round " << rounds << ", error " << eps;
+        ++rounds;
+      }
+      EXPECT_GT(rounds, 3);
+      // The last round leaves nothing of positive error: the error-0 set.
+      refiner zero(c.vol, h, rd, c.iso);
+      zero.refine_to_error(0.0);
+      std::uint64_t total = 0;
+      for (const auto& w : walks) total += w->round_end();
+      EXPECT_EQ(total, zero.statistics().splits);
+    }
+  }
+}
+
+TEST(ErrorCutShare, a_round_stopped_early_says_so_and_keeps_the_last_rounds_count) {
+  const volume v = make_marschner_lobb({41, 37, 29});
+  const hierarchy h(v.dims());
+  const range_data rd(v, h);
+  detail::error_cut_walk w(h, v, rd, 0.5, 0, h.grid_max()[2] + 1);
+  ASSERT_TRUE(w.extend(0.2));
+  const std::size_t first = w.round_end();
+  EXPECT_GT(first, 0U);
+  int asked = 0;
+  EXPECT_FALSE(w.extend(0.01, {}, [&asked] { return ++asked > 2; }));
+  EXPECT_EQ(w.round_end(), first);
 }
 
 TEST(ErrorCutShare, a_share_far_from_the_surface_makes_only_the_coarse_splits_its_ranges_ask) {

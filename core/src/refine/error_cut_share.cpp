@@ -1,7 +1,11 @@
 #include <progiso/core/refine/error_cut_share.hpp>
 
 #include <algorithm>
+#include <atomic>
+#include <cmath>
+#include <limits>
 #include <optional>
+#include <utility>
 
 #include <progiso/core/base/assert.hpp>
 #include <progiso/core/base/detail/flat_map.hpp>
@@ -27,82 +31,160 @@ cut_share error_cut_share(const hierarchy& hier, std::size_t pieces, std::size_t
 
 namespace {
 
-// What one piece of a depth's candidates gives: its splits (groups numbered from 0) and the
-// children to test at the next depth.
+// What one piece of a depth's work gives: its splits (groups numbered from 0), the diamonds it
+// kept waiting, and the children to test at the next depth.
 struct piece_out {
   std::vector<share_split> splits;
   std::vector<packed_group> groups;
   std::vector<std::uint64_t> next;
+  std::vector<std::pair<std::uint64_t, double>> kept;
+};
+
+// One diamond of a depth's work: tested already (waiting, its error known) or to test.
+struct work_item {
+  std::uint64_t diamond;
+  double error;  // NaN: not tested yet
 };
 
 }  // namespace
 
-share_splits error_cut_splits(const hierarchy& hier, const volume& vol, const range_data& ranges,
-                              double isovalue, double max_error, std::int32_t z_begin,
-                              std::int32_t z_end, const parallel_loop& run) {
-  share_splits out;
-  if (z_begin >= z_end) return out;
-  // Whether the subtree of the diamond centred at c (scale h) can hold a centre in the planes.
-  const auto reaches = [z_begin, z_end](const ipoint& c, std::int32_t h) {
-    return c[2] + h >= z_begin && c[2] - h < z_end;
-  };
-  std::vector<std::uint64_t> level;
-  {
-    std::vector<owned_triangle> scratch;
-    for (std::uint64_t r = 0; r < hier.root_count(); ++r) {
-      scratch.clear();
-      const std::optional<ipoint> c = compute_root(hier, vol, isovalue, r, scratch);
-      if (c && reaches(*c, hier.scale_of(*c))) level.push_back(hier.index(*c));
+error_cut_walk::error_cut_walk(const hierarchy& hier, const volume& vol, const range_data& ranges,
+                               double isovalue, std::int32_t z_begin, std::int32_t z_end)
+    : hier_(hier),
+      vol_(vol),
+      ranges_(ranges),
+      isovalue_(isovalue),
+      z_begin_(z_begin),
+      z_end_(z_end),
+      waiting_(static_cast<std::size_t>(hier.max_depth()) + 2) {
+  if (z_begin >= z_end) return;
+  std::vector<owned_triangle> scratch;
+  for (std::uint64_t r = 0; r < hier.root_count(); ++r) {
+    scratch.clear();
+    const std::optional<ipoint> c = compute_root(hier, vol, isovalue, r, scratch);
+    if (c && c->at(2) + hier.scale_of(*c) >= z_begin && c->at(2) - hier.scale_of(*c) < z_end) {
+      roots_.push_back(hier.index(*c));
     }
   }
-  std::sort(level.begin(), level.end());
+  std::sort(roots_.begin(), roots_.end());
+}
+
+double error_cut_walk::largest_waiting_error() const noexcept {
+  double m = 0.0;
+  for (const auto& depth : waiting_) {
+    for (const waiting& w : depth) m = std::max(m, w.error);
+  }
+  // Roots not tested yet: their errors are unknown, so any threshold may split them.
+  if (!roots_.empty()) return std::numeric_limits<double>::infinity();
+  return m;
+}
+
+bool error_cut_walk::extend(double max_error, const parallel_loop& run,
+                            const std::function<bool()>& stop) {
+  PROGISO_ASSERT(!broken_);
+  // Whether the subtree of the diamond centred at c (scale h) can hold a centre in the planes.
+  const auto reaches = [this](const ipoint& c, std::int32_t h) {
+    return c[2] + h >= z_begin_ && c[2] - h < z_end_;
+  };
+  constexpr double untested = std::numeric_limits<double>::quiet_NaN();
+  // Children of this round's splits at the previous depth, to test (the roots at depth 0).
+  std::vector<std::uint64_t> fresh = std::move(roots_);
+  roots_.clear();
   constexpr std::size_t piece_items = 2048;
-  while (!level.empty()) {
-    const std::size_t n = (level.size() + piece_items - 1) / piece_items;
+  for (std::size_t depth = 0; depth < waiting_.size(); ++depth) {
+    // The depth's work: its waiting diamonds (known errors) and the fresh children not among
+    // them (a diamond waits at most once; a split one is never a later split's child).
+    std::vector<waiting>& wait = waiting_[depth];
+    if (wait.empty() && fresh.empty()) continue;
+    std::vector<work_item> work;
+    work.reserve(wait.size() + fresh.size());
+    {
+      std::size_t a = 0, b = 0;
+      while (a < wait.size() || b < fresh.size()) {
+        if (b == fresh.size() || (a < wait.size() && wait[a].diamond <= fresh[b])) {
+          if (b < fresh.size() && wait[a].diamond == fresh[b]) ++b;
+          work.push_back({wait[a].diamond, wait[a].error});
+          ++a;
+        } else {
+          work.push_back({fresh[b++], untested});
+        }
+      }
+    }
+    const std::size_t n = (work.size() + piece_items - 1) / piece_items;
     std::vector<piece_out> pieces(n);
+    std::atomic<bool> stopped{false};
     run_loop(run, n, [&](std::size_t k) {
+      // relaxed: only whether to skip the rest; the round's result is read after run_loop.
+      if (stopped.load(std::memory_order_relaxed)) return;
+      if (stop && stop()) {
+        stopped.store(true, std::memory_order_relaxed);
+        return;
+      }
       piece_out& p = pieces[k];
-      const std::size_t end = std::min(level.size(), (k + 1) * piece_items);
+      const std::size_t end = std::min(work.size(), (k + 1) * piece_items);
       for (std::size_t i = k * piece_items; i < end; ++i) {
-        const ipoint c = hier.point(level[i]);
-        const std::int32_t h = hier.scale_of(c);
-        const diamond_range r = ranges.get(c, h);
-        if (!r.straddles(isovalue) || !(r.error > max_error)) continue;
-        if (c[2] >= z_begin && c[2] < z_end) {
+        const ipoint c = hier_.point(work[i].diamond);
+        const std::int32_t h = hier_.scale_of(c);
+        double error = work[i].error;
+        if (std::isnan(error)) {
+          const diamond_range r = ranges_.get(c, h);
+          if (!r.straddles(isovalue_)) continue;  // culled for every threshold
+          error = r.error;
+        }
+        if (!(error > max_error)) {
+          p.kept.emplace_back(work[i].diamond, error);
+          continue;
+        }
+        if (c[2] >= z_begin_ && c[2] < z_end_) {
           share_split s;
-          s.diamond = level[i];
+          s.diamond = work[i].diamond;
           s.first_group = p.groups.size();
-          const split_summary sum = compute_split(hier, vol, isovalue, c, h, p.groups);
+          const split_summary sum = compute_split(hier_, vol_, isovalue_, c, h, p.groups);
           s.groups = static_cast<std::uint32_t>(p.groups.size() - s.first_group);
           s.crossed = sum.crossed;
-          s.value = vol.value(c[0], c[1], c[2]);
-          s.error = r.error;
-          s.depth = hier.depth_of(c);
+          s.value = vol_.value(c[0], c[1], c[2]);
+          s.error = error;
+          s.depth = static_cast<int>(depth);
           p.splits.push_back(s);
         }
-        const child_list ch = hier.children_of(c, h, hierarchy::type_of(c, h));
+        const child_list ch = hier_.children_of(c, h, hierarchy::type_of(c, h));
         for (int j = 0; j < ch.count; ++j) {
           const ipoint& cc = ch.centre[static_cast<std::size_t>(j)];
-          if (reaches(cc, ch.scale)) p.next.push_back(hier.index(cc));
+          if (reaches(cc, ch.scale)) p.next.push_back(hier_.index(cc));
         }
       }
     });
-    level.clear();
+    if (stopped.load(std::memory_order_relaxed)) {
+      broken_ = true;
+      return false;
+    }
+    wait.clear();
+    fresh.clear();
     for (piece_out& p : pieces) {
-      const std::uint64_t base = out.groups.size();
+      const std::uint64_t base = out_.groups.size();
       for (share_split s : p.splits) {
         s.first_group += base;
-        out.splits.push_back(s);
+        out_.splits.push_back(s);
       }
-      out.groups.insert(out.groups.end(), p.groups.begin(), p.groups.end());
-      level.insert(level.end(), p.next.begin(), p.next.end());
+      out_.groups.insert(out_.groups.end(), p.groups.begin(), p.groups.end());
+      fresh.insert(fresh.end(), p.next.begin(), p.next.end());
+      for (const auto& [d, e] : p.kept) wait.push_back({d, e});  // ascending: work was
       p = piece_out{};
     }
     // A child of several parents is listed once for each that split.
-    std::sort(level.begin(), level.end());
-    level.erase(std::unique(level.begin(), level.end()), level.end());
+    std::sort(fresh.begin(), fresh.end());
+    fresh.erase(std::unique(fresh.begin(), fresh.end()), fresh.end());
   }
-  return out;
+  round_end_ = out_.splits.size();
+  return true;
+}
+
+share_splits error_cut_splits(const hierarchy& hier, const volume& vol, const range_data& ranges,
+                              double isovalue, double max_error, std::int32_t z_begin,
+                              std::int32_t z_end, const parallel_loop& run) {
+  error_cut_walk walk(hier, vol, ranges, isovalue, z_begin, z_end);
+  walk.extend(max_error, run);
+  return walk.splits();
 }
 
 void write_cut_stream(const hierarchy_stream_writer::sink& out, const hierarchy& hier,
@@ -124,28 +206,25 @@ void write_cut_stream(const hierarchy_stream_writer::sink& out, const hierarchy&
     (void)compute_root(hier, vol, isovalue, r, root);
   }
   hierarchy_stream_writer writer(out, header, corners, root);
-  // Merge: the next split of every share, smallest (depth, diamond) first. Shares are few.
-  std::vector<std::size_t> at(shares.size(), 0);
-  for (;;) {
-    std::size_t best = shares.size();
-    for (std::size_t k = 0; k < shares.size(); ++k) {
-      if (at[k] == shares[k].splits.size()) continue;
-      if (best == shares.size()) {
-        best = k;
-        continue;
-      }
-      const share_split& a = shares[k].splits[at[k]];
-      const share_split& b = shares[best].splits[at[best]];
-      if (a.depth < b.depth || (a.depth == b.depth && a.diamond < b.diamond)) best = k;
-    }
-    if (best == shares.size()) break;
-    const share_split& s = shares[best].splits[at[best]++];
+  // Parents first: every share's splits by depth, then grid index.
+  std::vector<std::pair<std::size_t, std::size_t>> order;
+  for (std::size_t k = 0; k < shares.size(); ++k) {
+    for (std::size_t i = 0; i < shares[k].splits.size(); ++i) order.emplace_back(k, i);
+  }
+  const auto key = [&shares](const std::pair<std::size_t, std::size_t>& at) {
+    const share_split& s = shares[at.first].splits[at.second];
+    return std::pair<int, std::uint64_t>(s.depth, s.diamond);
+  };
+  std::sort(order.begin(), order.end(),
+            [&key](const auto& a, const auto& b) { return key(a) < key(b); });
+  for (const auto& [k, i] : order) {
+    const share_split& s = shares[k].splits[i];
     hierarchy_stream_record r;
     r.diamond = s.diamond;
     r.crossed = s.crossed;
     r.value = s.value;
     r.error = s.error;
-    r.groups = std::span<const packed_group>(shares[best].groups).subspan(s.first_group, s.groups);
+    r.groups = std::span<const packed_group>(shares[k].groups).subspan(s.first_group, s.groups);
     writer.add(r);
   }
   writer.finish();

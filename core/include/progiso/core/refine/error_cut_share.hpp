@@ -15,6 +15,7 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <functional>
 #include <span>
 #include <vector>
 
@@ -56,16 +57,60 @@ struct share_split {
   int depth = 0;              ///< hierarchy::depth_of(centre)
 };
 
-/// A share's splits, by depth and then grid index (an order in which parents come first).
+/// A share's splits, each after its parents.
 struct share_splits {
   std::vector<share_split> splits;
   std::vector<packed_group> groups;
 };
 
+/// A share's splits by rounds of decreasing error thresholds (a deadline across ranks): the set
+/// of a smaller threshold contains that of a larger one, so each round only adds splits, and
+/// after a round the share's splits are those of refine_goal::error(threshold) in its planes.
+/// Diamonds tested and kept but not split wait with their errors for a later round.
+class error_cut_walk {
+ public:
+  /// Tests the root diamonds that can reach planes [z_begin, z_end). `ranges` is complete with
+  /// exact errors; all four must outlive the walk.
+  error_cut_walk(const hierarchy& hier, const volume& vol, const range_data& ranges,
+                 double isovalue, std::int32_t z_begin, std::int32_t z_end);
+
+  /// Splits, depth by depth, every diamond of the share's reach whose nested range straddles
+  /// the isovalue and whose nested error exceeds `max_error` (at most the last round's), in
+  /// pieces through `run`. `stop`, asked between pieces, ends the round early: then it returns
+  /// false and the splits past round_end() are not a round's (the walk is not to be extended).
+  bool extend(double max_error, const parallel_loop& run = {},
+              const std::function<bool()>& stop = {});
+
+  /// Every split made, in rounds (each after its parents), and the count after the last
+  /// finished round.
+  [[nodiscard]] const share_splits& splits() const noexcept { return out_; }
+  [[nodiscard]] std::size_t round_end() const noexcept { return round_end_; }
+  /// The largest error of a diamond kept but not split (0 when none): a smaller threshold than
+  /// this adds splits, a larger one none.
+  [[nodiscard]] double largest_waiting_error() const noexcept;
+
+ private:
+  struct waiting {
+    std::uint64_t diamond;
+    double error;
+  };
+  const hierarchy& hier_;
+  const volume& vol_;
+  const range_data& ranges_;
+  double isovalue_;
+  std::int32_t z_begin_, z_end_;
+  share_splits out_;
+  std::size_t round_end_ = 0;
+  std::vector<std::vector<waiting>> waiting_;  // by depth, ascending grid index
+  std::vector<std::uint64_t> roots_;           // to test in the first round
+  bool broken_ = false;
+};
+
 /// The splits of refine_goal::error(max_error)'s cut of `vol` at `isovalue` whose centres lie in
-/// the grid planes [z_begin, z_end). `ranges` is complete with exact errors, built from the
-/// same volume (at least the pieces that meet the diamonds tested; see range_data::piece_bytes).
-/// Each depth's diamonds are tested in pieces through `run`; the result does not depend on it.
+/// the grid planes [z_begin, z_end), by depth and then grid index (one round of error_cut_walk).
+/// `ranges` is complete with exact errors, built from the same volume (at least the pieces that
+/// meet the diamonds tested; see range_data::piece_bytes). Each depth's diamonds are tested in
+/// pieces through `run`; the result does not depend on it.
 [[nodiscard]] share_splits error_cut_splits(const hierarchy& hier, const volume& vol,
                                             const range_data& ranges, double isovalue,
                                             double max_error, std::int32_t z_begin,
@@ -73,7 +118,7 @@ struct share_splits {
 
 /// Writes through `out` the hierarchy stream of a cut made in shares: the header and the root
 /// chunk (from `vol`: the root corners' samples and the root tetrahedra's surface, a few samples
-/// in all), every share's splits merged by depth and grid index (parents first), and the end
+/// in all), every share's splits ordered by depth and grid index (parents first), and the end
 /// mark. Its cut of all records is the one process's cut of the same goal, vertex for vertex.
 void write_cut_stream(const hierarchy_stream_writer::sink& out, const hierarchy& hier,
                       const volume& vol, double isovalue, std::span<const share_splits> shares);
