@@ -2,12 +2,14 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <csignal>
 #include <cstdint>
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
 #include <iostream>
+#include <limits>
 #include <memory>
 #include <new>
 #include <optional>
@@ -137,11 +139,19 @@ void set_up(setup& s, const std::vector<std::string>& args, int rank, int size) 
   s.a = parse_extract(args, true);
   extract_arguments& a = s.a;
   using kind = refine_goal::kind;
-  const bool error_goal = a.options.goal.what == kind::error;
-  if (a.options.goal.what != kind::full && !error_goal) {
+  // Error goals and deadlines are both cuts by error thresholds across ranks (docs/MPI.md).
+  const bool error_goal =
+      a.options.goal.what == kind::error || a.options.goal.what == kind::deadline;
+  if (a.options.goal.what == kind::budget) {
     throw error(
-        "under MPI, extract makes the finest surface (--full) or an error-driven cut (--error "
-        "E): triangle budgets and deadlines across ranks are not built yet");
+        "under MPI, extract makes the finest surface (--full), an error-driven cut (--error E) "
+        "or the finest error cut by a deadline (--time-ms T): triangle budgets across ranks are "
+        "not built yet");
+  }
+  if (!a.options.deadline_ladder) {
+    throw error(
+        "--by-priority: under MPI a deadline refines by rounds of falling error thresholds, the "
+        "same on every rank");
   }
   if (a.world || a.options.normals || (a.hierarchy && !error_goal)) {
     throw error(
@@ -149,7 +159,9 @@ void set_up(setup& s, const std::vector<std::string>& args, int rank, int size) 
         "ranks yet), and --hierarchy only with --error");
   }
   if (error_goal && a.smooth.active()) {
-    throw error("under MPI, --error refines the data as read: --smooth is not built across ranks");
+    throw error(
+        "under MPI, --error and --time-ms refine the data as read: --smooth is not built across "
+        "ranks");
   }
   const std::string ext = detail::lower_extension(*a.output);
   s.pieces = ext == ".pvtp";
@@ -192,6 +204,14 @@ void set_up(setup& s, const std::vector<std::string>& args, int rank, int size) 
     s.iso = *a.iso;
   }
   s.field = smoothed_field(s.data, a.smooth, s.input);
+}
+
+/// A threshold as the command reads it back exactly (JSON null for none).
+std::string exact_number(double v) {
+  if (!std::isfinite(v)) return "null";
+  char buf[64];
+  std::snprintf(buf, sizeof buf, "%.17g", v);
+  return buf;
 }
 
 /// A trivially copyable vector's bytes, and back.
@@ -319,54 +339,106 @@ std::string pvtp_index(const std::filesystem::path& pvtp, int size) {
 
 /// An error-driven cut across ranks (docs/MPI.md): each rank builds the range data's pieces of
 /// its planes, the ranks copy them to each other (every rank then holds the one process's range
-/// data), each rank finds and computes the splits centred in its planes, and rank 0 merges them
-/// into a hierarchy stream whose cut of all records it meshes and writes.
+/// data), each rank finds and computes the splits centred in its planes, and rank 0 meshes them
+/// and writes the mesh. A deadline (--time-ms) takes rounds of falling thresholds, each half the
+/// largest error still waiting on any rank, until the deadline or the error-0 cut; the cut is the
+/// last round that every rank finished.
 int run_error_cut(setup& s, int rank, int size, unsigned threads,
                   std::chrono::steady_clock::time_point t0) {
   using clock = std::chrono::steady_clock;
   const auto ms_since = [](clock::time_point t) {
     return std::chrono::duration<double, std::milli>(clock::now() - t).count();
   };
+  const bool timed = s.a.options.goal.what == refine_goal::kind::deadline;
+  // The budget starts with the samples mapped and the outputs made, as in one process.
+  const clock::time_point until = deadline_after(clock::now(), s.a.time_budget);
+  const auto passed = [timed, until] { return timed && clock::now() >= until; };
   const volume& field = *s.field;
   const hierarchy hier(field.dims());
-  const double max_error = s.a.options.goal.max_error;
   range_data rd(field, hier, range_data::staged);
   const detail::cut_share share = detail::error_cut_share(
       hier, rd.piece_count(), static_cast<std::size_t>(rank), static_cast<std::size_t>(size));
-  scheduler::run_on_threads(threads, [&](const parallel_loop& loop, std::size_t) {
-    rd.build_pieces_with_errors(share.piece_begin, share.piece_end, loop);
+  // A deadline may end the build: then every rank gives the root surface.
+  int built = 1;
+  scheduler::run_on_threads(threads, [&](const parallel_loop& loop, std::size_t parts) {
+    const std::size_t step = timed ? std::max<std::size_t>(parts, 1) : share.piece_end;
+    for (std::size_t p = share.piece_begin; p < share.piece_end && built != 0; p += step) {
+      if (passed()) {
+        built = 0;
+        break;
+      }
+      rd.build_pieces_with_errors(p, std::min(share.piece_end, p + step), loop);
+    }
   });
-  // Every rank's pieces to every rank, in place: counts and offsets in pieces (one plane of
-  // bricks each), so that no count passes an int however large the grid.
-  const std::size_t piece = rd.piece_bytes(0, 1).size();
-  if (piece == 0 || piece > 2147483647u) {
-    throw error("the range data's pieces cannot be shared across ranks");
+  if (timed) MPI_Allreduce(MPI_IN_PLACE, &built, 1, MPI_INT, MPI_MIN, MPI_COMM_WORLD);
+  std::optional<detail::error_cut_walk> walk;
+  if (built != 0) {
+    // Every rank's pieces to every rank, in place: counts and offsets in pieces (one plane of
+    // bricks each), so that no count passes an int however large the grid.
+    const std::size_t piece = rd.piece_bytes(0, 1).size();
+    if (piece == 0 || piece > 2147483647u) {
+      throw error("the range data's pieces cannot be shared across ranks");
+    }
+    MPI_Datatype piece_type = MPI_DATATYPE_NULL;
+    MPI_Type_contiguous(static_cast<int>(piece), MPI_BYTE, &piece_type);
+    MPI_Type_commit(&piece_type);
+    std::vector<int> counts(static_cast<std::size_t>(size));
+    std::vector<int> offsets(static_cast<std::size_t>(size));
+    for (int r = 0; r < size; ++r) {
+      const detail::cut_share o = detail::error_cut_share(
+          hier, rd.piece_count(), static_cast<std::size_t>(r), static_cast<std::size_t>(size));
+      counts[static_cast<std::size_t>(r)] = static_cast<int>(o.piece_end - o.piece_begin);
+      offsets[static_cast<std::size_t>(r)] = static_cast<int>(o.piece_begin);
+    }
+    MPI_Allgatherv(MPI_IN_PLACE, 0, MPI_DATATYPE_NULL, rd.piece_bytes(0, rd.piece_count()).data(),
+                   counts.data(), offsets.data(), piece_type, MPI_COMM_WORLD);
+    MPI_Type_free(&piece_type);
+    scheduler::run_on_threads(threads, [&](const parallel_loop& loop, std::size_t) {
+      rd.finish(loop);
+      rd.finish_errors(loop);
+    });
+    walk.emplace(hier, field, rd, s.iso, share.z_begin, share.z_end);
   }
-  MPI_Datatype piece_type = MPI_DATATYPE_NULL;
-  MPI_Type_contiguous(static_cast<int>(piece), MPI_BYTE, &piece_type);
-  MPI_Type_commit(&piece_type);
-  std::vector<int> counts(static_cast<std::size_t>(size)), offsets(static_cast<std::size_t>(size));
-  for (int r = 0; r < size; ++r) {
-    const detail::cut_share o = detail::error_cut_share(
-        hier, rd.piece_count(), static_cast<std::size_t>(r), static_cast<std::size_t>(size));
-    counts[static_cast<std::size_t>(r)] = static_cast<int>(o.piece_end - o.piece_begin);
-    offsets[static_cast<std::size_t>(r)] = static_cast<int>(o.piece_begin);
-  }
-  MPI_Allgatherv(MPI_IN_PLACE, 0, MPI_DATATYPE_NULL, rd.piece_bytes(0, rd.piece_count()).data(),
-                 counts.data(), offsets.data(), piece_type, MPI_COMM_WORLD);
-  MPI_Type_free(&piece_type);
-  detail::share_splits mine;
-  scheduler::run_on_threads(threads, [&](const parallel_loop& loop, std::size_t) {
-    rd.finish(loop);
-    rd.finish_errors(loop);
-  });
   const double ranges_ms = ms_since(t0);
   // A fault for the tests: this rank dies here, after the others have its pieces.
   if (env_int("PROGISO_MPI_FAULT_RANK") == rank) std::raise(SIGKILL);
-  scheduler::run_on_threads(threads, [&](const parallel_loop& loop, std::size_t) {
-    mine = detail::error_cut_splits(hier, field, rd, s.iso, max_error, share.z_begin, share.z_end,
-                                    loop);
-  });
+  double max_error = std::numeric_limits<double>::infinity();  // the root surface's
+  std::size_t committed = 0;
+  int rounds = 0;
+  if (walk && !timed) {
+    max_error = s.a.options.goal.max_error;
+    scheduler::run_on_threads(
+        threads, [&](const parallel_loop& loop, std::size_t) { walk->extend(max_error, loop); });
+    committed = walk->round_end();
+  }
+  while (walk && timed) {
+    // Agreed on: the largest error waiting anywhere, and whether any rank is out of time (one
+    // that stopped alone would leave the others waiting in the next reduction).
+    double state[2] = {walk->largest_waiting_error(), passed() ? 1.0 : 0.0};
+    MPI_Allreduce(MPI_IN_PLACE, state, 2, MPI_DOUBLE, MPI_MAX, MPI_COMM_WORLD);
+    if (!(state[0] > 0.0) || state[1] > 0.0) break;  // the error-0 cut, or no time left
+    const double next = state[0] / 2;
+    int finished = 0;
+    scheduler::run_on_threads(threads, [&](const parallel_loop& loop, std::size_t) {
+      finished = walk->extend(next, loop, passed) ? 1 : 0;
+    });
+    MPI_Allreduce(MPI_IN_PLACE, &finished, 1, MPI_INT, MPI_MIN, MPI_COMM_WORLD);
+    if (finished == 0) break;  // some rank ran out of time: the previous round stands
+    max_error = next;
+    committed = walk->round_end();
+    ++rounds;
+  }
+  detail::share_splits mine;
+  if (walk) {
+    const detail::share_splits& all = walk->splits();
+    mine.splits.assign(all.splits.begin(),
+                       all.splits.begin() + static_cast<std::ptrdiff_t>(committed));
+    const std::uint64_t groups =
+        committed == 0 ? 0 : mine.splits.back().first_group + mine.splits.back().groups;
+    mine.groups.assign(all.groups.begin(),
+                       all.groups.begin() + static_cast<std::ptrdiff_t>(groups));
+    walk.reset();
+  }
   const double splits_ms = ms_since(t0);
   if (rank != 0) {
     send_bytes(bytes_of(mine.splits), 0, 3);
@@ -405,9 +477,9 @@ int run_error_cut(setup& s, int rank, int size, unsigned threads,
     std::ostringstream o;
     o << "{\n  \"input\": \"" << json_escape(s.input) << "\",\n  \"dims\": [" << field.dims()[0]
       << ", " << field.dims()[1] << ", " << field.dims()[2]
-      << "],\n  \"isovalue\": " << json_number(s.iso)
-      << ",\n  \"mode\": \"error\",\n  \"max_error\": " << json_number(max_error)
-      << ",\n  \"path\": \"shares\",\n  \"ranks\": " << size
+      << "],\n  \"isovalue\": " << json_number(s.iso) << ",\n  \"mode\": \""
+      << (timed ? "time" : "error") << "\",\n  \"max_error\": " << exact_number(max_error)
+      << ",\n  \"rounds\": " << rounds << ",\n  \"path\": \"shares\",\n  \"ranks\": " << size
       << ",\n  \"threads_per_rank\": " << threads << ",\n  \"splits\": " << splits
       << ",\n  \"triangles\": " << mesh.triangles.size()
       << ",\n  \"vertices\": " << mesh.vertices.size()
@@ -422,11 +494,15 @@ int run_error_cut(setup& s, int rank, int size, unsigned threads,
   s.mesh_out->publish();
   if (s.stats_out) s.stats_out->publish();
   if (s.hierarchy_out) s.hierarchy_out->publish();
+  const std::string cut = std::isinf(max_error) ? std::string("the root surface")
+                                                : "the cut of error > " + exact_number(max_error);
   std::printf(
-      "progiso: %zu triangles, %zu vertices; %llu splits of error > %g on %d ranks (%zu voxels); "
-      "range data %.1f ms, splits %.1f ms, total %.1f ms; wrote %s\n",
+      "progiso: %zu triangles, %zu vertices; %llu splits, %s%s on %d ranks (%zu voxels); range "
+      "data %.1f ms, splits %.1f ms, total %.1f ms; wrote %s\n",
       mesh.triangles.size(), mesh.vertices.size(), static_cast<unsigned long long>(splits),
-      max_error, size, field.voxel_count(), ranges_ms, splits_ms, total_ms, s.a.output->c_str());
+      cut.c_str(),
+      timed ? (" after " + std::to_string(rounds) + " rounds by the deadline").c_str() : "", size,
+      field.voxel_count(), ranges_ms, splits_ms, total_ms, s.a.output->c_str());
   return 0;
 }
 
@@ -468,7 +544,8 @@ int run_mpi_extract(const std::vector<std::string>& args) {
         s.a.threads != 0 ? s.a.threads
                          : std::max(1u, static_cast<unsigned>(scheduler::default_concurrency()) /
                                             static_cast<unsigned>(size));
-    if (s.a.options.goal.what == refine_goal::kind::error) {
+    if (s.a.options.goal.what == refine_goal::kind::error ||
+        s.a.options.goal.what == refine_goal::kind::deadline) {
       return run_error_cut(s, rank, size, threads, t0);
     }
     const volume& field = *s.field;

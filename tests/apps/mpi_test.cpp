@@ -1,7 +1,8 @@
 // `mpirun -np N progiso extract … --full | --error E` (apps/progiso/mpi_extract.hpp): 1, 2 and 4
 // ranks, over subscribed on this machine, must write the single process's mesh byte for byte (on
 // a shared volume, whose surface crosses every rank's share, and on a raw file of a size that N
-// does not divide), the finest surface and error-driven cuts alike; an error cut's hierarchy
+// does not divide), the finest surface and error-driven cuts alike, and a deadline gives the
+// single process's cut of the threshold its last common round reached; an error cut's hierarchy
 // stream cuts to the same mesh; a .pvtp holds one piece per rank, which VTK's reader (ParaView's)
 // reads as the single process's triangles; a goal the ranks cannot share yet, and a missing input,
 // give one error line and a failing status; a rank killed mid-run ends the job (no hang) without an
@@ -124,6 +125,53 @@ TEST_F(Mpi, an_error_cuts_hierarchy_stream_cuts_to_the_same_mesh) {
   EXPECT_TRUE(test::read_whole(dir_.path() / "cut.ply") == want);
 }
 
+/// The text of a JSON number field ("null" included), as the command wrote it.
+std::string json_field(const std::string& json, const std::string& name) {
+  const std::string key = "\"" + name + "\": ";
+  const std::size_t at = json.find(key);
+  if (at == std::string::npos) return "";
+  const std::size_t from = at + key.size();
+  return json.substr(from, json.find_first_of(",\n}", from) - from);
+}
+
+TEST_F(Mpi, a_deadline_gives_the_single_process_cut_of_the_last_threshold_every_rank_reached) {
+  for (const mpi_input& in : mpi_inputs(dir_.path())) {
+    const auto args = [&](const std::vector<std::string>& goal, const std::string& out) {
+      std::vector<std::string> a{"extract", in.file.string(), "--dims", in.dims, "--type",
+                                 "u8",      "--iso",          in.iso};
+      a.insert(a.end(), goal.begin(), goal.end());
+      a.insert(a.end(), {"-o", (dir_.path() / out).string(), "--threads", "1", "--stats-json",
+                         (dir_.path() / (out + ".json")).string()});
+      return a;
+    };
+    // No time (the root surface), some (whatever round it allows), ample (the error-0 cut).
+    for (const char* ms : {"0", "15", "100000"}) {
+      for (const int ranks : {1, 2, 4}) {
+        SCOPED_TRACE(in.file.filename().string() + ", --time-ms " + ms + ", " +
+                     std::to_string(ranks) + " ranks");
+        const test::bounded_result r = test::run_bounded(
+            PROGISO_MPIEXEC, mpi_args(ranks, args({"--time-ms", ms}, "timed.ply")), runs_.path());
+        ASSERT_EQ(r.status, 0) << r.err;
+        const std::string stats = test::read_whole(dir_.path() / "timed.ply.json");
+        const std::string reached = json_field(stats, "max_error");
+        ASSERT_FALSE(reached.empty()) << stats;
+        if (std::string(ms) == "100000") {
+          EXPECT_NE(reached, "null");
+          EXPECT_GT(std::stoi(json_field(stats, "rounds")), 3) << stats;
+        }
+        // The same cut by one process: an error goal at the threshold reached (none: no split).
+        const test::bounded_result one = test::run_bounded(
+            PROGISO_CLI, args({"--error", reached == "null" ? "1e300" : reached}, "one.ply"),
+            runs_.path());
+        ASSERT_EQ(one.status, 0) << one.err;
+        EXPECT_TRUE(test::read_whole(dir_.path() / "timed.ply") ==
+                    test::read_whole(dir_.path() / "one.ply"))
+            << "not the cut of error > " << reached;
+      }
+    }
+  }
+}
+
 /// The NumberOfPolys of a .vtp's piece (its header says it before the appended data).
 std::uint64_t polys_of(const fs::path& vtp) {
   const std::string text = test::read_whole(vtp);
@@ -194,10 +242,13 @@ TEST_F(Mpi, refusals_give_one_error_line_and_a_failing_status) {
   };
   refused({"extract", raw.string(), "--dims", "8,8,8", "--type", "u8", "--iso", "3",
            "--max-triangles", "100", "-o", (dir_.path() / "out.ply").string()},
-          "triangle budgets and deadlines across ranks are not built yet");
+          "triangle budgets across ranks are not built yet");
   refused({"extract", raw.string(), "--dims", "8,8,8", "--type", "u8", "--iso", "3", "--error", "1",
            "--smooth", "1", "-o", (dir_.path() / "out.ply").string()},
           "--smooth is not built across ranks");
+  refused({"extract", raw.string(), "--dims", "8,8,8", "--type", "u8", "--iso", "3", "--time-ms",
+           "10", "--by-priority", "-o", (dir_.path() / "out.ply").string()},
+          "under MPI a deadline refines by rounds of falling error thresholds");
   refused({"extract", raw.string(), "--dims", "8,8,8", "--type", "u8", "--iso", "3", "--error", "1",
            "-o", (dir_.path() / "out.pvtp").string()},
           "a .pvtp of one piece per rank is written for --full");

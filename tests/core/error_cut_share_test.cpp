@@ -184,7 +184,6 @@ TEST(ErrorCutShare, rounds_of_falling_thresholds_add_up_to_each_thresholds_split
       while (largest > 0.0 && rounds < 40) {
         double waiting = 0.0;
         for (const auto& w : walks) waiting = std::max(waiting, w->largest_waiting_error());
-        if (std::isinf(waiting)) waiting = 1e300;  // roots untested: a first round that tests them
         if (!(waiting > 0.0)) break;
         const double eps = waiting / 2;
         largest = waiting;

@@ -67,6 +67,13 @@ error_cut_walk::error_cut_walk(const hierarchy& hier, const volume& vol, const r
     }
   }
   std::sort(roots_.begin(), roots_.end());
+  // Tested now, so that the first round's threshold can be told from their errors.
+  for (const std::uint64_t r : roots_) {
+    const ipoint c = hier.point(r);
+    const diamond_range d = ranges.get(c, hier.scale_of(c));
+    if (d.straddles(isovalue)) waiting_[0].push_back({r, d.error});
+  }
+  roots_.clear();
 }
 
 double error_cut_walk::largest_waiting_error() const noexcept {
@@ -74,8 +81,6 @@ double error_cut_walk::largest_waiting_error() const noexcept {
   for (const auto& depth : waiting_) {
     for (const waiting& w : depth) m = std::max(m, w.error);
   }
-  // Roots not tested yet: their errors are unknown, so any threshold may split them.
-  if (!roots_.empty()) return std::numeric_limits<double>::infinity();
   return m;
 }
 
@@ -87,9 +92,8 @@ bool error_cut_walk::extend(double max_error, const parallel_loop& run,
     return c[2] + h >= z_begin_ && c[2] - h < z_end_;
   };
   constexpr double untested = std::numeric_limits<double>::quiet_NaN();
-  // Children of this round's splits at the previous depth, to test (the roots at depth 0).
-  std::vector<std::uint64_t> fresh = std::move(roots_);
-  roots_.clear();
+  // Children of this round's splits at the previous depth, to test.
+  std::vector<std::uint64_t> fresh;
   constexpr std::size_t piece_items = 2048;
   for (std::size_t depth = 0; depth < waiting_.size(); ++depth) {
     // The depth's work: its waiting diamonds (known errors) and the fresh children not among

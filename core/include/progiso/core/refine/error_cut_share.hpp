@@ -69,8 +69,8 @@ struct share_splits {
 /// Diamonds tested and kept but not split wait with their errors for a later round.
 class error_cut_walk {
  public:
-  /// Tests the root diamonds that can reach planes [z_begin, z_end). `ranges` is complete with
-  /// exact errors; all four must outlive the walk.
+  /// Tests the root diamonds that can reach planes [z_begin, z_end): those that straddle wait
+  /// for the first round. `ranges` is complete with exact errors; all four must outlive the walk.
   error_cut_walk(const hierarchy& hier, const volume& vol, const range_data& ranges,
                  double isovalue, std::int32_t z_begin, std::int32_t z_end);
 
@@ -102,7 +102,7 @@ class error_cut_walk {
   share_splits out_;
   std::size_t round_end_ = 0;
   std::vector<std::vector<waiting>> waiting_;  // by depth, ascending grid index
-  std::vector<std::uint64_t> roots_;           // to test in the first round
+  std::vector<std::uint64_t> roots_;           // the roots that reach the planes
   bool broken_ = false;
 };
 
