@@ -10,6 +10,7 @@ set -euo pipefail
 packages=(cmake ninja-build g++ clang-format pkg-config libgtest-dev libgmock-dev libbenchmark-dev
           libteem-dev libnifti2-dev libdcmtk-dev zlib1g-dev libpng-dev libtiff-dev libopenjp2-7-dev libcgal-dev libgmp-dev libmpfr-dev libboost-dev
           libblosc-dev libzstd-dev nlohmann-json3-dev python3-zarr python3-numcodecs
+          libhdf5-dev python3-h5py
           libopenmpi-dev openmpi-bin
           libtbb-dev python3-mrcfile python3-dev python3-numpy pybind11-dev python3-pytest
           python3-skimage chromium)

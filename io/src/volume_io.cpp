@@ -16,6 +16,7 @@
 #include <progiso/io/detail/dicom_reader.hpp>
 #include <progiso/io/detail/file_input.hpp>
 #include <progiso/io/detail/file_output.hpp>
+#include <progiso/io/detail/hdf5_reader.hpp>
 #include <progiso/io/detail/metaimage_reader.hpp>
 #include <progiso/io/detail/mrc_reader.hpp>
 #include <progiso/io/detail/nifti_reader.hpp>
@@ -65,7 +66,19 @@ volume borrowed_volume(const fs::path& file, const index3& dims, sample_type typ
   }
 }
 
-enum class volume_format { nrrd, nifti, metaimage, vtk_legacy, vti, pvti, dicom, tiff, mrc, zarr };
+enum class volume_format {
+  nrrd,
+  nifti,
+  metaimage,
+  vtk_legacy,
+  vti,
+  pvti,
+  dicom,
+  tiff,
+  mrc,
+  zarr,
+  hdf5
+};
 
 /// The format a file name asks for; throws "FILE: unknown volume format (…)" for any other.
 volume_format format_of(const fs::path& file) {
@@ -84,18 +97,21 @@ volume_format format_of(const fs::path& file) {
   if (detail::has_vti_name(file)) return volume_format::vti;
   if (detail::has_pvti_name(file)) return volume_format::pvti;
   if (detail::has_mrc_name(file)) return volume_format::mrc;
+  if (detail::has_hdf5_name(file)) return volume_format::hdf5;
   const std::string ext = lower_extension(file);
   if (ext == ".nrrd" || ext == ".nhdr") return volume_format::nrrd;
   // Scanners and PACS name DICOM files without an extension (IM0001, a UID).
   if (detail::has_dicom_preamble(file)) return volume_format::dicom;
   // MRC2014 files carry "MAP " at byte 208 whatever their name.
   if (detail::has_mrc_identifier(file)) return volume_format::mrc;
+  // Imaris and BigDataViewer files by their HDF5 signature whatever their name.
+  if (detail::has_hdf5_signature(file)) return volume_format::hdf5;
   throw error(
       file.string() +
       ": unknown volume format (expected .nrrd, .nhdr, .nii, .nii.gz, .hdr, .mha, .mhd, "
-      ".vtk, .vti, .pvti, .tif, .tiff, .mrc, .map, .ccp4, .rec, a directory of DICOM files or of "
-      "TIFF slices, a Zarr or OME-Zarr directory, an enhanced DICOM file, or a raw file with "
-      "--dims and --type)");
+      ".vtk, .vti, .pvti, .tif, .tiff, .mrc, .map, .ccp4, .rec, .ims, .h5, a directory of DICOM "
+      "files or of TIFF slices, a Zarr or OME-Zarr directory, an enhanced DICOM file, or a raw "
+      "file with --dims and --type)");
 }
 
 /// The header of a NRRD, MetaImage or legacy VTK file (each reads its data through
@@ -114,6 +130,7 @@ detail::nrrd_header parse_text_header(detail::input_file& in, volume_format form
     case volume_format::tiff:
     case volume_format::mrc:
     case volume_format::zarr:
+    case volume_format::hdf5:
       break;
   }
   return detail::parse_nrrd_header(in);
@@ -134,6 +151,7 @@ std::string_view format_kind(volume_format format) {
     case volume_format::tiff:
     case volume_format::mrc:
     case volume_format::zarr:
+    case volume_format::hdf5:
       break;
   }
   return "NRRD";
@@ -332,6 +350,49 @@ struct zarr_source final : source_state {
   }
 };
 
+/// An Imaris or BigDataViewer pyramid: its structure read once; a level and a volume chosen.
+struct hdf5_source final : source_state {
+  detail::hdf5_image image;
+  std::int64_t volume_index = 0;
+  std::size_t level = 0;
+  hdf5_source(const fs::path& f, const volume_choice& choice) : image(detail::read_hdf5_header(f)) {
+    volume_index = pick_volume(f, image.volumes(), choice,
+                               image.layout == detail::hdf5_layout::imaris ? "timepoints x channels"
+                                                                           : "timepoints x setups");
+    const auto levels = static_cast<std::int64_t>(image.levels.size());
+    const std::int64_t k = choice.level.value_or(0);
+    if (k < 0 || k >= levels) {
+      throw error(f.string() + ": level " + std::to_string(k) + " was chosen, but the image has " +
+                  (levels == 1 ? std::string("one level (0)")
+                               : std::to_string(levels) + " levels (0 to " +
+                                     std::to_string(levels - 1) + ")"));
+    }
+    level = static_cast<std::size_t>(k);
+    files = {f};
+  }
+  volume read(const spacing_override& spacing) override { return *read_level(level, spacing, {}); }
+  [[nodiscard]] std::size_t levels() const noexcept override { return image.levels.size(); }
+  std::optional<volume> read_level(std::size_t k, const spacing_override& spacing,
+                                   const std::function<bool()>& stop) override {
+    PROGISO_ASSERT(k < image.levels.size());
+    const detail::hdf5_level& l = image.levels[k];
+    std::optional<std::vector<std::byte>> samples =
+        detail::read_hdf5_samples(image, k, volume_index, stop);
+    if (!samples) return std::nullopt;
+    std::array<double, 3> s = l.spacing;
+    std::array<double, 3> o = l.origin;
+    if (spacing) {
+      // The given spacing is level 0's: level k's is it times the file's ratio.
+      for (std::size_t q = 0; q < 3; ++q) {
+        const double ratio = (*spacing)[q] / image.levels[0].spacing[q];
+        s[q] = l.spacing[q] * ratio;
+        o[q] = l.origin[q] * ratio;
+      }
+    }
+    return make_volume(image.file, l.dims, image.type, std::move(*samples), s, o);
+  }
+};
+
 struct dicom_source final : source_state {
   fs::path directory;
   detail::dicom_series series;
@@ -410,10 +471,12 @@ struct pvti_source final : source_state {
 std::unique_ptr<source_state> open_source(const fs::path& file,
                                           const std::optional<raw_layout>& raw,
                                           const volume_choice& choice) {
-  if (choice.level && *choice.level != 0 && !(!raw && detail::is_zarr_directory(file))) {
+  if (choice.level && *choice.level != 0 &&
+      !(!raw && (detail::is_zarr_directory(file) || detail::has_hdf5_name(file) ||
+                 detail::has_hdf5_signature(file)))) {
     throw error(file.string() + ": level " + std::to_string(*choice.level) +
-                " was chosen, but the input is not a multiscale (OME-Zarr) image: it has level 0 "
-                "alone");
+                " was chosen, but the input is not a multiscale (OME-Zarr, Imaris or "
+                "BigDataViewer) image: it has level 0 alone");
   }
   if (raw) {
     check_choice(file, false, choice);
@@ -433,6 +496,8 @@ std::unique_ptr<source_state> open_source(const fs::path& file,
       return std::make_unique<mrc_source>(file, choice);
     case volume_format::zarr:
       return std::make_unique<zarr_source>(file, choice);
+    case volume_format::hdf5:
+      return std::make_unique<hdf5_source>(file, choice);
     case volume_format::vti:
       (void)pick_volume(file, 1, choice);
       return std::make_unique<vti_source>(file);
@@ -547,6 +612,10 @@ volume read_vtk_legacy(const std::filesystem::path& file) {
 volume read_vti(const std::filesystem::path& file) { return vti_source(file).read(std::nullopt); }
 
 volume read_pvti(const std::filesystem::path& file) { return pvti_source(file).read(std::nullopt); }
+
+volume read_hdf5(const std::filesystem::path& file, const volume_choice& choice) {
+  return hdf5_source(file, choice).read(std::nullopt);
+}
 
 volume read_zarr(const std::filesystem::path& dir, const volume_choice& choice) {
   return zarr_source(dir, choice).read(std::nullopt);

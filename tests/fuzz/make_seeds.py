@@ -3,7 +3,7 @@
 
     make_seeds.py OUT_DIR [SHARED_DATA_DIR]
 
-writes OUT_DIR/<harness>/<name> for the harnesses raw, extract, nrrd, nifti, metaimage, vtk, vti, pvti, dicom, tiff, mrc, zarr, jpeg, pgm, png, ply, obj and cli: small
+writes OUT_DIR/<harness>/<name> for the harnesses raw, extract, nrrd, nifti, metaimage, vtk, vti, pvti, dicom, tiff, mrc, zarr, hdf5 (when h5py imports), jpeg, pgm, png, ply, obj and cli: small
 valid files of every kind the readers accept, and the hostile cases of issue 11 (printf field
 widths in data file names, declared sizes far beyond the data, NaN samples, numbers beyond
 their types …). With SHARED_DATA_DIR (../shared/data), it adds crops of the real volumes and
@@ -881,6 +881,61 @@ def shared_crops(data_dir):
     return crops, images
 
 
+def hdf5_seeds(out):
+    """Imaris and BigDataViewer files, written by h5py (Debian's python3-h5py) when it imports."""
+    try:
+        import h5py
+        import numpy as np
+    except ImportError:
+        return
+    import io
+
+    def text(obj, name, value):
+        obj.attrs.create(name, np.array(list(value), dtype="|S1"))
+
+    def save(name, write):
+        b = io.BytesIO()
+        with h5py.File(b, "w") as f:
+            write(f)
+        put(out, "hdf5", name, b.getvalue())
+
+    v = (np.arange(6 * 5 * 4).reshape(6, 5, 4) * 7 % 251).astype(np.uint8)
+
+    def imaris(f, data, chunks=None, compression=None, size=(4, 5, 6)):
+        text(f, "ImarisDataSet", "ImarisDataSet")
+        info = f.create_group("DataSetInfo/Image")
+        for q in range(3):
+            text(info, "ExtMin%d" % q, "0")
+            text(info, "ExtMax%d" % q, str(size[q]))
+        for r, d in enumerate([data, data[::2, ::2, ::2]]):
+            g = f.create_group("DataSet/ResolutionLevel %d/TimePoint 0/Channel 0" % r)
+            for axis, n in zip("XYZ", reversed(d.shape)):
+                text(g, "ImageSize" + axis, str(n))
+            g.create_dataset("Data", data=d, chunks=chunks if r == 0 else None,
+                             compression=compression if r == 0 else None)
+
+    save("imaris_u8", lambda f: imaris(f, v))
+    save("imaris_gzip", lambda f: imaris(f, v, chunks=(2, 5, 4), compression="gzip"))
+    save("imaris_f32", lambda f: imaris(f, v.astype(np.float32) / 3))
+    save("imaris_size_beyond", lambda f: imaris(f, v, size=(40, 5, 6)))
+
+    def bdv(f, data):
+        f.create_dataset("s00/resolutions", data=np.array([[1, 1, 1], [2, 2, 2]], dtype=float))
+        f.create_dataset("s00/subdivisions", data=np.array([[4, 4, 4], [4, 4, 4]], dtype=np.int32))
+        f.create_dataset("t00000/s00/0/cells", data=data, chunks=(2, 5, 4), compression="gzip")
+        f.create_dataset("t00000/s00/1/cells", data=data[::2, ::2, ::2])
+
+    save("bdv_i16", lambda f: bdv(f, v.astype(np.int16) - 100))
+
+    def bomb(f):
+        f.create_dataset("s00/resolutions", data=np.array([[1, 1, 1]], dtype=float))
+        d = f.create_dataset("t00000/s00/0/cells", shape=(4096, 4096, 4096), dtype=np.uint8,
+                             chunks=(64, 64, 64), compression="gzip")
+        d[0:64, 0:64, 0:64] = 1
+
+    save("bdv_bomb", bomb)
+
+
 def main():
     if len(sys.argv) not in (2, 3):
         sys.exit(__doc__)
@@ -897,6 +952,7 @@ def main():
     tiff_seeds(out, crops)
     mrc_seeds(out, crops)
     zarr_seeds(out, crops)
+    hdf5_seeds(out)
     image_seeds(out, images)
     mesh_seeds(out)
     cli_seeds(out)

@@ -66,8 +66,9 @@ namespace progiso {
 /// size > 1), a 4-D NRRD (its series axis, see read_nrrd()) and a DICOM series that holds as
 /// many frames at every position (time points of a 4-D CT or cine MR, echoes: see read_dicom()).
 /// Empty: the input must hold one, which `volume` 0 also names for any input. For an OME-Zarr
-/// image, `volume` indexes its leading axes (time, channel) in row-major order, and `level` picks
-/// a pyramid level (0, the default: the finest); any other input has level 0 alone.
+/// image, `volume` indexes its leading axes (time, channel) in row-major order, for an Imaris or
+/// BigDataViewer file its timepoints and channels (setups), and `level` picks a pyramid level
+/// (0, the default: the finest); any other input has level 0 alone.
 struct volume_choice {
   std::optional<std::string> series = {};
   std::optional<std::int64_t> volume = {};
@@ -233,9 +234,18 @@ struct index_to_world {
 /// progiso::error naming the file on any failure; see detail/zarr_reader.hpp and docs/formats.md.
 [[nodiscard]] volume read_zarr(const std::filesystem::path& dir, const volume_choice& choice = {});
 
+/// Reads an Imaris (.ims) or BigDataViewer (.h5) resolution pyramid through libhdf5: level
+/// `choice.level` (0: the finest) of volume `choice.volume` (timepoint × channels + channel, or
+/// × setups + setup); deflate and shuffle filters; u8 i8 u16 i16 u32 i32 f32 f64 (BigDataViewer's
+/// int16 read as unsigned, as it stores 16-bit data). Spacing and origin from Imaris's extent, or
+/// BigDataViewer's level factors (level 0: spacing 1). Throws progiso::error naming the file on any
+/// failure; see detail/hdf5_reader.hpp and docs/formats.md.
+[[nodiscard]] volume read_hdf5(const std::filesystem::path& file, const volume_choice& choice = {});
+
 /// Reads a volume the way the command-line tool does: with a raw layout, read_raw(); else, for
 /// a directory holding .tif or .tiff files or for a .tif or .tiff file, read_tiff(); for a
-/// directory holding .zattrs or .zarray, read_zarr(); for another directory or a .dcm file,
+/// directory holding .zattrs or .zarray, read_zarr(); for .ims, .h5, .hdf5 and .hdf, or a file
+/// with the HDF5 signature, read_hdf5(); for another directory or a .dcm file,
 /// read_dicom(); for the extensions .nrrd and .nhdr, read_nrrd(); for
 /// .nii, .nii.gz, .hdr and .hdr.gz, read_nifti(); for .mha and .mhd, read_metaimage(); for .vtk,
 /// read_vtk_legacy(); for .vti, read_vti(); for .pvti, read_pvti(); for .mrc, .mrcs, .map, .ccp4
@@ -279,7 +289,8 @@ class volume_source {
   [[nodiscard]] const std::optional<index_to_world>& world() const noexcept;
   /// The volume, as read_volume() returns it (a given `spacing` replaces the header's).
   [[nodiscard]] volume read(std::optional<std::array<double, 3>> spacing = std::nullopt);
-  /// The pyramid levels the input holds: an OME-Zarr image's datasets, 1 for any other input.
+  /// The pyramid levels the input holds: an OME-Zarr image's datasets, an Imaris or
+  /// BigDataViewer file's resolution levels, 1 for any other input.
   [[nodiscard]] std::size_t levels() const noexcept;
   /// Level `level` (0: the finest; below levels()) of the chosen volume, whatever level the
   /// choice named, with its own spacing (a given `spacing` is level 0's, scaled as the header
