@@ -13,10 +13,24 @@
 #include <cstring>
 #include <fstream>
 #include <limits>
-#include <mutex>
 #include <string>
 #include <utility>
 #include <vector>
+
+#include <fcntl.h>
+#include <poll.h>
+#include <sys/mman.h>
+#include <sys/resource.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <csignal>
+#include <memory>
+#include <new>
+#include <optional>
+#include <span>
+#include <type_traits>
 
 #include <progiso/core/base/error.hpp>
 #include <progiso/io/detail/file_output.hpp>
@@ -26,12 +40,6 @@ namespace progiso::detail {
 namespace {
 
 namespace fs = std::filesystem;
-
-// libhdf5's serial build is not thread-safe: every call into it holds this.
-std::mutex& library_mutex() {
-  static std::mutex m;
-  return m;
-}
 
 // An HDF5 identifier, closed by its closer.
 class handle {
@@ -77,6 +85,11 @@ class reader {
   explicit reader(fs::path file) : file_(std::move(file)) {
     // Silence libhdf5's own printing: every failure is reported here, once.
     (void)H5Eset_auto2(H5E_DEFAULT, nullptr, nullptr);
+    // libhdf5 keeps freed objects on free lists without bound by default: a process that reads
+    // many files (a server, a fuzzer) would hold them all. 1 MiB per kind of list.
+    static const bool limited =
+        H5set_free_list_limits(1 << 20, 1 << 18, 1 << 20, 1 << 18, 1 << 20, 1 << 18) >= 0;
+    (void)limited;
     handle fapl(H5Pcreate(H5P_FILE_ACCESS), H5Pclose);
     if (!fapl.valid()) fail("", "a file access list", "none");
     // Read-only media and shared file systems often refuse locks; reading needs none.
@@ -86,6 +99,13 @@ class reader {
     if (!file_id_.valid()) {
       throw error(file_.string() + ": expected an HDF5 file, found one libhdf5 cannot open");
     }
+  }
+
+  reader(const reader&) = delete;
+  reader& operator=(const reader&) = delete;
+  ~reader() {
+    file_id_ = handle();  // closes the file (every object of it is closed by then)
+    (void)H5garbage_collect();
   }
 
   [[noreturn]] void fail(const std::string& object, const std::string& expected,
@@ -419,8 +439,11 @@ bool has_hdf5_signature(const fs::path& file) {
   return false;
 }
 
-hdf5_image read_hdf5_header(const fs::path& file) {
-  const std::lock_guard<std::mutex> lock(library_mutex());
+namespace {
+
+// ---- In the child process (below): libhdf5's work, on one thread.
+
+hdf5_image header_here(const fs::path& file) {
   const reader r(file);
   hdf5_image im;
   if (r.exists("/DataSet/ResolutionLevel 0")) {
@@ -441,16 +464,15 @@ hdf5_image read_hdf5_header(const fs::path& file) {
   return im;
 }
 
-std::optional<std::vector<std::byte>> read_hdf5_samples(const hdf5_image& image, std::size_t level,
-                                                        std::int64_t volume,
-                                                        const std::function<bool()>& stop) {
+// The level's samples into `out` (its bytes), calling `progress` after each slab; with a null
+// `out`, the dataset's checks alone (before the caller allocates its bytes).
+void samples_here(const hdf5_image& image, std::size_t level, std::int64_t volume, std::byte* out,
+                  const std::function<void()>& progress) {
   const hdf5_level& lv = image.levels.at(level);
   const std::string path = image.dataset(level, volume);
   const std::size_t sample = sample_size(image.type);
   const std::uint64_t plane =
       static_cast<std::uint64_t>(lv.dims[0]) * static_cast<std::uint64_t>(lv.dims[1]) * sample;
-  const std::uint64_t bytes = plane * static_cast<std::uint64_t>(lv.dims[2]);
-  std::unique_lock<std::mutex> lock(library_mutex());
   const reader r(image.file);
   handle d = r.open_dataset(path);
   const dataset_facts f = facts_of(r, d.get(), path, image.layout);
@@ -469,26 +491,23 @@ std::optional<std::vector<std::byte>> read_hdf5_samples(const hdf5_image& image,
   }
   const double extent_bytes = static_cast<double>(f.extent[0]) * static_cast<double>(f.extent[1]) *
                               static_cast<double>(f.extent[2]) * static_cast<double>(sample);
-  if (extent_bytes > max_ratio * static_cast<double>(f.stored) + static_cast<double>(ratio_slack)) {
+  // The stored bytes a file's metadata claims, at most the file's own size.
+  std::error_code ec;
+  const std::uint64_t file_bytes = fs::file_size(image.file, ec);
+  const std::uint64_t stored = ec ? f.stored : std::min<std::uint64_t>(f.stored, file_bytes);
+  if (extent_bytes > max_ratio * static_cast<double>(stored) + static_cast<double>(ratio_slack)) {
     r.fail(path, "stored data for a dataset of " + std::to_string(extent_bytes) + " bytes",
-           std::to_string(f.stored) + " bytes stored (more than " +
+           std::to_string(stored) + " bytes stored (more than " +
                std::to_string(static_cast<int>(max_ratio)) +
-               " times smaller: a decompression "
-               "bomb or a level of fill values)");
+               " times smaller: a decompression bomb or a level of fill values)");
   }
-  std::vector<std::byte> out(static_cast<std::size_t>(bytes));
+  if (out == nullptr) return;
   // Slabs of whole chunk layers (each chunk decoded once) of at most about 64 MiB.
   const hsize_t unit = f.chunk_z > 0 ? f.chunk_z : 1;
   const std::uint64_t per_unit = std::max<std::uint64_t>(plane * unit, 1);
   const hsize_t slab = unit * std::max<hsize_t>(1, (std::uint64_t{64} << 20) / per_unit);
   handle file_space(H5Dget_space(d.get()), H5Sclose);
   for (hsize_t z = 0; z < static_cast<hsize_t>(lv.dims[2]); z += slab) {
-    if (stop) {
-      lock.unlock();
-      const bool stopped = stop();
-      lock.lock();
-      if (stopped) return std::nullopt;
-    }
     const hsize_t nz = std::min<hsize_t>(slab, static_cast<hsize_t>(lv.dims[2]) - z);
     const std::array<hsize_t, 3> start{z, 0, 0};
     const std::array<hsize_t, 3> count{nz, static_cast<hsize_t>(lv.dims[1]),
@@ -498,14 +517,263 @@ std::optional<std::vector<std::byte>> read_hdf5_samples(const hdf5_image& image,
                                                nullptr, count.data(), nullptr) < 0) {
       r.fail(path, "a readable selection", "none");
     }
-    std::byte* at = out.data() + static_cast<std::size_t>(z * plane);
-    if (H5Dread(d.get(), f.memory_type, memory.get(), file_space.get(), H5P_DEFAULT, at) < 0) {
+    if (H5Dread(d.get(), f.memory_type, memory.get(), file_space.get(), H5P_DEFAULT,
+                out + static_cast<std::size_t>(z * plane)) < 0) {
       r.fail(path, "data libhdf5 can read",
              "corrupt or truncated data in planes " + std::to_string(z) + " to " +
                  std::to_string(z + nz - 1));
     }
+    progress();
+  }
+}
+
+// ---- The child process. libhdf5 is not memory-safe on every corrupt file (use after free in
+// its object-header code, found by fuzzing): it runs in a child, so a file that crashes or hangs
+// it gives the caller one error, never a crash or a hang, and no libhdf5 state is shared between
+// threads (the serial build is not thread-safe).
+
+// The pipe's messages: a kind byte, then for 'E' and 'R' a length and that many bytes.
+constexpr char progress_mark = 'P';
+constexpr char error_mark = 'E';
+constexpr char result_mark = 'R';
+// A child silent this long (no slab read, no answer) is taken to hang.
+constexpr auto quiet_limit = std::chrono::seconds(120);
+
+bool write_all(int fd, const void* p, std::size_t n) noexcept {
+  const auto* b = static_cast<const char*>(p);
+  while (n > 0) {
+    const ssize_t w = ::write(fd, b, n);
+    if (w < 0 && errno == EINTR) continue;
+    if (w <= 0) return false;
+    b += w;
+    n -= static_cast<std::size_t>(w);
+  }
+  return true;
+}
+
+void send(int fd, char kind, const std::string& payload) noexcept {
+  const std::uint64_t n = payload.size();
+  (void)(write_all(fd, &kind, 1) && write_all(fd, &n, sizeof n) &&
+         write_all(fd, payload.data(), payload.size()));
+}
+
+// A crash in the child ends the child alone: default handlers (a fuzzer's or a sanitizer's
+// would report the parent's input as crashing), and no sanitizer death callback.
+extern "C" void __sanitizer_set_death_callback(void (*)()) __attribute__((weak));
+
+void reset_crash_handling() noexcept {
+  for (const int sig : {SIGSEGV, SIGBUS, SIGABRT, SIGFPE, SIGILL, SIGTRAP}) {
+    (void)std::signal(sig, SIG_DFL);
+  }
+  if (&__sanitizer_set_death_callback != nullptr) __sanitizer_set_death_callback(nullptr);
+}
+
+// libhdf5's own memory in the child beyond what it inherits (the samples' shared mapping is not
+// counted): enough for its caches and any real file's metadata, and a bound on what a hostile
+// one can make it allocate.
+// Not under AddressSanitizer, whose shadow memory already exceeds any such limit.
+constexpr rlim_t child_data_bytes = rlim_t{2} << 30;
+
+void limit_child_memory() noexcept {
+#if !defined(__SANITIZE_ADDRESS__) && !defined(__SANITIZE_THREAD__)
+#if defined(__has_feature)
+#if __has_feature(address_sanitizer) || __has_feature(thread_sanitizer) || \
+    __has_feature(memory_sanitizer)
+  return;
+#endif
+#endif
+  // On top of what the child holds already (the parent's data, copied on write).
+  rlim_t held = 0;
+  if (std::FILE* f = std::fopen("/proc/self/status", "r")) {
+    char line[256];
+    while (std::fgets(line, sizeof line, f) != nullptr) {
+      unsigned long long kb = 0;
+      if (std::sscanf(line, "VmData: %llu kB", &kb) == 1) held = static_cast<rlim_t>(kb) * 1024;
+    }
+    std::fclose(f);
+  }
+  rlimit r{};
+  const rlim_t want = held + child_data_bytes;
+  if (::getrlimit(RLIMIT_DATA, &r) == 0 && (r.rlim_cur == RLIM_INFINITY || r.rlim_cur > want)) {
+    r.rlim_cur = want;
+    (void)::setrlimit(RLIMIT_DATA, &r);
+  }
+#endif
+}
+
+// Runs `work(fd)` in a child, which writes its answer to fd ('R' payload, or 'E' message);
+// returns the payload. `stop`, when given, is asked first and while waiting: true ends the
+// child and returns nullopt. Throws progiso::error for an error the child reports, or when it dies
+// or falls silent.
+template <class Work>
+std::optional<std::string> in_child(const fs::path& file, const Work& work,
+                                    const std::function<bool()>& stop) {
+  if (stop && stop()) return std::nullopt;
+  int fds[2];
+  if (::pipe2(fds, O_CLOEXEC) != 0) {
+    throw error(file.string() + ": cannot start the HDF5 reader (pipe: " + std::strerror(errno) +
+                ")");
+  }
+  const pid_t pid = ::fork();
+  if (pid < 0) {
+    const int e = errno;
+    ::close(fds[0]);
+    ::close(fds[1]);
+    throw error(file.string() + ": cannot start the HDF5 reader (fork: " + std::strerror(e) + ")");
+  }
+  if (pid == 0) {
+    ::close(fds[0]);
+    reset_crash_handling();
+    limit_child_memory();
+    try {
+      send(fds[1], result_mark, work(fds[1]));
+    } catch (const error& e) {
+      send(fds[1], error_mark, e.what());
+    } catch (const std::bad_alloc&) {
+      send(fds[1], error_mark, file.string() + ": out of memory reading the HDF5 file");
+    } catch (...) {
+      send(fds[1], error_mark, file.string() + ": the HDF5 reader failed");
+    }
+    ::_exit(0);  // no atexit handlers, no destructors of the parent's objects
+  }
+  ::close(fds[1]);
+  const int fd = fds[0];
+  std::string got;
+  bool stopped = false;
+  bool silent = false;
+  auto heard = std::chrono::steady_clock::now();
+  for (;;) {
+    pollfd p{fd, POLLIN, 0};
+    const int ready = ::poll(&p, 1, 50);
+    if (ready < 0 && errno != EINTR) break;
+    if (ready > 0) {
+      char buf[65536];
+      const ssize_t n = ::read(fd, buf, sizeof buf);
+      if (n < 0 && errno == EINTR) continue;
+      if (n <= 0) break;  // the child closed its end: done or dead
+      got.append(buf, static_cast<std::size_t>(n));
+      heard = std::chrono::steady_clock::now();
+      continue;
+    }
+    if (stop && stop()) {
+      stopped = true;
+      break;
+    }
+    if (std::chrono::steady_clock::now() - heard > quiet_limit) {
+      silent = true;
+      break;
+    }
+  }
+  ::close(fd);
+  if (stopped || silent) (void)::kill(pid, SIGKILL);
+  int status = 0;
+  while (::waitpid(pid, &status, 0) < 0 && errno == EINTR) {
+  }
+  if (stopped) return std::nullopt;
+  if (silent) {
+    throw error(file.string() + ": expected an HDF5 file libhdf5 reads, found one on which it " +
+                "hangs (no progress in " + std::to_string(quiet_limit.count()) + " s)");
+  }
+  // The answer: progress marks, then one 'E' or 'R' message.
+  std::size_t at = 0;
+  while (at < got.size() && got[at] == progress_mark) ++at;
+  std::uint64_t n = 0;
+  if (at + 1 + sizeof n <= got.size()) std::memcpy(&n, got.data() + at + 1, sizeof n);
+  const bool whole = at + 1 + sizeof n <= got.size() && got.size() - at - 1 - sizeof n == n;
+  if (whole && got[at] == error_mark) throw error(got.substr(at + 1 + sizeof n));
+  if (whole && got[at] == result_mark && WIFEXITED(status) && WEXITSTATUS(status) == 0) {
+    return got.substr(at + 1 + sizeof n);
+  }
+  const std::string how = WIFSIGNALED(status)
+                              ? std::string("signal ") + std::to_string(WTERMSIG(status)) + " (" +
+                                    strsignal(WTERMSIG(status)) + ")"
+                              : "exit status " + std::to_string(WEXITSTATUS(status));
+  throw error(file.string() + ": expected an HDF5 file libhdf5 reads, found one that ends it (" +
+              how + ")");
+}
+
+// hdf5_image through the pipe: fixed fields, then the levels.
+struct image_record {
+  std::uint8_t layout;
+  std::uint8_t type;
+  std::int64_t timepoints;
+  std::int64_t channels;
+  std::uint64_t levels;
+};
+
+std::string encode(const hdf5_image& im) {
+  const image_record h{static_cast<std::uint8_t>(im.layout), static_cast<std::uint8_t>(im.type),
+                       im.timepoints, im.channels, im.levels.size()};
+  std::string out(reinterpret_cast<const char*>(&h), sizeof h);
+  for (const hdf5_level& l : im.levels) {
+    out.append(reinterpret_cast<const char*>(&l), sizeof l);
   }
   return out;
+}
+
+hdf5_image decode(const fs::path& file, const std::string& bytes) {
+  image_record h{};
+  if (bytes.size() < sizeof h) throw error(file.string() + ": the HDF5 reader's answer is short");
+  std::memcpy(&h, bytes.data(), sizeof h);
+  if (bytes.size() != sizeof h + h.levels * sizeof(hdf5_level)) {
+    throw error(file.string() + ": the HDF5 reader's answer is short");
+  }
+  hdf5_image im;
+  im.file = file;
+  im.layout = static_cast<hdf5_layout>(h.layout);
+  im.type = static_cast<sample_type>(h.type);
+  im.timepoints = h.timepoints;
+  im.channels = h.channels;
+  im.levels.resize(static_cast<std::size_t>(h.levels));
+  std::memcpy(im.levels.data(), bytes.data() + sizeof h, im.levels.size() * sizeof(hdf5_level));
+  return im;
+}
+
+}  // namespace
+
+hdf5_image read_hdf5_header(const fs::path& file) {
+  static_assert(std::is_trivially_copyable_v<hdf5_level>);
+  const std::optional<std::string> answer =
+      in_child(file, [&file](int) { return encode(header_here(file)); }, {});
+  return decode(file, *answer);
+}
+
+std::optional<mapped_bytes> read_hdf5_samples(const hdf5_image& image, std::size_t level,
+                                              std::int64_t volume,
+                                              const std::function<bool()>& stop) {
+  const hdf5_level& lv = image.levels.at(level);
+  const std::uint64_t bytes = static_cast<std::uint64_t>(lv.dims[0]) *
+                              static_cast<std::uint64_t>(lv.dims[1]) *
+                              static_cast<std::uint64_t>(lv.dims[2]) * sample_size(image.type);
+  // The dataset checked first (its type, its size against the level's and its stored bytes):
+  // nothing of a bomb's size is allocated.
+  (void)in_child(image.file,
+                 [&](int) {
+                   samples_here(image, level, volume, nullptr, [] {});
+                   return std::string();
+                 },
+                 {});
+  // Shared with the child, which writes the samples; the volume then owns it.
+  void* p = ::mmap(nullptr, static_cast<std::size_t>(bytes), PROT_READ | PROT_WRITE,
+                   MAP_SHARED | MAP_ANONYMOUS, -1, 0);
+  if (p == MAP_FAILED) throw std::bad_alloc();
+  std::shared_ptr<const void> keeper(p, [bytes](const void* q) {
+    ::munmap(const_cast<void*>(q), static_cast<std::size_t>(bytes));
+  });
+  auto* out = static_cast<std::byte*>(p);
+  const std::optional<std::string> answer = in_child(
+      image.file,
+      [&](int fd) {
+        samples_here(image, level, volume, out, [fd] {
+          const char mark = progress_mark;
+          (void)write_all(fd, &mark, 1);
+        });
+        return std::string();
+      },
+      stop);
+  if (!answer) return std::nullopt;
+  return mapped_bytes{std::span<const std::byte>(out, static_cast<std::size_t>(bytes)),
+                      std::move(keeper)};
 }
 
 }  // namespace progiso::detail

@@ -376,7 +376,7 @@ struct hdf5_source final : source_state {
                                    const std::function<bool()>& stop) override {
     PROGISO_ASSERT(k < image.levels.size());
     const detail::hdf5_level& l = image.levels[k];
-    std::optional<std::vector<std::byte>> samples =
+    std::optional<detail::mapped_bytes> samples =
         detail::read_hdf5_samples(image, k, volume_index, stop);
     if (!samples) return std::nullopt;
     std::array<double, 3> s = l.spacing;
@@ -389,7 +389,7 @@ struct hdf5_source final : source_state {
         o[q] = l.origin[q] * ratio;
       }
     }
-    return make_volume(image.file, l.dims, image.type, std::move(*samples), s, o);
+    return borrowed_volume(image.file, l.dims, image.type, std::move(*samples), s, o);
   }
 };
 

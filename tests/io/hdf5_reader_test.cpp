@@ -185,6 +185,10 @@ TEST_F(Hdf5Reader, bigdataviewer_setups_and_levels_read_int16_as_unsigned) {
   const volume v2 = read_hdf5(at("bdv.h5"), volume_choice{{}, 1, 2});
   EXPECT_EQ(v2.spacing(), (std::array<double, 3>{4.0, 4.0, 2.0}));
   EXPECT_EQ(v2.origin(), (std::array<double, 3>{1.5, 1.5, 0.5}));
+  // A read asked to stop gives nothing (the child reading it is ended).
+  EXPECT_FALSE(volume_source(at("bdv.h5"), std::nullopt, volume_choice{{}, 0, {}})
+                   .read_level(0, std::nullopt, [] { return true; })
+                   .has_value());
   // A given spacing is level 0's, and scales the level's.
   volume_source src(at("bdv.h5"), std::nullopt, volume_choice{{}, 1, {}});
   const std::optional<volume> s2 = src.read_level(2, std::array<double, 3>{0.5, 0.5, 3.0});

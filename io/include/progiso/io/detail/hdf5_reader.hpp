@@ -25,13 +25,16 @@
 // stored bytes against its size (a level more than 1100 times larger than its stored chunks, the
 // deflate limit, is refused unread: a decompression bomb); only filters libhdf5 decodes here are
 // accepted (a dataset of the LZ4 plugin filter is refused by name); types are 1, 2 or 4 byte
-// integers and 4 or 8 byte floats. Reads run in slabs of planes, asking `stop` before each.
+// integers and 4 or 8 byte floats. Reads run in slabs of whole chunk layers.
 // Every failure throws progiso::error naming the file, the object, what was expected and what
 // was found.
 //
-// Thread safety: libhdf5's serial build is not thread-safe, so every call into it holds one
-// process-wide mutex; different files may be read from several threads (one at a time inside
-// libhdf5).
+// Isolation: libhdf5 is not memory-safe on every corrupt file (fuzzing finds use after free in
+// its object-header code), so every call into it runs in a child process (fork): a file that
+// crashes it gives one error naming the file and how the child ended, one on which it falls
+// silent for 120 s is killed with an error, and the samples come back through memory shared
+// with the child. The child is single-threaded, which is also what libhdf5's serial build needs:
+// different files may be read from several threads at once.
 #pragma once
 
 #include <array>
@@ -43,6 +46,7 @@
 #include <vector>
 
 #include <progiso/core/field/volume.hpp>
+#include <progiso/io/detail/file_input.hpp>
 
 namespace progiso::detail {
 
@@ -78,10 +82,11 @@ struct hdf5_image {
 /// Reads and checks the pyramid of an Imaris or BigDataViewer file (see the file comment).
 [[nodiscard]] hdf5_image read_hdf5_header(const std::filesystem::path& file);
 
-/// The samples of `volume` at `level`, x fastest, in host byte order; nullopt when `stop`
-/// (asked before each slab of planes, when not empty) answers true.
-[[nodiscard]] std::optional<std::vector<std::byte>> read_hdf5_samples(
-    const hdf5_image& image, std::size_t level, std::int64_t volume,
-    const std::function<bool()>& stop = {});
+/// The samples of `volume` at `level`, x fastest, in host byte order, in memory shared with the
+/// child that read them (the keeper unmaps it); nullopt when `stop` (asked while the child reads,
+/// when not empty) answers true, which ends the child.
+[[nodiscard]] std::optional<mapped_bytes> read_hdf5_samples(const hdf5_image& image,
+                                                            std::size_t level, std::int64_t volume,
+                                                            const std::function<bool()>& stop = {});
 
 }  // namespace progiso::detail
