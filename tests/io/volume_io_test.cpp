@@ -568,13 +568,13 @@ TEST(VolumeIo, read_volume_rejects_an_unknown_format) {
   write_text(dir / "v.xyz", "whatever");
   const std::string msg =
       error_message([&] { (void)progiso::read_volume(dir / "v.xyz", std::nullopt, std::nullopt); });
-  EXPECT_EQ(msg,
-            (dir / "v.xyz").string() +
-                ": unknown volume format (expected .nrrd, .nhdr, .nii, .nii.gz, .hdr, .mha, "
-                ".mhd, .vtk, .vti, .pvti, .tif, .tiff, .mrc, .map, .ccp4, .rec, a directory of "
-                "DICOM files or of TIFF slices, a Zarr or OME-Zarr directory, an enhanced DICOM "
-                "file, or a raw file with "
-                "--dims and --type)");
+  EXPECT_EQ(msg, (dir / "v.xyz").string() +
+                     ": unknown volume format (expected .nrrd, .nhdr, .nii, .nii.gz, .hdr, .mha, "
+                     ".mhd, .vtk, .vti, .pvti, .tif, .tiff, .mrc, .map, .ccp4, .rec, .ims, .h5, a "
+                     "directory of DICOM files or of TIFF slices, a Zarr or OME-Zarr directory, an "
+                     "enhanced DICOM "
+                     "file, or a raw file with "
+                     "--dims and --type)");
 }
 
 TEST(VolumeIo, read_volume_rejects_an_invalid_spacing_with_the_file_name) {
