@@ -311,6 +311,19 @@ struct mrc_source final : source_state {
   }
 };
 
+/// The pyramid level a choice names (0 when it names none), checked against the image's count.
+std::size_t pick_level(const fs::path& file, std::size_t count, const volume_choice& choice) {
+  const auto levels = static_cast<std::int64_t>(count);
+  const std::int64_t k = choice.level.value_or(0);
+  if (k < 0 || k >= levels) {
+    throw error(file.string() + ": level " + std::to_string(k) + " was chosen, but the image has " +
+                (levels == 1 ? std::string("one level (0)")
+                             : std::to_string(levels) + " levels (0 to " +
+                                   std::to_string(levels - 1) + ")"));
+  }
+  return static_cast<std::size_t>(k);
+}
+
 /// A Zarr array or OME-Zarr image: its metadata read once; a level and a volume chosen.
 struct zarr_source final : source_state {
   fs::path dir;
@@ -320,15 +333,7 @@ struct zarr_source final : source_state {
   zarr_source(const fs::path& d, const volume_choice& choice)
       : dir(d), image(detail::read_zarr_header(d)) {
     volume_index = pick_volume(d, image.volumes, choice, "its leading axes");
-    const auto levels = static_cast<std::int64_t>(image.levels.size());
-    const std::int64_t k = choice.level.value_or(0);
-    if (k < 0 || k >= levels) {
-      throw error(d.string() + ": level " + std::to_string(k) + " was chosen, but the image has " +
-                  (levels == 1 ? std::string("one level (0)")
-                               : std::to_string(levels) + " levels (0 to " +
-                                     std::to_string(levels - 1) + ")"));
-    }
-    level = static_cast<std::size_t>(k);
+    level = pick_level(d, image.levels.size(), choice);
     files = image.files;
   }
   volume read(const spacing_override& spacing) override { return *read_level(level, spacing, {}); }
@@ -359,15 +364,7 @@ struct hdf5_source final : source_state {
     volume_index = pick_volume(f, image.volumes(), choice,
                                image.layout == detail::hdf5_layout::imaris ? "timepoints x channels"
                                                                            : "timepoints x setups");
-    const auto levels = static_cast<std::int64_t>(image.levels.size());
-    const std::int64_t k = choice.level.value_or(0);
-    if (k < 0 || k >= levels) {
-      throw error(f.string() + ": level " + std::to_string(k) + " was chosen, but the image has " +
-                  (levels == 1 ? std::string("one level (0)")
-                               : std::to_string(levels) + " levels (0 to " +
-                                     std::to_string(levels - 1) + ")"));
-    }
-    level = static_cast<std::size_t>(k);
+    level = pick_level(f, image.levels.size(), choice);
     files = {f};
   }
   volume read(const spacing_override& spacing) override { return *read_level(level, spacing, {}); }
