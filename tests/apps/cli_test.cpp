@@ -9,12 +9,14 @@
 #include <array>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <random>
 #include <sstream>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include <gtest/gtest.h>
@@ -1388,6 +1390,61 @@ TEST_F(Cli, a_deadline_on_an_ome_zarr_pyramid_reads_and_meshes_coarse_first) {
   EXPECT_NE(ample.second.find("\"level\": 0,"), std::string::npos) << ample.second;
   EXPECT_NE(ample.second.find("\"levels_read\": 3,"), std::string::npos) << ample.second;
   EXPECT_NE(ample.second.find("\"coarse_first\": true,"), std::string::npos) << ample.second;
+}
+
+TEST_F(Cli, an_imaris_pyramid_takes_level_and_volume_and_reads_coarse_first_by_a_deadline) {
+  if (std::string_view(PROGISO_H5PY_PYTHON).empty()) {
+    GTEST_SKIP() << "python3 with h5py (python3-h5py) not found";
+  }
+  // Two channels, three levels of a ball, each level sampled at its own cells' centres (a field
+  // of its own, as Imaris's block means are); channel 1 is the ball shifted by 3.
+  const fs::path ims = dir_ / "ball.ims";
+  const fs::path script = dir_ / "write.py";
+  write_file("write.py", R"(
+import sys, numpy as np, h5py
+def text(o, k, v): o.attrs.create(k, np.array(list(v), dtype='|S1'))
+with h5py.File(sys.argv[1], 'w') as f:
+    text(f, 'ImarisDataSet', 'ImarisDataSet')
+    for k in range(3):
+        n, step = (32 >> k) + 1, float(1 << k)
+        i = (np.arange(n) + 0.25 * k) * step
+        z, y, x = np.meshgrid(i - 16.1, i - 15.8, i - 16.3, indexing='ij')
+        for c in range(2):
+            g = f.create_group('DataSet/ResolutionLevel %d/TimePoint 0/Channel %d' % (k, c))
+            for a in 'XYZ': text(g, 'ImageSize' + a, str(n))
+            v = np.minimum(255, 8 * np.sqrt(x * x + y * y + z * z) + 3 * c).astype(np.uint8)
+            g.create_dataset('Data', data=v, chunks=(8, 8, 8), compression='gzip')
+)");
+  ASSERT_EQ(
+      std::system(
+          (std::string(PROGISO_H5PY_PYTHON) + " " + script.string() + " " + ims.string()).c_str()),
+      0);
+  const auto extract = [&](const std::string& how, const std::string& name) {
+    const run_result r = run("extract " + ims.string() + " --iso 120 " + how + " -o " +
+                             (dir_ / (name + ".ply")).string() + " --stats-json " +
+                             (dir_ / (name + ".json")).string());
+    EXPECT_EQ(r.status, 0) << how << ": " << r.err;
+    return std::make_pair(slurp(dir_ / (name + ".ply")), slurp(dir_ / (name + ".json")));
+  };
+  const auto level2 = extract("--volume 1 --level 2 --full", "level2");
+  const auto level0 = extract("--volume 1 --level 0 --full", "level0");
+  ASSERT_NE(level2.first, level0.first);
+  ASSERT_NE(level0.first, extract("--volume 0 --level 0 --full", "other").first)
+      << "channel 0 and channel 1 gave the same surface";
+  const run_result named = run("extract " + ims.string() + " --volume 1 --level 2 --iso 120 " +
+                               "--full -o " + (dir_ / "named.ply").string());
+  EXPECT_NE(named.err.find("ball.ims volume 1 level 2, 9x9x9 u8"), std::string::npos) << named.err;
+  // A passed deadline: the coarsest level alone; time enough: the finest level's surface.
+  const auto passed = extract("--volume 1 --time-ms 0", "passed");
+  EXPECT_EQ(passed.first, level2.first);
+  EXPECT_NE(passed.second.find("\"levels_read\": 1,"), std::string::npos) << passed.second;
+  const auto ample = extract("--volume 1 --time-ms 60000", "ample");
+  EXPECT_EQ(ample.first, level0.first);
+  EXPECT_NE(ample.second.find("\"levels_read\": 3,"), std::string::npos) << ample.second;
+  expect_bad_input("extract " + ims.string() + " --iso 120 --volume 1 --level 3",
+                   "ball.ims: level 3 was chosen, but the image has 3 levels (0 to 2)");
+  expect_bad_input("extract " + ims.string() + " --iso 120 --level 0",
+                   "ball.ims: a time series of 2 volumes (timepoints x channels = 2)");
 }
 
 }  // namespace
