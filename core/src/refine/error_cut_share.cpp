@@ -59,21 +59,21 @@ error_cut_walk::error_cut_walk(const hierarchy& hier, const volume& vol, const r
       waiting_(static_cast<std::size_t>(hier.max_depth()) + 2) {
   if (z_begin >= z_end) return;
   std::vector<owned_triangle> scratch;
+  std::vector<std::uint64_t> roots;  // the roots that reach the planes
   for (std::uint64_t r = 0; r < hier.root_count(); ++r) {
     scratch.clear();
     const std::optional<ipoint> c = compute_root(hier, vol, isovalue, r, scratch);
     if (c && c->at(2) + hier.scale_of(*c) >= z_begin && c->at(2) - hier.scale_of(*c) < z_end) {
-      roots_.push_back(hier.index(*c));
+      roots.push_back(hier.index(*c));
     }
   }
-  std::sort(roots_.begin(), roots_.end());
+  std::sort(roots.begin(), roots.end());
   // Tested now, so that the first round's threshold can be told from their errors.
-  for (const std::uint64_t r : roots_) {
+  for (const std::uint64_t r : roots) {
     const ipoint c = hier.point(r);
     const diamond_range d = ranges.get(c, hier.scale_of(c));
     if (d.straddles(isovalue)) waiting_[0].push_back({r, d.error});
   }
-  roots_.clear();
 }
 
 double error_cut_walk::largest_waiting_error() const noexcept {

@@ -102,7 +102,6 @@ class error_cut_walk {
   share_splits out_;
   std::size_t round_end_ = 0;
   std::vector<std::vector<waiting>> waiting_;  // by depth, ascending grid index
-  std::vector<std::uint64_t> roots_;           // the roots that reach the planes
   bool broken_ = false;
 };
 
