@@ -76,6 +76,9 @@ std::vector<std::string> argument_list(int argc, char** argv) {
 /// result then holds no mesh.
 struct pieces_written {
   std::uint64_t triangles = 0, vertices = 0;
+  /// A chunked level read in windows of planes (plane_window): the most sample bytes held at
+  /// once; 0 when the volume was read whole or mapped.
+  std::uint64_t window_peak_bytes = 0;
 };
 
 std::string stats_json(const arguments& a, const std::string& input, double iso,
@@ -119,6 +122,9 @@ std::string stats_json(const arguments& a, const std::string& input, double iso,
   o << "  \"normals_ms\": " << json_number(r.normals_seconds * 1e3) << ",\n";
   o << "  \"range_data_bytes\": " << r.range_bytes << ",\n";
   o << "  \"volume_bytes\": " << data.byte_size() << ",\n";
+  if (pieces && pieces->window_peak_bytes > 0) {
+    o << "  \"windowed\": true,\n  \"window_peak_bytes\": " << pieces->window_peak_bytes << ",\n";
+  }
   o << "  \"smoothing\": " << smoothing_json(a.smooth, data, vol) << ",\n";
   o << "  \"isovalue_outside_data\": " << (r.isovalue_outside_data ? "true" : "false") << ",\n";
   o << "  \"cases\": {";
@@ -362,14 +368,59 @@ bool writes_in_pieces(const arguments& a, const progiso::volume& vol) {
          progiso::detail::finest_slab_planes(vol.dims()) < vol.dims()[2];
 }
 
+/// Whether a chunked input's level is read in windows of planes (run_finest_in_pieces() with a
+/// plane_window) rather than whole: a full goal into a PLY, without normals (held whole) or
+/// smoothing (whose field reads beyond a window).
+bool writes_in_windows(const arguments& a) {
+  return a.options.goal.what == progiso::refine_goal::kind::full && !a.options.normals &&
+         !a.smooth.active() && progiso::detail::lower_extension(*a.output) == ".ply";
+}
+
+/// The sample bytes a window holds for the finest surface made share by share (whole chunk rows,
+/// at least one). A share's passes also hold a corner byte per point of its planes (its one
+/// slab) and its piece of the output, so the window is a quarter of finest_slab_bytes: what is
+/// held stays near one slab's worth. PROGISO_WINDOW_BYTES sets it, so that the tests take small
+/// levels through several windows.
+std::int64_t window_planes(const progiso::plane_window& w) {
+  std::uint64_t budget = progiso::detail::finest_slab_bytes / 4;
+  if (const char* e = std::getenv("PROGISO_WINDOW_BYTES"); e != nullptr && *e != '\0') {
+    budget = std::strtoull(e, nullptr, 10);
+  }
+  const progiso::volume& f = w.field();
+  const std::uint64_t row = static_cast<std::uint64_t>(f.dims()[0] * f.dims()[1]) *
+                            progiso::sample_size(f.type()) *
+                            static_cast<std::uint64_t>(w.chunk_planes());
+  return w.chunk_planes() * static_cast<std::int64_t>(std::max<std::uint64_t>(1, budget / row));
+}
+
+/// The finest surface of a windowed level, share by share in z order (detail::finest_share):
+/// each share's planes, and the two after them that its last cubes and edges read, held while
+/// it is made; ids continue from the shares before, as `add` has counted them. The pieces, in
+/// order, are the whole level's finest surface.
+void finest_in_windows(progiso::plane_window& w, double iso, const progiso::parallel_loop& loop,
+                       std::size_t parts, const progiso::detail::finest_piece& add,
+                       const std::function<std::array<std::uint64_t, 2>()>& counted) {
+  const std::int64_t nz = w.field().dims()[2];
+  const std::int64_t step = window_planes(w);
+  for (std::int64_t z = 0; z < nz - 1; z += step) {
+    const bool last = z + step >= nz - 1;
+    const std::array<std::uint64_t, 2> first = counted();
+    const progiso::detail::finest_share share{z, last ? -1 : z + step, first[0], first[1]};
+    w.hold(z, last ? nz : z + step + 2, loop);
+    progiso::detail::finest_surface_pieces(w.field(), iso, loop, parts, {}, add, 0, share);
+  }
+}
+
 /// A full goal's finest surface (finest_surface(), the direct path) made slab by slab and
 /// written to the PLY as it is made (ply_pieces_writer), each piece mapped to scanner
-/// coordinates when asked: the same file as the whole surface's.
+/// coordinates when asked: the same file as the whole surface's. With `window`, `data` and
+/// `vol` are its field, made share by share (finest_in_windows()).
 int run_finest_in_pieces(arguments& a, const std::string& input, const progiso::volume& data,
                          const progiso::volume& vol, double iso,
                          const std::optional<progiso::index_to_world>& world,
                          progiso::detail::atomic_output& mesh_out,
-                         std::optional<progiso::detail::atomic_output>& stats_out) {
+                         std::optional<progiso::detail::atomic_output>& stats_out,
+                         progiso::plane_window* window = nullptr) {
   using clock = std::chrono::steady_clock;
   progress_bar bar;
   a.options.progress = [&bar](const progiso::extract_progress& p) { bar.update(p); };
@@ -379,11 +430,17 @@ int run_finest_in_pieces(arguments& a, const std::string& input, const progiso::
   const auto t0 = clock::now();
   progiso::scheduler::run_on_threads(
       a.threads, [&](const progiso::parallel_loop& loop, std::size_t parts) {
-        progiso::detail::finest_surface_pieces(vol, iso, loop, parts, progress,
-                                               [&](progiso::triangle_mesh& piece, std::uint64_t) {
-                                                 if (world) to_world(piece, data, *world);
-                                                 ply.add(piece);
-                                               });
+        const auto add = [&](progiso::triangle_mesh& piece, std::uint64_t) {
+          if (world) to_world(piece, data, *world);
+          ply.add(piece);
+        };
+        if (window == nullptr) {
+          progiso::detail::finest_surface_pieces(vol, iso, loop, parts, progress, add);
+        } else {
+          finest_in_windows(*window, iso, loop, parts, add, [&ply] {
+            return std::array<std::uint64_t, 2>{ply.vertices(), ply.triangles()};
+          });
+        }
       });
   const double made = std::chrono::duration<double>(clock::now() - t0).count();
   bar.finish();
@@ -395,13 +452,14 @@ int run_finest_in_pieces(arguments& a, const std::string& input, const progiso::
   r.extract_seconds = made;
   r.total_seconds = seconds;
   r.pipeline_seconds = seconds;
-  const auto [lo, hi] = vol.value_range();
+  const auto [lo, hi] = window != nullptr ? window->range_seen() : vol.value_range();
   r.isovalue_outside_data = !(lo <= iso && iso < hi);
   if (r.isovalue_outside_data) {
     std::cerr << "progiso: isovalue " << iso << " is outside the data range [" << lo << ", " << hi
               << "): the surface is empty\n";
   }
-  const pieces_written counts{ply.triangles(), ply.vertices()};
+  const pieces_written counts{ply.triangles(), ply.vertices(),
+                              window != nullptr ? window->peak_bytes() : 0};
   if (stats_out) stats_out->write(stats_json(a, input, iso, data, vol, r, counts));
   publish_outputs(mesh_out, stats_out);
   std::printf(
@@ -589,6 +647,23 @@ int run(const std::vector<std::string>& args) {
     data = std::make_shared<const progiso::volume>(progiso::make_demo_volume());
     iso = a.iso.value_or(progiso::demo_isovalue);
   } else {
+    // A chunked level's finest surface is made a window of planes at a time: what is held is a
+    // window, not the level.
+    std::optional<progiso::plane_window> window;
+    if (writes_in_windows(a)) window = source->window(a.spacing);
+    if (window) {
+      const progiso::volume& level = window->field();
+      check_float_range(*a.output, level, world);
+      std::cerr << "progiso: " << input;
+      if (a.volume) std::cerr << " volume " << *a.volume;
+      if (a.level) std::cerr << " level " << *a.level;
+      std::cerr << ", " << level.dims()[0] << "x" << level.dims()[1] << "x" << level.dims()[2]
+                << " " << progiso::to_string(level.type()) << ", isovalue " << *a.iso
+                << ", read in windows of "
+                << std::min(window_planes(*window), level.dims()[2]) << " planes\n";
+      return run_finest_in_pieces(a, input, level, level, *a.iso, world, mesh_out, stats_out,
+                                  &*window);
+    }
     data = std::make_shared<const progiso::volume>(source->read(a.spacing));
     iso = *a.iso;
   }

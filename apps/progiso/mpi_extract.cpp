@@ -128,6 +128,8 @@ struct setup {
   std::optional<detail::atomic_output> mesh_out, stats_out, hierarchy_out;
   bool pieces = false;  // -o X.pvtp: each rank writes its piece
   std::optional<detail::atomic_output> piece_out;
+  // A chunked input's finest surface: the level in a window holding this rank's planes alone.
+  std::optional<plane_window> window;
 };
 
 /// Rank r's piece of a .pvtp: X_r.vtp beside X.pvtp (the index names it relative to itself).
@@ -199,8 +201,17 @@ void set_up(setup& s, const std::vector<std::string>& args, int rank, int size) 
     s.data = std::make_shared<const volume>(make_demo_volume());
     s.iso = a.iso.value_or(demo_isovalue);
   } else {
-    // A mapped input is read only where this rank's share lies (the pages it touches).
-    s.data = std::make_shared<const volume>(source->read(a.spacing));
+    // A mapped input is read only where this rank's share lies (the pages it touches); a chunked
+    // one's finest surface decodes only the chunk rows of the rank's planes and the two after
+    // them (finest_share's reads).
+    if (!error_goal && !a.smooth.active()) s.window = source->window(a.spacing);
+    if (s.window) {
+      const std::int64_t nz = s.window->field().dims()[2];
+      s.window->hold(nz * rank / size, std::min(nz, nz * (rank + 1) / size + 2));
+      s.data = std::make_shared<const volume>(s.window->field());
+    } else {
+      s.data = std::make_shared<const volume>(source->read(a.spacing));
+    }
     s.iso = *a.iso;
   }
   s.field = smoothed_field(s.data, a.smooth, s.input);
@@ -637,7 +648,10 @@ int run_mpi_extract(const std::vector<std::string>& args) {
         << (s.pieces ? "true" : "false") << ",\n  \"ranks\": " << size
         << ",\n  \"threads_per_rank\": " << threads << ",\n  \"triangles\": " << totals[1]
         << ",\n  \"vertices\": " << totals[0]
-        << ",\n  \"rank0_mesh_ms\": " << json_number(meshed * 1e3)
+        << ",\n  \"rank0_mesh_ms\": " << json_number(meshed * 1e3);
+      // A chunked input: the sample bytes rank 0 held (its planes' chunk rows, not the level).
+      if (s.window) o << ",\n  \"rank0_window_bytes\": " << s.window->peak_bytes();
+      o
         << ",\n  \"total_ms\": " << json_number(seconds * 1e3) << "\n}\n";
       s.stats_out->write(o.str());
     }

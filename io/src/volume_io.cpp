@@ -21,6 +21,7 @@
 #include <progiso/io/detail/mrc_reader.hpp>
 #include <progiso/io/detail/nifti_reader.hpp>
 #include <progiso/io/detail/nrrd_reader.hpp>
+#include <progiso/io/detail/plane_window.hpp>
 #include <progiso/io/detail/tiff_reader.hpp>
 #include <progiso/io/detail/vti_reader.hpp>
 #include <progiso/io/detail/vtk_legacy_reader.hpp>
@@ -221,6 +222,12 @@ struct detail::volume_source_state {
     (void)stop;
     return read(spacing);
   }
+  // The chosen level in windows of planes (volume_source::window()); inputs not read in chunks
+  // have none.
+  virtual std::optional<plane_window> window(const spacing_override& spacing) {
+    (void)spacing;
+    return std::nullopt;
+  }
 };
 
 namespace {
@@ -345,13 +352,30 @@ struct zarr_source final : source_state {
     std::optional<std::vector<std::byte>> samples =
         detail::read_zarr_samples(image, k, volume_index, stop);
     if (!samples) return std::nullopt;
+    return make_volume(l.dir, l.dims(), l.type, std::move(*samples), level_spacing(k, spacing),
+                       l.origin);
+  }
+  std::optional<plane_window> window(const spacing_override& spacing) override {
+    const detail::zarr_level& l = image.levels[level];
+    detail::check_zarr_chunks(image, level, volume_index);
+    const std::size_t n = l.chunks.size();
+    return detail::make_plane_window(
+        l.dir, l.dims(), l.type, l.chunks[n - 3], level_spacing(level, spacing), l.origin,
+        [this](std::int64_t z0, std::int64_t z1, std::span<std::byte> out,
+               const parallel_loop& run) {
+          (void)detail::read_zarr_planes(image, level, volume_index, z0, z1, out, run);
+        });
+  }
+  // Level k's spacing: the header's, or, given level 0's, it times the header's ratio.
+  [[nodiscard]] std::array<double, 3> level_spacing(std::size_t k,
+                                                    const spacing_override& spacing) const {
+    const detail::zarr_level& l = image.levels[k];
     std::array<double, 3> s = l.spacing;
     if (spacing) {
-      // The given spacing is level 0's: level k's is it times the header's ratio.
       for (std::size_t q = 0; q < 3; ++q)
         s[q] = (*spacing)[q] * l.spacing[q] / image.levels[0].spacing[q];
     }
-    return make_volume(l.dir, l.dims(), l.type, std::move(*samples), s, l.origin);
+    return s;
   }
 };
 
@@ -536,6 +560,10 @@ std::optional<volume> volume_source::read_level(std::size_t level,
                                                 const std::function<bool()>& stop) {
   PROGISO_ASSERT(level < levels());
   return state_->read_level(level, spacing, stop);
+}
+
+std::optional<plane_window> volume_source::window(std::optional<std::array<double, 3>> spacing) {
+  return state_->window(spacing);
 }
 
 // ---------------------------------------------------------------------------------------------

@@ -1,11 +1,14 @@
 #include <progiso/io/detail/zarr_reader.hpp>
 
 #include <algorithm>
+#include <atomic>
 #include <bit>
 #include <cerrno>
 #include <cmath>
 #include <cstring>
+#include <exception>
 #include <limits>
+#include <mutex>
 #include <optional>
 #include <string>
 #include <string_view>
@@ -613,48 +616,56 @@ std::array<std::byte, 8> sample_bytes(sample_type type, double value) {
 
 }  // namespace
 
-std::optional<std::vector<std::byte>> read_zarr_samples(const zarr_image& image, std::size_t level,
-                                                        std::int64_t volume,
-                                                        const std::function<bool()>& stop) {
+namespace {
+
+/// Where volume `volume` of level `a` lies along the leading axes: its chunk indices (the last
+/// three entries 0) and its element offset within those chunks, with a decoded chunk's strides.
+struct volume_place {
+  std::vector<std::int64_t> index;
+  std::vector<std::uint64_t> stride;
+  std::uint64_t base = 0;
+};
+
+volume_place place_of(const zarr_level& a, std::int64_t volume) {
+  const std::size_t n = a.shape.size();
+  volume_place p;
+  p.index.assign(n, 0);
+  p.stride.assign(n, 1);
+  if (a.fortran) {
+    for (std::size_t d = 1; d < n; ++d) {
+      p.stride[d] = p.stride[d - 1] * static_cast<std::uint64_t>(a.chunks[d - 1]);
+    }
+  } else {
+    for (std::size_t d = n - 1; d-- > 0;) {
+      p.stride[d] = p.stride[d + 1] * static_cast<std::uint64_t>(a.chunks[d + 1]);
+    }
+  }
+  std::int64_t rest = volume;
+  for (std::size_t d = n - 3; d-- > 0;) {
+    const std::int64_t at = rest % a.shape[d];
+    rest /= a.shape[d];
+    p.index[d] = at / a.chunks[d];
+    p.base += static_cast<std::uint64_t>(at % a.chunks[d]) * p.stride[d];
+  }
+  return p;
+}
+
+}  // namespace
+
+void check_zarr_chunks(const zarr_image& image, std::size_t level, std::int64_t volume) {
   PROGISO_ASSERT(level < image.levels.size());
   PROGISO_ASSERT(volume >= 0 && volume < image.volumes);
   const zarr_level& a = image.levels[level];
   const std::size_t n = a.shape.size();
-  const std::size_t item = sample_size(a.type);
   const index3 dims = a.dims();
-  const auto nx = static_cast<std::size_t>(dims[0]);
-  const auto ny = static_cast<std::size_t>(dims[1]);
-  const auto nz = static_cast<std::size_t>(dims[2]);
-  // Strides of a decoded chunk, in elements, per axis.
-  std::vector<std::uint64_t> stride(n, 1);
-  if (a.fortran) {
-    for (std::size_t d = 1; d < n; ++d) {
-      stride[d] = stride[d - 1] * static_cast<std::uint64_t>(a.chunks[d - 1]);
-    }
-  } else {
-    for (std::size_t d = n - 1; d-- > 0;) {
-      stride[d] = stride[d + 1] * static_cast<std::uint64_t>(a.chunks[d + 1]);
-    }
-  }
-  // The volume's place along the leading axes: its chunk and its offset in that chunk.
-  std::vector<std::int64_t> index(n, 0);
-  std::uint64_t base = 0;
-  {
-    std::int64_t rest = volume;
-    for (std::size_t d = n - 3; d-- > 0;) {
-      const std::int64_t at = rest % a.shape[d];
-      rest /= a.shape[d];
-      index[d] = at / a.chunks[d];
-      base += static_cast<std::uint64_t>(at % a.chunks[d]) * stride[d];
-    }
-  }
+  const volume_place place = place_of(a, volume);
   // Memory follows the data: the volume is sized only when its chunk files can hold a sixty-fourth
   // of it (missing chunks are fill_value, but a grid of them alone sizes nothing).
   const std::int64_t cz = a.chunks[n - 3], cy = a.chunks[n - 2], cx = a.chunks[n - 1];
   const std::uint64_t grid = static_cast<std::uint64_t>((dims[2] + cz - 1) / cz) *
                              static_cast<std::uint64_t>((dims[1] + cy - 1) / cy) *
                              static_cast<std::uint64_t>((dims[0] + cx - 1) / cx);
-  const std::uint64_t present = present_chunks(a, index);
+  const std::uint64_t present = present_chunks(a, place.index);
   if (present == 0 || grid > 64 * present) {
     throw error(
         a.dir.string() + ": " + std::to_string(present) + " of the " + std::to_string(grid) +
@@ -662,57 +673,108 @@ std::optional<std::vector<std::byte>> read_zarr_samples(const zarr_image& image,
         (image.volumes > 1 ? "volume " + std::to_string(volume) : std::string("the array")) +
         " are present (expected at least one in 64: the data must be there to size a "
         "volume by; chunk files are named like " +
-        detail::quoted(chunk_path(a, index).lexically_relative(a.dir).string()) + ")");
+        detail::quoted(chunk_path(a, place.index).lexically_relative(a.dir).string()) + ")");
   }
-  std::vector<std::byte> out(nx * ny * nz * item);
+}
+
+bool read_zarr_planes(const zarr_image& image, std::size_t level, std::int64_t volume,
+                      std::int64_t z_begin, std::int64_t z_end, std::span<std::byte> out,
+                      const parallel_loop& run, const std::function<bool()>& stop) {
+  PROGISO_ASSERT(level < image.levels.size());
+  PROGISO_ASSERT(volume >= 0 && volume < image.volumes);
+  const zarr_level& a = image.levels[level];
+  const std::size_t n = a.shape.size();
+  const std::size_t item = sample_size(a.type);
+  const index3 dims = a.dims();
+  PROGISO_ASSERT(0 <= z_begin && z_begin <= z_end && z_end <= dims[2]);
+  const auto nx = static_cast<std::size_t>(dims[0]);
+  const auto ny = static_cast<std::size_t>(dims[1]);
+  PROGISO_ASSERT(out.size() == nx * ny * static_cast<std::size_t>(z_end - z_begin) * item);
+  const volume_place place = place_of(a, volume);
+  const std::vector<std::uint64_t>& stride = place.stride;
   const std::array<std::byte, 8> fill = sample_bytes(a.type, a.fill);
-  if (std::any_of(fill.begin(), fill.begin() + static_cast<std::ptrdiff_t>(item),
-                  [](std::byte b) { return b != std::byte{0}; })) {
-    for (std::size_t i = 0; i < out.size(); i += item)
-      std::memcpy(out.data() + i, fill.data(), item);
-  }
   const bool swap = item > 1 && a.big_endian != (std::endian::native == std::endian::big);
-  std::vector<std::byte> chunk;
-  for (std::int64_t z0 = 0; z0 < dims[2]; z0 += cz) {
-    for (std::int64_t y0 = 0; y0 < dims[1]; y0 += cy) {
-      for (std::int64_t x0 = 0; x0 < dims[0]; x0 += cx) {
+  const std::int64_t cz = a.chunks[n - 3], cy = a.chunks[n - 2], cx = a.chunks[n - 1];
+  const std::int64_t rows_y = (dims[1] + cy - 1) / cy, rows_x = (dims[0] + cx - 1) / cx;
+  // The chunk rows (one z index each) that meet [z_begin, z_end); in one row, each chunk writes
+  // its own box of the planes, so the chunks of a row are decoded at once through `run`.
+  for (std::int64_t z0 = z_begin / cz * cz; z0 < z_end; z0 += cz) {
+    const std::int64_t za = std::max(z0, z_begin), zb = std::min({z_end, z0 + cz, dims[2]});
+    std::mutex failed_mutex;
+    std::exception_ptr failed;
+    std::atomic<bool> stopped{false};
+    run_loop(run, static_cast<std::size_t>(rows_y * rows_x), [&](std::size_t k) {
+      try {
+        if (stopped.load(std::memory_order_relaxed)) return;
+        if (stop && stop()) {
+          stopped.store(true, std::memory_order_relaxed);
+          return;
+        }
+        std::vector<std::int64_t> index = place.index;
+        const std::int64_t y0 = static_cast<std::int64_t>(k) / rows_x * cy;
+        const std::int64_t x0 = static_cast<std::int64_t>(k) % rows_x * cx;
         index[n - 3] = z0 / cz;
         index[n - 2] = y0 / cy;
         index[n - 1] = x0 / cx;
-        if (stop && stop()) return std::nullopt;
         const fs::path file = chunk_path(a, index);
         std::error_code ec;
         const fs::file_status st = fs::symlink_status(file, ec);
-        if (ec || st.type() == fs::file_type::not_found) continue;  // missing: fill_value
-        decode_chunk(a, file, chunk);
-        const std::int64_t z1 = std::min(dims[2], z0 + cz), y1 = std::min(dims[1], y0 + cy),
-                           x1 = std::min(dims[0], x0 + cx);
-        const auto run = static_cast<std::size_t>(x1 - x0);
-        for (std::int64_t z = z0; z < z1; ++z) {
+        const bool missing = ec || st.type() == fs::file_type::not_found;  // fill_value
+        std::vector<std::byte> chunk;
+        if (!missing) decode_chunk(a, file, chunk);
+        const std::int64_t y1 = std::min(dims[1], y0 + cy), x1 = std::min(dims[0], x0 + cx);
+        const auto width = static_cast<std::size_t>(x1 - x0);
+        for (std::int64_t z = za; z < zb; ++z) {
           for (std::int64_t y = y0; y < y1; ++y) {
-            const std::uint64_t from = base + static_cast<std::uint64_t>(z - z0) * stride[n - 3] +
+            std::byte* to =
+                out.data() + ((static_cast<std::size_t>(z - z_begin) * ny +
+                               static_cast<std::size_t>(y)) *
+                                  nx +
+                              static_cast<std::size_t>(x0)) *
+                                 item;
+            if (missing) {
+              for (std::size_t x = 0; x < width; ++x) std::memcpy(to + x * item, fill.data(), item);
+              continue;
+            }
+            const std::uint64_t from = place.base +
+                                       static_cast<std::uint64_t>(z - z0) * stride[n - 3] +
                                        static_cast<std::uint64_t>(y - y0) * stride[n - 2];
-            std::byte* to = out.data() +
-                            ((static_cast<std::size_t>(z) * ny + static_cast<std::size_t>(y)) * nx +
-                             static_cast<std::size_t>(x0)) *
-                                item;
             if (stride[n - 1] == 1) {
-              std::memcpy(to, chunk.data() + from * item, run * item);
+              std::memcpy(to, chunk.data() + from * item, width * item);
             } else {
-              for (std::size_t x = 0; x < run; ++x) {
+              for (std::size_t x = 0; x < width; ++x) {
                 std::memcpy(to + x * item, chunk.data() + (from + x * stride[n - 1]) * item, item);
               }
             }
             if (swap) {
-              for (std::size_t x = 0; x < run; ++x) {
+              for (std::size_t x = 0; x < width; ++x) {
                 std::reverse(to + x * item, to + (x + 1) * item);
               }
             }
           }
         }
+      } catch (...) {
+        const std::lock_guard<std::mutex> lock(failed_mutex);
+        // The first failure in chunk order would need every chunk tried; any one names its file.
+        if (!failed) failed = std::current_exception();
+        stopped.store(true, std::memory_order_relaxed);
       }
-    }
+    });
+    if (failed) std::rethrow_exception(failed);
+    if (stopped.load(std::memory_order_relaxed)) return false;
   }
+  return true;
+}
+
+std::optional<std::vector<std::byte>> read_zarr_samples(const zarr_image& image, std::size_t level,
+                                                        std::int64_t volume,
+                                                        const std::function<bool()>& stop) {
+  check_zarr_chunks(image, level, volume);
+  const zarr_level& a = image.levels[level];
+  const index3 dims = a.dims();
+  std::vector<std::byte> out(static_cast<std::size_t>(dims[0] * dims[1] * dims[2]) *
+                             sample_size(a.type));
+  if (!read_zarr_planes(image, level, volume, 0, dims[2], out, {}, stop)) return std::nullopt;
   return out;
 }
 

@@ -3,7 +3,8 @@
 // a shared volume, whose surface crosses every rank's share, and on a raw file of a size that N
 // does not divide), the finest surface and error-driven cuts alike, and a deadline gives the
 // single process's cut of the threshold its last common round reached; an error cut's hierarchy
-// stream cuts to the same mesh; a .pvtp holds one piece per rank, which VTK's reader (ParaView's)
+// stream cuts to the same mesh; a Zarr level's ranks each decode only the chunk rows of their
+// planes (and the two planes after them), to the same file; a .pvtp holds one piece per rank, which VTK's reader (ParaView's)
 // reads as the single process's triangles; a goal the ranks cannot share yet, and a missing input,
 // give one error line and a failing status; a rank killed mid-run ends the job (no hang) without an
 // output or a temporary left behind. Skipped where the command was built without MPI or mpiexec is
@@ -21,6 +22,7 @@
 #include "support/io_test_helpers.hpp"
 #include "support/scratch_dir.hpp"
 #include "support/test_data.hpp"
+#include "support/zarr_files.hpp"
 
 namespace progiso {
 namespace {
@@ -179,6 +181,57 @@ std::uint64_t polys_of(const fs::path& vtp) {
   const std::size_t at = text.find(key);
   if (at == std::string::npos) return 0;
   return std::stoull(text.substr(at + key.size()));
+}
+
+TEST_F(Mpi, each_rank_decodes_only_the_chunk_rows_of_its_planes_of_a_zarr_level) {
+  // 61 planes (no rank count here divides them) of 120 × 110 in chunks of 4 planes, two per row.
+  const fs::path zarr = dir_.path() / "w.zarr";
+  const fs::path raw = dir_.path() / "w.raw";
+  const auto value = [](std::int64_t x, std::int64_t y, std::int64_t z) {
+    return static_cast<std::uint8_t>((x * 7 + y * 11 + z * 13 + (x * y) % 17 + (y * z) % 19) %
+                                     256);
+  };
+  test::write_zarr_array(zarr, {120, 110, 61}, {60, 110, 4}, "|u1", 1,
+                         [&](std::int64_t x, std::int64_t y, std::int64_t z, std::byte* out) {
+                           *out = static_cast<std::byte>(value(x, y, z));
+                         });
+  std::string bytes;
+  for (std::int64_t z = 0; z < 61; ++z) {
+    for (std::int64_t y = 0; y < 110; ++y) {
+      for (std::int64_t x = 0; x < 120; ++x) bytes += static_cast<char>(value(x, y, z));
+    }
+  }
+  test::write_file(raw, bytes);
+  const test::bounded_result single = test::run_bounded(
+      PROGISO_CLI,
+      {"extract", raw.string(), "--dims", "120,110,61", "--type", "u8", "--iso", "127.5", "--full",
+       "-o", (dir_.path() / "single.ply").string()},
+      runs_.path());
+  ASSERT_EQ(single.status, 0) << single.err;
+  const std::string want = test::read_whole(dir_.path() / "single.ply");
+  ASSERT_GT(want.size(), 1000U);
+  const std::uint64_t plane = 120 * 110;
+  for (const int ranks : {1, 2, 4}) {
+    SCOPED_TRACE(std::to_string(ranks) + " ranks");
+    const test::bounded_result r = test::run_bounded(
+        PROGISO_MPIEXEC,
+        mpi_args(ranks, {"extract", zarr.string(), "--iso", "127.5", "--full", "--threads", "1",
+                         "-o", (dir_.path() / "mpi.ply").string(), "--stats-json",
+                         (dir_.path() / "mpi.json").string()}),
+        runs_.path());
+    ASSERT_EQ(r.status, 0) << r.err;
+    EXPECT_TRUE(test::read_whole(dir_.path() / "mpi.ply") == want)
+        << "another file than one process's";
+    // Rank 0 held its planes and the two after them, rounded out to chunk rows, not the level.
+    const std::string stats = test::read_whole(dir_.path() / "mpi.json");
+    const std::string held = json_field(stats, "rank0_window_bytes");
+    ASSERT_FALSE(held.empty()) << stats;
+    const auto planes = static_cast<std::uint64_t>(61 / ranks + 2 + 3 + 1);
+    EXPECT_LE(std::stoull(held), planes * plane + 8192) << stats;
+    if (ranks == 4) {
+      EXPECT_LT(std::stoull(held), 61 * plane / 2) << stats;
+    }
+  }
 }
 
 TEST_F(Mpi, a_pvtp_holds_one_piece_per_rank_that_vtk_reads_as_the_single_process_surface) {

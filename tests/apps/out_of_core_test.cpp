@@ -6,7 +6,9 @@
 // are refused under that limit: the limit is real, and the mapping is what lets the first run
 // through. The finest surface of a grid beyond detail::finest_whole_grid_bytes points is made in
 // slabs and streamed to the PLY through scratch files, under the same limit: the file is the one
-// the whole surface gives; with --normals it is held whole, its passes still in slabs.
+// the whole surface gives; with --normals it is held whole, its passes still in slabs. A Zarr
+// level, which must be decoded, is read in windows of planes for its finest surface under the
+// same limit (and refused whole).
 
 #include <cmath>
 #include <cstdint>
@@ -23,6 +25,7 @@
 
 #include "support/bounded_run.hpp"
 #include "support/scratch_dir.hpp"
+#include "support/zarr_files.hpp"
 
 namespace progiso {
 namespace {
@@ -105,6 +108,64 @@ TEST(OutOfCore, a_mapped_volume_larger_than_the_allowed_memory_refines_to_the_sa
   EXPECT_NE(read_run.status, 0);
   EXPECT_NE(read_run.err.find("out of memory"), std::string::npos) << read_run.err;
   EXPECT_FALSE(fs::exists(dir.path() / "read.ply"));
+#endif
+}
+
+TEST(OutOfCore, a_zarr_level_larger_than_the_allowed_memory_is_read_in_windows_to_its_surface) {
+#if defined(PROGISO_SANITIZER_BUILD)
+  GTEST_SKIP() << "sanitizer builds run without memory limits (their shadow memory)";
+#else
+  // The ball of the first test as a Zarr array (uncompressed chunks of 32 planes, two per row):
+  // nothing maps a chunked level, so its samples must be decoded into memory. The finest surface
+  // is made share by share over windows of planes, under the same limit, to the file the raw
+  // input gives; an error goal, which reads the level whole, cannot run under it.
+  const test::scratch_dir dir("progiso-out-of-core-");
+  const test::scratch_dir runs("progiso-out-of-core-runs-");
+  const fs::path raw = dir.path() / "ball.raw";
+  write_ball(raw);
+  const fs::path zarr = dir.path() / "ball.zarr";
+  {
+    const std::string bytes = test::read_whole(raw);
+    test::write_zarr_array(zarr, {n, n, n}, {n, n / 2, 32}, "|u1", 1,
+                           [&](std::int64_t x, std::int64_t y, std::int64_t z, std::byte* out) {
+                             *out = static_cast<std::byte>(
+                                 bytes[static_cast<std::size_t>((z * n + y) * n + x)]);
+                           });
+  }
+  test::bounds capped = test::limited(std::chrono::seconds(240));
+  capped.data_bytes = cap;
+  const std::string dims = std::to_string(n) + "," + std::to_string(n) + "," + std::to_string(n);
+  const test::bounded_result from_raw = test::run_bounded(
+      PROGISO_CLI,
+      {"extract", raw.string(), "--dims", dims, "--type", "u8", "--iso", "40", "--full", "-o",
+       (dir.path() / "raw.ply").string()},
+      runs.path());
+  ASSERT_EQ(from_raw.status, 0) << from_raw.err;
+  const auto zarr_args = [&](const std::string& goal, const std::string& out) {
+    std::vector<std::string> a{"extract", zarr.string(), "--iso", "40", goal};
+    if (goal == "--error") a.emplace_back("0.5");
+    a.insert(a.end(), {"--threads", "2", "-o", (dir.path() / out).string(), "--stats-json",
+                       (dir.path() / (out + ".json")).string()});
+    return a;
+  };
+  const test::bounded_result windowed =
+      test::run_bounded(PROGISO_CLI, zarr_args("--full", "zarr.ply"), runs.path(), capped);
+  ASSERT_EQ(windowed.status, 0) << windowed.err;
+  EXPECT_TRUE(test::read_whole(dir.path() / "zarr.ply") == test::read_whole(dir.path() / "raw.ply"))
+      << "the windowed Zarr level gave another surface than its raw samples";
+  const std::string stats = test::read_whole(dir.path() / "zarr.ply.json");
+  EXPECT_NE(stats.find("\"windowed\": true"), std::string::npos) << stats;
+  const std::size_t at = stats.find("\"window_peak_bytes\": ");
+  ASSERT_NE(at, std::string::npos) << stats;
+  const std::uint64_t peak = std::stoull(stats.substr(at + 21));
+  EXPECT_GT(peak, 0U);
+  EXPECT_LT(peak, volume_bytes / 2) << stats;
+
+  const test::bounded_result whole =
+      test::run_bounded(PROGISO_CLI, zarr_args("--error", "whole.ply"), runs.path(), capped);
+  EXPECT_NE(whole.status, 0);
+  EXPECT_NE(whole.err.find("out of memory"), std::string::npos) << whole.err;
+  EXPECT_FALSE(fs::exists(dir.path() / "whole.ply"));
 #endif
 }
 

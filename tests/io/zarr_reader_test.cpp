@@ -14,9 +14,15 @@
 #include <zlib.h>
 #include <zstd.h>
 
+#include <unistd.h>
+
+#include <algorithm>
 #include <cstdint>
+#include <cstdio>
 #include <cstdlib>
 #include <cstring>
+#include <limits>
+#include <optional>
 #include <filesystem>
 #include <fstream>
 #include <string>
@@ -26,6 +32,7 @@
 
 #include "support/io_test_helpers.hpp"
 #include "support/scratch_dir.hpp"
+#include "support/zarr_files.hpp"
 
 namespace progiso {
 namespace {
@@ -275,6 +282,147 @@ TEST(ZarrReader, hostile_images_give_one_error_naming_the_file) {
              "\"0\"}]}]}");
   EXPECT_TRUE(contains(test::error_message_naming(m / ".zattrs", [&] { (void)read_zarr(m); }),
                        "is spatial"));
+}
+
+// ---- Plane windows (volume_source::window()): the level a few planes at a time.
+
+// Planes [z0, z1) of `w`'s field against `want` (the whole level's bytes, x fastest).
+void expect_planes(const plane_window& w, const std::string& want, std::int64_t z0,
+                   std::int64_t z1, const std::string& what) {
+  const volume& f = w.field();
+  const std::size_t plane = static_cast<std::size_t>(f.dims()[0] * f.dims()[1]) *
+                            sample_size(f.type());
+  ASSERT_EQ(want.size(), plane * static_cast<std::size_t>(f.dims()[2])) << what;
+  const std::size_t from = plane * static_cast<std::size_t>(z0);
+  const std::size_t n = plane * static_cast<std::size_t>(z1 - z0);
+  EXPECT_EQ(std::memcmp(f.bytes() + from, want.data() + from, n), 0)
+      << what << ": planes " << z0 << " to " << z1 - 1;
+}
+
+TEST(PlaneWindow, windows_hold_the_planes_numpy_holds_for_every_codec_layout_and_level) {
+  if (!have_zarr()) GTEST_SKIP() << "python3 with zarr and numcodecs not found";
+  const scratch_dir dir;
+  ASSERT_TRUE(run_python(dir, zarr_images));
+  struct image {
+    std::string name;
+    int level, volume;
+  };
+  std::vector<image> images;
+  for (int level = 0; level < 3; ++level) {
+    for (int t = 0; t < 2; ++t) images.push_back({"ome", level, t});
+  }
+  for (const char* name : {"zstd", "zlib", "gzip", "raw", "fortran", "nested", "holes"}) {
+    images.push_back({name, 0, 0});
+  }
+  for (const image& im : images) {
+    const fs::path path = dir.path() / (im.name + ".zarr");
+    const volume_choice choice{std::nullopt, im.name == "ome" ? std::optional<std::int64_t>(im.volume)
+                                                             : std::nullopt,
+                               im.level};
+    const volume whole = read_zarr(path, choice);
+    const std::string want = expected_bytes(dir, im.name, im.level, im.volume);
+    // Windows of 1, 2 and 5 planes going forward, then one going back (held again from nothing).
+    for (const std::int64_t step : {1, 2, 5}) {
+      const std::string what = im.name + " level " + std::to_string(im.level) + " volume " +
+                               std::to_string(im.volume) + ", windows of " + std::to_string(step);
+      volume_source source(path, std::nullopt, choice);
+      std::optional<plane_window> w = source.window();
+      ASSERT_TRUE(w.has_value()) << what;
+      const volume& f = w->field();
+      EXPECT_EQ(f.dims(), whole.dims()) << what;
+      EXPECT_EQ(f.type(), whole.type()) << what;
+      EXPECT_EQ(f.spacing(), whole.spacing()) << what;
+      EXPECT_EQ(f.origin(), whole.origin()) << what;
+      const std::int64_t nz = f.dims()[2];
+      for (std::int64_t z = 0; z < nz; z += step) {
+        const std::int64_t end = std::min(nz, z + step);
+        w->hold(z, end);
+        expect_planes(*w, want, z, end, what);
+      }
+      w->hold(0, std::min<std::int64_t>(nz, 2));
+      expect_planes(*w, want, 0, std::min<std::int64_t>(nz, 2), what + ", back to the start");
+      const auto [lo, hi] = whole.value_range();
+      EXPECT_LE(w->range_seen()[0], hi) << what;
+      EXPECT_GE(w->range_seen()[1], lo) << what;
+    }
+  }
+  // The whole level seen: the range is the volume's.
+  volume_source source(dir.path() / "zlib.zarr", std::nullopt);
+  std::optional<plane_window> w = source.window();
+  ASSERT_TRUE(w.has_value());
+  w->hold(0, w->field().dims()[2]);
+  EXPECT_EQ(w->range_seen(), read_zarr(dir.path() / "zlib.zarr").value_range());
+}
+
+TEST(PlaneWindow, memory_follows_the_window_and_planes_given_back_are_unreadable) {
+  const scratch_dir dir;
+  const index3 dims{200, 160, 64};
+  const auto sample = [](std::int64_t x, std::int64_t y, std::int64_t z) {
+    return static_cast<std::uint8_t>((x * 3 + y * 5 + z * 7 + (x * z) % 11) % 251);
+  };
+  // Chunks of 4 planes, two per row; chunk (z 3, y 1, x 0) is missing: fill_value 0.
+  test::write_zarr_array(
+      dir.path() / "a.zarr", dims, {100, 80, 4}, "|u1", 1,
+      [&](std::int64_t x, std::int64_t y, std::int64_t z, std::byte* out) {
+        *out = static_cast<std::byte>(sample(x, y, z));
+      },
+      {{3, 1, 0}});
+  volume_source source(dir.path() / "a.zarr", std::nullopt);
+  std::optional<plane_window> w = source.window();
+  ASSERT_TRUE(w.has_value());
+  EXPECT_EQ(w->chunk_planes(), 4);
+  const volume& f = w->field();
+  const std::uint64_t plane = 200 * 160;
+  const std::uint64_t page = static_cast<std::uint64_t>(sysconf(_SC_PAGESIZE));
+  for (std::int64_t z = 0; z + 6 <= dims[2]; z += 3) {
+    w->hold(z, z + 6);
+    for (std::int64_t q = z; q < z + 6; ++q) {
+      for (std::int64_t y = 0; y < dims[1]; y += 7) {
+        for (std::int64_t x = 0; x < dims[0]; x += 3) {
+          const bool hole = q / 4 == 3 && y >= 80 && x < 100;
+          ASSERT_EQ(f.value(x, y, q), hole ? 0.0 : static_cast<double>(sample(x, y, q)))
+              << x << " " << y << " " << q;
+        }
+      }
+    }
+  }
+  // Held at once: a window of 6 planes, rounded out to whole chunk rows (at most 3 more), and
+  // the pages the first and last planes share with planes not held.
+  EXPECT_LE(w->peak_bytes(), (6 + 3) * plane + 2 * page);
+  EXPECT_LT(w->peak_bytes(), f.byte_size() / 5);
+  // A plane given back is no longer mapped: reading it ends the process.
+  GTEST_FLAG_SET(death_test_style, "threadsafe");
+  EXPECT_DEATH(
+      {
+        const double v = f.value(0, 0, 0);
+        std::fprintf(stderr, "read %g\n", v);
+      },
+      "");
+  // Raw inputs (mapped or read whole) have no window.
+  test::write_file(dir.path() / "r.raw", std::string(8 * 8 * 8, '\1'));
+  EXPECT_FALSE(volume_source(dir.path() / "r.raw", raw_layout{{8, 8, 8}, sample_type::u8})
+                   .window()
+                   .has_value());
+}
+
+TEST(PlaneWindow, a_non_finite_sample_is_refused_when_its_plane_is_decoded) {
+  const scratch_dir dir;
+  const fs::path path = dir.path() / "f.zarr";
+  test::write_zarr_array(path, {20, 20, 30}, {20, 20, 5}, "<f4", 4,
+                         [](std::int64_t x, std::int64_t y, std::int64_t z, std::byte* out) {
+                           const float v = x == 3 && y == 2 && z == 17
+                                               ? std::numeric_limits<float>::quiet_NaN()
+                                               : static_cast<float>(x + y + z);
+                           std::memcpy(out, &v, sizeof v);
+                         });
+  volume_source source(path, std::nullopt);
+  std::optional<plane_window> w = source.window();
+  ASSERT_TRUE(w.has_value());
+  w->hold(0, 15);  // the NaN's chunk row is not decoded
+  EXPECT_EQ(w->field().value(19, 19, 14), 52.0);
+  const std::string message = test::error_message_naming(path, [&] { w->hold(15, 20); });
+  EXPECT_TRUE(contains(message, "expected finite samples")) << message;
+  EXPECT_TRUE(contains(message, "x 3, y 2, z 17")) << message;
 }
 
 }  // namespace

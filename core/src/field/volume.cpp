@@ -98,6 +98,15 @@ volume volume::borrow(index3 dims, sample_type type, std::span<const std::byte> 
   return v;
 }
 
+volume volume::borrow_unscanned(index3 dims, sample_type type, std::span<const std::byte> samples,
+                                std::shared_ptr<const void> keeper, std::array<double, 3> spacing,
+                                std::array<double, 3> origin, std::array<double, 2> range) {
+  volume v(dims, type, std::move(keeper), samples.data(), samples.size(), true, spacing, origin);
+  v.check_layout();
+  v.range_ = range;
+  return v;
+}
+
 void volume::check_layout() const {
   for (std::size_t a = 0; a < 3; ++a) {
     // x and y need two samples; z may be 1 (a 2D image is a volume one sample thick).

@@ -239,8 +239,13 @@ class finest_mesher {
     const auto z_end = static_cast<std::size_t>(stop.z_end < 0 ? nz_ : stop.z_end);
     PROGISO_ASSERT(z_begin <= z_end && z_end <= static_cast<std::size_t>(nz_));
     const bool whole = z_begin == 0 && z_end == static_cast<std::size_t>(nz_);
+    // A share's slabs are no larger than the share: what a rank or a window holds follows its
+    // planes, not the grid's.
     const auto planes = static_cast<std::size_t>(
-        hooked ? nz_ : detail::finest_slab_planes({nx_, ny_, nz_}, stop.slab_bytes));
+        hooked ? nz_
+               : std::min<std::int64_t>(
+                     detail::finest_slab_planes({nx_, ny_, nz_}, stop.slab_bytes),
+                     std::max<std::int64_t>(1, static_cast<std::int64_t>(z_end - z_begin))));
     const std::size_t slabs = (z_end - z_begin + planes - 1) / planes;
     // A slab's planes, and the one after it when there is one (the next slab's, or the next
     // share's).

@@ -264,7 +264,47 @@ struct index_to_world {
 
 namespace detail {
 struct volume_source_state;
+struct plane_window_state;
 }  // namespace detail
+
+/// A level of a chunked input (an OME-Zarr image or a Zarr array) read a window of z planes at a
+/// time, for passes that go through the grid in z order and read a few planes at once: the
+/// finest surface made share by share (detail::finest_share), an MPI rank's planes. field() is
+/// the whole level's grid, but only the planes held are in memory: the level is reserved as
+/// address space, and hold() commits, decodes and gives back planes, so the memory held is the
+/// window's planes (rounded out to whole chunk rows, since a chunk decodes whole), not the
+/// level's. A plane not held is not mapped: reading it ends the process, so a pass that reads
+/// beyond its window cannot go unnoticed. Move-only; not for concurrent hold() calls (passes
+/// may read the held planes from any thread between them).
+class plane_window {
+ public:
+  explicit plane_window(std::unique_ptr<detail::plane_window_state> state) noexcept;
+  plane_window(plane_window&&) noexcept;
+  plane_window& operator=(plane_window&&) noexcept;
+  plane_window(const plane_window&) = delete;
+  plane_window& operator=(const plane_window&) = delete;
+  ~plane_window();
+
+  /// The level: its grid, sample type, spacing and origin; its samples readable in the planes
+  /// held. Its value_range() is the sample type's (see range_seen()).
+  [[nodiscard]] const volume& field() const noexcept;
+  /// The z planes of one chunk row: the unit of decoding.
+  [[nodiscard]] std::int64_t chunk_planes() const noexcept;
+  /// Makes planes [z_begin, z_end) readable (0 ≤ z_begin ≤ z_end ≤ dims[2]) and gives back the
+  /// memory of every plane below z_begin. The chunk rows of planes not yet held are decoded,
+  /// their chunks at once through `run`; a window that does not go forward (z_begin below the
+  /// last one's) starts again from nothing. Throws progiso::error naming the chunk file as the
+  /// reader does, naming the array for a non-finite sample (its x, y, z) or when the planes'
+  /// memory cannot be had (a limit on the process's data).
+  void hold(std::int64_t z_begin, std::int64_t z_end, const parallel_loop& run = {});
+  /// The smallest and largest sample of every plane decoded so far ({+inf, −inf} before any).
+  [[nodiscard]] std::array<double, 2> range_seen() const noexcept;
+  /// The most bytes of samples committed at once so far (whole pages).
+  [[nodiscard]] std::uint64_t peak_bytes() const noexcept;
+
+ private:
+  std::unique_ptr<detail::plane_window_state> state_;
+};
 
 /// An input opened the way read_volume() opens it, its header (or a DICOM directory's headers,
 /// a .pvti's piece list) parsed once: the files a read opens, the orientation the file declares,
@@ -299,6 +339,13 @@ class volume_source {
   [[nodiscard]] std::optional<volume> read_level(
       std::size_t level, std::optional<std::array<double, 3>> spacing = std::nullopt,
       const std::function<bool()>& stop = {});
+  /// The chosen level as a plane_window (a given `spacing` as read()'s), when the input is read
+  /// in chunks (OME-Zarr and Zarr); nullopt for every other input (a mapped file is already
+  /// read on demand by the kernel, and the other formats are read whole). Checks what read()
+  /// checks before anything is decoded (enough chunks present); the samples are decoded by
+  /// plane_window::hold().
+  [[nodiscard]] std::optional<plane_window> window(
+      std::optional<std::array<double, 3>> spacing = std::nullopt);
 
  private:
   std::unique_ptr<detail::volume_source_state> state_;

@@ -90,6 +90,17 @@ class volume {
                                      std::array<double, 3> origin = {0.0, 0.0, 0.0},
                                      const parallel_loop& run = {});
 
+  /// borrow() for samples that the caller checks itself, possibly not all readable yet: no
+  /// sample is read here or by value_range(), which returns `range` (a bound on the samples the
+  /// caller will let be read). A plane window (io's volume_source::window()) makes its planes
+  /// readable as a pass reaches them, checking each for non-finite samples as it decodes it.
+  [[nodiscard]] static volume borrow_unscanned(index3 dims, sample_type type,
+                                               std::span<const std::byte> samples,
+                                               std::shared_ptr<const void> keeper,
+                                               std::array<double, 3> spacing,
+                                               std::array<double, 3> origin,
+                                               std::array<double, 2> range);
+
   [[nodiscard]] const index3& dims() const noexcept { return dims_; }
   [[nodiscard]] sample_type type() const noexcept { return type_; }
   [[nodiscard]] const std::array<double, 3>& spacing() const noexcept { return spacing_; }

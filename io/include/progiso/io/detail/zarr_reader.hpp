@@ -36,8 +36,10 @@
 #include <filesystem>
 #include <functional>
 #include <optional>
+#include <span>
 #include <vector>
 
+#include <progiso/core/base/parallel_loop.hpp>
 #include <progiso/core/field/volume.hpp>
 #include <progiso/io/volume_io.hpp>
 
@@ -75,6 +77,19 @@ struct zarr_image {
 [[nodiscard]] bool is_zarr_directory(const std::filesystem::path& dir);
 /// Reads and checks the metadata of the image or array at `dir` (see the file comment).
 [[nodiscard]] zarr_image read_zarr_header(const std::filesystem::path& dir);
+/// Throws progiso::error naming the array unless enough chunk files of volume `volume` of level
+/// `level` are present to size it by (at least one in 64; see read_zarr_samples()).
+void check_zarr_chunks(const zarr_image& image, std::size_t level, std::int64_t volume);
+/// Planes [z_begin, z_end) of volume `volume` of level `level` into `out`, which holds exactly
+/// their bytes (x fastest, host byte order), missing chunks filled: only the chunks whose planes
+/// meet the range are decoded, those of one chunk row at once through `run` (each writes its own
+/// box). false, with `out` partly written, when `stop` (asked before each chunk, when not empty)
+/// answered true. Throws as read_zarr_samples() for a chunk; does not check the chunks' presence
+/// (check_zarr_chunks() does, once).
+[[nodiscard]] bool read_zarr_planes(const zarr_image& image, std::size_t level,
+                                    std::int64_t volume, std::int64_t z_begin, std::int64_t z_end,
+                                    std::span<std::byte> out, const parallel_loop& run = {},
+                                    const std::function<bool()>& stop = {});
 /// The samples of volume `volume` (0 ≤ volume < image.volumes) of level `level`, x fastest, in
 /// host byte order, missing chunks filled; nullopt when `stop` (asked before each chunk, when not
 /// empty) answers true. Throws progiso::error naming the chunk file for a chunk that is too
