@@ -130,6 +130,8 @@ struct setup {
   std::optional<detail::atomic_output> piece_out;
   // A chunked input's finest surface: the level in a window holding this rank's planes alone.
   std::optional<plane_window> window;
+  // --world: the orientation the input declares; each rank maps its own vertices.
+  std::optional<index_to_world> world;
 };
 
 /// Rank r's piece of a .pvtp: X_r.vtp beside X.pvtp (the index names it relative to itself).
@@ -155,10 +157,10 @@ void set_up(setup& s, const std::vector<std::string>& args, int rank, int size) 
         "--by-priority: under MPI a deadline refines by rounds of falling error thresholds, the "
         "same on every rank");
   }
-  if (a.world || a.options.normals || (a.hierarchy && !error_goal)) {
+  if (a.options.normals || (a.hierarchy && !error_goal)) {
     throw error(
-        "under MPI, extract writes positions alone (--world and --normals are not built across "
-        "ranks yet), and --hierarchy only with --error");
+        "under MPI, extract writes positions alone (--normals is not built across ranks yet), "
+        "and --hierarchy only with --error");
   }
   if (error_goal && a.smooth.active()) {
     throw error(
@@ -181,6 +183,7 @@ void set_up(setup& s, const std::vector<std::string>& args, int rank, int size) 
   if (a.dims) raw = raw_layout{*a.dims, *a.type, a.big_endian};
   std::optional<volume_source> source;
   if (!a.demo) source.emplace(*a.input, raw, volume_choice{a.series, a.volume, a.level});
+  s.world = asked_world(a.world, source ? &*source : nullptr, a.demo ? "demo" : *a.input);
   if (rank == 0) {
     std::vector<std::filesystem::path> inputs;
     if (source) inputs = source->files();
@@ -215,6 +218,7 @@ void set_up(setup& s, const std::vector<std::string>& args, int rank, int size) 
     s.iso = *a.iso;
   }
   s.field = smoothed_field(s.data, a.smooth, s.input);
+  if (rank == 0) check_float_range(*a.output, *s.data, s.world);
 }
 
 /// A threshold as the command reads it back exactly (JSON null for none).
@@ -482,6 +486,7 @@ int run_error_cut(setup& s, int rank, int size, unsigned threads,
     mesh = detail::mesh_of_shares(hier, field, s.iso, shares, loop, parts);
   });
   shares.clear();
+  if (s.world) to_world(mesh, *s.data, *s.world);
   detail::write_mesh_to(*s.mesh_out, mesh);
   const double total_ms = ms_since(t0);
   if (s.stats_out) {
@@ -594,6 +599,7 @@ int run_mpi_extract(const std::vector<std::string>& args) {
         detail::finest_surface_pieces(
             field, s.iso, loop, parts, {},
             [&](triangle_mesh& piece, std::uint64_t) {
+              if (s.world) to_world(piece, *s.data, *s.world);
               mine.vertices.insert(mine.vertices.end(), piece.vertices.begin(),
                                    piece.vertices.end());
               mine.triangles.insert(mine.triangles.end(), piece.triangles.begin(),
@@ -618,6 +624,7 @@ int run_mpi_extract(const std::vector<std::string>& args) {
         detail::finest_surface_pieces(
             field, s.iso, loop, parts, {},
             [&](triangle_mesh& piece, std::uint64_t) {
+              if (s.world) to_world(piece, *s.data, *s.world);
               detail::append_ply_records(name, piece, vertices, faces);
             },
             0, share);

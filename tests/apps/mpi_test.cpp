@@ -4,11 +4,13 @@
 // does not divide), the finest surface and error-driven cuts alike, and a deadline gives the
 // single process's cut of the threshold its last common round reached; an error cut's hierarchy
 // stream cuts to the same mesh; a Zarr level's ranks each decode only the chunk rows of their
-// planes (and the two planes after them), to the same file; a .pvtp holds one piece per rank, which VTK's reader (ParaView's)
+// planes (and the two planes after them), to the same file; --world maps every output as one
+// process does (a mirrored, sheared NRRD); a .pvtp holds one piece per rank, which VTK's reader (ParaView's)
 // reads as the single process's triangles; a goal the ranks cannot share yet, and a missing input,
 // give one error line and a failing status; a rank killed mid-run ends the job (no hang) without an
 // output or a temporary left behind. Skipped where the command was built without MPI or mpiexec is
 // missing.
+#include <algorithm>
 #include <cstdint>
 #include <cstdlib>
 #include <filesystem>
@@ -275,6 +277,72 @@ TEST_F(Mpi, a_pvtp_holds_one_piece_per_rank_that_vtk_reads_as_the_single_process
     GTEST_SKIP() << "the pieces' counts checked; python3 with vtk (python3-vtk9) not found to read "
                     "them as ParaView does";
   }
+}
+
+TEST_F(Mpi, world_coordinates_are_the_single_process_ones_in_every_output) {
+  // A NRRD whose space directions turn, shear and mirror the grid (det < 0: windings reverse).
+  const fs::path raw = dir_.path() / "w.raw";
+  std::string bytes;
+  for (int z = 0; z < 37; ++z) {
+    for (int y = 0; y < 29; ++y) {
+      for (int x = 0; x < 31; ++x) {
+        bytes += static_cast<char>((x * 7 + y * 11 + z * 13 + (x * y) % 17 + (y * z) % 19) % 256);
+      }
+    }
+  }
+  test::write_file(raw, bytes);
+  const fs::path nhdr = dir_.path() / "w.nhdr";
+  test::write_file(nhdr,
+                   "NRRD0004\ntype: uint8\ndimension: 3\nsizes: 31 29 37\n"
+                   "space: left-posterior-superior\n"
+                   "space directions: (0,0.9,0.1) (1.1,0,0) (0,0.2,-1.2)\n"
+                   "space origin: (10,-20,30)\nencoding: raw\ndata file: w.raw\n");
+  for (const std::vector<std::string>& goal :
+       {std::vector<std::string>{"--full"}, std::vector<std::string>{"--error", "6"}}) {
+    SCOPED_TRACE(goal[0]);
+    const auto args = [&](const fs::path& out) {
+      std::vector<std::string> a{"extract", nhdr.string(), "--iso", "127.5", "--world"};
+      a.insert(a.end(), goal.begin(), goal.end());
+      a.insert(a.end(), {"-o", out.string(), "--threads", "1"});
+      return a;
+    };
+    const fs::path single = dir_.path() / "single.ply";
+    const test::bounded_result one = test::run_bounded(PROGISO_CLI, args(single), runs_.path());
+    ASSERT_EQ(one.status, 0) << one.err;
+    const std::string want = test::read_whole(single);
+    ASSERT_GT(want.size(), 1000U);
+    // Not the grid's physical coordinates: the map is applied.
+    std::vector<std::string> plain = args(dir_.path() / "plain.ply");
+    plain.erase(std::find(plain.begin(), plain.end(), "--world"));
+    ASSERT_EQ(test::run_bounded(PROGISO_CLI, plain, runs_.path()).status, 0);
+    EXPECT_FALSE(test::read_whole(dir_.path() / "plain.ply") == want);
+    for (const int ranks : {1, 2, 4}) {
+      SCOPED_TRACE(std::to_string(ranks) + " ranks");
+      const fs::path out = dir_.path() / "mpi.ply";
+      const test::bounded_result r =
+          test::run_bounded(PROGISO_MPIEXEC, mpi_args(ranks, args(out)), runs_.path());
+      ASSERT_EQ(r.status, 0) << r.err;
+      EXPECT_TRUE(test::read_whole(out) == want) << "another file than one process's";
+    }
+  }
+  // Pieces: VTK reads the same oriented triangles as the single process's .vtp.
+  if (std::string_view(PROGISO_VTK_PYTHON).empty()) return;
+  const auto full = [&](const fs::path& out) {
+    return std::vector<std::string>{"extract", nhdr.string(), "--iso",     "127.5", "--world",
+                                    "--full",  "-o",          out.string(), "--threads", "1"};
+  };
+  const fs::path whole = dir_.path() / "whole.vtp";
+  ASSERT_EQ(test::run_bounded(PROGISO_CLI, full(whole), runs_.path()).status, 0);
+  const fs::path pvtp = dir_.path() / "pieces.pvtp";
+  const test::bounded_result r =
+      test::run_bounded(PROGISO_MPIEXEC, mpi_args(3, full(pvtp)), runs_.path());
+  ASSERT_EQ(r.status, 0) << r.err;
+  const test::bounded_result check = test::run_bounded(
+      PROGISO_VTK_PYTHON,
+      {std::string(PROGISO_SOURCE_DIR) + "/tests/apps/pvtp_check.py", pvtp.string(),
+       whole.string(), "3"},
+      runs_.path());
+  EXPECT_EQ(check.status, 0) << check.out << check.err;
 }
 
 TEST_F(Mpi, refusals_give_one_error_line_and_a_failing_status) {
