@@ -32,6 +32,7 @@
 #include <span>
 #include <type_traits>
 
+#include <progiso/core/base/assert.hpp>
 #include <progiso/core/base/error.hpp>
 #include <progiso/io/detail/file_output.hpp>
 
@@ -466,8 +467,9 @@ hdf5_image header_here(const fs::path& file) {
 
 // The level's samples into `out` (its bytes), calling `progress` after each slab; with a null
 // `out`, the dataset's checks alone (before the caller allocates its bytes).
-void samples_here(const hdf5_image& image, std::size_t level, std::int64_t volume, std::byte* out,
-                  const std::function<void()>& progress) {
+hsize_t samples_here(const hdf5_image& image, std::size_t level, std::int64_t volume,
+                     std::byte* out, const std::function<void()>& progress,
+                     std::int64_t z_begin = 0, std::int64_t z_end = -1) {
   const hdf5_level& lv = image.levels.at(level);
   const std::string path = image.dataset(level, volume);
   const std::size_t sample = sample_size(image.type);
@@ -501,14 +503,16 @@ void samples_here(const hdf5_image& image, std::size_t level, std::int64_t volum
                std::to_string(static_cast<int>(max_ratio)) +
                " times smaller: a decompression bomb or a level of fill values)");
   }
-  if (out == nullptr) return;
   // Slabs of whole chunk layers (each chunk decoded once) of at most about 64 MiB.
   const hsize_t unit = f.chunk_z > 0 ? f.chunk_z : 1;
+  if (out == nullptr) return unit;
   const std::uint64_t per_unit = std::max<std::uint64_t>(plane * unit, 1);
   const hsize_t slab = unit * std::max<hsize_t>(1, (std::uint64_t{64} << 20) / per_unit);
   handle file_space(H5Dget_space(d.get()), H5Sclose);
-  for (hsize_t z = 0; z < static_cast<hsize_t>(lv.dims[2]); z += slab) {
-    const hsize_t nz = std::min<hsize_t>(slab, static_cast<hsize_t>(lv.dims[2]) - z);
+  const auto first = static_cast<hsize_t>(z_begin);
+  const auto end = static_cast<hsize_t>(z_end < 0 ? lv.dims[2] : z_end);
+  for (hsize_t z = first; z < end; z += slab) {
+    const hsize_t nz = std::min<hsize_t>(slab, end - z);
     const std::array<hsize_t, 3> start{z, 0, 0};
     const std::array<hsize_t, 3> count{nz, static_cast<hsize_t>(lv.dims[1]),
                                        static_cast<hsize_t>(lv.dims[0])};
@@ -518,13 +522,14 @@ void samples_here(const hdf5_image& image, std::size_t level, std::int64_t volum
       r.fail(path, "a readable selection", "none");
     }
     if (H5Dread(d.get(), f.memory_type, memory.get(), file_space.get(), H5P_DEFAULT,
-                out + static_cast<std::size_t>(z * plane)) < 0) {
+                out + static_cast<std::size_t>((z - first) * plane)) < 0) {
       r.fail(path, "data libhdf5 can read",
              "corrupt or truncated data in planes " + std::to_string(z) + " to " +
                  std::to_string(z + nz - 1));
     }
     progress();
   }
+  return unit;
 }
 
 // ---- The child process. libhdf5 is not memory-safe on every corrupt file (use after free in
@@ -738,22 +743,30 @@ hdf5_image read_hdf5_header(const fs::path& file) {
   return decode(file, *answer);
 }
 
-std::optional<mapped_bytes> read_hdf5_samples(const hdf5_image& image, std::size_t level,
-                                              std::int64_t volume,
-                                              const std::function<bool()>& stop) {
+std::int64_t check_hdf5_samples(const hdf5_image& image, std::size_t level, std::int64_t volume) {
+  // The dataset's type, its size against the level's and its stored bytes, in a child.
+  const std::optional<std::string> unit = in_child(
+      image.file,
+      [&](int) { return std::to_string(samples_here(image, level, volume, nullptr, [] {})); },
+      {});
+  const std::int64_t planes = unit ? std::strtoll(unit->c_str(), nullptr, 10) : 1;
+  return std::clamp<std::int64_t>(planes, 1, image.levels.at(level).dims[2]);
+}
+
+namespace {
+
+// Planes [z_begin, z_end) of `volume` at `level`, read by a child into memory shared with it
+// (the keeper unmaps it); nullopt when `stop` answered true.
+std::optional<mapped_bytes> planes_in_child(const hdf5_image& image, std::size_t level,
+                                            std::int64_t volume, std::int64_t z_begin,
+                                            std::int64_t z_end,
+                                            const std::function<bool()>& stop) {
   const hdf5_level& lv = image.levels.at(level);
   const std::uint64_t bytes = static_cast<std::uint64_t>(lv.dims[0]) *
                               static_cast<std::uint64_t>(lv.dims[1]) *
-                              static_cast<std::uint64_t>(lv.dims[2]) * sample_size(image.type);
-  // The dataset checked first (its type, its size against the level's and its stored bytes):
-  // nothing of a bomb's size is allocated.
-  (void)in_child(image.file,
-                 [&](int) {
-                   samples_here(image, level, volume, nullptr, [] {});
-                   return std::string();
-                 },
-                 {});
-  // Shared with the child, which writes the samples; the volume then owns it.
+                              static_cast<std::uint64_t>(z_end - z_begin) *
+                              sample_size(image.type);
+  // Shared with the child, which writes the samples.
   void* p = ::mmap(nullptr, static_cast<std::size_t>(bytes), PROT_READ | PROT_WRITE,
                    MAP_SHARED | MAP_ANONYMOUS, -1, 0);
   if (p == MAP_FAILED) throw std::bad_alloc();
@@ -764,16 +777,38 @@ std::optional<mapped_bytes> read_hdf5_samples(const hdf5_image& image, std::size
   const std::optional<std::string> answer = in_child(
       image.file,
       [&](int fd) {
-        samples_here(image, level, volume, out, [fd] {
-          const char mark = progress_mark;
-          (void)write_all(fd, &mark, 1);
-        });
+        (void)samples_here(
+            image, level, volume, out,
+            [fd] {
+              const char mark = progress_mark;
+              (void)write_all(fd, &mark, 1);
+            },
+            z_begin, z_end);
         return std::string();
       },
       stop);
   if (!answer) return std::nullopt;
   return mapped_bytes{std::span<const std::byte>(out, static_cast<std::size_t>(bytes)),
                       std::move(keeper)};
+}
+
+}  // namespace
+
+std::optional<mapped_bytes> read_hdf5_samples(const hdf5_image& image, std::size_t level,
+                                              std::int64_t volume,
+                                              const std::function<bool()>& stop) {
+  // The dataset checked first: nothing of a bomb's size is allocated.
+  (void)check_hdf5_samples(image, level, volume);
+  // The volume then owns the shared memory.
+  return planes_in_child(image, level, volume, 0, image.levels.at(level).dims[2], stop);
+}
+
+void read_hdf5_planes(const hdf5_image& image, std::size_t level, std::int64_t volume,
+                      std::int64_t z_begin, std::int64_t z_end, std::span<std::byte> out) {
+  const std::optional<mapped_bytes> planes =
+      planes_in_child(image, level, volume, z_begin, z_end, {});
+  PROGISO_ASSERT(planes && planes->bytes.size() == out.size());
+  std::memcpy(out.data(), planes->bytes.data(), out.size());
 }
 
 }  // namespace progiso::detail

@@ -400,17 +400,34 @@ struct hdf5_source final : source_state {
     std::optional<detail::mapped_bytes> samples =
         detail::read_hdf5_samples(image, k, volume_index, stop);
     if (!samples) return std::nullopt;
+    const auto [s, o] = level_geometry(k, spacing);
+    return borrowed_volume(image.file, l.dims, image.type, std::move(*samples), s, o);
+  }
+  std::optional<plane_window> window(const spacing_override& spacing) override {
+    const detail::hdf5_level& l = image.levels[level];
+    const std::int64_t unit = detail::check_hdf5_samples(image, level, volume_index);
+    const auto [s, o] = level_geometry(level, spacing);
+    return detail::make_plane_window(
+        image.file, l.dims, image.type, unit, s, o,
+        [this](std::int64_t z0, std::int64_t z1, std::span<std::byte> out, const parallel_loop&) {
+          detail::read_hdf5_planes(image, level, volume_index, z0, z1, out);
+        });
+  }
+  // Level k's spacing and origin: the file's, or, given level 0's spacing, scaled by its ratio
+  // (BigDataViewer's origins are in level-0 voxels, so they scale too).
+  [[nodiscard]] std::pair<std::array<double, 3>, std::array<double, 3>> level_geometry(
+      std::size_t k, const spacing_override& spacing) const {
+    const detail::hdf5_level& l = image.levels[k];
     std::array<double, 3> s = l.spacing;
     std::array<double, 3> o = l.origin;
     if (spacing) {
-      // The given spacing is level 0's: level k's is it times the file's ratio.
       for (std::size_t q = 0; q < 3; ++q) {
         const double ratio = (*spacing)[q] / image.levels[0].spacing[q];
         s[q] = l.spacing[q] * ratio;
         o[q] = l.origin[q] * ratio;
       }
     }
-    return borrowed_volume(image.file, l.dims, image.type, std::move(*samples), s, o);
+    return {s, o};
   }
 };
 

@@ -3,13 +3,13 @@
 // a shared volume, whose surface crosses every rank's share, and on a raw file of a size that N
 // does not divide), the finest surface and error-driven cuts alike, and a deadline gives the
 // single process's cut of the threshold its last common round reached; an error cut's hierarchy
-// stream cuts to the same mesh; a Zarr level's ranks each decode only the chunk rows of their
-// planes (and the two planes after them), to the same file; --world maps every output as one
-// process does (a mirrored, sheared NRRD); a .pvtp holds one piece per rank, which VTK's reader (ParaView's)
-// reads as the single process's triangles; a goal the ranks cannot share yet, and a missing input,
-// give one error line and a failing status; a rank killed mid-run ends the job (no hang) without an
-// output or a temporary left behind. Skipped where the command was built without MPI or mpiexec is
-// missing.
+// stream cuts to the same mesh; a Zarr or Imaris level's ranks each decode only the chunk rows of
+// their planes (and the two planes after them), to the same file; --world maps every output as one
+// process does (a mirrored, sheared NRRD); a .pvtp holds one piece per rank, which VTK's reader
+// (ParaView's) reads as the single process's triangles; a goal the ranks cannot share yet, and a
+// missing input, give one error line and a failing status; a rank killed mid-run ends the job (no
+// hang) without an output or a temporary left behind. Skipped where the command was built without
+// MPI or mpiexec is missing.
 #include <algorithm>
 #include <cstdint>
 #include <cstdlib>
@@ -185,13 +185,12 @@ std::uint64_t polys_of(const fs::path& vtp) {
   return std::stoull(text.substr(at + key.size()));
 }
 
-TEST_F(Mpi, each_rank_decodes_only_the_chunk_rows_of_its_planes_of_a_zarr_level) {
+TEST_F(Mpi, each_rank_decodes_only_the_chunk_rows_of_its_planes_of_a_zarr_or_imaris_level) {
   // 61 planes (no rank count here divides them) of 120 × 110 in chunks of 4 planes, two per row.
   const fs::path zarr = dir_.path() / "w.zarr";
   const fs::path raw = dir_.path() / "w.raw";
   const auto value = [](std::int64_t x, std::int64_t y, std::int64_t z) {
-    return static_cast<std::uint8_t>((x * 7 + y * 11 + z * 13 + (x * y) % 17 + (y * z) % 19) %
-                                     256);
+    return static_cast<std::uint8_t>((x * 7 + y * 11 + z * 13 + (x * y) % 17 + (y * z) % 19) % 256);
   };
   test::write_zarr_array(zarr, {120, 110, 61}, {60, 110, 4}, "|u1", 1,
                          [&](std::int64_t x, std::int64_t y, std::int64_t z, std::byte* out) {
@@ -204,34 +203,73 @@ TEST_F(Mpi, each_rank_decodes_only_the_chunk_rows_of_its_planes_of_a_zarr_level)
     }
   }
   test::write_file(raw, bytes);
-  const test::bounded_result single = test::run_bounded(
-      PROGISO_CLI,
-      {"extract", raw.string(), "--dims", "120,110,61", "--type", "u8", "--iso", "127.5", "--full",
-       "-o", (dir_.path() / "single.ply").string()},
-      runs_.path());
+  const test::bounded_result single =
+      test::run_bounded(PROGISO_CLI,
+                        {"extract", raw.string(), "--dims", "120,110,61", "--type", "u8", "--iso",
+                         "127.5", "--full", "-o", (dir_.path() / "single.ply").string()},
+                        runs_.path());
   ASSERT_EQ(single.status, 0) << single.err;
   const std::string want = test::read_whole(dir_.path() / "single.ply");
   ASSERT_GT(want.size(), 1000U);
+  // The same samples as an Imaris file (h5py; chunks of 4 planes, gzip), read by HDF5 children.
+  std::vector<fs::path> inputs{zarr};
+  if (!std::string_view(PROGISO_H5PY_PYTHON).empty()) {
+    const fs::path script = dir_.path() / "ims.py";
+    test::write_file(script, R"(import sys, h5py, numpy as np
+def text(g, k, v): g.attrs.create(k, np.array(list(v), dtype='|S1'))
+v = np.fromfile(sys.argv[1], np.uint8).reshape(61, 110, 120)
+with h5py.File(sys.argv[2], 'w') as f:
+    text(f, 'ImarisDataSet', 'ImarisDataSet')
+    i = f.create_group('DataSetInfo/Image')
+    for q, n in enumerate((120, 110, 61)):
+        text(i, 'ExtMin%d' % q, '0'); text(i, 'ExtMax%d' % q, str(n))
+    g = f.create_group('DataSet/ResolutionLevel 0/TimePoint 0/Channel 0')
+    for a, n in zip('XYZ', (120, 110, 61)): text(g, 'ImageSize' + a, str(n))
+    g.create_dataset('Data', data=v, chunks=(4, 110, 120), compression='gzip')
+)");
+    const fs::path ims = dir_.path() / "w.ims";
+    ASSERT_EQ(test::run_bounded(PROGISO_H5PY_PYTHON, {script.string(), raw.string(), ims.string()},
+                                runs_.path())
+                  .status,
+              0);
+    inputs.push_back(ims);
+  }
   const std::uint64_t plane = 120 * 110;
-  for (const int ranks : {1, 2, 4}) {
-    SCOPED_TRACE(std::to_string(ranks) + " ranks");
-    const test::bounded_result r = test::run_bounded(
-        PROGISO_MPIEXEC,
-        mpi_args(ranks, {"extract", zarr.string(), "--iso", "127.5", "--full", "--threads", "1",
-                         "-o", (dir_.path() / "mpi.ply").string(), "--stats-json",
-                         (dir_.path() / "mpi.json").string()}),
-        runs_.path());
-    ASSERT_EQ(r.status, 0) << r.err;
-    EXPECT_TRUE(test::read_whole(dir_.path() / "mpi.ply") == want)
-        << "another file than one process's";
-    // Rank 0 held its planes and the two after them, rounded out to chunk rows, not the level.
-    const std::string stats = test::read_whole(dir_.path() / "mpi.json");
-    const std::string held = json_field(stats, "rank0_window_bytes");
-    ASSERT_FALSE(held.empty()) << stats;
-    const auto planes = static_cast<std::uint64_t>(61 / ranks + 2 + 3 + 1);
-    EXPECT_LE(std::stoull(held), planes * plane + 8192) << stats;
-    if (ranks == 4) {
-      EXPECT_LT(std::stoull(held), 61 * plane / 2) << stats;
+  for (const fs::path& input : inputs) {
+    // One process's file: the raw samples' for the Zarr array (its geometry is the grid's); for
+    // Imaris, whose voxel centres sit half a voxel in, the same command in one process.
+    std::string one = want;
+    if (input.extension() == ".ims") {
+      const fs::path out = dir_.path() / "single_ims.ply";
+      ASSERT_EQ(test::run_bounded(
+                    PROGISO_CLI,
+                    {"extract", input.string(), "--iso", "127.5", "--full", "-o", out.string()},
+                    runs_.path())
+                    .status,
+                0);
+      one = test::read_whole(out);
+      ASSERT_GT(one.size(), 1000U);
+    }
+    for (const int ranks : {1, 2, 4}) {
+      SCOPED_TRACE(input.filename().string() + ", " + std::to_string(ranks) + " ranks");
+      const test::bounded_result r = test::run_bounded(
+          PROGISO_MPIEXEC,
+          mpi_args(ranks, {"extract", input.string(), "--iso", "127.5", "--full", "--threads", "1",
+                           "-o", (dir_.path() / "mpi.ply").string(), "--stats-json",
+                           (dir_.path() / "mpi.json").string()}),
+          runs_.path());
+      ASSERT_EQ(r.status, 0) << r.err;
+      EXPECT_TRUE(test::read_whole(dir_.path() / "mpi.ply") == one)
+          << "another file than one process's";
+      // Rank 0 held its planes and the two after them, rounded out to chunk rows, not the level.
+      const std::string stats = test::read_whole(dir_.path() / "mpi.json");
+      const std::string held = json_field(stats, "rank0_window_bytes");
+      ASSERT_FALSE(held.empty()) << stats;
+      const auto planes = static_cast<std::uint64_t>(61 / ranks + 2 + 3 + 1);
+      EXPECT_LE(std::stoull(held), planes * plane + 8192) << stats;
+      if (ranks == 4) {
+        EXPECT_LT(std::stoull(held), 61 * plane / 2) << stats;
+      }
     }
   }
 }
@@ -328,7 +366,7 @@ TEST_F(Mpi, world_coordinates_are_the_single_process_ones_in_every_output) {
   // Pieces: VTK reads the same oriented triangles as the single process's .vtp.
   if (std::string_view(PROGISO_VTK_PYTHON).empty()) return;
   const auto full = [&](const fs::path& out) {
-    return std::vector<std::string>{"extract", nhdr.string(), "--iso",     "127.5", "--world",
+    return std::vector<std::string>{"extract", nhdr.string(), "--iso",      "127.5",     "--world",
                                     "--full",  "-o",          out.string(), "--threads", "1"};
   };
   const fs::path whole = dir_.path() / "whole.vtp";
@@ -337,11 +375,11 @@ TEST_F(Mpi, world_coordinates_are_the_single_process_ones_in_every_output) {
   const test::bounded_result r =
       test::run_bounded(PROGISO_MPIEXEC, mpi_args(3, full(pvtp)), runs_.path());
   ASSERT_EQ(r.status, 0) << r.err;
-  const test::bounded_result check = test::run_bounded(
-      PROGISO_VTK_PYTHON,
-      {std::string(PROGISO_SOURCE_DIR) + "/tests/apps/pvtp_check.py", pvtp.string(),
-       whole.string(), "3"},
-      runs_.path());
+  const test::bounded_result check =
+      test::run_bounded(PROGISO_VTK_PYTHON,
+                        {std::string(PROGISO_SOURCE_DIR) + "/tests/apps/pvtp_check.py",
+                         pvtp.string(), whole.string(), "3"},
+                        runs_.path());
   EXPECT_EQ(check.status, 0) << check.out << check.err;
 }
 

@@ -10,11 +10,15 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cstdint>
 #include <cstdlib>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <optional>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include <progiso/core/base/error.hpp>
@@ -194,6 +198,53 @@ TEST_F(Hdf5Reader, bigdataviewer_setups_and_levels_read_int16_as_unsigned) {
   const std::optional<volume> s2 = src.read_level(2, std::array<double, 3>{0.5, 0.5, 3.0});
   ASSERT_TRUE(s2.has_value());
   EXPECT_EQ(s2->spacing(), (std::array<double, 3>{2.0, 2.0, 6.0}));
+}
+
+TEST_F(Hdf5Reader, a_plane_window_holds_numpys_planes_for_every_level_and_volume) {
+  // Imaris (chunked, gzip) and BigDataViewer: windows of 1 and 3 planes, forward, each read by a
+  // child, then one back to the start.
+  for (const std::string name : {"cells.ims", "bdv.h5"}) {
+    const std::int64_t volumes = name == "cells.ims" ? 6 : 2;
+    for (std::int64_t level = 0; level < 3; ++level) {
+      for (std::int64_t vol = 0; vol < volumes; ++vol) {
+        SCOPED_TRACE(name + " level " + std::to_string(level) + ", volume " + std::to_string(vol));
+        const volume whole = read_hdf5(at(name), volume_choice{{}, vol, level});
+        const std::string want = bytes_of(whole);
+        for (const std::int64_t step : {1, 3}) {
+          volume_source source(at(name), std::nullopt, volume_choice{{}, vol, level});
+          std::optional<plane_window> w = source.window();
+          ASSERT_TRUE(w.has_value());
+          const volume& f = w->field();
+          EXPECT_EQ(f.dims(), whole.dims());
+          EXPECT_EQ(f.spacing(), whole.spacing());
+          EXPECT_EQ(f.origin(), whole.origin());
+          EXPECT_GE(w->chunk_planes(), 1);
+          const auto plane = static_cast<std::size_t>(f.dims()[0] * f.dims()[1]) *
+                             sample_size(f.type());
+          const std::int64_t nz = f.dims()[2];
+          const auto same = [&](std::int64_t z0, std::int64_t z1) {
+            const std::size_t from = plane * static_cast<std::size_t>(z0);
+            return std::memcmp(f.bytes() + from, want.data() + from,
+                               plane * static_cast<std::size_t>(z1 - z0)) == 0;
+          };
+          for (std::int64_t z = 0; z < nz; z += step) {
+            const std::int64_t end = std::min(nz, z + step);
+            w->hold(z, end);
+            EXPECT_TRUE(same(z, end)) << "planes " << z << " to " << end - 1;
+          }
+          w->hold(0, 1);
+          EXPECT_TRUE(same(0, 1)) << "back to the start";
+        }
+      }
+    }
+  }
+  // A hostile level is refused before any plane is held or any memory of its size reserved.
+  for (const auto& [name, says] : {std::pair<std::string, std::string>{"bomb.h5", "decompression bomb"},
+                                   {"beyond.ims", "expected a dataset at least 13 x 17 x 40"}}) {
+    volume_source source(at(name), std::nullopt, volume_choice{{}, 0, {}});
+    const std::string m = test::error_message_naming(at(name), [&] { (void)source.window(); });
+    EXPECT_TRUE(contains(m, says)) << m;
+  }
 }
 
 TEST_F(Hdf5Reader, a_file_with_the_signature_is_read_whatever_its_name) {

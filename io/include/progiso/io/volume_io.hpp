@@ -267,8 +267,8 @@ struct volume_source_state;
 struct plane_window_state;
 }  // namespace detail
 
-/// A level of a chunked input (an OME-Zarr image or a Zarr array) read a window of z planes at a
-/// time, for passes that go through the grid in z order and read a few planes at once: the
+/// A level of a chunked input (an OME-Zarr image or a Zarr array, an Imaris or BigDataViewer
+/// file) read a window of z planes at a time, for passes that go through the grid in z order and read a few planes at once: the
 /// finest surface made share by share (detail::finest_share), an MPI rank's planes. field() is
 /// the whole level's grid, but only the planes held are in memory: the level is reserved as
 /// address space, and hold() commits, decodes and gives back planes, so the memory held is the
@@ -340,7 +340,8 @@ class volume_source {
       std::size_t level, std::optional<std::array<double, 3>> spacing = std::nullopt,
       const std::function<bool()>& stop = {});
   /// The chosen level as a plane_window (a given `spacing` as read()'s), when the input is read
-  /// in chunks (OME-Zarr and Zarr); nullopt for every other input (a mapped file is already
+  /// in chunks (OME-Zarr and Zarr; Imaris and BigDataViewer, each window's planes read by an
+  /// HDF5 child as read() reads a level); nullopt for every other input (a mapped file is already
   /// read on demand by the kernel, and the other formats are read whole). Checks what read()
   /// checks before anything is decoded (enough chunks present); the samples are decoded by
   /// plane_window::hold().

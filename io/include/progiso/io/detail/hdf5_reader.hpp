@@ -42,6 +42,7 @@
 #include <filesystem>
 #include <functional>
 #include <optional>
+#include <span>
 #include <string>
 #include <vector>
 
@@ -88,5 +89,16 @@ struct hdf5_image {
 [[nodiscard]] std::optional<mapped_bytes> read_hdf5_samples(const hdf5_image& image,
                                                             std::size_t level, std::int64_t volume,
                                                             const std::function<bool()>& stop = {});
+
+/// Checks the dataset of `volume` at `level` as read_hdf5_samples() does before it reads (in a
+/// child: its type, its size, its stored bytes); returns the planes of one chunk layer (1 when the
+/// dataset is not chunked), the unit a plane window reads by. Throws as read_hdf5_samples().
+[[nodiscard]] std::int64_t check_hdf5_samples(const hdf5_image& image, std::size_t level,
+                                              std::int64_t volume);
+/// Planes [z_begin, z_end) of `volume` at `level` into `out` (exactly their bytes, x fastest,
+/// host byte order): read by a child into memory shared with it, then copied. Throws as
+/// read_hdf5_samples(); check_hdf5_samples() first.
+void read_hdf5_planes(const hdf5_image& image, std::size_t level, std::int64_t volume,
+                      std::int64_t z_begin, std::int64_t z_end, std::span<std::byte> out);
 
 }  // namespace progiso::detail
