@@ -6,6 +6,7 @@
 #include <array>
 #include <cmath>
 #include <csignal>
+#include <cstdlib>
 #include <limits>
 #include <optional>
 #include <string>
@@ -178,6 +179,36 @@ std::optional<progiso::index_to_world> asked_world(bool asked, const volume_sour
                 "NRRD space directions, or a MetaImage header)");
   }
   return world;
+}
+
+std::int64_t window_planes(const progiso::plane_window& w) {
+  std::uint64_t budget = progiso::detail::finest_slab_bytes / 4;
+  if (const char* e = std::getenv("PROGISO_WINDOW_BYTES"); e != nullptr && *e != '\0') {
+    budget = std::strtoull(e, nullptr, 10);
+  }
+  const progiso::volume& f = w.field();
+  const std::uint64_t row = static_cast<std::uint64_t>(f.dims()[0] * f.dims()[1]) *
+                            progiso::sample_size(f.type()) *
+                            static_cast<std::uint64_t>(w.chunk_planes());
+  return w.chunk_planes() * static_cast<std::int64_t>(std::max<std::uint64_t>(1, budget / row));
+}
+
+void finest_in_windows(progiso::plane_window& w, double iso, const progiso::parallel_loop& loop,
+                       std::size_t parts, const progiso::detail::finest_piece& add,
+                       const std::function<std::array<std::uint64_t, 2>()>& counted,
+                       std::int64_t z_begin, std::int64_t z_end) {
+  const std::int64_t nz = w.field().dims()[2];
+  const std::int64_t step = window_planes(w);
+  for (std::int64_t z = z_begin; z < z_end; z += step) {
+    std::int64_t end = std::min(z + step, z_end);
+    // The grid's last plane holds no cubes: it goes with the share before it.
+    if (z_end == nz && end >= nz - 1) end = nz;
+    const std::array<std::uint64_t, 2> first = counted();
+    w.hold(z, std::min(end + 2, nz), loop);
+    progiso::detail::finest_surface_pieces(w.field(), iso, loop, parts, {}, add, 0,
+                                           {z, end, first[0], first[1]});
+    if (end == nz) break;
+  }
 }
 
 }  // namespace progiso::cli

@@ -4,12 +4,16 @@
 // float range and mapped to scanner coordinates.
 #pragma once
 
+#include <array>
+#include <cstdint>
 #include <filesystem>
+#include <functional>
 #include <optional>
 #include <string>
 #include <vector>
 
 #include <progiso/core/field/volume.hpp>
+#include <progiso/core/surface/finest_surface.hpp>
 #include <progiso/core/surface/mesh.hpp>
 #include <progiso/io/volume_io.hpp>
 
@@ -42,6 +46,22 @@ void check_float_range(const std::filesystem::path& output, const progiso::volum
 [[nodiscard]] std::optional<progiso::index_to_world> asked_world(bool asked,
                                                                  const volume_source* source,
                                                                  const std::string& input);
+
+/// The planes a window holds for the finest surface made share by share (whole chunk rows, at
+/// least one): samples of a quarter of detail::finest_slab_bytes, since a share's passes also
+/// hold a corner byte per point of its planes and its piece of the output. PROGISO_WINDOW_BYTES
+/// sets the sample bytes, so that the tests take small levels through several windows.
+[[nodiscard]] std::int64_t window_planes(const progiso::plane_window& w);
+
+/// The finest surface of planes [z_begin, z_end) of a windowed level (z_end = dims[2]: to the
+/// last plane), sub-share by sub-share in z order (detail::finest_share): each one's planes and
+/// the two after them that its last cubes and edges read held while it is made, its ids
+/// continuing from `counted()` (the vertices and triangles handed to `add` so far, plus those of
+/// the shares before). The pieces, in order, are those one share of [z_begin, z_end) gives.
+void finest_in_windows(progiso::plane_window& w, double iso, const progiso::parallel_loop& loop,
+                       std::size_t parts, const progiso::detail::finest_piece& add,
+                       const std::function<std::array<std::uint64_t, 2>()>& counted,
+                       std::int64_t z_begin, std::int64_t z_end);
 
 /// The mesh in scanner coordinates (`world`), its winding kept facing the same side and its
 /// normals mapped as gradients (see the definition).

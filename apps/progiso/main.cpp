@@ -301,41 +301,6 @@ bool writes_in_windows(const arguments& a) {
          !a.smooth.active() && progiso::detail::lower_extension(*a.output) == ".ply";
 }
 
-/// The sample bytes a window holds for the finest surface made share by share (whole chunk rows,
-/// at least one). A share's passes also hold a corner byte per point of its planes (its one
-/// slab) and its piece of the output, so the window is a quarter of finest_slab_bytes: what is
-/// held stays near one slab's worth. PROGISO_WINDOW_BYTES sets it, so that the tests take small
-/// levels through several windows.
-std::int64_t window_planes(const progiso::plane_window& w) {
-  std::uint64_t budget = progiso::detail::finest_slab_bytes / 4;
-  if (const char* e = std::getenv("PROGISO_WINDOW_BYTES"); e != nullptr && *e != '\0') {
-    budget = std::strtoull(e, nullptr, 10);
-  }
-  const progiso::volume& f = w.field();
-  const std::uint64_t row = static_cast<std::uint64_t>(f.dims()[0] * f.dims()[1]) *
-                            progiso::sample_size(f.type()) *
-                            static_cast<std::uint64_t>(w.chunk_planes());
-  return w.chunk_planes() * static_cast<std::int64_t>(std::max<std::uint64_t>(1, budget / row));
-}
-
-/// The finest surface of a windowed level, share by share in z order (detail::finest_share):
-/// each share's planes, and the two after them that its last cubes and edges read, held while
-/// it is made; ids continue from the shares before, as `add` has counted them. The pieces, in
-/// order, are the whole level's finest surface.
-void finest_in_windows(progiso::plane_window& w, double iso, const progiso::parallel_loop& loop,
-                       std::size_t parts, const progiso::detail::finest_piece& add,
-                       const std::function<std::array<std::uint64_t, 2>()>& counted) {
-  const std::int64_t nz = w.field().dims()[2];
-  const std::int64_t step = window_planes(w);
-  for (std::int64_t z = 0; z < nz - 1; z += step) {
-    const bool last = z + step >= nz - 1;
-    const std::array<std::uint64_t, 2> first = counted();
-    const progiso::detail::finest_share share{z, last ? -1 : z + step, first[0], first[1]};
-    w.hold(z, last ? nz : z + step + 2, loop);
-    progiso::detail::finest_surface_pieces(w.field(), iso, loop, parts, {}, add, 0, share);
-  }
-}
-
 /// A full goal's finest surface (finest_surface(), the direct path) made slab by slab and
 /// written to the PLY as it is made (ply_pieces_writer), each piece mapped to scanner
 /// coordinates when asked: the same file as the whole surface's. With `window`, `data` and
@@ -362,9 +327,10 @@ int run_finest_in_pieces(arguments& a, const std::string& input, const progiso::
         if (window == nullptr) {
           progiso::detail::finest_surface_pieces(vol, iso, loop, parts, progress, add);
         } else {
-          finest_in_windows(*window, iso, loop, parts, add, [&ply] {
-            return std::array<std::uint64_t, 2>{ply.vertices(), ply.triangles()};
-          });
+          finest_in_windows(
+              *window, iso, loop, parts, add,
+              [&ply] { return std::array<std::uint64_t, 2>{ply.vertices(), ply.triangles()}; }, 0,
+              window->field().dims()[2]);
         }
       });
   const double made = std::chrono::duration<double>(clock::now() - t0).count();

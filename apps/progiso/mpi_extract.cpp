@@ -111,6 +111,25 @@ void receive_bytes(int from, int tag, const Write& write) {
   }
 }
 
+/// Adds `by` to every vertex index of binary PLY face records (a count byte, then three
+/// little-endian 32-bit indices; append_ply_records()'s): a share meshed with local ids moved to
+/// the whole surface's.
+void offset_ply_faces(std::vector<char>& faces, std::uint32_t by) {
+  constexpr std::size_t record = 13;
+  PROGISO_ASSERT(faces.size() % record == 0);
+  auto* b = reinterpret_cast<unsigned char*>(faces.data());
+  for (std::size_t at = 0; at < faces.size(); at += record) {
+    for (std::size_t k = 0; k < 3; ++k) {
+      unsigned char* p = b + at + 1 + 4 * k;
+      std::uint32_t v = static_cast<std::uint32_t>(p[0]) | static_cast<std::uint32_t>(p[1]) << 8U |
+                        static_cast<std::uint32_t>(p[2]) << 16U |
+                        static_cast<std::uint32_t>(p[3]) << 24U;
+      v += by;
+      for (std::size_t q = 0; q < 4; ++q) p[q] = static_cast<unsigned char>(v >> (8 * q));
+    }
+  }
+}
+
 /// One line for an error, whatever it quotes.
 std::string one_line(std::string s) {
   for (char& c : s) {
@@ -209,8 +228,6 @@ void set_up(setup& s, const std::vector<std::string>& args, int rank, int size) 
     // them (finest_share's reads).
     if (!error_goal && !a.smooth.active()) s.window = source->window(a.spacing);
     if (s.window) {
-      const std::int64_t nz = s.window->field().dims()[2];
-      s.window->hold(nz * rank / size, std::min(nz, nz * (rank + 1) / size + 2));
       s.data = std::make_shared<const volume>(s.window->field());
     } else {
       s.data = std::make_shared<const volume>(source->read(a.spacing));
@@ -566,14 +583,39 @@ int run_mpi_extract(const std::vector<std::string>& args) {
     }
     const volume& field = *s.field;
     const std::int64_t nz = field.dims()[2];
-    detail::finest_share share{nz * rank / size, nz * (rank + 1) / size, 0, 0};
-    // Counts, then the ranks before this one's as first ids, and the totals.
+    const std::int64_t z_begin = nz * rank / size, z_end = nz * (rank + 1) / size;
+    // The share meshed once, its ids local (from 0): the counts are known after, and the ids
+    // moved by the ranks before this one's counts once MPI_Exscan has them. A triangle of the
+    // share's last cubes names the next rank's first vertices as local ids past this share's
+    // own, which the same move makes theirs.
+    const bool pvtp = s.pieces;
+    triangle_mesh mine;                   // .pvtp: the share's vertices and triangles
+    std::vector<char> vertices, faces;    // .ply: the share's records
     std::uint64_t counts[2] = {0, 0}, first[2] = {0, 0}, totals[2] = {0, 0};
+    const std::string name = *s.a.output;
+    const detail::finest_piece add = [&](triangle_mesh& piece, std::uint64_t) {
+      if (s.world) to_world(piece, *s.data, *s.world);
+      counts[0] += piece.vertices.size();
+      counts[1] += piece.triangles.size();
+      if (pvtp) {
+        mine.vertices.insert(mine.vertices.end(), piece.vertices.begin(), piece.vertices.end());
+        mine.triangles.insert(mine.triangles.end(), piece.triangles.begin(),
+                              piece.triangles.end());
+      } else {
+        detail::append_ply_records(name, piece, vertices, faces);
+      }
+    };
     scheduler::run_on_threads(threads, [&](const parallel_loop& loop, std::size_t parts) {
-      const std::array<std::uint64_t, 2> c =
-          detail::finest_share_counts(field, s.iso, loop, parts, share);
-      counts[0] = c[0];
-      counts[1] = c[1];
+      if (s.window) {
+        // A chunked level: the share a window of planes at a time.
+        finest_in_windows(
+            *s.window, s.iso, loop, parts, add,
+            [&counts] { return std::array<std::uint64_t, 2>{counts[0], counts[1]}; }, z_begin,
+            z_end);
+      } else {
+        detail::finest_surface_pieces(field, s.iso, loop, parts, {}, add, 0,
+                                      {z_begin, z_end, 0, 0});
+      }
     });
     MPI_Exscan(counts, first, 2, MPI_UINT64_T, MPI_SUM, MPI_COMM_WORLD);
     if (rank == 0) first[0] = first[1] = 0;  // MPI_Exscan leaves rank 0's undefined
@@ -589,28 +631,14 @@ int run_mpi_extract(const std::vector<std::string>& args) {
     }
     // A fault for the tests: this rank dies here, after the others have its counts.
     if (env_int("PROGISO_MPI_FAULT_RANK") == rank) std::raise(SIGKILL);
-    share.first_vertex = first[0];
-    share.first_triangle = first[1];
-    const std::string name = *s.a.output;
-    double meshed = 0.0;
-    if (s.pieces) {
-      triangle_mesh mine;
-      scheduler::run_on_threads(threads, [&](const parallel_loop& loop, std::size_t parts) {
-        detail::finest_surface_pieces(
-            field, s.iso, loop, parts, {},
-            [&](triangle_mesh& piece, std::uint64_t) {
-              if (s.world) to_world(piece, *s.data, *s.world);
-              mine.vertices.insert(mine.vertices.end(), piece.vertices.begin(),
-                                   piece.vertices.end());
-              mine.triangles.insert(mine.triangles.end(), piece.triangles.begin(),
-                                    piece.triangles.end());
-            },
-            0, share);
-      });
+    const double meshed = std::chrono::duration<double>(clock::now() - t0).count();
+    if (pvtp) {
+      for (auto& t : mine.triangles) {
+        for (std::uint32_t& id : t) id += static_cast<std::uint32_t>(first[0]);
+      }
       const triangle_mesh piece = piece_with_ghosts(std::move(mine), first[0], counts[0], size);
       detail::write_vtp_to(*s.piece_out, piece);
       s.piece_out->finish();
-      meshed = std::chrono::duration<double>(clock::now() - t0).count();
       // Every piece is written before any is published, and every one published before the
       // index that names them.
       MPI_Barrier(MPI_COMM_WORLD);
@@ -619,17 +647,7 @@ int run_mpi_extract(const std::vector<std::string>& args) {
       if (rank != 0) return 0;
       s.mesh_out->write(pvtp_index(name, size));
     } else {
-      std::vector<char> vertices, faces;
-      scheduler::run_on_threads(threads, [&](const parallel_loop& loop, std::size_t parts) {
-        detail::finest_surface_pieces(
-            field, s.iso, loop, parts, {},
-            [&](triangle_mesh& piece, std::uint64_t) {
-              if (s.world) to_world(piece, *s.data, *s.world);
-              detail::append_ply_records(name, piece, vertices, faces);
-            },
-            0, share);
-      });
-      meshed = std::chrono::duration<double>(clock::now() - t0).count();
+      offset_ply_faces(faces, static_cast<std::uint32_t>(first[0]));
       if (rank != 0) {
         send_bytes(vertices, 0, 1);
         send_bytes(faces, 0, 2);

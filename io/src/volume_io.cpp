@@ -361,9 +361,12 @@ struct zarr_source final : source_state {
     const std::size_t n = l.chunks.size();
     return detail::make_plane_window(
         l.dir, l.dims(), l.type, l.chunks[n - 3], level_spacing(level, spacing), l.origin,
-        [this](std::int64_t z0, std::int64_t z1, std::span<std::byte> out,
-               const parallel_loop& run) {
-          (void)detail::read_zarr_planes(image, level, volume_index, z0, z1, out, run);
+        // The window outlives the source (an MPI rank keeps it, not the source): it keeps its
+        // own copy of the metadata.
+        [im = image, k = level, v = volume_index](std::int64_t z0, std::int64_t z1,
+                                                  std::span<std::byte> out,
+                                                  const parallel_loop& run) {
+          (void)detail::read_zarr_planes(im, k, v, z0, z1, out, run);
         });
   }
   // Level k's spacing: the header's, or, given level 0's, it times the header's ratio.
@@ -409,8 +412,10 @@ struct hdf5_source final : source_state {
     const auto [s, o] = level_geometry(level, spacing);
     return detail::make_plane_window(
         image.file, l.dims, image.type, unit, s, o,
-        [this](std::int64_t z0, std::int64_t z1, std::span<std::byte> out, const parallel_loop&) {
-          detail::read_hdf5_planes(image, level, volume_index, z0, z1, out);
+        // As for Zarr: the window keeps its own copy of the structure.
+        [im = image, k = level, v = volume_index](std::int64_t z0, std::int64_t z1,
+                                                  std::span<std::byte> out, const parallel_loop&) {
+          detail::read_hdf5_planes(im, k, v, z0, z1, out);
         });
   }
   // Level k's spacing and origin: the file's, or, given level 0's spacing, scaled by its ratio

@@ -274,8 +274,9 @@ struct plane_window_state;
 /// address space, and hold() commits, decodes and gives back planes, so the memory held is the
 /// window's planes (rounded out to whole chunk rows, since a chunk decodes whole), not the
 /// level's. A plane not held is not mapped: reading it ends the process, so a pass that reads
-/// beyond its window cannot go unnoticed. Move-only; not for concurrent hold() calls (passes
-/// may read the held planes from any thread between them).
+/// beyond its window cannot go unnoticed. It keeps what it reads by (a copy of the metadata), so
+/// it may outlive the volume_source that made it. Move-only; not for concurrent hold() calls
+/// (passes may read the held planes from any thread between them).
 class plane_window {
  public:
   explicit plane_window(std::unique_ptr<detail::plane_window_state> state) noexcept;
