@@ -329,8 +329,10 @@ int run_finest_in_pieces(arguments& a, const std::string& input, const progiso::
         } else {
           finest_in_windows(
               *window, iso, loop, parts, add,
-              [&ply] { return std::array<std::uint64_t, 2>{ply.vertices(), ply.triangles()}; }, 0,
-              window->field().dims()[2]);
+              [&ply] {
+                return std::array<std::uint64_t, 2>{ply.vertices(), ply.triangles()};
+              },
+              0, window->field().dims()[2]);
         }
       });
   const double made = std::chrono::duration<double>(clock::now() - t0).count();
@@ -543,8 +545,8 @@ int run(const std::vector<std::string>& args) {
       if (a.level) std::cerr << " level " << *a.level;
       std::cerr << ", " << level.dims()[0] << "x" << level.dims()[1] << "x" << level.dims()[2]
                 << " " << progiso::to_string(level.type()) << ", isovalue " << *a.iso
-                << ", read in windows of "
-                << std::min(window_planes(*window), level.dims()[2]) << " planes\n";
+                << ", read in windows of " << std::min(window_planes(*window), level.dims()[2])
+                << " planes\n";
       return run_finest_in_pieces(a, input, level, level, *a.iso, world, mesh_out, stats_out,
                                   &*window);
     }

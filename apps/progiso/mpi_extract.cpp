@@ -589,8 +589,8 @@ int run_mpi_extract(const std::vector<std::string>& args) {
     // share's last cubes names the next rank's first vertices as local ids past this share's
     // own, which the same move makes theirs.
     const bool pvtp = s.pieces;
-    triangle_mesh mine;                   // .pvtp: the share's vertices and triangles
-    std::vector<char> vertices, faces;    // .ply: the share's records
+    triangle_mesh mine;                 // .pvtp: the share's vertices and triangles
+    std::vector<char> vertices, faces;  // .ply: the share's records
     std::uint64_t counts[2] = {0, 0}, first[2] = {0, 0}, totals[2] = {0, 0};
     const std::string name = *s.a.output;
     const detail::finest_piece add = [&](triangle_mesh& piece, std::uint64_t) {
@@ -599,8 +599,7 @@ int run_mpi_extract(const std::vector<std::string>& args) {
       counts[1] += piece.triangles.size();
       if (pvtp) {
         mine.vertices.insert(mine.vertices.end(), piece.vertices.begin(), piece.vertices.end());
-        mine.triangles.insert(mine.triangles.end(), piece.triangles.begin(),
-                              piece.triangles.end());
+        mine.triangles.insert(mine.triangles.end(), piece.triangles.begin(), piece.triangles.end());
       } else {
         detail::append_ply_records(name, piece, vertices, faces);
       }
@@ -610,8 +609,10 @@ int run_mpi_extract(const std::vector<std::string>& args) {
         // A chunked level: the share a window of planes at a time.
         finest_in_windows(
             *s.window, s.iso, loop, parts, add,
-            [&counts] { return std::array<std::uint64_t, 2>{counts[0], counts[1]}; }, z_begin,
-            z_end);
+            [&counts] {
+              return std::array<std::uint64_t, 2>{counts[0], counts[1]};
+            },
+            z_begin, z_end);
       } else {
         detail::finest_surface_pieces(field, s.iso, loop, parts, {}, add, 0,
                                       {z_begin, z_end, 0, 0});
@@ -676,8 +677,7 @@ int run_mpi_extract(const std::vector<std::string>& args) {
         << ",\n  \"rank0_mesh_ms\": " << json_number(meshed * 1e3);
       // A chunked input: the sample bytes rank 0 held (its planes' chunk rows, not the level).
       if (s.window) o << ",\n  \"rank0_window_bytes\": " << s.window->peak_bytes();
-      o
-        << ",\n  \"total_ms\": " << json_number(seconds * 1e3) << "\n}\n";
+      o << ",\n  \"total_ms\": " << json_number(seconds * 1e3) << "\n}\n";
       s.stats_out->write(o.str());
     }
     out.finish();

@@ -747,8 +747,7 @@ std::int64_t check_hdf5_samples(const hdf5_image& image, std::size_t level, std:
   // The dataset's type, its size against the level's and its stored bytes, in a child.
   const std::optional<std::string> unit = in_child(
       image.file,
-      [&](int) { return std::to_string(samples_here(image, level, volume, nullptr, [] {})); },
-      {});
+      [&](int) { return std::to_string(samples_here(image, level, volume, nullptr, [] {})); }, {});
   const std::int64_t planes = unit ? std::strtoll(unit->c_str(), nullptr, 10) : 1;
   return std::clamp<std::int64_t>(planes, 1, image.levels.at(level).dims[2]);
 }
@@ -759,13 +758,11 @@ namespace {
 // (the keeper unmaps it); nullopt when `stop` answered true.
 std::optional<mapped_bytes> planes_in_child(const hdf5_image& image, std::size_t level,
                                             std::int64_t volume, std::int64_t z_begin,
-                                            std::int64_t z_end,
-                                            const std::function<bool()>& stop) {
+                                            std::int64_t z_end, const std::function<bool()>& stop) {
   const hdf5_level& lv = image.levels.at(level);
   const std::uint64_t bytes = static_cast<std::uint64_t>(lv.dims[0]) *
                               static_cast<std::uint64_t>(lv.dims[1]) *
-                              static_cast<std::uint64_t>(z_end - z_begin) *
-                              sample_size(image.type);
+                              static_cast<std::uint64_t>(z_end - z_begin) * sample_size(image.type);
   // Shared with the child, which writes the samples.
   void* p = ::mmap(nullptr, static_cast<std::size_t>(bytes), PROT_READ | PROT_WRITE,
                    MAP_SHARED | MAP_ANONYMOUS, -1, 0);

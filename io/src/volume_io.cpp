@@ -363,9 +363,8 @@ struct zarr_source final : source_state {
         l.dir, l.dims(), l.type, l.chunks[n - 3], level_spacing(level, spacing), l.origin,
         // The window outlives the source (an MPI rank keeps it, not the source): it keeps its
         // own copy of the metadata.
-        [im = image, k = level, v = volume_index](std::int64_t z0, std::int64_t z1,
-                                                  std::span<std::byte> out,
-                                                  const parallel_loop& run) {
+        [im = image, k = level, v = volume_index](
+            std::int64_t z0, std::int64_t z1, std::span<std::byte> out, const parallel_loop& run) {
           (void)detail::read_zarr_planes(im, k, v, z0, z1, out, run);
         });
   }

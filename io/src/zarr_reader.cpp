@@ -727,11 +727,10 @@ bool read_zarr_planes(const zarr_image& image, std::size_t level, std::int64_t v
         for (std::int64_t z = za; z < zb; ++z) {
           for (std::int64_t y = y0; y < y1; ++y) {
             std::byte* to =
-                out.data() + ((static_cast<std::size_t>(z - z_begin) * ny +
-                               static_cast<std::size_t>(y)) *
-                                  nx +
-                              static_cast<std::size_t>(x0)) *
-                                 item;
+                out.data() +
+                ((static_cast<std::size_t>(z - z_begin) * ny + static_cast<std::size_t>(y)) * nx +
+                 static_cast<std::size_t>(x0)) *
+                    item;
             if (missing) {
               for (std::size_t x = 0; x < width; ++x) std::memcpy(to + x * item, fill.data(), item);
               continue;

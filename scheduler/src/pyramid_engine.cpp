@@ -31,7 +31,7 @@ pyramid_engine::pyramid_engine(pyramid_level_reader read, std::size_t levels, do
   std::optional<volume> v = read_(coarsest, {});
   if (!v) throw error("pyramid engine: the coarsest level was not read");
   engines_[coarsest] = std::make_unique<engine>(std::move(*v), isovalue, options_);
-  read_count_.store(1, std::memory_order_release);  // partner: levels_read()'s acquire
+  read_count_.store(1, std::memory_order_release);    // partner: levels_read()'s acquire
   shown_.store(coarsest, std::memory_order_release);  // partner: snapshot()'s acquire
 }
 

@@ -126,20 +126,20 @@ TEST(OutOfCore, a_zarr_level_larger_than_the_allowed_memory_is_read_in_windows_t
   const fs::path zarr = dir.path() / "ball.zarr";
   {
     const std::string bytes = test::read_whole(raw);
-    test::write_zarr_array(zarr, {n, n, n}, {n, n / 2, 32}, "|u1", 1,
-                           [&](std::int64_t x, std::int64_t y, std::int64_t z, std::byte* out) {
-                             *out = static_cast<std::byte>(
-                                 bytes[static_cast<std::size_t>((z * n + y) * n + x)]);
-                           });
+    test::write_zarr_array(
+        zarr, {n, n, n}, {n, n / 2, 32}, "|u1", 1,
+        [&](std::int64_t x, std::int64_t y, std::int64_t z, std::byte* out) {
+          *out = static_cast<std::byte>(bytes[static_cast<std::size_t>((z * n + y) * n + x)]);
+        });
   }
   test::bounds capped = test::limited(std::chrono::seconds(240));
   capped.data_bytes = cap;
   const std::string dims = std::to_string(n) + "," + std::to_string(n) + "," + std::to_string(n);
-  const test::bounded_result from_raw = test::run_bounded(
-      PROGISO_CLI,
-      {"extract", raw.string(), "--dims", dims, "--type", "u8", "--iso", "40", "--full", "-o",
-       (dir.path() / "raw.ply").string()},
-      runs.path());
+  const test::bounded_result from_raw =
+      test::run_bounded(PROGISO_CLI,
+                        {"extract", raw.string(), "--dims", dims, "--type", "u8", "--iso", "40",
+                         "--full", "-o", (dir.path() / "raw.ply").string()},
+                        runs.path());
   ASSERT_EQ(from_raw.status, 0) << from_raw.err;
   const auto zarr_args = [&](const std::string& goal, const std::string& out) {
     std::vector<std::string> a{"extract", zarr.string(), "--iso", "40", goal};

@@ -219,8 +219,8 @@ TEST_F(Hdf5Reader, a_plane_window_holds_numpys_planes_for_every_level_and_volume
           EXPECT_EQ(f.spacing(), whole.spacing());
           EXPECT_EQ(f.origin(), whole.origin());
           EXPECT_GE(w->chunk_planes(), 1);
-          const auto plane = static_cast<std::size_t>(f.dims()[0] * f.dims()[1]) *
-                             sample_size(f.type());
+          const auto plane =
+              static_cast<std::size_t>(f.dims()[0] * f.dims()[1]) * sample_size(f.type());
           const std::int64_t nz = f.dims()[2];
           const auto same = [&](std::int64_t z0, std::int64_t z1) {
             const std::size_t from = plane * static_cast<std::size_t>(z0);
@@ -239,8 +239,9 @@ TEST_F(Hdf5Reader, a_plane_window_holds_numpys_planes_for_every_level_and_volume
     }
   }
   // A hostile level is refused before any plane is held or any memory of its size reserved.
-  for (const auto& [name, says] : {std::pair<std::string, std::string>{"bomb.h5", "decompression bomb"},
-                                   {"beyond.ims", "expected a dataset at least 13 x 17 x 40"}}) {
+  for (const auto& [name, says] :
+       {std::pair<std::string, std::string>{"bomb.h5", "decompression bomb"},
+        {"beyond.ims", "expected a dataset at least 13 x 17 x 40"}}) {
     volume_source source(at(name), std::nullopt, volume_choice{{}, 0, {}});
     const std::string m = test::error_message_naming(at(name), [&] { (void)source.window(); });
     EXPECT_TRUE(contains(m, says)) << m;

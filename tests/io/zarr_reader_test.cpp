@@ -21,10 +21,10 @@
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
-#include <limits>
-#include <optional>
 #include <filesystem>
 #include <fstream>
+#include <limits>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -287,11 +287,11 @@ TEST(ZarrReader, hostile_images_give_one_error_naming_the_file) {
 // ---- Plane windows (volume_source::window()): the level a few planes at a time.
 
 // Planes [z0, z1) of `w`'s field against `want` (the whole level's bytes, x fastest).
-void expect_planes(const plane_window& w, const std::string& want, std::int64_t z0,
-                   std::int64_t z1, const std::string& what) {
+void expect_planes(const plane_window& w, const std::string& want, std::int64_t z0, std::int64_t z1,
+                   const std::string& what) {
   const volume& f = w.field();
-  const std::size_t plane = static_cast<std::size_t>(f.dims()[0] * f.dims()[1]) *
-                            sample_size(f.type());
+  const std::size_t plane =
+      static_cast<std::size_t>(f.dims()[0] * f.dims()[1]) * sample_size(f.type());
   ASSERT_EQ(want.size(), plane * static_cast<std::size_t>(f.dims()[2])) << what;
   const std::size_t from = plane * static_cast<std::size_t>(z0);
   const std::size_t n = plane * static_cast<std::size_t>(z1 - z0);
@@ -316,9 +316,9 @@ TEST(PlaneWindow, windows_hold_the_planes_numpy_holds_for_every_codec_layout_and
   }
   for (const image& im : images) {
     const fs::path path = dir.path() / (im.name + ".zarr");
-    const volume_choice choice{std::nullopt, im.name == "ome" ? std::optional<std::int64_t>(im.volume)
-                                                             : std::nullopt,
-                               im.level};
+    const volume_choice choice{
+        std::nullopt, im.name == "ome" ? std::optional<std::int64_t>(im.volume) : std::nullopt,
+        im.level};
     const volume whole = read_zarr(path, choice);
     const std::string want = expected_bytes(dir, im.name, im.level, im.volume);
     // Windows of 1, 2 and 5 planes going forward, then one going back (held again from nothing).
@@ -361,12 +361,11 @@ TEST(PlaneWindow, memory_follows_the_window_and_planes_given_back_are_unreadable
     return static_cast<std::uint8_t>((x * 3 + y * 5 + z * 7 + (x * z) % 11) % 251);
   };
   // Chunks of 4 planes, two per row; chunk (z 3, y 1, x 0) is missing: fill_value 0.
-  test::write_zarr_array(
-      dir.path() / "a.zarr", dims, {100, 80, 4}, "|u1", 1,
-      [&](std::int64_t x, std::int64_t y, std::int64_t z, std::byte* out) {
-        *out = static_cast<std::byte>(sample(x, y, z));
-      },
-      {{3, 1, 0}});
+  test::write_zarr_array(dir.path() / "a.zarr", dims, {100, 80, 4}, "|u1", 1,
+                         [&](std::int64_t x, std::int64_t y, std::int64_t z, std::byte* out) {
+                           *out = static_cast<std::byte>(sample(x, y, z));
+                         },
+                         {{3, 1, 0}});
   // The window outlives its source (it keeps its own copy of the metadata).
   std::optional<plane_window> w = volume_source(dir.path() / "a.zarr", std::nullopt).window();
   ASSERT_TRUE(w.has_value());

@@ -102,8 +102,7 @@ triangle_mesh alone(std::size_t k, double iso) {
 void expect_same_mesh(const triangle_mesh& a, const triangle_mesh& b, const std::string& what) {
   EXPECT_EQ(a.triangles, b.triangles) << what;
   ASSERT_EQ(a.vertices.size(), b.vertices.size()) << what;
-  EXPECT_EQ(std::memcmp(a.vertices.data(), b.vertices.data(), a.vertices.size() * sizeof(vec3)),
-            0)
+  EXPECT_EQ(std::memcmp(a.vertices.data(), b.vertices.data(), a.vertices.size() * sizeof(vec3)), 0)
       << what;
 }
 
@@ -195,7 +194,7 @@ TEST(PyramidEngine, an_isovalue_change_reaches_the_levels_read_before_and_after_
   p.set_isovalue(26.0);
   EXPECT_EQ(p.isovalue(), 26.0);
   EXPECT_EQ(p.snapshot().surface.isovalue(), 26.0);  // the shown level's new root surface
-  gate.open_one();  // level 0, read after the change
+  gate.open_one();                                   // level 0, read after the change
   p.wait();
   EXPECT_EQ(p.level(), 0U);
   const pyramid_snapshot s = p.snapshot();

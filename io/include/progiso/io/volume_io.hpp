@@ -268,15 +268,15 @@ struct plane_window_state;
 }  // namespace detail
 
 /// A level of a chunked input (an OME-Zarr image or a Zarr array, an Imaris or BigDataViewer
-/// file) read a window of z planes at a time, for passes that go through the grid in z order and read a few planes at once: the
-/// finest surface made share by share (detail::finest_share), an MPI rank's planes. field() is
-/// the whole level's grid, but only the planes held are in memory: the level is reserved as
-/// address space, and hold() commits, decodes and gives back planes, so the memory held is the
-/// window's planes (rounded out to whole chunk rows, since a chunk decodes whole), not the
-/// level's. A plane not held is not mapped: reading it ends the process, so a pass that reads
-/// beyond its window cannot go unnoticed. It keeps what it reads by (a copy of the metadata), so
-/// it may outlive the volume_source that made it. Move-only; not for concurrent hold() calls
-/// (passes may read the held planes from any thread between them).
+/// file) read a window of z planes at a time, for passes that go through the grid in z order and
+/// read a few planes at once: the finest surface made share by share (detail::finest_share), an MPI
+/// rank's planes. field() is the whole level's grid, but only the planes held are in memory: the
+/// level is reserved as address space, and hold() commits, decodes and gives back planes, so the
+/// memory held is the window's planes (rounded out to whole chunk rows, since a chunk decodes
+/// whole), not the level's. A plane not held is not mapped: reading it ends the process, so a pass
+/// that reads beyond its window cannot go unnoticed. It keeps what it reads by (a copy of the
+/// metadata), so it may outlive the volume_source that made it. Move-only; not for concurrent
+/// hold() calls (passes may read the held planes from any thread between them).
 class plane_window {
  public:
   explicit plane_window(std::unique_ptr<detail::plane_window_state> state) noexcept;

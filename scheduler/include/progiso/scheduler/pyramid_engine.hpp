@@ -52,8 +52,8 @@ namespace progiso {
 /// Reads level `level` of the pyramid (0: the finest); nullopt when `stop` answered true (it is
 /// asked between chunks). Throws progiso::error for a bad level. volume_source::read_level() is
 /// one (io/volume_io.hpp).
-using pyramid_level_reader = std::function<std::optional<volume>(
-    std::size_t level, const std::function<bool()>& stop)>;
+using pyramid_level_reader =
+    std::function<std::optional<volume>(std::size_t level, const std::function<bool()>& stop)>;
 
 /// One level's cut: the snapshot, the level it is of (0: the finest) and that level's engine
 /// (its field(): dims, spacing and origin of the level; add_normals()).

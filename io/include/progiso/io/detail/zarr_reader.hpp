@@ -86,8 +86,8 @@ void check_zarr_chunks(const zarr_image& image, std::size_t level, std::int64_t 
 /// box). false, with `out` partly written, when `stop` (asked before each chunk, when not empty)
 /// answered true. Throws as read_zarr_samples() for a chunk; does not check the chunks' presence
 /// (check_zarr_chunks() does, once).
-[[nodiscard]] bool read_zarr_planes(const zarr_image& image, std::size_t level,
-                                    std::int64_t volume, std::int64_t z_begin, std::int64_t z_end,
+[[nodiscard]] bool read_zarr_planes(const zarr_image& image, std::size_t level, std::int64_t volume,
+                                    std::int64_t z_begin, std::int64_t z_end,
                                     std::span<std::byte> out, const parallel_loop& run = {},
                                     const std::function<bool()>& stop = {});
 /// The samples of volume `volume` (0 ≤ volume < image.volumes) of level `level`, x fastest, in
