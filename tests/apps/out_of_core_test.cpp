@@ -166,6 +166,20 @@ TEST(OutOfCore, a_zarr_level_larger_than_the_allowed_memory_is_read_in_windows_t
   EXPECT_NE(whole.status, 0);
   EXPECT_NE(whole.err.find("out of memory"), std::string::npos) << whole.err;
   EXPECT_FALSE(fs::exists(dir.path() / "whole.ply"));
+
+  // A window larger than the limit allows (the whole level, asked for through the tests' knob):
+  // one error, when a window's planes or a chunk's buffer cannot be had, and no output.
+  setenv("PROGISO_WINDOW_BYTES", "1073741824", 1);
+  const test::bounded_result too_wide =
+      test::run_bounded(PROGISO_CLI, zarr_args("--full", "wide.ply"), runs.path(), capped);
+  unsetenv("PROGISO_WINDOW_BYTES");
+  EXPECT_EQ(too_wide.status, 2) << too_wide.err;
+  const bool named = too_wide.err.find("progiso: error: " + zarr.string() +
+                                       ": cannot hold planes ") != std::string::npos;
+  EXPECT_TRUE(named || too_wide.err.find("progiso: error: out of memory") != std::string::npos)
+      << too_wide.err;
+  EXPECT_EQ(too_wide.err.find("error:"), too_wide.err.rfind("error:")) << too_wide.err;
+  EXPECT_FALSE(fs::exists(dir.path() / "wide.ply"));
 #endif
 }
 
