@@ -122,6 +122,17 @@ void until(const Done& done) {
   while (!done()) std::this_thread::sleep_for(std::chrono::microseconds(200));
 }
 
+/// The pyramid engine over `src`, its coarsest level read, refining towards the full surface.
+std::unique_ptr<pyramid_engine> open_pyramid(volume_source& src) {
+  auto p = std::make_unique<pyramid_engine>(
+      [&src](std::size_t k, const std::function<bool()>& stop) {
+        return src.read_level(k, std::nullopt, stop);
+      },
+      src.levels(), isovalue);
+  p->start(refine_goal::full());
+  return p;
+}
+
 // 0: the pyramid engine; 1: one engine on the finest level.
 void BM_first_surface(benchmark::State& state) {
   const bool pyramid_engine_path = state.range(0) == 0;
@@ -130,15 +141,10 @@ void BM_first_surface(benchmark::State& state) {
   for (auto _ : state) {
     volume_source src(pyramid(), std::nullopt);
     if (pyramid_engine_path) {
-      pyramid_engine p(
-          [&src](std::size_t k, const std::function<bool()>& stop) {
-            return src.read_level(k, std::nullopt, stop);
-          },
-          src.levels(), isovalue);
-      p.start(refine_goal::full());
-      until([&] { return p.snapshot().surface.triangle_count() >= first_triangles; });
+      const std::unique_ptr<pyramid_engine> p = open_pyramid(src);
+      until([&] { return p->snapshot().surface.triangle_count() >= first_triangles; });
       state.PauseTiming();
-      const pyramid_snapshot s = p.snapshot();
+      const pyramid_snapshot s = p->snapshot();
       triangles = s.surface.triangle_count();
       level = s.level;
     } else {
@@ -162,15 +168,10 @@ void BM_finest_surface(benchmark::State& state) {
   for (auto _ : state) {
     volume_source src(pyramid(), std::nullopt);
     if (pyramid_engine_path) {
-      pyramid_engine p(
-          [&src](std::size_t k, const std::function<bool()>& stop) {
-            return src.read_level(k, std::nullopt, stop);
-          },
-          src.levels(), isovalue);
-      p.start(refine_goal::full());
-      p.wait();
+      const std::unique_ptr<pyramid_engine> p = open_pyramid(src);
+      p->wait();
       state.PauseTiming();
-      triangles = p.snapshot().surface.triangle_count();
+      triangles = p->snapshot().surface.triangle_count();
     } else {
       engine e(*src.read_level(0), isovalue);
       e.refine_full();

@@ -84,6 +84,12 @@ class gated_reader {
   void open_all() {
     for (std::size_t i = 0; i < pyramid_levels; ++i) open_one();
   }
+  /// Until `n` reads have begun (the coarsest one's included).
+  void wait_for_reads(int n) const {
+    while (reads_.load(std::memory_order_relaxed) < n) {
+      std::this_thread::sleep_for(std::chrono::milliseconds(1));
+    }
+  }
   std::optional<std::size_t> fail_level_;
   std::atomic<int> reads_{0};
 
@@ -222,9 +228,7 @@ TEST(PyramidEngine, cancel_stops_a_read_between_chunks_and_start_reads_again) {
   gated_reader gate;
   pyramid_engine p(gate.reader(), pyramid_levels, 20.0);
   p.start(refine_goal::full());
-  while (gate.reads_.load(std::memory_order_relaxed) < 2) {
-    std::this_thread::sleep_for(std::chrono::milliseconds(1));
-  }
+  gate.wait_for_reads(2);
   p.cancel();  // the read of level 1 waits for its gate: it must stop at the next chunk
   EXPECT_EQ(p.level(), 2U);
   EXPECT_EQ(p.levels_read(), 1U);
@@ -252,9 +256,7 @@ TEST(PyramidEngine, going_away_mid_read_neither_hangs_nor_leaks_a_run) {
   {
     pyramid_engine p(gate.reader(), pyramid_levels, 20.0);
     p.start(refine_goal::full());
-    while (gate.reads_.load(std::memory_order_relaxed) < 2) {
-      std::this_thread::sleep_for(std::chrono::milliseconds(1));
-    }
+    gate.wait_for_reads(2);
   }
   SUCCEED();
 }
