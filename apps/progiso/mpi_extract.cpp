@@ -28,6 +28,10 @@
 #include <progiso/io/detail/file_output.hpp>
 #include <progiso/io/detail/writers.hpp>
 #include <progiso/io/volume_io.hpp>
+#if defined(PROGISO_HAVE_MPI)
+#include <progiso/mpi/detail/distributed_cut.hpp>
+#include <progiso/mpi/detail/messages.hpp>
+#endif
 #include <progiso/scheduler/tbb_environment.hpp>
 
 #include "cli_common.hpp"
@@ -85,31 +89,6 @@ struct mpi_session {
   mpi_session& operator=(const mpi_session&) = delete;
   ~mpi_session() { MPI_Finalize(); }
 };
-
-// Byte buffers in messages of at most 1 GiB (MPI counts are int): the size first.
-constexpr std::uint64_t message_bytes = std::uint64_t{1} << 30;
-
-void send_bytes(const std::vector<char>& bytes, int to, int tag) {
-  const std::uint64_t n = bytes.size();
-  MPI_Send(&n, 1, MPI_UINT64_T, to, tag, MPI_COMM_WORLD);
-  for (std::uint64_t at = 0; at < n; at += message_bytes) {
-    const auto count = static_cast<int>(std::min(message_bytes, n - at));
-    MPI_Send(bytes.data() + at, count, MPI_BYTE, to, tag, MPI_COMM_WORLD);
-  }
-}
-
-/// Receives what send_bytes() sent and hands it to `write` message by message.
-template <class Write>
-void receive_bytes(int from, int tag, const Write& write) {
-  std::uint64_t n = 0;
-  MPI_Recv(&n, 1, MPI_UINT64_T, from, tag, MPI_COMM_WORLD, MPI_STATUS_IGNORE);
-  std::vector<char> block(static_cast<std::size_t>(std::min(message_bytes, n)));
-  for (std::uint64_t at = 0; at < n; at += message_bytes) {
-    const auto count = static_cast<int>(std::min(message_bytes, n - at));
-    MPI_Recv(block.data(), count, MPI_BYTE, from, tag, MPI_COMM_WORLD, MPI_STATUS_IGNORE);
-    write(block.data(), static_cast<std::size_t>(count));
-  }
-}
 
 /// Adds `by` to every vertex index of binary PLY face records (a count byte, then three
 /// little-endian 32-bit indices; append_ply_records()'s): a share meshed with local ids moved to
@@ -246,24 +225,6 @@ std::string exact_number(double v) {
   return buf;
 }
 
-/// A trivially copyable vector's bytes, and back.
-template <class T>
-std::vector<char> bytes_of(const std::vector<T>& v) {
-  static_assert(std::is_trivially_copyable_v<T>);
-  std::vector<char> b(v.size() * sizeof(T));
-  if (!b.empty()) std::memcpy(b.data(), v.data(), b.size());
-  return b;
-}
-template <class T>
-std::vector<T> receive_vector(int from, int tag) {
-  std::vector<char> b;
-  receive_bytes(from, tag, [&b](const char* p, std::size_t n) { b.insert(b.end(), p, p + n); });
-  if (b.size() % sizeof(T) != 0) throw error("a rank sent a record list of a wrong size");
-  std::vector<T> v(b.size() / sizeof(T));
-  if (!b.empty()) std::memcpy(v.data(), b.data(), b.size());
-  return v;
-}
-
 /// Text for an XML attribute value.
 std::string xml_attribute(const std::string& text) {
   std::string out;
@@ -386,123 +347,34 @@ int run_error_cut(setup& s, int rank, int size, unsigned threads,
   const clock::time_point until = deadline_after(clock::now(), s.a.time_budget);
   const auto passed = [timed, until] { return timed && clock::now() >= until; };
   const volume& field = *s.field;
-  const hierarchy hier(field.dims());
-  range_data rd(field, hier, range_data::staged);
-  const detail::cut_share share = detail::error_cut_share(
-      hier, rd.piece_count(), static_cast<std::size_t>(rank), static_cast<std::size_t>(size));
+  detail::distributed_cut cut(MPI_COMM_WORLD, 0, field, s.iso);
   // A deadline may end the build: then every rank gives the root surface.
-  int built = 1;
-  scheduler::run_on_threads(threads, [&](const parallel_loop& loop, std::size_t parts) {
-    const std::size_t step = timed ? std::max<std::size_t>(parts, 1) : share.piece_end;
-    for (std::size_t p = share.piece_begin; p < share.piece_end && built != 0; p += step) {
-      if (passed()) {
-        built = 0;
-        break;
-      }
-      rd.build_pieces_with_errors(p, std::min(share.piece_end, p + step), loop);
-    }
-  });
-  if (timed) MPI_Allreduce(MPI_IN_PLACE, &built, 1, MPI_INT, MPI_MIN, MPI_COMM_WORLD);
-  std::optional<detail::error_cut_walk> walk;
-  if (built != 0) {
-    // Every rank's pieces to every rank, in place: counts and offsets in pieces (one plane of
-    // bricks each), so that no count passes an int however large the grid.
-    const std::size_t piece = rd.piece_bytes(0, 1).size();
-    if (piece == 0 || piece > 2147483647u) {
-      throw error("the range data's pieces cannot be shared across ranks");
-    }
-    MPI_Datatype piece_type = MPI_DATATYPE_NULL;
-    MPI_Type_contiguous(static_cast<int>(piece), MPI_BYTE, &piece_type);
-    MPI_Type_commit(&piece_type);
-    std::vector<int> counts(static_cast<std::size_t>(size));
-    std::vector<int> offsets(static_cast<std::size_t>(size));
-    for (int r = 0; r < size; ++r) {
-      const detail::cut_share o = detail::error_cut_share(
-          hier, rd.piece_count(), static_cast<std::size_t>(r), static_cast<std::size_t>(size));
-      counts[static_cast<std::size_t>(r)] = static_cast<int>(o.piece_end - o.piece_begin);
-      offsets[static_cast<std::size_t>(r)] = static_cast<int>(o.piece_begin);
-    }
-    MPI_Allgatherv(MPI_IN_PLACE, 0, MPI_DATATYPE_NULL, rd.piece_bytes(0, rd.piece_count()).data(),
-                   counts.data(), offsets.data(), piece_type, MPI_COMM_WORLD);
-    MPI_Type_free(&piece_type);
-    scheduler::run_on_threads(threads, [&](const parallel_loop& loop, std::size_t) {
-      rd.finish(loop);
-      rd.finish_errors(loop);
-    });
-    walk.emplace(hier, field, rd, s.iso, share.z_begin, share.z_end);
-  }
+  const bool built = cut.build_ranges(threads, timed ? std::function<bool()>(passed) : nullptr);
   const double ranges_ms = ms_since(t0);
   // A fault for the tests: this rank dies here, after the others have its pieces.
   if (env_int("PROGISO_MPI_FAULT_RANK") == rank) std::raise(SIGKILL);
-  double max_error = std::numeric_limits<double>::infinity();  // the root surface's
-  std::size_t committed = 0;
-  int rounds = 0;
-  if (walk && !timed) {
-    max_error = s.a.options.goal.max_error;
-    scheduler::run_on_threads(
-        threads, [&](const parallel_loop& loop, std::size_t) { walk->extend(max_error, loop); });
-    committed = walk->round_end();
+  if (built && !timed) cut.round(s.a.options.goal.max_error, threads);
+  // Rounds until the error-0 cut or until some rank is out of time; the cut is the last round
+  // every rank finished.
+  while (timed) {
+    const std::optional<double> next = cut.next_threshold(0.0, passed());
+    if (!next || !cut.round(*next, threads, passed)) break;
   }
-  while (walk && timed) {
-    // Agreed on: the largest error waiting anywhere, and whether any rank is out of time (one
-    // that stopped alone would leave the others waiting in the next reduction).
-    double state[2] = {walk->largest_waiting_error(), passed() ? 1.0 : 0.0};
-    MPI_Allreduce(MPI_IN_PLACE, state, 2, MPI_DOUBLE, MPI_MAX, MPI_COMM_WORLD);
-    if (!(state[0] > 0.0) || state[1] > 0.0) break;  // the error-0 cut, or no time left
-    const double next = state[0] / 2;
-    int finished = 0;
-    scheduler::run_on_threads(threads, [&](const parallel_loop& loop, std::size_t) {
-      finished = walk->extend(next, loop, passed) ? 1 : 0;
-    });
-    MPI_Allreduce(MPI_IN_PLACE, &finished, 1, MPI_INT, MPI_MIN, MPI_COMM_WORLD);
-    if (finished == 0) break;  // some rank ran out of time: the previous round stands
-    max_error = next;
-    committed = walk->round_end();
-    ++rounds;
-  }
-  detail::share_splits mine;
-  if (walk) {
-    const detail::share_splits& all = walk->splits();
-    mine.splits.assign(all.splits.begin(),
-                       all.splits.begin() + static_cast<std::ptrdiff_t>(committed));
-    const std::uint64_t groups =
-        committed == 0 ? 0 : mine.splits.back().first_group + mine.splits.back().groups;
-    mine.groups.assign(all.groups.begin(),
-                       all.groups.begin() + static_cast<std::ptrdiff_t>(groups));
-    walk.reset();
-  }
+  cut.gather();
+  const double max_error = cut.threshold();
+  const int rounds = timed ? cut.rounds() : 0;
   const double splits_ms = ms_since(t0);
-  if (rank != 0) {
-    send_bytes(bytes_of(mine.splits), 0, 3);
-    send_bytes(bytes_of(mine.groups), 0, 4);
-    return 0;
-  }
-  std::uint64_t splits = mine.splits.size();
-  std::vector<detail::share_splits> shares;
-  shares.reserve(static_cast<std::size_t>(size));
-  shares.push_back(std::move(mine));
-  for (int r = 1; r < size; ++r) {
-    detail::share_splits& o = shares.emplace_back();
-    o.splits = receive_vector<detail::share_split>(r, 3);
-    o.groups = receive_vector<packed_group>(r, 4);
-    for (const detail::share_split& sp : o.splits) {
-      if (sp.first_group + sp.groups > o.groups.size()) {
-        throw error("rank " + std::to_string(r) + " sent a split whose groups it did not send");
-      }
-    }
-    splits += o.splits.size();
-  }
+  if (rank != 0) return 0;
+  const hierarchy& hier = cut.hier();
+  const std::span<const detail::share_splits> shares = cut.shares();
+  const std::uint64_t splits = cut.gathered_splits();
   // The stream only when asked for: the mesh is made from the records as they came.
   if (s.hierarchy_out) {
     detail::write_cut_stream(
         [&s](std::span<const std::byte> b) { s.hierarchy_out->write(b.data(), b.size()); }, hier,
         field, s.iso, shares);
   }
-  triangle_mesh mesh;
-  scheduler::run_on_threads(threads, [&](const parallel_loop& loop, std::size_t parts) {
-    mesh = detail::mesh_of_shares(hier, field, s.iso, shares, loop, parts);
-  });
-  shares.clear();
+  triangle_mesh mesh = cut.mesh(threads);
   if (s.world) to_world(mesh, *s.data, *s.world);
   detail::write_mesh_to(*s.mesh_out, mesh);
   const double total_ms = ms_since(t0);
@@ -527,13 +399,13 @@ int run_error_cut(setup& s, int rank, int size, unsigned threads,
   s.mesh_out->publish();
   if (s.stats_out) s.stats_out->publish();
   if (s.hierarchy_out) s.hierarchy_out->publish();
-  const std::string cut = std::isinf(max_error) ? std::string("the root surface")
-                                                : "the cut of error > " + exact_number(max_error);
+  const std::string which = std::isinf(max_error) ? std::string("the root surface")
+                                                  : "the cut of error > " + exact_number(max_error);
   std::printf(
       "progiso: %zu triangles, %zu vertices; %llu splits, %s%s on %d ranks (%zu voxels); range "
       "data %.1f ms, splits %.1f ms, total %.1f ms; wrote %s\n",
       mesh.triangles.size(), mesh.vertices.size(), static_cast<unsigned long long>(splits),
-      cut.c_str(),
+      which.c_str(),
       timed ? (" after " + std::to_string(rounds) + " rounds by the deadline").c_str() : "", size,
       field.voxel_count(), ranges_ms, splits_ms, total_ms, s.a.output->c_str());
   return 0;
@@ -650,8 +522,8 @@ int run_mpi_extract(const std::vector<std::string>& args) {
     } else {
       offset_ply_faces(faces, static_cast<std::uint32_t>(first[0]));
       if (rank != 0) {
-        send_bytes(vertices, 0, 1);
-        send_bytes(faces, 0, 2);
+        detail::send_bytes(MPI_COMM_WORLD, vertices.data(), vertices.size(), 0, 1);
+        detail::send_bytes(MPI_COMM_WORLD, faces.data(), faces.size(), 0, 2);
         return 0;
       }
       // Rank 0: the header, every rank's vertices, then every rank's faces.
@@ -659,9 +531,9 @@ int run_mpi_extract(const std::vector<std::string>& args) {
       out.write(detail::ply_header_text(totals[0], totals[1], false));
       const auto write = [&out](const char* p, std::size_t n) { out.write(p, n); };
       out.write(vertices.data(), vertices.size());
-      for (int r = 1; r < size; ++r) receive_bytes(r, 1, write);
+      for (int r = 1; r < size; ++r) detail::receive_bytes(MPI_COMM_WORLD, r, 1, write);
       out.write(faces.data(), faces.size());
-      for (int r = 1; r < size; ++r) receive_bytes(r, 2, write);
+      for (int r = 1; r < size; ++r) detail::receive_bytes(MPI_COMM_WORLD, r, 2, write);
     }
     detail::atomic_output& out = *s.mesh_out;
     const double seconds = std::chrono::duration<double>(clock::now() - t0).count();

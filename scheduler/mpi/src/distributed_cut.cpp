@@ -1,0 +1,197 @@
+#include <progiso/mpi/detail/distributed_cut.hpp>
+
+#include <algorithm>
+#include <limits>
+#include <string>
+
+#include <progiso/core/base/error.hpp>
+#include <progiso/mpi/detail/messages.hpp>
+#include <progiso/scheduler/tbb_environment.hpp>
+
+namespace progiso::detail {
+
+namespace {
+
+constexpr int tag_splits = 31;
+constexpr int tag_groups = 32;
+
+int comm_rank(MPI_Comm comm) {
+  int r = 0;
+  MPI_Comm_rank(comm, &r);
+  return r;
+}
+int comm_size(MPI_Comm comm) {
+  int n = 1;
+  MPI_Comm_size(comm, &n);
+  return n;
+}
+
+/// A small all-reduce that waits politely (the slowest rank may be a round behind).
+template <class T>
+void allreduce_politely(T* values, int count, MPI_Datatype type, MPI_Op op, MPI_Comm comm) {
+  MPI_Request request = MPI_REQUEST_NULL;
+  MPI_Iallreduce(MPI_IN_PLACE, values, count, type, op, comm, &request);
+  wait_politely(request);
+}
+
+}  // namespace
+
+distributed_cut::distributed_cut(MPI_Comm comm, int root, const volume& vol, double isovalue)
+    : comm_(comm),
+      rank_(comm_rank(comm)),
+      size_(comm_size(comm)),
+      root_(root),
+      vol_(vol),
+      hier_(vol.dims()),
+      ranges_(vol, hier_, range_data::staged),
+      share_(error_cut_share(hier_, ranges_.piece_count(), static_cast<std::size_t>(rank_),
+                             static_cast<std::size_t>(size_))),
+      isovalue_(isovalue),
+      threshold_(std::numeric_limits<double>::infinity()) {
+  if (root < 0 || root >= size_) {
+    throw error("the root rank " + std::to_string(root) + " is not a rank of the communicator (" +
+                std::to_string(size_) + " ranks)");
+  }
+  if (rank_ == root_) shares_.resize(static_cast<std::size_t>(size_));
+}
+
+distributed_cut::~distributed_cut() = default;
+
+bool distributed_cut::build_ranges(unsigned threads, const std::function<bool()>& stop) {
+  int built = 1;
+  scheduler::run_on_threads(threads, [&](const parallel_loop& loop, std::size_t parts) {
+    const std::size_t step = stop ? std::max<std::size_t>(parts, 1) : share_.piece_end;
+    for (std::size_t p = share_.piece_begin; p < share_.piece_end; p += step) {
+      if (stop && stop()) {
+        built = 0;
+        break;
+      }
+      ranges_.build_pieces_with_errors(p, std::min(share_.piece_end, p + step), loop);
+    }
+  });
+  MPI_Allreduce(MPI_IN_PLACE, &built, 1, MPI_INT, MPI_MIN, comm_);
+  if (built == 0) return false;
+  // Every rank's pieces to every rank, in place: counts and offsets in pieces (one plane of
+  // bricks each), so that no count passes an int however large the grid.
+  const std::size_t piece = ranges_.piece_bytes(0, 1).size();
+  if (piece == 0 || piece > 2147483647u) {
+    throw error("the range data's pieces cannot be shared across ranks");
+  }
+  MPI_Datatype piece_type = MPI_DATATYPE_NULL;
+  MPI_Type_contiguous(static_cast<int>(piece), MPI_BYTE, &piece_type);
+  MPI_Type_commit(&piece_type);
+  std::vector<int> counts(static_cast<std::size_t>(size_));
+  std::vector<int> offsets(static_cast<std::size_t>(size_));
+  for (int r = 0; r < size_; ++r) {
+    const cut_share o = error_cut_share(hier_, ranges_.piece_count(), static_cast<std::size_t>(r),
+                                        static_cast<std::size_t>(size_));
+    counts[static_cast<std::size_t>(r)] = static_cast<int>(o.piece_end - o.piece_begin);
+    offsets[static_cast<std::size_t>(r)] = static_cast<int>(o.piece_begin);
+  }
+  MPI_Allgatherv(MPI_IN_PLACE, 0, MPI_DATATYPE_NULL,
+                 ranges_.piece_bytes(0, ranges_.piece_count()).data(), counts.data(),
+                 offsets.data(), piece_type, comm_);
+  MPI_Type_free(&piece_type);
+  scheduler::run_on_threads(threads, [&](const parallel_loop& loop, std::size_t) {
+    ranges_.finish(loop);
+    ranges_.finish_errors(loop);
+  });
+  built_ = true;
+  walk_ = std::make_unique<error_cut_walk>(hier_, vol_, ranges_, isovalue_, share_.z_begin,
+                                           share_.z_end);
+  return true;
+}
+
+std::optional<double> distributed_cut::next_threshold(double floor, bool stop_now) {
+  // Agreed on: the largest error waiting anywhere, and whether any rank must stop (one that
+  // stopped alone would leave the others waiting in the next collective).
+  double state[2] = {walk_ && !broken_ ? walk_->largest_waiting_error() : 0.0,
+                     stop_now ? 1.0 : 0.0};
+  allreduce_politely(state, 2, MPI_DOUBLE, MPI_MAX, comm_);
+  if (!built_ || broken_ || state[1] > 0.0 || !(state[0] > floor)) return std::nullopt;
+  return std::max(state[0] / 2, floor);
+}
+
+bool distributed_cut::round(double threshold, unsigned threads, const std::function<bool()>& stop) {
+  int finished = 0;
+  if (walk_ && !broken_) {
+    scheduler::run_on_threads(threads, [&](const parallel_loop& loop, std::size_t) {
+      finished = walk_->extend(threshold, loop, stop) ? 1 : 0;
+    });
+  }
+  allreduce_politely(&finished, 1, MPI_INT, MPI_MIN, comm_);
+  if (finished == 0) {
+    broken_ = true;  // some rank stopped: the splits past the last round are not a round's
+    return false;
+  }
+  committed_ = walk_->round_end();
+  threshold_ = threshold;
+  ++rounds_;
+  return true;
+}
+
+void distributed_cut::gather() {
+  const share_splits empty;
+  const share_splits& all = walk_ ? walk_->splits() : empty;
+  const std::size_t groups_end =
+      committed_ == 0 ? 0
+                      : all.splits[committed_ - 1].first_group + all.splits[committed_ - 1].groups;
+  if (rank_ != root_) {
+    send_records(comm_, all.splits, sent_splits_, committed_, root_, tag_splits);
+    send_records(comm_, all.groups, sent_groups_, groups_end, root_, tag_groups);
+  } else {
+    for (int r = 0; r < size_; ++r) {
+      share_splits& o = shares_[static_cast<std::size_t>(r)];
+      if (r == root_) {
+        o.splits.insert(o.splits.end(),
+                        all.splits.begin() + static_cast<std::ptrdiff_t>(sent_splits_),
+                        all.splits.begin() + static_cast<std::ptrdiff_t>(committed_));
+        o.groups.insert(o.groups.end(),
+                        all.groups.begin() + static_cast<std::ptrdiff_t>(sent_groups_),
+                        all.groups.begin() + static_cast<std::ptrdiff_t>(groups_end));
+        continue;
+      }
+      const std::size_t from = o.splits.size();
+      receive_records(comm_, o.splits, r, tag_splits);
+      receive_records(comm_, o.groups, r, tag_groups);
+      for (std::size_t k = from; k < o.splits.size(); ++k) {
+        const share_split& sp = o.splits[k];
+        if (sp.first_group + sp.groups > o.groups.size()) {
+          throw error("rank " + std::to_string(r) + " sent a split whose groups it did not send");
+        }
+      }
+    }
+  }
+  sent_splits_ = committed_;
+  sent_groups_ = groups_end;
+}
+
+void distributed_cut::restart(double isovalue) {
+  isovalue_ = isovalue;
+  walk_.reset();
+  if (built_) {
+    walk_ = std::make_unique<error_cut_walk>(hier_, vol_, ranges_, isovalue_, share_.z_begin,
+                                             share_.z_end);
+  }
+  broken_ = false;
+  threshold_ = std::numeric_limits<double>::infinity();
+  rounds_ = 0;
+  sent_splits_ = sent_groups_ = committed_ = 0;
+  for (share_splits& s : shares_) s = {};
+}
+
+std::uint64_t distributed_cut::gathered_splits() const noexcept {
+  std::uint64_t n = 0;
+  for (const share_splits& s : shares_) n += s.splits.size();
+  return n;
+}
+
+triangle_mesh distributed_cut::mesh(unsigned threads) const {
+  triangle_mesh m;
+  scheduler::run_on_threads(threads, [&](const parallel_loop& loop, std::size_t parts) {
+    m = mesh_of_shares(hier_, vol_, isovalue_, shares_, loop, parts);
+  });
+  return m;
+}
+
+}  // namespace progiso::detail
