@@ -137,6 +137,24 @@ void distributed_engine::serve() {
         std::numeric_limits<double>::infinity();  // root: the latest snapshot's threshold
     clock::time_point until = clock::time_point::max();
     const auto out_of_time = [&until] { return clock::now() >= until; };
+    // On the root: the cut gathered so far as the next snapshot, unless it passes the budget
+    // (then the run ends, and the previous snapshot is the last within it).
+    const auto show = [&]() -> bool {
+      auto s = std::make_shared<distributed_snapshot>();
+      s->mesh = cut_->mesh(threads_);
+      if (budget != 0 && s->mesh.triangles.size() > budget) {
+        running = false;
+        return false;
+      }
+      s->isovalue = cut_->isovalue();
+      s->max_error = cut_->threshold();
+      s->splits = cut_->gathered_splits();
+      s->round = cut_->rounds();
+      s->isovalue_changes = changes;
+      shown = s->max_error;
+      publish(std::move(s));
+      return true;
+    };
     for (;;) {
       double c[c_slots] = {};
       if (is_root()) {
@@ -204,7 +222,10 @@ void distributed_engine::serve() {
                                          std::chrono::duration<double, std::milli>(c[c_duration]));
       }
       if (!running) continue;
-      const std::optional<double> next = cut_->next_threshold(floor, out_of_time());
+      // A round kept past a budget: a larger budget may show it now, or end the run at once
+      // (the root still takes part in the agreement, as a rank that stops).
+      const bool over = is_root() && c[c_start] != 0 && cut_->threshold() < shown && !show();
+      const std::optional<double> next = cut_->next_threshold(floor, out_of_time() || over);
       if (!next) {
         running = false;  // agreed by every rank
         continue;
@@ -215,21 +236,7 @@ void distributed_engine::serve() {
       });
       if (!finished) continue;  // the next control block or agreement ends or restarts it
       cut_->gather();
-      if (is_root() && *next < shown) {
-        auto s = std::make_shared<distributed_snapshot>();
-        s->mesh = cut_->mesh(threads_);
-        if (budget != 0 && s->mesh.triangles.size() > budget) {
-          running = false;  // the previous snapshot is the last within the budget
-          continue;
-        }
-        s->isovalue = cut_->isovalue();
-        s->max_error = *next;
-        s->splits = cut_->gathered_splits();
-        s->round = cut_->rounds();
-        s->isovalue_changes = changes;
-        shown = *next;
-        publish(std::move(s));
-      }
+      if (is_root() && *next < shown) show();
     }
   } catch (const std::exception& e) {
     std::fprintf(stderr, "progiso: distributed_engine on rank %d: %s\n", rank_, e.what());
