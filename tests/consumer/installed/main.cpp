@@ -1,6 +1,7 @@
 // An embedder's program: the finest surface of an analytic field through progiso::core alone;
 // with progiso::io, that surface written as PLY; with progiso::scheduler, the engine's finest
-// cut of the same field. Exits non-zero when a result is not what the library promises.
+// cut of the same field; with progiso::mpi, the engine across ranks (one rank here) to the same
+// cut. Exits non-zero when a result is not what the library promises.
 #include <cstdio>
 #include <filesystem>
 
@@ -11,6 +12,11 @@
 #endif
 #if PROGISO_CONSUMER_SCHEDULER
 #include <progiso/scheduler/engine.hpp>
+#endif
+#if PROGISO_CONSUMER_MPI
+#include <mpi.h>
+
+#include <progiso/mpi/distributed_engine.hpp>
 #endif
 
 int main(int argc, char** argv) {
@@ -31,6 +37,22 @@ int main(int argc, char** argv) {
   eng.refine(progiso::refine_goal::full());
   if (eng.snapshot().triangle_count() != r.mesh.triangles.size()) {
     std::fprintf(stderr, "consumer: the engine's finest cut differs from the one-shot call's\n");
+    return 1;
+  }
+#endif
+#if PROGISO_CONSUMER_MPI
+  int provided = 0;
+  MPI_Init_thread(&argc, &argv, MPI_THREAD_MULTIPLE, &provided);
+  std::size_t triangles = 0;
+  {
+    progiso::distributed_engine eng(MPI_COMM_WORLD, vol, 6.0);
+    eng.start(progiso::refine_goal::full());
+    eng.wait();
+    triangles = eng.snapshot()->mesh.triangles.size();
+  }
+  MPI_Finalize();
+  if (triangles != r.mesh.triangles.size()) {
+    std::fprintf(stderr, "consumer: the engine across ranks ends on another cut\n");
     return 1;
   }
 #endif
