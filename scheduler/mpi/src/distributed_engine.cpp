@@ -32,7 +32,7 @@ enum control_slot : std::size_t {
 
 distributed_engine::distributed_engine(MPI_Comm comm, const volume& vol, double isovalue,
                                        options opt)
-    : threads_(opt.threads), vol_(vol) {
+    : threads_(opt.threads) {
   int level = MPI_THREAD_SINGLE;
   MPI_Query_thread(&level);
   if (level < MPI_THREAD_MULTIPLE) {

@@ -109,7 +109,6 @@ class distributed_engine {
   int rank_ = 0;
   int root_ = 0;
   unsigned threads_ = 0;
-  const volume& vol_;
   std::unique_ptr<detail::distributed_cut> cut_;
 
   mutable std::mutex mutex_;
