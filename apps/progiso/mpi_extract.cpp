@@ -366,13 +366,14 @@ int run_error_cut(setup& s, int rank, int size, unsigned threads,
   const double splits_ms = ms_since(t0);
   if (rank != 0) return 0;
   const hierarchy& hier = cut.hier();
-  const std::span<const detail::share_splits> shares = cut.shares();
   const std::uint64_t splits = cut.gathered_splits();
+  std::vector<const detail::share_splits*> pieces;
+  for (const auto& p : cut.pieces()) pieces.push_back(p.get());
   // The stream only when asked for: the mesh is made from the records as they came.
   if (s.hierarchy_out) {
     detail::write_cut_stream(
         [&s](std::span<const std::byte> b) { s.hierarchy_out->write(b.data(), b.size()); }, hier,
-        field, s.iso, shares);
+        field, s.iso, pieces);
   }
   triangle_mesh mesh = cut.mesh(threads);
   if (s.world) to_world(mesh, *s.data, *s.world);

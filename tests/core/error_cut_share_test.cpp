@@ -67,6 +67,13 @@ std::vector<cut_case> cases() {
   return c;
 }
 
+// The shares as the mesher and the stream writer take them.
+std::vector<const detail::share_splits*> pointers(const std::vector<detail::share_splits>& shares) {
+  std::vector<const detail::share_splits*> p;
+  for (const detail::share_splits& s : shares) p.push_back(&s);
+  return p;
+}
+
 // Range data for each of `n` shares, each building its own pieces and copying the others'.
 std::vector<std::unique_ptr<range_data>> shared_ranges(const volume& v, const hierarchy& h,
                                                        std::size_t n) {
@@ -147,7 +154,7 @@ TEST(ErrorCutShare, the_shares_splits_are_the_one_process_split_set_and_mesh_to_
             [&bytes](std::span<const std::byte> b) {
               bytes.insert(bytes.end(), b.begin(), b.end());
             },
-            h, c.vol, c.iso, shares);
+            h, c.vol, c.iso, pointers(shares));
         const hierarchy_stream stream = hierarchy_stream::decode(bytes);
         EXPECT_EQ(stream.records(), splits);
         const triangle_mesh got = stream.mesh(stream.all());
@@ -157,7 +164,8 @@ TEST(ErrorCutShare, the_shares_splits_are_the_one_process_split_set_and_mesh_to_
         EXPECT_TRUE(got.triangles == expected.triangles);
         // The same without a stream, in one piece and in several.
         for (const std::size_t parts : {1u, 3u}) {
-          const triangle_mesh direct = detail::mesh_of_shares(h, c.vol, c.iso, shares, {}, parts);
+          const triangle_mesh direct =
+              detail::mesh_of_shares(h, c.vol, c.iso, pointers(shares), {}, parts);
           EXPECT_TRUE(direct.vertices == expected.vertices) << parts << " parts";
           EXPECT_TRUE(direct.triangles == expected.triangles) << parts << " parts";
         }
@@ -201,7 +209,7 @@ TEST(ErrorCutShare, rounds_of_falling_thresholds_add_up_to_each_thresholds_split
         for (const auto& sh : now) {
           for (const auto& sp : sh.splits) EXPECT_TRUE(one.is_split(h.point(sp.diamond)));
         }
-        const triangle_mesh got = detail::mesh_of_shares(h, c.vol, c.iso, now);
+        const triangle_mesh got = detail::mesh_of_shares(h, c.vol, c.iso, pointers(now));
         const triangle_mesh want = one.extract();
         EXPECT_TRUE(got.vertices == want.vertices && got.triangles == want.triangles)
             << "round " << rounds << ", error " << eps;

@@ -88,9 +88,11 @@ void expect_consistent(const std::vector<snapshot_ptr>& seen, one_process& ref) 
                  ", threshold " + std::to_string(s.max_error) + ", round " +
                  std::to_string(s.round));
     const triangle_mesh& want = ref.cut(s.isovalue, s.max_error);
-    EXPECT_EQ(s.mesh.triangles.size(), want.triangles.size());
-    EXPECT_TRUE(s.mesh.vertices == want.vertices);
-    EXPECT_TRUE(s.mesh.triangles == want.triangles);
+    const std::shared_ptr<const triangle_mesh> got = s.mesh();
+    EXPECT_EQ(got, s.mesh()) << "made once";
+    EXPECT_EQ(got->triangles.size(), want.triangles.size());
+    EXPECT_TRUE(got->vertices == want.vertices);
+    EXPECT_TRUE(got->triangles == want.triangles);
     if (k == 0) continue;
     const distributed_snapshot& p = *seen[k - 1];
     if (p.isovalue_changes == s.isovalue_changes) {
@@ -125,7 +127,7 @@ TEST(DistributedEngine, every_snapshot_is_the_one_process_cut_of_its_threshold) 
   EXPECT_TRUE(std::isinf(seen.front()->max_error)) << "the first snapshot is the root surface";
   EXPECT_GE(seen.size(), 3u) << "the reader saw the cut refine";
   const distributed_snapshot& last = *seen.back();
-  EXPECT_TRUE(last.mesh.triangles == ref.cut(iso0, 0.0).triangles) << "full: the error-0 cut";
+  EXPECT_TRUE(last.mesh()->triangles == ref.cut(iso0, 0.0).triangles) << "full: the error-0 cut";
   EXPECT_GT(last.splits, 0u);
 }
 
@@ -139,8 +141,8 @@ TEST(DistributedEngine, an_error_goal_ends_on_its_thresholds_cut) {
     e.wait();
     const snapshot_ptr s = e.snapshot();
     EXPECT_GE(s->max_error, eps);
-    EXPECT_TRUE(s->mesh.triangles == ref.cut(iso0, eps).triangles) << "error " << eps;
-    EXPECT_TRUE(s->mesh.vertices == ref.cut(iso0, eps).vertices) << "error " << eps;
+    EXPECT_TRUE(s->mesh()->triangles == ref.cut(iso0, eps).triangles) << "error " << eps;
+    EXPECT_TRUE(s->mesh()->vertices == ref.cut(iso0, eps).vertices) << "error " << eps;
   }
 }
 
@@ -167,11 +169,11 @@ TEST(DistributedEngine, an_isovalue_change_reaches_every_rank_and_no_snapshot_mi
   const distributed_snapshot& last = *seen.back();
   EXPECT_EQ(last.isovalue, 0.7);
   EXPECT_EQ(last.isovalue_changes, 2u);
-  EXPECT_TRUE(last.mesh.triangles == ref.cut(0.7, 0.0).triangles);
+  EXPECT_TRUE(last.mesh()->triangles == ref.cut(0.7, 0.0).triangles);
   // The change mid-run was refined to the goal before the next came.
   EXPECT_EQ(middle->isovalue, 0.3);
   EXPECT_EQ(middle->isovalue_changes, 1u);
-  EXPECT_TRUE(middle->mesh.triangles == ref.cut(0.3, 0.0).triangles);
+  EXPECT_TRUE(middle->mesh()->triangles == ref.cut(0.3, 0.0).triangles);
 }
 
 TEST(DistributedEngine, a_deadline_ends_on_a_round_every_rank_finished) {
@@ -187,7 +189,7 @@ TEST(DistributedEngine, a_deadline_ends_on_a_round_every_rank_finished) {
     SCOPED_TRACE(std::to_string(ms) + " ms");
     expect_consistent(seen, ref);
     if (ms == 60000) {
-      EXPECT_TRUE(seen.back()->mesh.triangles == ref.cut(0.4, 0.0).triangles);
+      EXPECT_TRUE(seen.back()->mesh()->triangles == ref.cut(0.4, 0.0).triangles);
     }
     e.cancel();  // no goal: the isovalue set again gives the root surface for the next budget
     e.set_isovalue(0.4);
@@ -216,20 +218,20 @@ TEST(DistributedEngine, a_triangle_budget_keeps_the_last_round_within_it) {
   }
   ASSERT_GE(rounds.size(), 3u);
   const distributed_snapshot& below = *rounds[rounds.size() - 2];
-  const std::size_t budget = below.mesh.triangles.size();
-  ASSERT_LT(budget, rounds.back()->mesh.triangles.size());
+  const std::size_t budget = below.mesh()->triangles.size();
+  ASSERT_LT(budget, rounds.back()->mesh()->triangles.size());
   distributed_engine e(MPI_COMM_WORLD, v, iso0);
   e.start(refine_goal::triangles(budget));
   e.wait();
   const snapshot_ptr s = e.snapshot();
-  EXPECT_LE(s->mesh.triangles.size(), budget);
+  EXPECT_LE(s->mesh()->triangles.size(), budget);
   EXPECT_EQ(s->max_error, below.max_error) << "the last round within the budget";
-  EXPECT_TRUE(s->mesh.triangles == ref.cut(iso0, s->max_error).triangles);
+  EXPECT_TRUE(s->mesh()->triangles == ref.cut(iso0, s->max_error).triangles);
   // A budget of the finest cut reaches it, going on from where the smaller one stopped (the
   // round past the smaller budget, kept but not shown, is shown now).
-  e.start(refine_goal::triangles(rounds.back()->mesh.triangles.size()));
+  e.start(refine_goal::triangles(rounds.back()->mesh()->triangles.size()));
   e.wait();
-  EXPECT_TRUE(e.snapshot()->mesh.triangles == ref.cut(iso0, 0.0).triangles);
+  EXPECT_TRUE(e.snapshot()->mesh()->triangles == ref.cut(iso0, 0.0).triangles);
 }
 
 TEST(DistributedEngine, cancel_stops_every_rank_and_a_new_start_goes_on) {
@@ -245,7 +247,7 @@ TEST(DistributedEngine, cancel_stops_every_rank_and_a_new_start_goes_on) {
     e.wait();
   });
   expect_consistent(seen, ref);
-  EXPECT_TRUE(seen.back()->mesh.triangles == ref.cut(0.4, 0.0).triangles);
+  EXPECT_TRUE(seen.back()->mesh()->triangles == ref.cut(0.4, 0.0).triangles);
 }
 
 TEST(DistributedEngine, destruction_during_a_run_ends_every_rank) {
@@ -272,7 +274,31 @@ TEST(DistributedEngine, any_rank_can_be_the_root) {
   one_process ref(v);
   e.start(refine_goal::error(0.05));
   e.wait();
-  EXPECT_TRUE(e.snapshot()->mesh.triangles == ref.cut(iso0, 0.05).triangles);
+  EXPECT_TRUE(e.snapshot()->mesh()->triangles == ref.cut(iso0, 0.05).triangles);
+}
+
+TEST(DistributedEngine, a_snapshot_outlives_its_engine_and_is_meshed_once_for_every_reader) {
+  const volume v = field();
+  snapshot_ptr s;
+  {
+    distributed_engine e(MPI_COMM_WORLD, v, iso0);
+    if (e.is_root()) {
+      e.start(refine_goal::error(0.02));
+      e.wait();
+      s = e.snapshot();
+    }
+  }
+  if (!s) return;
+  one_process ref(v);
+  std::vector<std::shared_ptr<const triangle_mesh>> got(4);
+  std::vector<std::thread> readers;
+  for (std::size_t k = 0; k < got.size(); ++k) {
+    readers.emplace_back([&got, &s, k] { got[k] = s->mesh(); });
+  }
+  for (std::thread& t : readers) t.join();
+  for (const auto& m : got) EXPECT_EQ(m, got[0]);
+  EXPECT_TRUE(got[0]->triangles == ref.cut(iso0, 0.02).triangles);
+  EXPECT_TRUE(got[0]->vertices == ref.cut(iso0, 0.02).vertices);
 }
 
 TEST(DistributedEngine, refusals) {

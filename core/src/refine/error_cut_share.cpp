@@ -192,7 +192,8 @@ share_splits error_cut_splits(const hierarchy& hier, const volume& vol, const ra
 }
 
 void write_cut_stream(const hierarchy_stream_writer::sink& out, const hierarchy& hier,
-                      const volume& vol, double isovalue, std::span<const share_splits> shares) {
+                      const volume& vol, double isovalue,
+                      std::span<const share_splits* const> shares) {
   hierarchy_stream_header header;
   header.dims = vol.dims();
   // A smoothed field's samples are computed doubles; a volume's are of its type.
@@ -213,22 +214,22 @@ void write_cut_stream(const hierarchy_stream_writer::sink& out, const hierarchy&
   // Parents first: every share's splits by depth, then grid index.
   std::vector<std::pair<std::size_t, std::size_t>> order;
   for (std::size_t k = 0; k < shares.size(); ++k) {
-    for (std::size_t i = 0; i < shares[k].splits.size(); ++i) order.emplace_back(k, i);
+    for (std::size_t i = 0; i < shares[k]->splits.size(); ++i) order.emplace_back(k, i);
   }
   const auto key = [&shares](const std::pair<std::size_t, std::size_t>& at) {
-    const share_split& s = shares[at.first].splits[at.second];
+    const share_split& s = shares[at.first]->splits[at.second];
     return std::pair<int, std::uint64_t>(s.depth, s.diamond);
   };
   std::sort(order.begin(), order.end(),
             [&key](const auto& a, const auto& b) { return key(a) < key(b); });
   for (const auto& [k, i] : order) {
-    const share_split& s = shares[k].splits[i];
+    const share_split& s = shares[k]->splits[i];
     hierarchy_stream_record r;
     r.diamond = s.diamond;
     r.crossed = s.crossed;
     r.value = s.value;
     r.error = s.error;
-    r.groups = std::span<const packed_group>(shares[k].groups).subspan(s.first_group, s.groups);
+    r.groups = std::span<const packed_group>(shares[k]->groups).subspan(s.first_group, s.groups);
     writer.add(r);
   }
   writer.finish();
@@ -275,10 +276,10 @@ struct shares_field {
 }  // namespace
 
 triangle_mesh mesh_of_shares(const hierarchy& hier, const volume& vol, double isovalue,
-                             std::span<const share_splits> shares, const parallel_loop& run,
+                             std::span<const share_splits* const> shares, const parallel_loop& run,
                              std::size_t parts) {
   std::uint64_t splits = 0;
-  for (const share_splits& s : shares) splits += s.splits.size();
+  for (const share_splits* s : shares) splits += s->splits.size();
   shares_cut cut;
   cut.recs.reserve(splits + 1);
   cut.recs.push_back({no_owner, nullptr, 0, 0, 0});
@@ -293,9 +294,9 @@ triangle_mesh mesh_of_shares(const hierarchy& hier, const volume& vol, double is
     field.slot.try_emplace(hier.index(p), static_cast<std::uint32_t>(field.values.size()));
     field.values.push_back(vol.value(p[0], p[1], p[2]));
   }
-  for (const share_splits& s : shares) {
-    for (const share_split& sp : s.splits) {
-      cut.recs.push_back({sp.diamond, s.groups.data() + sp.first_group, sp.groups,
+  for (const share_splits* s : shares) {
+    for (const share_split& sp : s->splits) {
+      cut.recs.push_back({sp.diamond, s->groups.data() + sp.first_group, sp.groups,
                           hier.scale_of(hier.point(sp.diamond)), sp.crossed});
       field.slot.try_emplace(sp.diamond, static_cast<std::uint32_t>(field.values.size()));
       field.values.push_back(sp.value);

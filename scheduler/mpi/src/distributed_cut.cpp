@@ -52,7 +52,7 @@ distributed_cut::distributed_cut(MPI_Comm comm, int root, const volume& vol, dou
     throw error("the root rank " + std::to_string(root) + " is not a rank of the communicator (" +
                 std::to_string(size_) + " ranks)");
   }
-  if (rank_ == root_) shares_.resize(static_cast<std::size_t>(size_));
+  if (rank_ == root_) groups_seen_.resize(static_cast<std::size_t>(size_));
 }
 
 distributed_cut::~distributed_cut() = default;
@@ -141,25 +141,27 @@ void distributed_cut::gather() {
     send_records(comm_, all.groups, sent_groups_, groups_end, root_, tag_groups);
   } else {
     for (int r = 0; r < size_; ++r) {
-      share_splits& o = shares_[static_cast<std::size_t>(r)];
+      auto piece = std::make_shared<share_splits>();
       if (r == root_) {
-        o.splits.insert(o.splits.end(),
-                        all.splits.begin() + static_cast<std::ptrdiff_t>(sent_splits_),
-                        all.splits.begin() + static_cast<std::ptrdiff_t>(committed_));
-        o.groups.insert(o.groups.end(),
-                        all.groups.begin() + static_cast<std::ptrdiff_t>(sent_groups_),
-                        all.groups.begin() + static_cast<std::ptrdiff_t>(groups_end));
-        continue;
+        piece->splits.assign(all.splits.begin() + static_cast<std::ptrdiff_t>(sent_splits_),
+                             all.splits.begin() + static_cast<std::ptrdiff_t>(committed_));
+        piece->groups.assign(all.groups.begin() + static_cast<std::ptrdiff_t>(sent_groups_),
+                             all.groups.begin() + static_cast<std::ptrdiff_t>(groups_end));
+      } else {
+        receive_records(comm_, piece->splits, r, tag_splits);
+        receive_records(comm_, piece->groups, r, tag_groups);
       }
-      const std::size_t from = o.splits.size();
-      receive_records(comm_, o.splits, r, tag_splits);
-      receive_records(comm_, o.groups, r, tag_groups);
-      for (std::size_t k = from; k < o.splits.size(); ++k) {
-        const share_split& sp = o.splits[k];
-        if (sp.first_group + sp.groups > o.groups.size()) {
+      // The rank's group indices count from its first round; a piece's from its own start.
+      std::uint64_t& base = groups_seen_[static_cast<std::size_t>(r)];
+      for (share_split& sp : piece->splits) {
+        if (sp.first_group < base || sp.first_group - base + sp.groups > piece->groups.size()) {
           throw error("rank " + std::to_string(r) + " sent a split whose groups it did not send");
         }
+        sp.first_group -= base;
       }
+      base += piece->groups.size();
+      gathered_ += piece->splits.size();
+      if (!piece->splits.empty()) pieces_.push_back(std::move(piece));
     }
   }
   sent_splits_ = committed_;
@@ -177,21 +179,25 @@ void distributed_cut::restart(double isovalue) {
   threshold_ = std::numeric_limits<double>::infinity();
   rounds_ = 0;
   sent_splits_ = sent_groups_ = committed_ = 0;
-  for (share_splits& s : shares_) s = {};
+  pieces_.clear();  // snapshots keep the pieces they show
+  std::fill(groups_seen_.begin(), groups_seen_.end(), 0);
+  gathered_ = 0;
 }
 
-std::uint64_t distributed_cut::gathered_splits() const noexcept {
-  std::uint64_t n = 0;
-  for (const share_splits& s : shares_) n += s.splits.size();
-  return n;
+triangle_mesh mesh_of_pieces(const hierarchy& hier, const volume& vol, double isovalue,
+                             const cut_pieces& pieces, unsigned threads) {
+  std::vector<const share_splits*> shares;
+  shares.reserve(pieces.size());
+  for (const auto& p : pieces) shares.push_back(p.get());
+  triangle_mesh m;
+  scheduler::run_on_threads(threads, [&](const parallel_loop& loop, std::size_t parts) {
+    m = mesh_of_shares(hier, vol, isovalue, shares, loop, parts);
+  });
+  return m;
 }
 
 triangle_mesh distributed_cut::mesh(unsigned threads) const {
-  triangle_mesh m;
-  scheduler::run_on_threads(threads, [&](const parallel_loop& loop, std::size_t parts) {
-    m = mesh_of_shares(hier_, vol_, isovalue_, shares_, loop, parts);
-  });
-  return m;
+  return mesh_of_pieces(hier_, vol_, isovalue_, pieces_, threads);
 }
 
 }  // namespace progiso::detail

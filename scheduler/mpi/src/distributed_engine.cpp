@@ -32,7 +32,7 @@ enum control_slot : std::size_t {
 
 distributed_engine::distributed_engine(MPI_Comm comm, const volume& vol, double isovalue,
                                        options opt)
-    : threads_(opt.threads) {
+    : threads_(opt.threads), vol_(vol) {
   int level = MPI_THREAD_SINGLE;
   MPI_Query_thread(&level);
   if (level < MPI_THREAD_MULTIPLE) {
@@ -46,17 +46,12 @@ distributed_engine::distributed_engine(MPI_Comm comm, const volume& vol, double 
   root_ = opt.root;
   try {
     cut_ = std::make_unique<detail::distributed_cut>(comm_, root_, vol, isovalue);
+    hier_ = std::make_shared<const hierarchy>(vol.dims());
   } catch (...) {
     MPI_Comm_free(&comm_);
     throw;
   }
-  if (is_root()) {
-    auto s = std::make_shared<distributed_snapshot>();
-    s->mesh = cut_->mesh(threads_);
-    s->isovalue = isovalue;
-    s->max_error = std::numeric_limits<double>::infinity();
-    latest_ = std::move(s);
-  }
+  if (is_root()) publish(0, nullptr);
   thread_ = std::thread([this] { serve(); });
 }
 
@@ -118,7 +113,29 @@ void distributed_engine::wait() {
   changed_.wait(lock, [this] { return ended_ || (is_root() && !busy_); });
 }
 
-void distributed_engine::publish(std::shared_ptr<const distributed_snapshot> s) {
+std::shared_ptr<const triangle_mesh> distributed_snapshot::mesh() const {
+  std::call_once(cut->once, [this] {
+    cut->mesh = std::make_shared<const triangle_mesh>(
+        detail::mesh_of_pieces(*cut->hier, *cut->vol, cut->isovalue, cut->pieces, cut->threads));
+  });
+  return cut->mesh;
+}
+
+void distributed_engine::publish(std::uint64_t changes, std::shared_ptr<const triangle_mesh> mesh) {
+  auto c = std::make_shared<detail::snapshot_cut>();
+  c->hier = hier_;
+  c->vol = &vol_;
+  c->isovalue = cut_->isovalue();
+  c->pieces = cut_->pieces();
+  c->threads = threads_;
+  if (mesh) std::call_once(c->once, [&] { c->mesh = std::move(mesh); });
+  auto s = std::make_shared<distributed_snapshot>();
+  s->isovalue = cut_->isovalue();
+  s->max_error = cut_->threshold();
+  s->splits = cut_->gathered_splits();
+  s->round = cut_->rounds();
+  s->isovalue_changes = changes;
+  s->cut = std::move(c);
   const std::lock_guard lock(mutex_);
   latest_ = std::move(s);
 }
@@ -139,20 +156,19 @@ void distributed_engine::serve() {
     const auto out_of_time = [&until] { return clock::now() >= until; };
     // On the root: the cut gathered so far as the next snapshot, unless it passes the budget
     // (then the run ends, and the previous snapshot is the last within it).
+    // A budget needs the round's triangles, so the root meshes each round then (the snapshot
+    // keeps that mesh); otherwise a snapshot is meshed only when a reader asks.
     const auto show = [&]() -> bool {
-      auto s = std::make_shared<distributed_snapshot>();
-      s->mesh = cut_->mesh(threads_);
-      if (budget != 0 && s->mesh.triangles.size() > budget) {
-        running = false;
-        return false;
+      std::shared_ptr<const triangle_mesh> mesh;
+      if (budget != 0) {
+        mesh = std::make_shared<const triangle_mesh>(cut_->mesh(threads_));
+        if (mesh->triangles.size() > budget) {
+          running = false;
+          return false;
+        }
       }
-      s->isovalue = cut_->isovalue();
-      s->max_error = cut_->threshold();
-      s->splits = cut_->gathered_splits();
-      s->round = cut_->rounds();
-      s->isovalue_changes = changes;
-      shown = s->max_error;
-      publish(std::move(s));
+      shown = cut_->threshold();
+      publish(changes, std::move(mesh));
       return true;
     };
     for (;;) {
@@ -204,14 +220,7 @@ void distributed_engine::serve() {
         cut_->restart(c[c_w]);
         ++changes;
         shown = std::numeric_limits<double>::infinity();
-        if (is_root()) {
-          auto s = std::make_shared<distributed_snapshot>();
-          s->mesh = cut_->mesh(threads_);
-          s->isovalue = c[c_w];
-          s->max_error = shown;
-          s->isovalue_changes = changes;
-          publish(std::move(s));
-        }
+        if (is_root()) publish(changes, nullptr);
       } else if (c[c_start] != 0 && cut_->broken()) {
         cut_->restart(cut_->isovalue());  // an abandoned round: the same cut again, not shown
       }

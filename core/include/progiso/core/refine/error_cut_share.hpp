@@ -119,15 +119,19 @@ class error_cut_walk {
 /// chunk (from `vol`: the root corners' samples and the root tetrahedra's surface, a few samples
 /// in all), every share's splits ordered by depth and grid index (parents first), and the end
 /// mark. Its cut of all records is the one process's cut of the same goal, vertex for vertex.
+/// `shares` may be any partition of the cut's splits (by rank, by rank and round), in any order.
 void write_cut_stream(const hierarchy_stream_writer::sink& out, const hierarchy& hier,
-                      const volume& vol, double isovalue, std::span<const share_splits> shares);
+                      const volume& vol, double isovalue,
+                      std::span<const share_splits* const> shares);
 
 /// The mesh of the cut made in shares, without a stream: the one process's cut of the same goal
 /// vertex for vertex (canonical order, clipped to the data box, physical coordinates), in `parts`
 /// pieces through `run`. Reads `vol` at the root corners alone: every other sample is a split's
 /// centre, which its share_split carries.
+/// `shares` as for write_cut_stream().
 [[nodiscard]] triangle_mesh mesh_of_shares(const hierarchy& hier, const volume& vol,
-                                           double isovalue, std::span<const share_splits> shares,
+                                           double isovalue,
+                                           std::span<const share_splits* const> shares,
                                            const parallel_loop& run = {}, std::size_t parts = 1);
 
 }  // namespace progiso::detail

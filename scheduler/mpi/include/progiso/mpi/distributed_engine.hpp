@@ -38,6 +38,7 @@
 #include <mpi.h>
 
 #include <progiso/core/field/volume.hpp>
+#include <progiso/core/hierarchy/hierarchy.hpp>
 #include <progiso/core/refine/goal.hpp>
 #include <progiso/core/surface/mesh.hpp>
 
@@ -45,17 +46,25 @@ namespace progiso {
 
 namespace detail {
 class distributed_cut;
-}
+struct snapshot_cut;
+}  // namespace detail
 
 /// One cut gathered on the root: the one process's cut of refine_goal::error(max_error) at
-/// `isovalue`.
+/// `isovalue`. It holds the gathered splits (shared with the engine and later snapshots, not
+/// copied); its mesh is made when first asked for.
 struct distributed_snapshot {
-  triangle_mesh mesh;  ///< canonical order, grid coordinates
   double isovalue = 0.0;
   double max_error = 0.0;              ///< the round's threshold; infinity for the root surface
   std::uint64_t splits = 0;            ///< the splits of all ranks
   int round = 0;                       ///< rounds since the isovalue was set (0: the root surface)
   std::uint64_t isovalue_changes = 0;  ///< set_isovalue() calls that reached the ranks
+
+  /// The cut's mesh (canonical order, grid coordinates): made by the first call, on the
+  /// caller's thread and the engine's worker count, and kept, so that every later call (any
+  /// thread) returns the same mesh. Reads the volume's root corners: the volume must still live.
+  [[nodiscard]] std::shared_ptr<const triangle_mesh> mesh() const;
+
+  std::shared_ptr<const detail::snapshot_cut> cut;  ///< what mesh() meshes (internal)
 };
 
 class distributed_engine {
@@ -103,12 +112,15 @@ class distributed_engine {
 
  private:
   void serve();
-  void publish(std::shared_ptr<const distributed_snapshot> s);
+  /// On the root: the cut gathered so far as the latest snapshot, with its mesh when given.
+  void publish(std::uint64_t changes, std::shared_ptr<const triangle_mesh> mesh);
 
   MPI_Comm comm_ = MPI_COMM_NULL;
   int rank_ = 0;
   int root_ = 0;
   unsigned threads_ = 0;
+  const volume& vol_;
+  std::shared_ptr<const hierarchy> hier_;  // shared with the snapshots
   std::unique_ptr<detail::distributed_cut> cut_;
 
   mutable std::mutex mutex_;

@@ -15,6 +15,7 @@
 #include <cstdint>
 #include <functional>
 #include <memory>
+#include <mutex>
 #include <optional>
 #include <span>
 #include <vector>
@@ -28,6 +29,27 @@
 #include <progiso/core/surface/mesh.hpp>
 
 namespace progiso::detail {
+
+/// The splits gathered on the root, one piece per rank and round, each with group indices of its
+/// own: immutable once made, so a snapshot shares the pieces of its cut instead of copying them.
+using cut_pieces = std::vector<std::shared_ptr<const share_splits>>;
+
+/// The mesh of gathered pieces: the one process's cut of the same goal, vertex for vertex
+/// (mesh_of_shares), in `threads`' parts.
+[[nodiscard]] triangle_mesh mesh_of_pieces(const hierarchy& hier, const volume& vol,
+                                           double isovalue, const cut_pieces& pieces,
+                                           unsigned threads);
+
+/// What a distributed_snapshot meshes: the pieces of its cut, and its mesh once made.
+struct snapshot_cut {
+  std::shared_ptr<const hierarchy> hier;
+  const volume* vol = nullptr;
+  double isovalue = 0.0;
+  cut_pieces pieces;
+  unsigned threads = 0;
+  mutable std::once_flag once;
+  mutable std::shared_ptr<const triangle_mesh> mesh;  // set once, under `once`
+};
 
 class distributed_cut {
  public:
@@ -55,8 +77,8 @@ class distributed_cut {
   /// only restart() goes on.
   bool round(double threshold, unsigned threads, const std::function<bool()>& stop = {});
 
-  /// Sends the splits of finished rounds not sent yet to the root, which appends them to
-  /// shares().
+  /// Sends the splits of finished rounds not sent yet to the root, which adds them to pieces()
+  /// as one piece per rank.
   void gather();
 
   /// A new isovalue: every rank drops its splits and starts from the roots again, keeping the
@@ -73,9 +95,9 @@ class distributed_cut {
   [[nodiscard]] int rounds() const noexcept { return rounds_; }
   /// A round was left unfinished: going on needs restart().
   [[nodiscard]] bool broken() const noexcept { return broken_; }
-  /// On the root, every rank's splits gathered, by rank; elsewhere empty.
-  [[nodiscard]] std::span<const share_splits> shares() const noexcept { return shares_; }
-  [[nodiscard]] std::uint64_t gathered_splits() const noexcept;
+  /// On the root, every rank's splits gathered; elsewhere empty.
+  [[nodiscard]] const cut_pieces& pieces() const noexcept { return pieces_; }
+  [[nodiscard]] std::uint64_t gathered_splits() const noexcept { return gathered_; }
   /// On the root, the mesh of the gathered cut (the one process's cut of error > threshold(),
   /// vertex for vertex), in `threads`' parts.
   [[nodiscard]] triangle_mesh mesh(unsigned threads) const;
@@ -95,7 +117,9 @@ class distributed_cut {
   std::unique_ptr<error_cut_walk> walk_;
   std::size_t sent_splits_ = 0, sent_groups_ = 0;  // of walk_'s finished rounds
   std::size_t committed_ = 0;                      // walk_'s splits of finished rounds
-  std::vector<share_splits> shares_;
+  cut_pieces pieces_;                              // root
+  std::vector<std::uint64_t> groups_seen_;         // root: groups gathered from each rank
+  std::uint64_t gathered_ = 0;
 };
 
 }  // namespace progiso::detail
