@@ -11,6 +11,8 @@
 #include <atomic>
 #include <chrono>
 #include <cmath>
+#include <csignal>
+#include <cstdlib>
 #include <limits>
 #include <map>
 #include <memory>
@@ -309,6 +311,30 @@ TEST(DistributedEngine, refusals) {
   EXPECT_THROW(e.set_isovalue(std::numeric_limits<double>::quiet_NaN()), error);
   EXPECT_THROW(e.start(refine_goal::error(-1.0)), error);
   EXPECT_THROW(e.start(refine_goal::error(0.1).focused({0, 0, 0}, {4, 4, 4})), error);
+}
+
+// Run alone by ctest (DistributedEngine.a_rank_killed_mid_run_ends_the_job), with
+// PROGISO_MPI_KILL_RANK naming the rank that dies: the job must end with mpiexec's report of the
+// death, not hang in the others' next collective.
+TEST(DistributedEngineFault, a_rank_killed_mid_run_ends_the_job) {
+  const char* kill = std::getenv("PROGISO_MPI_KILL_RANK");
+  if (kill == nullptr) GTEST_SKIP() << "PROGISO_MPI_KILL_RANK is not set";
+  const volume v = make_gaussian_blobs({64, 60, 70}, 12, 5);
+  distributed_engine e(MPI_COMM_WORLD, v, 0.4, {0, 1});
+  if (world_rank() == std::atoi(kill)) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+    std::raise(SIGKILL);
+  }
+  if (e.is_root()) {
+    for (int k = 0; k < 1000; ++k) {  // runs until the job is ended
+      e.start(refine_goal::full());
+      e.wait();
+      e.set_isovalue(k % 2 == 0 ? 0.3 : 0.4);
+    }
+  } else {
+    e.wait();  // until the root's engine ends, which it must not
+  }
+  ADD_FAILURE() << "the job went on after a rank died";
 }
 
 }  // namespace
