@@ -4,8 +4,10 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <array>
 #include <cerrno>
 #include <cmath>
+#include <cstdint>
 #include <cstring>
 #include <limits>
 #include <memory>
@@ -14,6 +16,7 @@
 #include <string>
 #include <type_traits>
 #include <utility>
+#include <vector>
 
 #include <progiso/core/base/assert.hpp>
 #include <progiso/core/base/error.hpp>
@@ -69,38 +72,66 @@ struct detail::plane_window_state {
       }
       const std::span<std::byte> out(base + at(hi), static_cast<std::size_t>(at(row_end) - at(hi)));
       load(hi, row_end, out, run);
-      check(hi, row_end, out);
+      check(hi, row_end, out, run);
       hi = row_end;
       peak = std::max(peak, ceil_page(at(hi)) - floor_page(at(lo)));
     }
   }
 
   // The decoded planes [z0, z1): their range into seen, and no NaN or infinity (as volume's
-  // constructor refuses them), named by position.
-  void check(std::int64_t z0, std::int64_t z1, std::span<const std::byte> bytes) {
+  // constructor refuses them), named by position. Plane by plane through `run`, in the samples'
+  // own type (integer compares and a float's exponent bits vectorise; a double per sample
+  // does not), the position searched only when a plane has a non-finite sample.
+  void check(std::int64_t z0, std::int64_t z1, std::span<const std::byte> bytes,
+             const parallel_loop& run) {
     const index3 d{dims[0], dims[1], z1 - z0};
     const volume planes =
         volume::borrow_unscanned(d, type, bytes, nullptr, {1.0, 1.0, 1.0}, {0.0, 0.0, 0.0}, {});
-    const std::size_t count = planes.voxel_count();
+    const auto n_planes = static_cast<std::size_t>(z1 - z0);
+    const auto plane = static_cast<std::size_t>(dims[0] * dims[1]);
     planes.visit_samples([&](const auto* s) {
       using T = std::remove_cv_t<std::remove_pointer_t<decltype(s)>>;
-      double lo_seen = seen[0], hi_seen = seen[1];
-      for (std::size_t i = 0; i < count; ++i) {
+      std::vector<std::array<T, 2>> range(n_planes);
+      std::vector<std::uint8_t> finite(n_planes, 1);
+      run_loop(run, n_planes, [&](std::size_t p) {
+        const T* q = s + p * plane;
         if constexpr (std::is_floating_point_v<T>) {
-          if (!std::isfinite(s[i])) {
-            const auto k = static_cast<std::int64_t>(i);
-            throw error(name.string() + ": expected finite samples, found " +
-                        std::to_string(static_cast<double>(s[i])) + " at x " +
-                        std::to_string(k % dims[0]) + ", y " +
-                        std::to_string(k / dims[0] % dims[1]) + ", z " +
-                        std::to_string(z0 + k / (dims[0] * dims[1])));
+          using bits_t = std::conditional_t<sizeof(T) == 4, std::uint32_t, std::uint64_t>;
+          constexpr auto exponent = static_cast<bits_t>(
+              sizeof(T) == 4 ? std::uint64_t{0x7f800000u} : std::uint64_t{0x7ff0000000000000u});
+          bits_t any = 0;
+          for (std::size_t i = 0; i < plane; ++i) {
+            bits_t b;
+            std::memcpy(&b, q + i, sizeof b);
+            any |= static_cast<bits_t>((b & exponent) == exponent);
+          }
+          if (any != 0) {
+            finite[p] = 0;
+            return;
           }
         }
-        const auto v = static_cast<double>(s[i]);
-        lo_seen = std::min(lo_seen, v);
-        hi_seen = std::max(hi_seen, v);
+        T least = q[0], most = q[0];
+        for (std::size_t i = 1; i < plane; ++i) {
+          least = q[i] < least ? q[i] : least;
+          most = q[i] > most ? q[i] : most;
+        }
+        range[p] = {least, most};
+      });
+      for (std::size_t p = 0; p < n_planes; ++p) {
+        if (finite[p] == 0) {
+          const T* q = s + p * plane;
+          for (std::size_t i = 0; i < plane; ++i) {
+            if (std::isfinite(static_cast<double>(q[i]))) continue;
+            const auto k = static_cast<std::int64_t>(i);
+            throw error(name.string() + ": expected finite samples, found " +
+                        std::to_string(static_cast<double>(q[i])) + " at x " +
+                        std::to_string(k % dims[0]) + ", y " + std::to_string(k / dims[0]) +
+                        ", z " + std::to_string(z0 + static_cast<std::int64_t>(p)));
+          }
+        }
+        seen[0] = std::min(seen[0], static_cast<double>(range[p][0]));
+        seen[1] = std::max(seen[1], static_cast<double>(range[p][1]));
       }
-      seen = {lo_seen, hi_seen};
     });
   }
 };

@@ -405,23 +405,34 @@ TEST(PlaneWindow, memory_follows_the_window_and_planes_given_back_are_unreadable
 }
 
 TEST(PlaneWindow, a_non_finite_sample_is_refused_when_its_plane_is_decoded) {
-  const scratch_dir dir;
-  const fs::path path = dir.path() / "f.zarr";
-  test::write_zarr_array(path, {20, 20, 30}, {20, 20, 5}, "<f4", 4,
-                         [](std::int64_t x, std::int64_t y, std::int64_t z, std::byte* out) {
-                           const float v = x == 3 && y == 2 && z == 17
-                                               ? std::numeric_limits<float>::quiet_NaN()
-                                               : static_cast<float>(x + y + z);
-                           std::memcpy(out, &v, sizeof v);
-                         });
-  volume_source source(path, std::nullopt);
-  std::optional<plane_window> w = source.window();
-  ASSERT_TRUE(w.has_value());
-  w->hold(0, 15);  // the NaN's chunk row is not decoded
-  EXPECT_EQ(w->field().value(19, 19, 14), 52.0);
-  const std::string message = test::error_message_naming(path, [&] { w->hold(15, 20); });
-  EXPECT_TRUE(contains(message, "expected finite samples")) << message;
-  EXPECT_TRUE(contains(message, "x 3, y 2, z 17")) << message;
+  // A float NaN and a double infinity, each at one position of plane 17.
+  for (const bool wide : {false, true}) {
+    const scratch_dir dir;
+    const fs::path path = dir.path() / "f.zarr";
+    test::write_zarr_array(path, {20, 20, 30}, {20, 20, 5}, wide ? "<f8" : "<f4", wide ? 8 : 4,
+                           [wide](std::int64_t x, std::int64_t y, std::int64_t z, std::byte* out) {
+                             const bool odd = x == 3 && y == 2 && z == 17;
+                             if (wide) {
+                               const double v = odd ? std::numeric_limits<double>::infinity()
+                                                    : static_cast<double>(x + y + z);
+                               std::memcpy(out, &v, sizeof v);
+                             } else {
+                               const float v = odd ? std::numeric_limits<float>::quiet_NaN()
+                                                   : static_cast<float>(x + y + z);
+                               std::memcpy(out, &v, sizeof v);
+                             }
+                           });
+    volume_source source(path, std::nullopt);
+    std::optional<plane_window> w = source.window();
+    ASSERT_TRUE(w.has_value());
+    w->hold(0, 15);  // the odd sample's chunk row is not decoded
+    EXPECT_EQ(w->field().value(19, 19, 14), 52.0);
+    EXPECT_EQ(w->range_seen()[0], 0.0);
+    EXPECT_EQ(w->range_seen()[1], 52.0);
+    const std::string message = test::error_message_naming(path, [&] { w->hold(15, 20); });
+    EXPECT_TRUE(contains(message, "expected finite samples")) << message;
+    EXPECT_TRUE(contains(message, "x 3, y 2, z 17")) << message;
+  }
 }
 
 }  // namespace
