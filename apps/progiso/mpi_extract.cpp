@@ -25,6 +25,7 @@
 #include <progiso/core/refine/error_cut_share.hpp>
 #include <progiso/core/surface/finest_surface.hpp>
 #include <progiso/core/surface/hierarchy_stream.hpp>
+#include <progiso/core/surface/normals.hpp>
 #include <progiso/io/detail/file_output.hpp>
 #include <progiso/io/detail/writers.hpp>
 #include <progiso/io/volume_io.hpp>
@@ -155,11 +156,7 @@ void set_up(setup& s, const std::vector<std::string>& args, int rank, int size) 
         "--by-priority: under MPI a deadline refines by rounds of falling error thresholds, the "
         "same on every rank");
   }
-  if (a.options.normals || (a.hierarchy && !error_goal)) {
-    throw error(
-        "under MPI, extract writes positions alone (--normals is not built across ranks yet), "
-        "and --hierarchy only with --error");
-  }
+  if (a.hierarchy && !error_goal) throw error("under MPI, --hierarchy goes only with --error");
   if (error_goal && a.smooth.active()) {
     throw error(
         "under MPI, --error and --time-ms refine the data as read: --smooth is not built across "
@@ -249,28 +246,21 @@ std::string xml_attribute(const std::string& text) {
   return out;
 }
 
-/// A rank's piece of a .pvtp: its share's vertices, then the ghosts its last cubes name (the
-/// next ranks' vertices, asked of their owners: MPI_Alltoallv of ids, then of positions), ids
-/// local to the piece. `mine` holds the share's mesh with global ids, its own vertices being
-/// [first, first + own).
-triangle_mesh piece_with_ghosts(triangle_mesh&& mine, std::uint64_t first, std::uint64_t own,
-                                int size) {
+/// Where each rank's vertices begin (ascending: rank r owns [firsts[r], firsts[r + 1])).
+std::vector<std::uint64_t> vertex_firsts(std::uint64_t first, int size) {
   std::vector<std::uint64_t> firsts(static_cast<std::size_t>(size));
   MPI_Allgather(&first, 1, MPI_UINT64_T, firsts.data(), 1, MPI_UINT64_T, MPI_COMM_WORLD);
-  const std::uint64_t end = first + own;
-  std::vector<std::uint64_t> ghosts;
-  for (const auto& t : mine.triangles) {
-    for (const std::uint32_t id : t) {
-      if (id < first) throw error("a piece names a vertex of an earlier rank");
-      if (id >= end) ghosts.push_back(id);
-    }
-  }
-  std::sort(ghosts.begin(), ghosts.end());
-  ghosts.erase(std::unique(ghosts.begin(), ghosts.end()), ghosts.end());
-  // Ghosts by owner (ascending ids: owners ascending), then each rank answers what it was asked.
-  const auto n = static_cast<std::size_t>(size);
+  return firsts;
+}
+
+/// For each of `ids` (ascending global vertex ids of later ranks), what its owner has at it:
+/// `values(id)` on the owner, 3 doubles (MPI_Alltoallv of ids, then of values). Collective.
+std::vector<vec3> ask_owners(const std::vector<std::uint64_t>& ids,
+                             const std::vector<std::uint64_t>& firsts,
+                             const std::function<vec3(std::uint64_t)>& values) {
+  const std::size_t n = firsts.size();
   std::vector<int> ask(n, 0), asked(n, 0), ask_at(n, 0), asked_at(n, 0);
-  for (const std::uint64_t id : ghosts) {
+  for (const std::uint64_t id : ids) {
     const auto owner = static_cast<std::size_t>(std::upper_bound(firsts.begin(), firsts.end(), id) -
                                                 firsts.begin() - 1);
     ++ask[owner];
@@ -281,27 +271,51 @@ triangle_mesh piece_with_ghosts(triangle_mesh&& mine, std::uint64_t first, std::
     asked_at[r] = asked_at[r - 1] + asked[r - 1];
   }
   std::vector<std::uint64_t> wanted(static_cast<std::size_t>(asked_at[n - 1] + asked[n - 1]));
-  MPI_Alltoallv(ghosts.data(), ask.data(), ask_at.data(), MPI_UINT64_T, wanted.data(), asked.data(),
+  MPI_Alltoallv(ids.data(), ask.data(), ask_at.data(), MPI_UINT64_T, wanted.data(), asked.data(),
                 asked_at.data(), MPI_UINT64_T, MPI_COMM_WORLD);
   std::vector<double> answer;
   answer.reserve(3 * wanted.size());
   for (const std::uint64_t id : wanted) {
-    if (id < first || id >= end) throw error("a rank asked for a vertex not here");
-    const vec3& p = mine.vertices[static_cast<std::size_t>(id - first)];
-    answer.insert(answer.end(), p.begin(), p.end());
+    const vec3 v = values(id);
+    answer.insert(answer.end(), v.begin(), v.end());
   }
   const auto times3 = [](std::vector<int> v) {
     for (int& x : v) x *= 3;
     return v;
   };
-  std::vector<double> got(3 * ghosts.size());
+  std::vector<double> got(3 * ids.size());
   MPI_Alltoallv(answer.data(), times3(asked).data(), times3(asked_at).data(), MPI_DOUBLE,
                 got.data(), times3(ask).data(), times3(ask_at).data(), MPI_DOUBLE, MPI_COMM_WORLD);
+  std::vector<vec3> out(ids.size());
+  for (std::size_t i = 0; i < ids.size(); ++i)
+    out[i] = {got[3 * i], got[3 * i + 1], got[3 * i + 2]};
+  return out;
+}
+
+/// A rank's share with the ghosts its last cubes name (the next ranks' vertices, asked of their
+/// owners), ids local to the piece: the share's vertices [0, own), then the ghosts, whose global
+/// ids go into `ghosts` (ascending). `mine` holds the share's mesh with global ids, its own
+/// vertices being [first, first + own).
+triangle_mesh piece_with_ghosts(triangle_mesh&& mine, std::uint64_t first, std::uint64_t own,
+                                const std::vector<std::uint64_t>& firsts,
+                                std::vector<std::uint64_t>& ghosts) {
+  const std::uint64_t end = first + own;
+  ghosts.clear();
+  for (const auto& t : mine.triangles) {
+    for (const std::uint32_t id : t) {
+      if (id < first) throw error("a piece names a vertex of an earlier rank");
+      if (id >= end) ghosts.push_back(id);
+    }
+  }
+  std::sort(ghosts.begin(), ghosts.end());
+  ghosts.erase(std::unique(ghosts.begin(), ghosts.end()), ghosts.end());
+  const std::vector<vec3> got = ask_owners(ghosts, firsts, [&](std::uint64_t id) {
+    if (id < first || id >= end) throw error("a rank asked for a vertex not here");
+    return mine.vertices[static_cast<std::size_t>(id - first)];
+  });
   triangle_mesh piece;
   piece.vertices = std::move(mine.vertices);
-  for (std::size_t i = 0; i < ghosts.size(); ++i) {
-    piece.vertices.push_back({got[3 * i], got[3 * i + 1], got[3 * i + 2]});
-  }
+  piece.vertices.insert(piece.vertices.end(), got.begin(), got.end());
   piece.triangles = std::move(mine.triangles);
   for (auto& t : piece.triangles) {
     for (std::uint32_t& id : t) {
@@ -316,11 +330,50 @@ triangle_mesh piece_with_ghosts(triangle_mesh&& mine, std::uint64_t first, std::
   return piece;
 }
 
-/// The .pvtp index of `size` pieces (X_r.vtp beside it), positions alone.
-std::string pvtp_index(const std::filesystem::path& pvtp, int size) {
+/// Vertex normals of a piece (piece_with_ghosts()) as one process computes them for the whole
+/// surface: the gradient's where it has a direction; where it vanishes, the sum of the normals of
+/// the triangles around the vertex in the whole surface's order, which ranks before this one
+/// began (their last cubes name this rank's first vertices). Those sums go from rank to rank in
+/// order (small: the vertices whose gradient vanishes), so each is added to in the one process's
+/// order, bit for bit. Then the ghosts' normals are asked of their owners. Collective.
+void add_piece_normals(triangle_mesh& piece, std::uint64_t first, std::uint64_t own,
+                       const std::vector<std::uint64_t>& ghosts,
+                       const std::vector<std::uint64_t>& firsts, const volume& field,
+                       const parallel_loop& loop, int rank, int size) {
+  std::vector<std::uint64_t> global(piece.vertices.size());
+  for (std::uint64_t k = 0; k < own; ++k) global[static_cast<std::size_t>(k)] = first + k;
+  for (std::size_t i = 0; i < ghosts.size(); ++i) {
+    global[static_cast<std::size_t>(own) + i] = ghosts[i];
+  }
+  constexpr int tag_carry = 5;
+  std::vector<detail::normal_partial> carried;
+  if (rank > 0) detail::receive_records(MPI_COMM_WORLD, carried, rank - 1, tag_carry);
+  carried = detail::add_share_normals(
+      piece, global, field, carried,
+      [first, own](std::uint64_t id) { return id >= first && id < first + own; }, loop);
+  if (rank + 1 < size) {
+    detail::send_records(MPI_COMM_WORLD, carried, 0, carried.size(), rank + 1, tag_carry);
+  } else if (!carried.empty()) {
+    throw error("vertex normals were carried past the last rank");
+  }
+  const std::vector<vec3> theirs = ask_owners(ghosts, firsts, [&](std::uint64_t id) {
+    if (id < first || id >= first + own) throw error("a rank asked for a normal not here");
+    return piece.normals[static_cast<std::size_t>(id - first)];
+  });
+  std::copy(theirs.begin(), theirs.end(), piece.normals.begin() + static_cast<std::ptrdiff_t>(own));
+}
+
+/// The .pvtp index of `size` pieces (X_r.vtp beside it): positions, and normals when asked.
+std::string pvtp_index(const std::filesystem::path& pvtp, int size, bool normals) {
   std::string xml =
       "<?xml version=\"1.0\"?>\n<VTKFile type=\"PPolyData\" version=\"0.1\" "
-      "byte_order=\"LittleEndian\" header_type=\"UInt64\">\n<PPolyData GhostLevel=\"0\">\n"
+      "byte_order=\"LittleEndian\" header_type=\"UInt64\">\n<PPolyData GhostLevel=\"0\">\n";
+  if (normals) {
+    xml +=
+        "<PPointData Normals=\"Normals\">\n<PDataArray type=\"Float32\" Name=\"Normals\" "
+        "NumberOfComponents=\"3\"/>\n</PPointData>\n";
+  }
+  xml +=
       "<PPoints>\n<PDataArray type=\"Float32\" Name=\"Points\" NumberOfComponents=\"3\"/>\n"
       "</PPoints>\n";
   for (int r = 0; r < size; ++r) {
@@ -376,6 +429,11 @@ int run_error_cut(setup& s, int rank, int size, unsigned threads,
         field, s.iso, pieces);
   }
   triangle_mesh mesh = cut.mesh(threads);
+  if (s.a.options.normals) {
+    scheduler::run_on_threads(threads, [&](const parallel_loop& loop, std::size_t) {
+      add_vertex_normals(mesh, field, loop);
+    });
+  }
   if (s.world) to_world(mesh, *s.data, *s.world);
   detail::write_mesh_to(*s.mesh_out, mesh);
   const double total_ms = ms_since(t0);
@@ -466,11 +524,15 @@ int run_mpi_extract(const std::vector<std::string>& args) {
     std::vector<char> vertices, faces;  // .ply: the share's records
     std::uint64_t counts[2] = {0, 0}, first[2] = {0, 0}, totals[2] = {0, 0};
     const std::string name = *s.a.output;
+    // With normals the share is held whole: they need the ghosts' positions, and are mapped to
+    // the world with the positions after.
+    const bool normals = s.a.options.normals;
+    const bool hold = pvtp || normals;
     const detail::finest_piece add = [&](triangle_mesh& piece, std::uint64_t) {
-      if (s.world) to_world(piece, *s.data, *s.world);
+      if (s.world && !normals) to_world(piece, *s.data, *s.world);
       counts[0] += piece.vertices.size();
       counts[1] += piece.triangles.size();
-      if (pvtp) {
+      if (hold) {
         mine.vertices.insert(mine.vertices.end(), piece.vertices.begin(), piece.vertices.end());
         mine.triangles.insert(mine.triangles.end(), piece.triangles.begin(), piece.triangles.end());
       } else {
@@ -506,11 +568,22 @@ int run_mpi_extract(const std::vector<std::string>& args) {
     // A fault for the tests: this rank dies here, after the others have its counts.
     if (env_int("PROGISO_MPI_FAULT_RANK") == rank) std::raise(SIGKILL);
     const double meshed = std::chrono::duration<double>(clock::now() - t0).count();
-    if (pvtp) {
+    triangle_mesh piece;
+    std::vector<std::uint64_t> ghosts;
+    if (hold) {
       for (auto& t : mine.triangles) {
         for (std::uint32_t& id : t) id += static_cast<std::uint32_t>(first[0]);
       }
-      const triangle_mesh piece = piece_with_ghosts(std::move(mine), first[0], counts[0], size);
+      const std::vector<std::uint64_t> firsts = vertex_firsts(first[0], size);
+      piece = piece_with_ghosts(std::move(mine), first[0], counts[0], firsts, ghosts);
+      if (normals) {
+        scheduler::run_on_threads(threads, [&](const parallel_loop& loop, std::size_t) {
+          add_piece_normals(piece, first[0], counts[0], ghosts, firsts, field, loop, rank, size);
+        });
+        if (s.world) to_world(piece, *s.data, *s.world);
+      }
+    }
+    if (pvtp) {
       detail::write_vtp_to(*s.piece_out, piece);
       s.piece_out->finish();
       // Every piece is written before any is published, and every one published before the
@@ -519,9 +592,26 @@ int run_mpi_extract(const std::vector<std::string>& args) {
       s.piece_out->publish();
       MPI_Barrier(MPI_COMM_WORLD);
       if (rank != 0) return 0;
-      s.mesh_out->write(pvtp_index(name, size));
+      s.mesh_out->write(pvtp_index(name, size, normals));
     } else {
-      offset_ply_faces(faces, static_cast<std::uint32_t>(first[0]));
+      if (hold) {
+        // The share's own vertices and its triangles, their ids global again.
+        const auto own = static_cast<std::size_t>(counts[0]);
+        triangle_mesh records;
+        records.vertices.assign(piece.vertices.begin(),
+                                piece.vertices.begin() + static_cast<std::ptrdiff_t>(own));
+        records.normals.assign(piece.normals.begin(),
+                               piece.normals.begin() + static_cast<std::ptrdiff_t>(own));
+        records.triangles = std::move(piece.triangles);
+        for (auto& t : records.triangles) {
+          for (std::uint32_t& id : t) {
+            id = static_cast<std::uint32_t>(id < own ? first[0] + id : ghosts[id - own]);
+          }
+        }
+        detail::append_ply_records(name, records, vertices, faces);
+      } else {
+        offset_ply_faces(faces, static_cast<std::uint32_t>(first[0]));
+      }
       if (rank != 0) {
         detail::send_bytes(MPI_COMM_WORLD, vertices.data(), vertices.size(), 0, 1);
         detail::send_bytes(MPI_COMM_WORLD, faces.data(), faces.size(), 0, 2);
@@ -529,7 +619,7 @@ int run_mpi_extract(const std::vector<std::string>& args) {
       }
       // Rank 0: the header, every rank's vertices, then every rank's faces.
       detail::atomic_output& out = *s.mesh_out;
-      out.write(detail::ply_header_text(totals[0], totals[1], false));
+      out.write(detail::ply_header_text(totals[0], totals[1], normals));
       const auto write = [&out](const char* p, std::size_t n) { out.write(p, n); };
       out.write(vertices.data(), vertices.size());
       for (int r = 1; r < size; ++r) detail::receive_bytes(MPI_COMM_WORLD, r, 1, write);

@@ -383,6 +383,75 @@ TEST_F(Mpi, world_coordinates_are_the_single_process_ones_in_every_output) {
   EXPECT_EQ(check.status, 0) << check.out << check.err;
 }
 
+TEST_F(Mpi, vertex_normals_are_the_single_process_ones_bit_for_bit) {
+  // A checkerboard in the lower planes (every central difference 0: those vertices take the
+  // normals of the triangles around them, some on the rank before) and waves above; in a NRRD
+  // whose directions turn, shear and mirror the grid, with and without --world.
+  const fs::path raw = dir_.path() / "n.raw";
+  std::string bytes;
+  for (int z = 0; z < 37; ++z) {
+    for (int y = 0; y < 29; ++y) {
+      for (int x = 0; x < 31; ++x) {
+        const int wave = (x * 7 + y * 11 + z * 13 + (x * y) % 17 + (y * z) % 19) % 256;
+        bytes += static_cast<char>(z < 20 ? ((x + y + z) % 2) * 200 + 20 : wave);
+      }
+    }
+  }
+  test::write_file(raw, bytes);
+  const fs::path nhdr = dir_.path() / "n.nhdr";
+  test::write_file(nhdr,
+                   "NRRD0004\ntype: uint8\ndimension: 3\nsizes: 31 29 37\n"
+                   "space: left-posterior-superior\n"
+                   "space directions: (0,0.9,0.1) (1.1,0,0) (0,0.2,-1.2)\n"
+                   "space origin: (10,-20,30)\nencoding: raw\ndata file: n.raw\n");
+  for (const bool world : {false, true}) {
+    for (const std::vector<std::string>& goal :
+         {std::vector<std::string>{"--full"}, std::vector<std::string>{"--error", "6"},
+          std::vector<std::string>{"--error", "0"}}) {
+      SCOPED_TRACE(goal[0] + (goal.size() > 1 ? " " + goal[1] : "") + (world ? ", --world" : ""));
+      const auto args = [&](const fs::path& out) {
+        std::vector<std::string> a{"extract", nhdr.string(), "--iso", "110.5", "--normals"};
+        if (world) a.push_back("--world");
+        a.insert(a.end(), goal.begin(), goal.end());
+        a.insert(a.end(), {"-o", out.string(), "--threads", "1"});
+        return a;
+      };
+      const fs::path single = dir_.path() / "single.ply";
+      const test::bounded_result one = test::run_bounded(PROGISO_CLI, args(single), runs_.path());
+      ASSERT_EQ(one.status, 0) << one.err;
+      const std::string want = test::read_whole(single);
+      ASSERT_NE(want.find("property float nx"), std::string::npos);
+      for (const int ranks : {1, 2, 3, 4}) {
+        SCOPED_TRACE(std::to_string(ranks) + " ranks");
+        const fs::path out = dir_.path() / "mpi.ply";
+        const test::bounded_result r =
+            test::run_bounded(PROGISO_MPIEXEC, mpi_args(ranks, args(out)), runs_.path());
+        ASSERT_EQ(r.status, 0) << r.err;
+        EXPECT_TRUE(test::read_whole(out) == want) << "another file than one process's";
+      }
+    }
+  }
+  // Pieces with normals: VTK reads the single process's corners and normals.
+  if (std::string_view(PROGISO_VTK_PYTHON).empty()) return;
+  const auto full = [&](const fs::path& out) {
+    return std::vector<std::string>{"extract",    nhdr.string(), "--iso",     "110.5",
+                                    "--world",    "--full",      "--normals", "-o",
+                                    out.string(), "--threads",   "1"};
+  };
+  const fs::path whole = dir_.path() / "whole.vtp";
+  ASSERT_EQ(test::run_bounded(PROGISO_CLI, full(whole), runs_.path()).status, 0);
+  const fs::path pvtp = dir_.path() / "pieces.pvtp";
+  const test::bounded_result r =
+      test::run_bounded(PROGISO_MPIEXEC, mpi_args(3, full(pvtp)), runs_.path());
+  ASSERT_EQ(r.status, 0) << r.err;
+  const test::bounded_result check =
+      test::run_bounded(PROGISO_VTK_PYTHON,
+                        {std::string(PROGISO_SOURCE_DIR) + "/tests/apps/pvtp_check.py",
+                         pvtp.string(), whole.string(), "3"},
+                        runs_.path());
+  EXPECT_EQ(check.status, 0) << check.out << check.err;
+}
+
 TEST_F(Mpi, refusals_give_one_error_line_and_a_failing_status) {
   const fs::path raw = dir_.path() / "small.raw";
   test::write_file(raw, std::string(8 * 8 * 8, '\x10'));
@@ -411,6 +480,10 @@ TEST_F(Mpi, refusals_give_one_error_line_and_a_failing_status) {
   refused({"extract", raw.string(), "--dims", "8,8,8", "--type", "u8", "--iso", "3", "--error", "1",
            "-o", (dir_.path() / "out.pvtp").string()},
           "a .pvtp of one piece per rank is written for --full");
+  refused(
+      {"extract", raw.string(), "--dims", "8,8,8", "--type", "u8", "--iso", "3", "--full",
+       "--hierarchy", (dir_.path() / "out.pgh").string(), "-o", (dir_.path() / "out.ply").string()},
+      "under MPI, --hierarchy goes only with --error");
   refused({"extract", (dir_.path() / "missing.raw").string(), "--dims", "8,8,8", "--type", "u8",
            "--iso", "3", "--full", "-o", (dir_.path() / "out.ply").string()},
           "missing.raw: cannot open");

@@ -1,6 +1,7 @@
 """Reads a .pvtp with VTK's own reader (what ParaView uses) and a .vtp of the same surface, and
-checks that they hold the same triangles: each as its three corners' positions, starting at its
-smallest corner so that orientation counts. Exit 0 when they match, 1 otherwise.
+checks that they hold the same triangles: each as its three corners' positions (and normals, when
+the files have them), starting at its smallest corner so that orientation counts. Exit 0 when
+they match, 1 otherwise.
 
 usage: pvtp_check.py PIECES.pvtp WHOLE.vtp NUMBER_OF_PIECES
 """
@@ -14,11 +15,17 @@ def triangles(reader, path):
     reader.Update()
     data = reader.GetOutput()
     points = data.GetPoints()
+    normals = data.GetPointData().GetNormals()
     ids = vtk.vtkIdList()
     out = []
+
+    def corner(i):
+        p = tuple(points.GetPoint(i))
+        return p + tuple(normals.GetTuple3(i)) if normals is not None else p
+
     for cell in range(data.GetNumberOfCells()):
         data.GetCellPoints(cell, ids)
-        corners = [tuple(points.GetPoint(ids.GetId(k))) for k in range(ids.GetNumberOfIds())]
+        corners = [corner(ids.GetId(k)) for k in range(ids.GetNumberOfIds())]
         first = corners.index(min(corners))
         out.append(tuple(corners[first:] + corners[:first]))
     return reader, sorted(out)

@@ -142,6 +142,65 @@ TEST(Normals, a_vanishing_gradient_takes_the_side_its_triangles_face) {
   EXPECT_GT(flat, r.mesh.vertices.size() / 2);
 }
 
+TEST(Normals, made_share_by_share_with_carried_sums_they_are_the_whole_meshs) {
+  // Shares are runs of the whole mesh's triangles (as MPI ranks' planes are); a vertex belongs to
+  // the last share that names it, so a share names only its own and later shares' vertices.
+  // Each share meshes its normals with the partial sums the shares before it carried; the
+  // normals of every vertex, from its owner, must be add_vertex_normals()' bit for bit, the
+  // vertices whose gradient vanishes (most of them here) included.
+  const volume v = sampled({14, 9, 12}, {1.0, 1.0, 1.0}, {0.0, 0.0, 0.0}, [](const vec3& p) {
+    // A checkerboard below z = 6 (every central difference 0, triangles in many directions), a
+    // paraboloid above.
+    return p[2] < 6.0 ? static_cast<double>(static_cast<int>(p[0] + p[1] + p[2]) % 2)
+                      : 0.05 * ((p[0] - 7.0) * (p[0] - 7.0) + (p[1] - 4.0) * (p[1] - 4.0));
+  });
+  triangle_mesh whole = extract(v, 0.5).mesh;
+  ASSERT_GT(whole.triangles.size(), 200u);
+  whole.normals.clear();
+  add_vertex_normals(whole, v);
+  for (const std::size_t shares : {1u, 2u, 3u, 7u}) {
+    SCOPED_TRACE(std::to_string(shares) + " shares");
+    const std::size_t t = whole.triangles.size();
+    std::vector<std::size_t> owner(whole.vertices.size(), 0);
+    for (std::size_t s = 0; s < shares; ++s) {
+      for (std::size_t i = t * s / shares; i < t * (s + 1) / shares; ++i) {
+        for (const std::uint32_t c : whole.triangles[i]) owner[c] = std::max(owner[c], s);
+      }
+    }
+    std::vector<detail::normal_partial> carried;
+    std::vector<vec3> got(whole.vertices.size(), vec3{9.0, 9.0, 9.0});
+    for (std::size_t s = 0; s < shares; ++s) {
+      triangle_mesh part;
+      std::vector<std::uint64_t> global;
+      std::vector<std::uint32_t> local(whole.vertices.size(), UINT32_MAX);
+      const auto add = [&](std::uint32_t g) {
+        if (local[g] != UINT32_MAX) return local[g];
+        local[g] = static_cast<std::uint32_t>(part.vertices.size());
+        part.vertices.push_back(whole.vertices[g]);
+        global.push_back(g);
+        return local[g];
+      };
+      for (std::uint32_t g = 0; g < whole.vertices.size(); ++g) {
+        if (owner[g] == s) add(g);
+      }
+      for (std::size_t i = t * s / shares; i < t * (s + 1) / shares; ++i) {
+        const auto& tri = whole.triangles[i];
+        part.triangles.push_back({add(tri[0]), add(tri[1]), add(tri[2])});
+      }
+      carried = detail::add_share_normals(part, global, v, carried,
+                                          [&](std::uint64_t g) { return owner[g] == s; });
+      for (std::size_t k = 0; k < global.size(); ++k) {
+        if (owner[global[k]] == s) got[global[k]] = part.normals[k];
+      }
+    }
+    EXPECT_TRUE(carried.empty());
+    for (std::size_t i = 0; i < whole.vertices.size(); ++i) {
+      ASSERT_EQ(std::memcmp(got[i].data(), whole.normals[i].data(), sizeof(vec3)), 0)
+          << "vertex " << i;
+    }
+  }
+}
+
 TEST(Normals, of_a_smoothed_field_are_the_gradient_of_its_samples) {
   // The 4-point rule reproduces cubics, so a smoothed linear field is the same linear field on
   // the finer grid: the normals of its surface are exact too.

@@ -8,6 +8,7 @@
 #include <limits>
 #include <vector>
 
+#include <progiso/core/base/assert.hpp>
 #include <progiso/core/field/detail/subdivision.hpp>
 
 namespace progiso {
@@ -139,15 +140,16 @@ vec3 as_vec3(const P& p) {
   return {static_cast<double>(p[0]), static_cast<double>(p[1]), static_cast<double>(p[2])};
 }
 
+// Adds, in triangle order, each triangle's area-weighted normal to sum[k] of its corners in
+// `flat` (slot k), and its unit normal, when it has one, to any[k].
 template <class P>
-std::vector<vec3> normals_from_triangles(std::span<const P> vertices,
-                                         std::span<const std::array<std::uint32_t, 3>> triangles,
-                                         const std::vector<std::uint32_t>& flat) {
+void accumulate_triangles(std::span<const P> vertices,
+                          std::span<const std::array<std::uint32_t, 3>> triangles,
+                          const std::vector<std::uint32_t>& flat, std::vector<vec3>& sum,
+                          std::vector<vec3>& any) {
   constexpr std::uint32_t none = std::numeric_limits<std::uint32_t>::max();
   std::vector<std::uint32_t> slot(vertices.size(), none);
   for (std::size_t k = 0; k < flat.size(); ++k) slot[flat[k]] = static_cast<std::uint32_t>(k);
-  std::vector<vec3> sum(flat.size(), vec3{});
-  std::vector<vec3> any(flat.size(), vec3{});  // one triangle's unit normal, if the sum cancels
   for (const auto& tri : triangles) {
     if (slot[tri[0]] == none && slot[tri[1]] == none && slot[tri[2]] == none) continue;
     const vec3 n = area_normal(as_vec3(vertices[tri[0]]), as_vec3(vertices[tri[1]]),
@@ -160,20 +162,32 @@ std::vector<vec3> normals_from_triangles(std::span<const P> vertices,
       if (normalise(unit)) any[k] = unit;
     }
   }
-  for (std::size_t k = 0; k < flat.size(); ++k) {
-    vec3& n = sum[k];
-    if (!normalise(n)) n = any[k];
-  }
+}
+
+// The unit normal of accumulated sums: the sum's direction, else the last unit normal.
+vec3 finish_sum(vec3 sum, const vec3& any) { return normalise(sum) ? sum : any; }
+
+template <class P>
+std::vector<vec3> normals_from_triangles(std::span<const P> vertices,
+                                         std::span<const std::array<std::uint32_t, 3>> triangles,
+                                         const std::vector<std::uint32_t>& flat) {
+  std::vector<vec3> sum(flat.size(), vec3{});
+  std::vector<vec3> any(flat.size(), vec3{});  // one triangle's unit normal, if the sum cancels
+  accumulate_triangles(vertices, triangles, flat, sum, any);
+  for (std::size_t k = 0; k < flat.size(); ++k) sum[k] = finish_sum(sum[k], any[k]);
   return sum;
 }
 
 // The pass of add_vertex_normals() and vertex_normals_into(): put(i, unit normal, descent) for
 // every vertex i whose gradient has a direction, then put(i, normal from its triangles, {}) for
 // the others (descent: −∇f at the vertex in physical units, unnormalised).
+// With `vanished`, the vertices whose gradient vanished go there (ascending) instead of being
+// given their triangles' normals.
 template <class P, class Put>
 void normals_pass(std::span<const P> vertices,
                   std::span<const std::array<std::uint32_t, 3>> triangles, const volume& field,
-                  const parallel_loop& run, const Put& put) {
+                  const parallel_loop& run, const Put& put,
+                  std::vector<std::uint32_t>* vanished = nullptr) {
   const std::size_t count = vertices.size();
   if (count == 0) return;
   const grid_frame frame(field);
@@ -213,6 +227,10 @@ void normals_pass(std::span<const P> vertices,
   });
   std::vector<std::uint32_t> all;
   for (const auto& f : flat) all.insert(all.end(), f.begin(), f.end());
+  if (vanished != nullptr) {
+    *vanished = std::move(all);
+    return;
+  }
   if (all.empty()) return;
   const std::vector<vec3> n = normals_from_triangles(vertices, triangles, all);
   for (std::size_t k = 0; k < all.size(); ++k) put(all[k], n[k], vec3{});
@@ -224,6 +242,49 @@ void add_vertex_normals(triangle_mesh& mesh, const volume& field, const parallel
   mesh.normals.assign(mesh.vertices.size(), vec3{});
   normals_pass(std::span<const vec3>(mesh.vertices), std::span(mesh.triangles), field, run,
                [&](std::size_t i, const vec3& n, const vec3&) { mesh.normals[i] = n; });
+}
+
+std::vector<detail::normal_partial> detail::add_share_normals(
+    triangle_mesh& mesh, std::span<const std::uint64_t> global, const volume& field,
+    std::span<const normal_partial> carried, const std::function<bool(std::uint64_t)>& last,
+    const parallel_loop& run) {
+  PROGISO_ASSERT(global.size() == mesh.vertices.size());
+  mesh.normals.assign(mesh.vertices.size(), vec3{});
+  std::vector<std::uint32_t> flat;
+  normals_pass(
+      std::span<const vec3>(mesh.vertices), std::span(mesh.triangles), field, run,
+      [&](std::size_t i, const vec3& n, const vec3&) { mesh.normals[i] = n; }, &flat);
+  // The vanished vertices' sums start from what earlier shares' triangles gave them.
+  std::vector<vec3> sum(flat.size(), vec3{}), any(flat.size(), vec3{});
+  std::vector<bool> used(carried.size(), false);
+  for (std::size_t k = 0; k < flat.size(); ++k) {
+    const std::uint64_t id = global[flat[k]];
+    const auto it =
+        std::lower_bound(carried.begin(), carried.end(), id,
+                         [](const normal_partial& p, std::uint64_t v) { return p.vertex < v; });
+    if (it != carried.end() && it->vertex == id) {
+      sum[k] = it->sum;
+      any[k] = it->any;
+      used[static_cast<std::size_t>(it - carried.begin())] = true;
+    }
+  }
+  accumulate_triangles(std::span<const vec3>(mesh.vertices), std::span(mesh.triangles), flat, sum,
+                       any);
+  std::vector<normal_partial> out;
+  for (std::size_t k = 0; k < flat.size(); ++k) {
+    const std::uint64_t id = global[flat[k]];
+    if (last(id)) {
+      mesh.normals[flat[k]] = finish_sum(sum[k], any[k]);
+    } else {
+      out.push_back({id, sum[k], any[k]});
+    }
+  }
+  for (std::size_t c = 0; c < carried.size(); ++c) {
+    if (!used[c] && !last(carried[c].vertex)) out.push_back(carried[c]);
+  }
+  std::sort(out.begin(), out.end(),
+            [](const normal_partial& a, const normal_partial& b) { return a.vertex < b.vertex; });
+  return out;
 }
 
 namespace {

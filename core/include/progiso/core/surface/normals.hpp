@@ -22,7 +22,9 @@
 
 #include <array>
 #include <cstdint>
+#include <functional>
 #include <span>
+#include <vector>
 
 #include <progiso/core/base/config.hpp>
 #include <progiso/core/base/parallel_loop.hpp>
@@ -58,5 +60,33 @@ void vertex_normals_into(std::span<const std::array<float, 3>> vertices,
                          std::span<const std::array<std::uint32_t, 3>> triangles,
                          const volume& field, float* normals, float* gradient_l1,
                          const parallel_loop& run = {});
+
+namespace detail {
+
+/// A vertex's partial sums for the fallback where its gradient vanishes, over some of the
+/// triangles around it: the sum of their area-weighted normals and the last unit normal among
+/// them (zero for none), as add_vertex_normals() accumulates them in triangle order.
+struct normal_partial {
+  std::uint64_t vertex = 0;  ///< an id of the whole mesh
+  vec3 sum{};
+  vec3 any{};
+};
+
+/// add_vertex_normals() for one share of a mesh made in shares (MPI ranks), whose triangles follow
+/// the triangles of the shares before it in the whole mesh's order. `mesh` holds the share's
+/// triangles and every vertex they name, at ids local to the share; `global` gives each local
+/// vertex's id in the whole mesh. `carried` holds the partial sums, over the earlier shares'
+/// triangles, of vertices whose gradient vanishes (by global id, ascending; any vertices). Sets
+/// mesh.normals for every vertex the share's triangles complete: those with a gradient, and
+/// those whose gradient vanishes and `last(global id)` says no later share's triangle names.
+/// Returns the partial sums for the others (after this share's triangles) and for the carried
+/// vertices this share does not name and `last` says are not done, by global id ascending: what
+/// the next share is carried. The whole mesh's normals are then add_vertex_normals()' exactly.
+[[nodiscard]] std::vector<normal_partial> add_share_normals(
+    triangle_mesh& mesh, std::span<const std::uint64_t> global, const volume& field,
+    std::span<const normal_partial> carried, const std::function<bool(std::uint64_t)>& last,
+    const parallel_loop& run = {});
+
+}  // namespace detail
 
 }  // namespace progiso
