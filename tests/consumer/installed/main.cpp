@@ -48,7 +48,7 @@ int main(int argc, char** argv) {
     progiso::distributed_engine eng(MPI_COMM_WORLD, vol, 6.0);
     eng.start(progiso::refine_goal::full());
     eng.wait();
-    triangles = eng.snapshot()->mesh.triangles.size();
+    triangles = eng.snapshot()->mesh()->triangles.size();
   }
   MPI_Finalize();
   if (triangles != r.mesh.triangles.size()) {
