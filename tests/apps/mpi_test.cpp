@@ -14,6 +14,8 @@
 #include <cstdint>
 #include <cstdlib>
 #include <filesystem>
+#include <functional>
+#include <initializer_list>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -50,6 +52,67 @@ class Mpi : public ::testing::Test {
   }
   test::scratch_dir dir_{"progiso-mpi-"};
   test::scratch_dir runs_{"progiso-mpi-runs-"};
+
+  /// What one process writes for the command `args(out)`.
+  std::string one_process_file(
+      const std::function<std::vector<std::string>(const fs::path&)>& args) {
+    const fs::path single = dir_.path() / "single.ply";
+    const test::bounded_result one = test::run_bounded(PROGISO_CLI, args(single), runs_.path());
+    EXPECT_EQ(one.status, 0) << one.err;
+    return test::read_whole(single);
+  }
+
+  /// The command `args(out)` on each of `ranks` ranks writes `want` (one process's file).
+  void expect_ranks_write(const std::string& want,
+                          const std::function<std::vector<std::string>(const fs::path&)>& args,
+                          std::initializer_list<int> ranks) {
+    for (const int n : ranks) {
+      SCOPED_TRACE(std::to_string(n) + " ranks");
+      const fs::path out = dir_.path() / "mpi.ply";
+      const test::bounded_result r =
+          test::run_bounded(PROGISO_MPIEXEC, mpi_args(n, args(out)), runs_.path());
+      ASSERT_EQ(r.status, 0) << r.err;
+      EXPECT_TRUE(test::read_whole(out) == want) << "another file than one process's";
+    }
+  }
+
+  /// A NRRD of 31 × 29 × 37 u8 samples `f(x, y, z)` whose space directions turn, shear and mirror
+  /// the grid (det < 0: windings reverse), its data in a raw file beside it.
+  fs::path turned_nrrd(const std::string& name, const std::function<int(int, int, int)>& f) {
+    std::string bytes;
+    for (int z = 0; z < 37; ++z) {
+      for (int y = 0; y < 29; ++y) {
+        for (int x = 0; x < 31; ++x) bytes += static_cast<char>(f(x, y, z));
+      }
+    }
+    test::write_file(dir_.path() / (name + ".raw"), bytes);
+    const fs::path nhdr = dir_.path() / (name + ".nhdr");
+    test::write_file(nhdr,
+                     "NRRD0004\ntype: uint8\ndimension: 3\nsizes: 31 29 37\n"
+                     "space: left-posterior-superior\n"
+                     "space directions: (0,0.9,0.1) (1.1,0,0) (0,0.2,-1.2)\n"
+                     "space origin: (10,-20,30)\nencoding: raw\ndata file: " +
+                         name + ".raw\n");
+    return nhdr;
+  }
+
+  /// The command `args(out)` into a .vtp by one process and into a .pvtp by 3 ranks: VTK's
+  /// readers give the same oriented triangles (with their normals, when written).
+  void expect_pvtp_reads_as_one_process(
+      const std::function<std::vector<std::string>(const fs::path&)>& args) {
+    const fs::path whole = dir_.path() / "whole.vtp";
+    ASSERT_EQ(test::run_bounded(PROGISO_CLI, args(whole), runs_.path()).status, 0);
+    const fs::path pvtp = dir_.path() / "pieces.pvtp";
+    const test::bounded_result r =
+        test::run_bounded(PROGISO_MPIEXEC, mpi_args(3, args(pvtp)), runs_.path());
+    ASSERT_EQ(r.status, 0) << r.err;
+    const test::bounded_result check =
+        test::run_bounded(PROGISO_VTK_PYTHON,
+                          {std::string(PROGISO_SOURCE_DIR) + "/tests/apps/pvtp_check.py",
+                           pvtp.string(), whole.string(), "3"},
+                          runs_.path());
+    EXPECT_EQ(check.status, 0) << check.out << check.err;
+  }
 };
 
 // Inputs whose surfaces cross every rank's share: a raw file of 37 planes (no rank count here
@@ -318,23 +381,9 @@ TEST_F(Mpi, a_pvtp_holds_one_piece_per_rank_that_vtk_reads_as_the_single_process
 }
 
 TEST_F(Mpi, world_coordinates_are_the_single_process_ones_in_every_output) {
-  // A NRRD whose space directions turn, shear and mirror the grid (det < 0: windings reverse).
-  const fs::path raw = dir_.path() / "w.raw";
-  std::string bytes;
-  for (int z = 0; z < 37; ++z) {
-    for (int y = 0; y < 29; ++y) {
-      for (int x = 0; x < 31; ++x) {
-        bytes += static_cast<char>((x * 7 + y * 11 + z * 13 + (x * y) % 17 + (y * z) % 19) % 256);
-      }
-    }
-  }
-  test::write_file(raw, bytes);
-  const fs::path nhdr = dir_.path() / "w.nhdr";
-  test::write_file(nhdr,
-                   "NRRD0004\ntype: uint8\ndimension: 3\nsizes: 31 29 37\n"
-                   "space: left-posterior-superior\n"
-                   "space directions: (0,0.9,0.1) (1.1,0,0) (0,0.2,-1.2)\n"
-                   "space origin: (10,-20,30)\nencoding: raw\ndata file: w.raw\n");
+  const fs::path nhdr = turned_nrrd("w", [](int x, int y, int z) {
+    return (x * 7 + y * 11 + z * 13 + (x * y) % 17 + (y * z) % 19) % 256;
+  });
   for (const std::vector<std::string>& goal :
        {std::vector<std::string>{"--full"}, std::vector<std::string>{"--error", "6"}}) {
     SCOPED_TRACE(goal[0]);
@@ -344,24 +393,14 @@ TEST_F(Mpi, world_coordinates_are_the_single_process_ones_in_every_output) {
       a.insert(a.end(), {"-o", out.string(), "--threads", "1"});
       return a;
     };
-    const fs::path single = dir_.path() / "single.ply";
-    const test::bounded_result one = test::run_bounded(PROGISO_CLI, args(single), runs_.path());
-    ASSERT_EQ(one.status, 0) << one.err;
-    const std::string want = test::read_whole(single);
+    const std::string want = one_process_file(args);
     ASSERT_GT(want.size(), 1000U);
     // Not the grid's physical coordinates: the map is applied.
     std::vector<std::string> plain = args(dir_.path() / "plain.ply");
     plain.erase(std::find(plain.begin(), plain.end(), "--world"));
     ASSERT_EQ(test::run_bounded(PROGISO_CLI, plain, runs_.path()).status, 0);
     EXPECT_FALSE(test::read_whole(dir_.path() / "plain.ply") == want);
-    for (const int ranks : {1, 2, 4}) {
-      SCOPED_TRACE(std::to_string(ranks) + " ranks");
-      const fs::path out = dir_.path() / "mpi.ply";
-      const test::bounded_result r =
-          test::run_bounded(PROGISO_MPIEXEC, mpi_args(ranks, args(out)), runs_.path());
-      ASSERT_EQ(r.status, 0) << r.err;
-      EXPECT_TRUE(test::read_whole(out) == want) << "another file than one process's";
-    }
+    expect_ranks_write(want, args, {1, 2, 4});
   }
   // Pieces: VTK reads the same oriented triangles as the single process's .vtp.
   if (std::string_view(PROGISO_VTK_PYTHON).empty()) return;
@@ -369,41 +408,17 @@ TEST_F(Mpi, world_coordinates_are_the_single_process_ones_in_every_output) {
     return std::vector<std::string>{"extract", nhdr.string(), "--iso",      "127.5",     "--world",
                                     "--full",  "-o",          out.string(), "--threads", "1"};
   };
-  const fs::path whole = dir_.path() / "whole.vtp";
-  ASSERT_EQ(test::run_bounded(PROGISO_CLI, full(whole), runs_.path()).status, 0);
-  const fs::path pvtp = dir_.path() / "pieces.pvtp";
-  const test::bounded_result r =
-      test::run_bounded(PROGISO_MPIEXEC, mpi_args(3, full(pvtp)), runs_.path());
-  ASSERT_EQ(r.status, 0) << r.err;
-  const test::bounded_result check =
-      test::run_bounded(PROGISO_VTK_PYTHON,
-                        {std::string(PROGISO_SOURCE_DIR) + "/tests/apps/pvtp_check.py",
-                         pvtp.string(), whole.string(), "3"},
-                        runs_.path());
-  EXPECT_EQ(check.status, 0) << check.out << check.err;
+  expect_pvtp_reads_as_one_process(full);
 }
 
 TEST_F(Mpi, vertex_normals_are_the_single_process_ones_bit_for_bit) {
   // A checkerboard in the lower planes (every central difference 0: those vertices take the
   // normals of the triangles around them, some on the rank before) and waves above; in a NRRD
   // whose directions turn, shear and mirror the grid, with and without --world.
-  const fs::path raw = dir_.path() / "n.raw";
-  std::string bytes;
-  for (int z = 0; z < 37; ++z) {
-    for (int y = 0; y < 29; ++y) {
-      for (int x = 0; x < 31; ++x) {
-        const int wave = (x * 7 + y * 11 + z * 13 + (x * y) % 17 + (y * z) % 19) % 256;
-        bytes += static_cast<char>(z < 20 ? ((x + y + z) % 2) * 200 + 20 : wave);
-      }
-    }
-  }
-  test::write_file(raw, bytes);
-  const fs::path nhdr = dir_.path() / "n.nhdr";
-  test::write_file(nhdr,
-                   "NRRD0004\ntype: uint8\ndimension: 3\nsizes: 31 29 37\n"
-                   "space: left-posterior-superior\n"
-                   "space directions: (0,0.9,0.1) (1.1,0,0) (0,0.2,-1.2)\n"
-                   "space origin: (10,-20,30)\nencoding: raw\ndata file: n.raw\n");
+  const fs::path nhdr = turned_nrrd("n", [](int x, int y, int z) {
+    const int wave = (x * 7 + y * 11 + z * 13 + (x * y) % 17 + (y * z) % 19) % 256;
+    return z < 20 ? ((x + y + z) % 2) * 200 + 20 : wave;
+  });
   for (const bool world : {false, true}) {
     for (const std::vector<std::string>& goal :
          {std::vector<std::string>{"--full"}, std::vector<std::string>{"--error", "6"},
@@ -416,19 +431,9 @@ TEST_F(Mpi, vertex_normals_are_the_single_process_ones_bit_for_bit) {
         a.insert(a.end(), {"-o", out.string(), "--threads", "1"});
         return a;
       };
-      const fs::path single = dir_.path() / "single.ply";
-      const test::bounded_result one = test::run_bounded(PROGISO_CLI, args(single), runs_.path());
-      ASSERT_EQ(one.status, 0) << one.err;
-      const std::string want = test::read_whole(single);
+      const std::string want = one_process_file(args);
       ASSERT_NE(want.find("property float nx"), std::string::npos);
-      for (const int ranks : {1, 2, 3, 4}) {
-        SCOPED_TRACE(std::to_string(ranks) + " ranks");
-        const fs::path out = dir_.path() / "mpi.ply";
-        const test::bounded_result r =
-            test::run_bounded(PROGISO_MPIEXEC, mpi_args(ranks, args(out)), runs_.path());
-        ASSERT_EQ(r.status, 0) << r.err;
-        EXPECT_TRUE(test::read_whole(out) == want) << "another file than one process's";
-      }
+      expect_ranks_write(want, args, {1, 2, 3, 4});
     }
   }
   // Pieces with normals: VTK reads the single process's corners and normals.
@@ -438,18 +443,7 @@ TEST_F(Mpi, vertex_normals_are_the_single_process_ones_bit_for_bit) {
                                     "--world",    "--full",      "--normals", "-o",
                                     out.string(), "--threads",   "1"};
   };
-  const fs::path whole = dir_.path() / "whole.vtp";
-  ASSERT_EQ(test::run_bounded(PROGISO_CLI, full(whole), runs_.path()).status, 0);
-  const fs::path pvtp = dir_.path() / "pieces.pvtp";
-  const test::bounded_result r =
-      test::run_bounded(PROGISO_MPIEXEC, mpi_args(3, full(pvtp)), runs_.path());
-  ASSERT_EQ(r.status, 0) << r.err;
-  const test::bounded_result check =
-      test::run_bounded(PROGISO_VTK_PYTHON,
-                        {std::string(PROGISO_SOURCE_DIR) + "/tests/apps/pvtp_check.py",
-                         pvtp.string(), whole.string(), "3"},
-                        runs_.path());
-  EXPECT_EQ(check.status, 0) << check.out << check.err;
+  expect_pvtp_reads_as_one_process(full);
 }
 
 TEST_F(Mpi, refusals_give_one_error_line_and_a_failing_status) {

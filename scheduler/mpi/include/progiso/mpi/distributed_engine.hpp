@@ -35,19 +35,11 @@
 #include <mutex>
 #include <thread>
 
-// The C API only: the deprecated C++ bindings (removed in MPI-3) warn under -Wall.
-#ifndef OMPI_SKIP_MPICXX
-#define OMPI_SKIP_MPICXX 1
-#endif
-#ifndef MPICH_SKIP_MPICXX
-#define MPICH_SKIP_MPICXX 1
-#endif
-#include <mpi.h>
-
 #include <progiso/core/field/volume.hpp>
 #include <progiso/core/hierarchy/hierarchy.hpp>
 #include <progiso/core/refine/goal.hpp>
 #include <progiso/core/surface/mesh.hpp>
+#include <progiso/mpi/detail/mpi_c.hpp>
 
 namespace progiso {
 

@@ -20,20 +20,12 @@
 #include <span>
 #include <vector>
 
-// The C API only: the deprecated C++ bindings (removed in MPI-3) warn under -Wall.
-#ifndef OMPI_SKIP_MPICXX
-#define OMPI_SKIP_MPICXX 1
-#endif
-#ifndef MPICH_SKIP_MPICXX
-#define MPICH_SKIP_MPICXX 1
-#endif
-#include <mpi.h>
-
 #include <progiso/core/field/volume.hpp>
 #include <progiso/core/hierarchy/hierarchy.hpp>
 #include <progiso/core/ranges/range_data.hpp>
 #include <progiso/core/refine/error_cut_share.hpp>
 #include <progiso/core/surface/mesh.hpp>
+#include <progiso/mpi/detail/mpi_c.hpp>
 
 namespace progiso::detail {
 

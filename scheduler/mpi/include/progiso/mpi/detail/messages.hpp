@@ -8,16 +8,8 @@
 #include <type_traits>
 #include <vector>
 
-// The C API only: the deprecated C++ bindings (removed in MPI-3) warn under -Wall.
-#ifndef OMPI_SKIP_MPICXX
-#define OMPI_SKIP_MPICXX 1
-#endif
-#ifndef MPICH_SKIP_MPICXX
-#define MPICH_SKIP_MPICXX 1
-#endif
-#include <mpi.h>
-
 #include <progiso/core/base/error.hpp>
+#include <progiso/mpi/detail/mpi_c.hpp>
 
 namespace progiso::detail {
 
