@@ -143,20 +143,18 @@ void set_up(setup& s, const std::vector<std::string>& args, int rank, int size) 
   extract_arguments& a = s.a;
   using kind = refine_goal::kind;
   // Error goals and deadlines are both cuts by error thresholds across ranks (docs/MPI.md).
-  const bool error_goal =
-      a.options.goal.what == kind::error || a.options.goal.what == kind::deadline;
-  if (a.options.goal.what == kind::budget) {
-    throw error(
-        "under MPI, extract makes the finest surface (--full), an error-driven cut (--error E) "
-        "or the finest error cut by a deadline (--time-ms T): triangle budgets across ranks are "
-        "not built yet");
-  }
+  // A triangle budget too: the last round whose cut holds at most the budget.
+  const bool error_goal = a.options.goal.what == kind::error ||
+                          a.options.goal.what == kind::deadline ||
+                          a.options.goal.what == kind::budget;
   if (!a.options.deadline_ladder) {
     throw error(
         "--by-priority: under MPI a deadline refines by rounds of falling error thresholds, the "
         "same on every rank");
   }
-  if (a.hierarchy && !error_goal) throw error("under MPI, --hierarchy goes only with --error");
+  if (a.hierarchy && (!error_goal || a.options.goal.what == kind::budget)) {
+    throw error("under MPI, --hierarchy goes only with --error or --time-ms");
+  }
   if (error_goal && a.smooth.active()) {
     throw error(
         "under MPI, --error and --time-ms refine the data as read: --smooth is not built across "
@@ -406,20 +404,42 @@ int run_error_cut(setup& s, int rank, int size, unsigned threads,
   const double ranges_ms = ms_since(t0);
   // A fault for the tests: this rank dies here, after the others have its pieces.
   if (env_int("PROGISO_MPI_FAULT_RANK") == rank) std::raise(SIGKILL);
-  if (built && !timed) cut.round(s.a.options.goal.max_error, threads);
-  // Rounds until the error-0 cut or until some rank is out of time; the cut is the last round
-  // every rank finished.
-  while (timed) {
+  const bool budget = s.a.options.goal.what == refine_goal::kind::budget;
+  const bool in_rounds = timed || budget;
+  if (built && !in_rounds) cut.round(s.a.options.goal.max_error, threads);
+  // Rounds until the error-0 cut, until some rank is out of time, or until a round's cut passes
+  // the budget; the cut is the last round every rank finished (and within the budget). A budget
+  // gathers each round on rank 0, which meshes it, keeps the mesh and says whether it passed.
+  triangle_mesh kept;
+  double kept_error = std::numeric_limits<double>::infinity();
+  int kept_rounds = 0;
+  std::uint64_t kept_splits = 0;
+  if (budget && rank == 0) kept = cut.mesh(threads);  // the root surface
+  while (in_rounds) {
     const std::optional<double> next = cut.next_threshold(0.0, passed());
     if (!next || !cut.round(*next, threads, passed)) break;
+    if (!budget) continue;
+    cut.gather();
+    int over = 0;
+    if (rank == 0) {
+      triangle_mesh m = cut.mesh(threads);
+      over = m.triangles.size() > s.a.options.goal.max_elements ? 1 : 0;
+      if (over == 0) kept = std::move(m);
+    }
+    MPI_Bcast(&over, 1, MPI_INT, 0, MPI_COMM_WORLD);
+    if (over != 0) break;
+    kept_error = cut.threshold();
+    kept_rounds = cut.rounds();
+    kept_splits = cut.gathered_splits();
   }
   cut.gather();
-  const double max_error = cut.threshold();
-  const int rounds = timed ? cut.rounds() : 0;
+  const double max_error = budget ? kept_error : cut.threshold();
+  const int rounds = budget ? kept_rounds : timed ? cut.rounds() : 0;
   const double splits_ms = ms_since(t0);
   if (rank != 0) return 0;
   const hierarchy& hier = cut.hier();
-  const std::uint64_t splits = cut.gathered_splits();
+  // A budget's cut may be a round short of what was gathered.
+  const std::uint64_t splits = budget ? kept_splits : cut.gathered_splits();
   std::vector<const detail::share_splits*> pieces;
   for (const auto& p : cut.pieces()) pieces.push_back(p.get());
   // The stream only when asked for: the mesh is made from the records as they came.
@@ -428,7 +448,7 @@ int run_error_cut(setup& s, int rank, int size, unsigned threads,
         [&s](std::span<const std::byte> b) { s.hierarchy_out->write(b.data(), b.size()); }, hier,
         field, s.iso, pieces);
   }
-  triangle_mesh mesh = cut.mesh(threads);
+  triangle_mesh mesh = budget ? std::move(kept) : cut.mesh(threads);
   if (s.a.options.normals) {
     scheduler::run_on_threads(threads, [&](const parallel_loop& loop, std::size_t) {
       add_vertex_normals(mesh, field, loop);
@@ -442,8 +462,11 @@ int run_error_cut(setup& s, int rank, int size, unsigned threads,
     o << "{\n  \"input\": \"" << json_escape(s.input) << "\",\n  \"dims\": [" << field.dims()[0]
       << ", " << field.dims()[1] << ", " << field.dims()[2]
       << "],\n  \"isovalue\": " << json_number(s.iso) << ",\n  \"mode\": \""
-      << (timed ? "time" : "error") << "\",\n  \"max_error\": " << exact_number(max_error)
-      << ",\n  \"rounds\": " << rounds << ",\n  \"path\": \"shares\",\n  \"ranks\": " << size
+      << (timed    ? "time"
+          : budget ? "triangles"
+                   : "error")
+      << "\",\n  \"max_error\": " << exact_number(max_error) << ",\n  \"rounds\": " << rounds
+      << ",\n  \"path\": \"shares\",\n  \"ranks\": " << size
       << ",\n  \"threads_per_rank\": " << threads << ",\n  \"splits\": " << splits
       << ",\n  \"triangles\": " << mesh.triangles.size()
       << ",\n  \"vertices\": " << mesh.vertices.size()
@@ -465,8 +488,11 @@ int run_error_cut(setup& s, int rank, int size, unsigned threads,
       "data %.1f ms, splits %.1f ms, total %.1f ms; wrote %s\n",
       mesh.triangles.size(), mesh.vertices.size(), static_cast<unsigned long long>(splits),
       which.c_str(),
-      timed ? (" after " + std::to_string(rounds) + " rounds by the deadline").c_str() : "", size,
-      field.voxel_count(), ranges_ms, splits_ms, total_ms, s.a.output->c_str());
+      in_rounds ? (" after " + std::to_string(rounds) + " rounds" +
+                   (timed ? " by the deadline" : " within the budget"))
+                      .c_str()
+                : "",
+      size, field.voxel_count(), ranges_ms, splits_ms, total_ms, s.a.output->c_str());
   return 0;
 }
 
@@ -508,8 +534,7 @@ int run_mpi_extract(const std::vector<std::string>& args) {
         s.a.threads != 0 ? s.a.threads
                          : std::max(1u, static_cast<unsigned>(scheduler::default_concurrency()) /
                                             static_cast<unsigned>(size));
-    if (s.a.options.goal.what == refine_goal::kind::error ||
-        s.a.options.goal.what == refine_goal::kind::deadline) {
+    if (s.a.options.goal.what != refine_goal::kind::full) {
       return run_error_cut(s, rank, size, threads, t0);
     }
     const volume& field = *s.field;

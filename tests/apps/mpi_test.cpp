@@ -201,39 +201,78 @@ std::string json_field(const std::string& json, const std::string& name) {
   return json.substr(from, json.find_first_of(",\n}", from) - from);
 }
 
+/// Runs `goal` (a deadline or a budget: rounds of thresholds) on `ranks` ranks, checks that the
+/// file is one process's cut of the error goal at the threshold the statistics report (none: the
+/// root surface) and returns the statistics.
+std::string expect_cut_of_its_threshold(const fs::path& dir, const fs::path& runs,
+                                        const mpi_input& in, const std::vector<std::string>& goal,
+                                        int ranks) {
+  const auto args = [&](const std::vector<std::string>& g, const std::string& out) {
+    std::vector<std::string> a{"extract", in.file.string(), "--dims", in.dims, "--type",
+                               "u8",      "--iso",          in.iso};
+    a.insert(a.end(), g.begin(), g.end());
+    a.insert(a.end(), {"-o", (dir / out).string(), "--threads", "1", "--stats-json",
+                       (dir / (out + ".json")).string()});
+    return a;
+  };
+  const test::bounded_result r =
+      test::run_bounded(PROGISO_MPIEXEC, mpi_args(ranks, args(goal, "rounds.ply")), runs);
+  EXPECT_EQ(r.status, 0) << r.err;
+  const std::string stats = test::read_whole(dir / "rounds.ply.json");
+  const std::string reached = json_field(stats, "max_error");
+  EXPECT_FALSE(reached.empty()) << stats;
+  // The same cut by one process: an error goal at the threshold reached (none: no split).
+  const test::bounded_result one = test::run_bounded(
+      PROGISO_CLI, args({"--error", reached == "null" ? "1e300" : reached}, "one.ply"), runs);
+  EXPECT_EQ(one.status, 0) << one.err;
+  EXPECT_TRUE(test::read_whole(dir / "rounds.ply") == test::read_whole(dir / "one.ply"))
+      << "not the cut of error > " << reached;
+  return stats;
+}
+
 TEST_F(Mpi, a_deadline_gives_the_single_process_cut_of_the_last_threshold_every_rank_reached) {
   for (const mpi_input& in : mpi_inputs(dir_.path())) {
-    const auto args = [&](const std::vector<std::string>& goal, const std::string& out) {
-      std::vector<std::string> a{"extract", in.file.string(), "--dims", in.dims, "--type",
-                                 "u8",      "--iso",          in.iso};
-      a.insert(a.end(), goal.begin(), goal.end());
-      a.insert(a.end(), {"-o", (dir_.path() / out).string(), "--threads", "1", "--stats-json",
-                         (dir_.path() / (out + ".json")).string()});
-      return a;
-    };
     // No time (the root surface), some (whatever round it allows), ample (the error-0 cut).
     for (const char* ms : {"0", "15", "100000"}) {
       for (const int ranks : {1, 2, 4}) {
         SCOPED_TRACE(in.file.filename().string() + ", --time-ms " + ms + ", " +
                      std::to_string(ranks) + " ranks");
-        const test::bounded_result r = test::run_bounded(
-            PROGISO_MPIEXEC, mpi_args(ranks, args({"--time-ms", ms}, "timed.ply")), runs_.path());
-        ASSERT_EQ(r.status, 0) << r.err;
-        const std::string stats = test::read_whole(dir_.path() / "timed.ply.json");
-        const std::string reached = json_field(stats, "max_error");
-        ASSERT_FALSE(reached.empty()) << stats;
+        const std::string stats =
+            expect_cut_of_its_threshold(dir_.path(), runs_.path(), in, {"--time-ms", ms}, ranks);
         if (std::string(ms) == "100000") {
-          EXPECT_NE(reached, "null");
+          EXPECT_NE(json_field(stats, "max_error"), "null");
           EXPECT_GT(std::stoi(json_field(stats, "rounds")), 3) << stats;
         }
-        // The same cut by one process: an error goal at the threshold reached (none: no split).
-        const test::bounded_result one = test::run_bounded(
-            PROGISO_CLI, args({"--error", reached == "null" ? "1e300" : reached}, "one.ply"),
-            runs_.path());
-        ASSERT_EQ(one.status, 0) << one.err;
-        EXPECT_TRUE(test::read_whole(dir_.path() / "timed.ply") ==
-                    test::read_whole(dir_.path() / "one.ply"))
-            << "not the cut of error > " << reached;
+      }
+    }
+  }
+}
+
+TEST_F(Mpi, a_triangle_budget_gives_the_single_process_cut_of_the_last_round_within_it) {
+  for (const mpi_input& in : mpi_inputs(dir_.path())) {
+    // Below the root surface's triangles, a few rounds' worth, and more than the finest cut.
+    for (const std::uint64_t budget : {1ull, 5000ull, 100000000ull}) {
+      std::string first;
+      for (const int ranks : {1, 2, 4}) {
+        SCOPED_TRACE(in.file.filename().string() + ", --max-triangles " + std::to_string(budget) +
+                     ", " + std::to_string(ranks) + " ranks");
+        const std::string stats = expect_cut_of_its_threshold(
+            dir_.path(), runs_.path(), in, {"--max-triangles", std::to_string(budget)}, ranks);
+        EXPECT_EQ(json_field(stats, "mode"), "\"triangles\"") << stats;
+        const std::uint64_t triangles = std::stoull(json_field(stats, "triangles"));
+        if (json_field(stats, "max_error") != "null") {
+          EXPECT_LE(triangles, budget) << stats;
+        }
+        if (budget == 1) {
+          EXPECT_EQ(json_field(stats, "max_error"), "null") << stats;
+        }
+        if (budget == 100000000ull) {
+          EXPECT_GT(std::stoi(json_field(stats, "rounds")), 3) << stats;
+        }
+        // The same file on every rank count.
+        const std::string file = test::read_whole(dir_.path() / "rounds.ply");
+        if (first.empty()) first = file;
+        EXPECT_TRUE(file == first);
       }
     }
   }
@@ -463,8 +502,9 @@ TEST_F(Mpi, refusals_give_one_error_line_and_a_failing_status) {
     EXPECT_FALSE(fs::exists(dir_.path() / "out.ply"));
   };
   refused({"extract", raw.string(), "--dims", "8,8,8", "--type", "u8", "--iso", "3",
-           "--max-triangles", "100", "-o", (dir_.path() / "out.ply").string()},
-          "triangle budgets across ranks are not built yet");
+           "--max-triangles", "100", "--hierarchy", (dir_.path() / "out.pgh").string(), "-o",
+           (dir_.path() / "out.ply").string()},
+          "under MPI, --hierarchy goes only with --error or --time-ms");
   refused({"extract", raw.string(), "--dims", "8,8,8", "--type", "u8", "--iso", "3", "--error", "1",
            "--smooth", "1", "-o", (dir_.path() / "out.ply").string()},
           "--smooth is not built across ranks");
