@@ -11,7 +11,10 @@
 //   - refinement: the engine's full refinement and its cut's mesh (extract_isosurface_parallel
 //     on the hierarchy's path), range data included;
 //   - refinement_error: the engine to an error goal (0.01 on Marschner–Lobb, whose samples lie
-//     in [0, 1]; 0.5 grid units on the sphere's distance field).
+//     in [0, 1]; 0.5 grid units on the sphere's distance field);
+//   - engine_full: a progiso::engine with its default options refined to a full goal (its
+//     uniform cuts: the finest cut published as a root of triangles), the cut held by the engine
+//     and no mesh extracted: what an embedder's engine holds for the finest surface.
 //   Counters: triangles, peak_MiB, B_per_triangle (peak / triangles), range_MiB (the range data,
 //   within the peak), B_per_triangle_past_range ((peak − range data) / triangles), seconds.
 // Fields: Marschner–Lobb 257³ and 513³ (f32, isovalue 0.5), and a sphere of radius 400 in a
@@ -140,7 +143,7 @@ run_figures in_child(const std::function<std::array<std::uint64_t, 2>()>& job) {
   return f;
 }
 
-enum class path { finest, finest_streamed, refinement, refinement_error };
+enum class path { finest, finest_streamed, refinement, refinement_error, engine_full };
 
 std::array<std::uint64_t, 2> run_path(path p, const volume& v, double w, double error) {
   switch (p) {
@@ -170,6 +173,13 @@ std::array<std::uint64_t, 2> run_path(path p, const volume& v, double w, double 
           detail::extract_isosurface_parallel(v, w, o, threads, detail::path_choice{false});
       return {r.mesh.triangles.size(), r.range_bytes};
     }
+    case path::engine_full: {
+      engine_options o;
+      o.threads = threads;
+      engine e(v, w, o);
+      e.refine(refine_goal::full());
+      return {e.snapshot().triangle_count(), 0};
+    }
   }
   return {0, 0};
 }
@@ -198,11 +208,12 @@ void BM_peak_memory(benchmark::State& state, const field_spec& f, path p) {
 }
 
 void register_all() {
-  const std::array<std::pair<const char*, path>, 4> paths{
+  const std::array<std::pair<const char*, path>, 5> paths{
       {{"finest", path::finest},
        {"finest_streamed", path::finest_streamed},
        {"refinement", path::refinement},
-       {"refinement_error", path::refinement_error}}};
+       {"refinement_error", path::refinement_error},
+       {"engine_full", path::engine_full}}};
   for (const field_spec& f : fields()) {
     for (const auto& [name, p] : paths) {
       benchmark::RegisterBenchmark((std::string("BM_peak_memory/") + f.name + "/" + name).c_str(),
