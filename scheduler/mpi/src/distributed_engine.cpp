@@ -70,9 +70,7 @@ distributed_engine::~distributed_engine() {
 void distributed_engine::start(const refine_goal& goal) {
   if (!is_root()) throw error("distributed_engine::start: only the root rank takes commands");
   if (goal.focus) throw error("distributed_engine: a focused goal is not supported across ranks");
-  if (goal.what == refine_goal::kind::error && !(goal.max_error >= 0.0)) {
-    throw error("distributed_engine: an error goal needs a non-negative threshold");
-  }
+  check_goal(goal);
   const std::lock_guard lock(mutex_);
   pending_.start = true;
   pending_.goal = goal;
