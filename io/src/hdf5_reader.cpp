@@ -30,6 +30,7 @@
 #include <new>
 #include <optional>
 #include <span>
+#include <thread>
 #include <type_traits>
 
 #include <progiso/core/base/assert.hpp>
@@ -606,78 +607,113 @@ void limit_child_memory() noexcept {
 #endif
 }
 
+// Whether this process runs under a sanitizer whose runtime does not lock its own allocator
+// around fork(): ThreadSanitizer's before LLVM 19 (llvm-project pull request 96600) and
+// AddressSanitizer's before LLVM 18. A child forked while another thread (a oneTBB worker, the
+// sanitizer's background thread) holds that lock can then block forever in its first malloc.
+constexpr bool fork_may_deadlock_the_child() {
+#if defined(__SANITIZE_ADDRESS__) || defined(__SANITIZE_THREAD__)
+  return true;
+#elif defined(__has_feature)
+#if __has_feature(address_sanitizer) || __has_feature(thread_sanitizer)
+  return true;
+#else
+  return false;
+#endif
+#else
+  return false;
+#endif
+}
+
+// fork(), tried again a few times when the kernel is short of processes or memory for a moment.
+pid_t fork_patiently() {
+  for (int attempt = 0;; ++attempt) {
+    const pid_t pid = ::fork();
+    if (pid >= 0 || (errno != EAGAIN && errno != ENOMEM) || attempt == 4) return pid;
+    std::this_thread::sleep_for(std::chrono::milliseconds(50 << attempt));
+  }
+}
+
 // Runs `work(fd)` in a child, which writes its answer to fd ('R' payload, or 'E' message);
 // returns the payload. `stop`, when given, is asked first and while waiting: true ends the
 // child and returns nullopt. Throws progiso::error for an error the child reports, or when it dies
-// or falls silent.
+// or falls silent. Under a sanitizer whose fork can deadlock the child (above), a silent child
+// is given one more try before the file is called hanging.
 template <class Work>
 std::optional<std::string> in_child(const fs::path& file, const Work& work,
                                     const std::function<bool()>& stop) {
   if (stop && stop()) return std::nullopt;
-  int fds[2];
-  if (::pipe2(fds, O_CLOEXEC) != 0) {
-    throw error(file.string() + ": cannot start the HDF5 reader (pipe: " + std::strerror(errno) +
-                ")");
-  }
-  const pid_t pid = ::fork();
-  if (pid < 0) {
-    const int e = errno;
-    ::close(fds[0]);
-    ::close(fds[1]);
-    throw error(file.string() + ": cannot start the HDF5 reader (fork: " + std::strerror(e) + ")");
-  }
-  if (pid == 0) {
-    ::close(fds[0]);
-    reset_crash_handling();
-    limit_child_memory();
-    try {
-      send(fds[1], result_mark, work(fds[1]));
-    } catch (const error& e) {
-      send(fds[1], error_mark, e.what());
-    } catch (const std::bad_alloc&) {
-      send(fds[1], error_mark, file.string() + ": out of memory reading the HDF5 file");
-    } catch (...) {
-      send(fds[1], error_mark, file.string() + ": the HDF5 reader failed");
-    }
-    ::_exit(0);  // no atexit handlers, no destructors of the parent's objects
-  }
-  ::close(fds[1]);
-  const int fd = fds[0];
+  const int tries = fork_may_deadlock_the_child() ? 2 : 1;
   std::string got;
-  bool stopped = false;
-  bool silent = false;
-  auto heard = std::chrono::steady_clock::now();
-  for (;;) {
-    pollfd p{fd, POLLIN, 0};
-    const int ready = ::poll(&p, 1, 50);
-    if (ready < 0 && errno != EINTR) break;
-    if (ready > 0) {
-      char buf[65536];
-      const ssize_t n = ::read(fd, buf, sizeof buf);
-      if (n < 0 && errno == EINTR) continue;
-      if (n <= 0) break;  // the child closed its end: done or dead
-      got.append(buf, static_cast<std::size_t>(n));
-      heard = std::chrono::steady_clock::now();
-      continue;
-    }
-    if (stop && stop()) {
-      stopped = true;
-      break;
-    }
-    if (std::chrono::steady_clock::now() - heard > quiet_limit) {
-      silent = true;
-      break;
-    }
-  }
-  ::close(fd);
-  if (stopped || silent) (void)::kill(pid, SIGKILL);
   int status = 0;
-  while (::waitpid(pid, &status, 0) < 0 && errno == EINTR) {
-  }
-  if (stopped) return std::nullopt;
-  if (silent) {
-    throw error(file.string() + ": expected an HDF5 file libhdf5 reads, found one on which it " +
-                "hangs (no progress in " + std::to_string(quiet_limit.count()) + " s)");
+  for (int attempt = 1;; ++attempt) {
+    int fds[2];
+    if (::pipe2(fds, O_CLOEXEC) != 0) {
+      throw error(file.string() + ": cannot start the HDF5 reader (pipe: " + std::strerror(errno) +
+                  ")");
+    }
+    const pid_t pid = fork_patiently();
+    if (pid < 0) {
+      const int e = errno;
+      ::close(fds[0]);
+      ::close(fds[1]);
+      throw error(file.string() + ": cannot start the HDF5 reader (fork: " + std::strerror(e) +
+                  ")");
+    }
+    if (pid == 0) {
+      ::close(fds[0]);
+      reset_crash_handling();
+      limit_child_memory();
+      try {
+        send(fds[1], result_mark, work(fds[1]));
+      } catch (const error& e) {
+        send(fds[1], error_mark, e.what());
+      } catch (const std::bad_alloc&) {
+        send(fds[1], error_mark, file.string() + ": out of memory reading the HDF5 file");
+      } catch (...) {
+        send(fds[1], error_mark, file.string() + ": the HDF5 reader failed");
+      }
+      ::_exit(0);  // no atexit handlers, no destructors of the parent's objects
+    }
+    ::close(fds[1]);
+    const int fd = fds[0];
+    got.clear();
+    bool stopped = false;
+    bool silent = false;
+    auto heard = std::chrono::steady_clock::now();
+    for (;;) {
+      pollfd p{fd, POLLIN, 0};
+      const int ready = ::poll(&p, 1, 50);
+      if (ready < 0 && errno != EINTR) break;
+      if (ready > 0) {
+        char buf[65536];
+        const ssize_t n = ::read(fd, buf, sizeof buf);
+        if (n < 0 && errno == EINTR) continue;
+        if (n <= 0) break;  // the child closed its end: done or dead
+        got.append(buf, static_cast<std::size_t>(n));
+        heard = std::chrono::steady_clock::now();
+        continue;
+      }
+      if (stop && stop()) {
+        stopped = true;
+        break;
+      }
+      if (std::chrono::steady_clock::now() - heard > quiet_limit) {
+        silent = true;
+        break;
+      }
+    }
+    ::close(fd);
+    if (stopped || silent) (void)::kill(pid, SIGKILL);
+    status = 0;
+    while (::waitpid(pid, &status, 0) < 0 && errno == EINTR) {
+    }
+    if (stopped) return std::nullopt;
+    if (!silent) break;
+    if (attempt == tries) {
+      throw error(file.string() + ": expected an HDF5 file libhdf5 reads, found one on which it " +
+                  "hangs (no progress in " + std::to_string(quiet_limit.count()) + " s)");
+    }
   }
   // The answer: progress marks, then one 'E' or 'R' message.
   std::size_t at = 0;
