@@ -15,6 +15,8 @@
 //   - engine_full: a progiso::engine with its default options refined to a full goal (its
 //     uniform cuts: the finest cut published as a root of triangles), the cut held by the engine
 //     and no mesh extracted: what an embedder's engine holds for the finest surface.
+//   - stride2: the uniform surface at stride 2 (a deadline ladder's step below the finest): its
+//     samples read in place from the volume, every other one along each axis.
 //   Counters: triangles, peak_MiB, B_per_triangle (peak / triangles), range_MiB (the range data,
 //   within the peak), B_per_triangle_past_range ((peak − range data) / triangles), seconds.
 // Fields: Marschner–Lobb 257³ and 513³ (f32, isovalue 0.5), and a sphere of radius 400 in a
@@ -143,7 +145,7 @@ run_figures in_child(const std::function<std::array<std::uint64_t, 2>()>& job) {
   return f;
 }
 
-enum class path { finest, finest_streamed, refinement, refinement_error, engine_full };
+enum class path { finest, finest_streamed, refinement, refinement_error, engine_full, stride2 };
 
 std::array<std::uint64_t, 2> run_path(path p, const volume& v, double w, double error) {
   switch (p) {
@@ -180,6 +182,13 @@ std::array<std::uint64_t, 2> run_path(path p, const volume& v, double w, double 
       e.refine(refine_goal::full());
       return {e.snapshot().triangle_count(), 0};
     }
+    case path::stride2: {
+      std::uint64_t t = 0;
+      scheduler::run_on_threads(threads, [&](const parallel_loop& loop, std::size_t parts) {
+        t = uniform_surface(v, w, 2, loop, parts).triangles.size();
+      });
+      return {t, 0};
+    }
   }
   return {0, 0};
 }
@@ -208,12 +217,13 @@ void BM_peak_memory(benchmark::State& state, const field_spec& f, path p) {
 }
 
 void register_all() {
-  const std::array<std::pair<const char*, path>, 5> paths{
+  const std::array<std::pair<const char*, path>, 6> paths{
       {{"finest", path::finest},
        {"finest_streamed", path::finest_streamed},
        {"refinement", path::refinement},
        {"refinement_error", path::refinement_error},
-       {"engine_full", path::engine_full}}};
+       {"engine_full", path::engine_full},
+       {"stride2", path::stride2}}};
   for (const field_spec& f : fields()) {
     for (const auto& [name, p] : paths) {
       benchmark::RegisterBenchmark((std::string("BM_peak_memory/") + f.name + "/" + name).c_str(),

@@ -349,6 +349,11 @@ TEST(UniformSurface, is_the_hierarchy_cut_of_every_diamond_of_the_stride_or_coar
     b = static_cast<std::byte>((state >> 24) & 3u);
   }
   cases.push_back({volume({33, 17, 17}, sample_type::u8, bytes), 1.0});  // ties at the isovalue
+  // Stored samples are read in place with a stride; a computed (smoothed) field's are copied.
+  smoothing s;
+  s.levels = 1;
+  cases.push_back(
+      {smooth(std::make_shared<const volume>(make_gaussian_blobs({33, 17, 17}, 4, 7)), s), 0.45});
   for (const field_case& c : cases) {
     for (const std::int32_t stride : {2, 4, 8}) {
       SCOPED_TRACE(stride);

@@ -210,6 +210,34 @@ inline std::uint64_t load8(const std::uint8_t* p) noexcept {
   return v;
 }
 
+/// uniform_surface()'s grid read in place: every `stride`-th sample of the field's grid along
+/// each axis, and the last. Indexed by point (x, y, z) of that grid; rows through row(), so the
+/// colour pass reads the field's samples with a stride instead of a copy of them (which took
+/// 1 / stride³ of the volume's bytes beside it).
+template <class T>
+struct strided_samples {
+  const T* src;
+  std::int64_t stride;
+  index3 dims;  // the field's
+
+  /// The field's index of grid point k along axis q.
+  [[nodiscard]] std::int64_t field_index(std::size_t q, std::int64_t k) const noexcept {
+    return std::min<std::int64_t>(k * stride, dims[q] - 1);
+  }
+  [[nodiscard]] T at(std::int64_t x, std::int64_t y, std::int64_t z) const noexcept {
+    return src[field_index(0, x) + dims[0] * (field_index(1, y) + dims[1] * field_index(2, z))];
+  }
+  /// The first sample of row (y, z) in the field.
+  [[nodiscard]] const T* row(std::int64_t y, std::int64_t z) const noexcept {
+    return src + dims[0] * (field_index(1, y) + dims[1] * field_index(2, z));
+  }
+};
+
+template <class S>
+inline constexpr bool is_strided_v = false;
+template <class T>
+inline constexpr bool is_strided_v<strided_samples<T>> = true;
+
 template <class S>
 class finest_mesher {
  public:
@@ -229,11 +257,13 @@ class finest_mesher {
   // In slabs of z planes (detail::finest_slab_planes()): each slab's first pass also covers the
   // plane after it (its cubes' triangles name that plane's vertices), whose counts then give the
   // next slab its first ids; so the corner bytes and row counts held are one slab's, and the ids
-  // are those of a single slab over the whole grid. Hooks other than `piece` keep one slab.
+  // are those of a single slab over the whole grid. `sized`, `poll` and `slack` keep one slab;
+  // `storage` serves a single slab's output only: a grid of more slabs grows its output slab by
+  // slab in fresh memory, as without hooks (a whole grid's corner bytes would outweigh it).
   template <class Mesh = triangle_mesh>
   Mesh run(const parallel_loop& loop, std::size_t parts, const finest_progress& to,
            const interrupts& stop = {}) {
-    const bool hooked = stop.sized || stop.poll || stop.storage || stop.slack;
+    const bool hooked = stop.sized || stop.poll || stop.slack;
     const auto plane = static_cast<std::size_t>(ny_);
     const auto z_begin = static_cast<std::size_t>(stop.z_begin);
     const auto z_end = static_cast<std::size_t>(stop.z_end < 0 ? nz_ : stop.z_end);
@@ -418,18 +448,34 @@ class finest_mesher {
     return row_triangles_[r - base_];
   }
 
-  [[nodiscard]] bool black(std::int64_t i) const noexcept {
+  [[nodiscard]] bool black(std::int64_t i) const noexcept requires(!is_strided_v<S>) {
     return static_cast<double>(s_[i]) > w_;
+  }
+
+  // The sample of grid point p, at index i of the grid.
+  [[nodiscard]] double value(std::int64_t i, const ipoint& p) const noexcept {
+    if constexpr (is_strided_v<S>) {
+      return static_cast<double>(s_.at(p[0], p[1], p[2]));
+    } else {
+      return static_cast<double>(s_[i]);
+    }
   }
 
   // Colour pairs of row (y, z): bit 0 the colour of point x (1 above the isovalue), bit 1 that
   // of point x + 1 (0 past the end).
   void colour_row(std::int64_t y, std::int64_t z, std::vector<std::uint8_t>& out) const {
-    const std::int64_t row = nx_ * (y + ny_ * z);
     const auto n = static_cast<std::size_t>(nx_);
     std::uint8_t* o = out.data();
-    for (std::size_t x = 0; x < n; ++x) {
-      o[x] = black(row + static_cast<std::int64_t>(x)) ? 1 : 0;
+    if constexpr (is_strided_v<S>) {
+      const auto* p = s_.row(y, z);
+      const auto stride = static_cast<std::size_t>(s_.stride);
+      for (std::size_t x = 0; x + 1 < n; ++x) o[x] = static_cast<double>(p[x * stride]) > w_;
+      o[n - 1] = static_cast<double>(p[s_.dims[0] - 1]) > w_;
+    } else {
+      const std::int64_t row = nx_ * (y + ny_ * z);
+      for (std::size_t x = 0; x < n; ++x) {
+        o[x] = black(row + static_cast<std::int64_t>(x)) ? 1 : 0;
+      }
     }
     for (std::size_t x = 0; x + 1 < n; ++x)
       o[x] = static_cast<std::uint8_t>(o[x] | (o[x + 1] << 1));
@@ -566,8 +612,8 @@ class finest_mesher {
         const ipoint b{static_cast<std::int32_t>(xi + (q & 1)),
                        static_cast<std::int32_t>(y + ((q >> 1) & 1)),
                        static_cast<std::int32_t>(z + (q >> 2))};
-        const double fa = static_cast<double>(s_[row + xi + offset[static_cast<std::size_t>(p)]]);
-        const double fb = static_cast<double>(s_[row + xi + offset[static_cast<std::size_t>(q)]]);
+        const double fa = value(row + xi + offset[static_cast<std::size_t>(p)], a);
+        const double fb = value(row + xi + offset[static_cast<std::size_t>(q)], b);
         const vec3 at = interpolate(a, fa, b, fb, w_);
         const vec3 pos{origin_[0] + at[0] * spacing_[0], origin_[1] + at[1] * spacing_[1],
                        origin_[2] + at[2] * spacing_[2]};
@@ -941,35 +987,43 @@ triangle_mesh uniform_surface_hooked(const volume& field, double isovalue, std::
   const auto index_of = [&](std::size_t q, std::int64_t k) {
     return std::min<std::int64_t>(k * stride, dims[q] - 1);
   };
-  // The subsampled samples, in the field's own sample type (a smoothed field's doubles), so
-  // that every colour and crossing is computed from the same values as on the field; written
-  // by the copy, every one (not zeroed first), and meshed in the subsampled grid's index frame.
-  const auto points = static_cast<std::size_t>(sub[0] * sub[1] * sub[2]);
-  triangle_mesh mesh = detail::visit_field(field, [&](const auto src) {
-    using S = std::remove_cv_t<decltype(src)>;
-    using T = std::conditional_t<std::is_pointer_v<S>, std::remove_cv_t<std::remove_pointer_t<S>>,
-                                 double>;
-    const std::unique_ptr<T[]> samples = std::make_unique_for_overwrite<T[]>(points);
-    T* const out = samples.get();
-    const std::int64_t nx = sub[0];
-    const std::int64_t last_x = dims[0] - 1;
-    const auto plane = [&](std::size_t k) {
-      if (stop.poll) stop.poll(-1.0);
-      const std::int64_t z = index_of(2, static_cast<std::int64_t>(k));
-      for (std::int64_t j = 0; j < sub[1]; ++j) {
-        const std::int64_t row = dims[0] * (index_of(1, j) + dims[1] * z);
-        T* o = out + nx * (j + sub[1] * static_cast<std::int64_t>(k));
-        // Every stride-th sample of the row, then its last.
-        for (std::int64_t i = 0; i + 1 < nx; ++i) o[i] = static_cast<T>(src[row + i * stride]);
-        o[nx - 1] = static_cast<T>(src[row + last_x]);
-      }
-    };
-    run_loop(run, static_cast<std::size_t>(sub[2]), plane);
-    finest_mesher<const T*> m(sub, {1.0, 1.0, 1.0}, {0.0, 0.0, 0.0}, out, isovalue);
+  const auto mesh_of = [&](auto samples) {
+    finest_mesher<decltype(samples)> m(sub, {1.0, 1.0, 1.0}, {0.0, 0.0, 0.0}, samples, isovalue);
     if (!hierarchy_cut) return m.run(run, parts, progress, stop);
     interrupts with_slack = stop;
     with_slack.slack = true;  // clip_to_data_box() adds crossing points and pieces in place
     return m.run(run, parts, progress, with_slack);
+  };
+  triangle_mesh mesh = detail::visit_field(field, [&](const auto src) -> triangle_mesh {
+    using S = std::remove_cv_t<decltype(src)>;
+    if constexpr (std::is_pointer_v<S>) {
+      // Stored samples: read in place, every colour and crossing from the field's own values.
+      using T = std::remove_cv_t<std::remove_pointer_t<S>>;
+      if (stop.poll) stop.poll(-1.0);
+      return mesh_of(strided_samples<T>{src, stride, dims});
+    } else {
+      // A computed field (a smoothed one's doubles): its subsampled values made once, so that
+      // a crossing reads the value its colour came from; written by the copy, every one.
+      const auto points = static_cast<std::size_t>(sub[0] * sub[1] * sub[2]);
+      const std::unique_ptr<double[]> samples = std::make_unique_for_overwrite<double[]>(points);
+      double* const out = samples.get();
+      const std::int64_t nx = sub[0];
+      const std::int64_t last_x = dims[0] - 1;
+      const auto plane = [&](std::size_t k) {
+        if (stop.poll) stop.poll(-1.0);
+        const std::int64_t z = index_of(2, static_cast<std::int64_t>(k));
+        for (std::int64_t j = 0; j < sub[1]; ++j) {
+          const std::int64_t row = dims[0] * (index_of(1, j) + dims[1] * z);
+          double* o = out + nx * (j + sub[1] * static_cast<std::int64_t>(k));
+          // Every stride-th sample of the row, then its last.
+          for (std::int64_t i = 0; i + 1 < nx; ++i)
+            o[i] = static_cast<double>(src[row + i * stride]);
+          o[nx - 1] = static_cast<double>(src[row + last_x]);
+        }
+      };
+      run_loop(run, static_cast<std::size_t>(sub[2]), plane);
+      return mesh_of(static_cast<const double*>(out));
+    }
   });
   const auto& sp = field.spacing();
   const auto& org = field.origin();

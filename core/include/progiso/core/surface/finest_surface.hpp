@@ -193,7 +193,8 @@ void finest_surface_pieces(const volume& field, double isovalue, const parallel_
                            std::size_t parts, const finest_progress& progress,
                            const finest_piece& piece, std::size_t slab_bytes = 0,
                            const finest_share& share = {});
-/// finest_surface() writing into storage from `storage` (when it is not empty).
+/// finest_surface() writing into storage from `storage` (when it is not empty) where the grid is
+/// one slab (finest_slab_planes()); a larger grid grows its output slab by slab, as without it.
 [[nodiscard]] triangle_mesh finest_surface(const volume& field, double isovalue,
                                            const parallel_loop& run, std::size_t parts,
                                            const finest_progress& progress,
