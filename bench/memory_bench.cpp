@@ -17,6 +17,8 @@
 //     and no mesh extracted: what an embedder's engine holds for the finest surface.
 //   - stride2: the uniform surface at stride 2 (a deadline ladder's step below the finest): its
 //     samples read in place from the volume, every other one along each axis.
+//   - ladder: a deadline ladder (ladder_surface()) given an hour: every stride, coarse to fine,
+//     to the finest surface, each cut's passes in slabs where its grid is large.
 //   Counters: triangles, peak_MiB, B_per_triangle (peak / triangles), range_MiB (the range data,
 //   within the peak), B_per_triangle_past_range ((peak − range data) / triangles), seconds.
 // Fields: Marschner–Lobb 257³ and 513³ (f32, isovalue 0.5), and a sphere of radius 400 in a
@@ -145,7 +147,15 @@ run_figures in_child(const std::function<std::array<std::uint64_t, 2>()>& job) {
   return f;
 }
 
-enum class path { finest, finest_streamed, refinement, refinement_error, engine_full, stride2 };
+enum class path {
+  finest,
+  finest_streamed,
+  refinement,
+  refinement_error,
+  engine_full,
+  stride2,
+  ladder
+};
 
 std::array<std::uint64_t, 2> run_path(path p, const volume& v, double w, double error) {
   switch (p) {
@@ -189,6 +199,14 @@ std::array<std::uint64_t, 2> run_path(path p, const volume& v, double w, double 
       });
       return {t, 0};
     }
+    case path::ladder: {
+      std::uint64_t t = 0;
+      const auto far = std::chrono::steady_clock::now() + std::chrono::hours(1);
+      scheduler::run_on_threads(threads, [&](const parallel_loop& loop, std::size_t parts) {
+        t = ladder_surface(v, w, far, loop, parts).mesh.triangles.size();
+      });
+      return {t, 0};
+    }
   }
   return {0, 0};
 }
@@ -217,13 +235,14 @@ void BM_peak_memory(benchmark::State& state, const field_spec& f, path p) {
 }
 
 void register_all() {
-  const std::array<std::pair<const char*, path>, 6> paths{
+  const std::array<std::pair<const char*, path>, 7> paths{
       {{"finest", path::finest},
        {"finest_streamed", path::finest_streamed},
        {"refinement", path::refinement},
        {"refinement_error", path::refinement_error},
        {"engine_full", path::engine_full},
-       {"stride2", path::stride2}}};
+       {"stride2", path::stride2},
+       {"ladder", path::ladder}}};
   for (const field_spec& f : fields()) {
     for (const auto& [name, p] : paths) {
       benchmark::RegisterBenchmark((std::string("BM_peak_memory/") + f.name + "/" + name).c_str(),

@@ -551,5 +551,47 @@ TEST(LadderSurface, gives_up_the_cut_the_deadline_passes_in_and_keeps_the_last_o
   EXPECT_THROW((void)ladder_surface(v, 14.0, deadline, {}, 1, refuse), error);
 }
 
+TEST(LadderSurface, in_slabs_of_a_few_planes_every_cut_is_the_same_and_a_stop_gives_one_up) {
+  // A grid held in slabs of 4 planes, as one past finest_whole_grid_bytes is in slabs of its
+  // corner bytes: every cut is uniform_surface()'s, byte for byte, though none is sized at once;
+  // a stop asked for while the finest cut's slabs go gives it up and keeps the last one done.
+  const volume v = make_sphere_field({65, 40, 33}, {31.0, 19.5, 16.2});
+  const double w = 14.0;
+  detail::ladder_hooks hooks;
+  hooks.slab_bytes = std::size_t{65} * 40 * 4;
+  std::vector<std::int32_t> made;
+  std::vector<triangle_mesh> cuts;
+  hooks.on_cut = [&](triangle_mesh&& m, std::int32_t stride) {
+    made.push_back(stride);
+    cuts.push_back(std::move(m));
+  };
+  std::uint64_t finest_rows = 0;
+  const ladder_progress rows = [&](std::int32_t stride, std::uint64_t, std::uint64_t total) {
+    if (stride == 1) finest_rows = total;
+  };
+  const auto far = std::chrono::steady_clock::now() + std::chrono::hours(1);
+  const ladder_result l = detail::ladder_surface(v, w, far, scrambled_loop, 6, rows, hooks);
+  EXPECT_EQ(l.stride, 1);
+  EXPECT_FALSE(l.abandoned);
+  ASSERT_EQ(made, (std::vector<std::int32_t>{8, 4, 2, 1}));
+  // In 9 slabs: both passes' rows, and the plane after each of the first 8 counted again.
+  EXPECT_EQ(finest_rows, std::uint64_t{2 * 40 * 33 + 8 * 40});
+  for (std::size_t k = 0; k < made.size(); ++k) {
+    SCOPED_TRACE(made[k]);
+    EXPECT_TRUE(same_bytes(cuts[k], uniform_surface(v, w, made[k])));
+  }
+  made.clear();
+  cuts.clear();
+  bool finest_begun = false;
+  const ladder_progress heard = [&](std::int32_t stride, std::uint64_t done, std::uint64_t) {
+    finest_begun = finest_begun || (stride == 1 && done > 0);
+  };
+  hooks.stopping = [&] { return finest_begun; };
+  const ladder_result stopped = detail::ladder_surface(v, w, far, {}, 1, heard, hooks);
+  EXPECT_TRUE(stopped.abandoned);
+  EXPECT_EQ(stopped.stride, 2);
+  EXPECT_EQ(made, (std::vector<std::int32_t>{8, 4, 2}));
+}
+
 }  // namespace
 }  // namespace progiso

@@ -257,13 +257,13 @@ class finest_mesher {
   // In slabs of z planes (detail::finest_slab_planes()): each slab's first pass also covers the
   // plane after it (its cubes' triangles name that plane's vertices), whose counts then give the
   // next slab its first ids; so the corner bytes and row counts held are one slab's, and the ids
-  // are those of a single slab over the whole grid. `sized`, `poll` and `slack` keep one slab;
-  // `storage` serves a single slab's output only: a grid of more slabs grows its output slab by
-  // slab in fresh memory, as without hooks (a whole grid's corner bytes would outweigh it).
+  // are those of a single slab over the whole grid. A grid of one slab is sized at once, with
+  // every hook (size_whole()); one of more slabs grows its output slab by slab in fresh memory,
+  // asking `poll` (with −1) before each slab, and tells neither `sized` nor `storage` nor makes
+  // `slack` (a whole grid's corner bytes, held to size its output at once, would outweigh it).
   template <class Mesh = triangle_mesh>
   Mesh run(const parallel_loop& loop, std::size_t parts, const finest_progress& to,
            const interrupts& stop = {}) {
-    const bool hooked = stop.sized || stop.poll || stop.slack;
     const auto plane = static_cast<std::size_t>(ny_);
     const auto z_begin = static_cast<std::size_t>(stop.z_begin);
     const auto z_end = static_cast<std::size_t>(stop.z_end < 0 ? nz_ : stop.z_end);
@@ -271,11 +271,9 @@ class finest_mesher {
     const bool whole = z_begin == 0 && z_end == static_cast<std::size_t>(nz_);
     // A share's slabs are no larger than the share: what a rank or a window holds follows its
     // planes, not the grid's.
-    const auto planes = static_cast<std::size_t>(
-        hooked ? nz_
-               : std::min<std::int64_t>(
-                     detail::finest_slab_planes({nx_, ny_, nz_}, stop.slab_bytes),
-                     std::max<std::int64_t>(1, static_cast<std::int64_t>(z_end - z_begin))));
+    const auto planes = static_cast<std::size_t>(std::min<std::int64_t>(
+        detail::finest_slab_planes({nx_, ny_, nz_}, stop.slab_bytes),
+        std::max<std::int64_t>(1, static_cast<std::int64_t>(z_end - z_begin))));
     const std::size_t slabs = (z_end - z_begin + planes - 1) / planes;
     // A slab's planes, and the one after it when there is one (the next slab's, or the next
     // share's).
@@ -313,6 +311,7 @@ class finest_mesher {
     // The slab's first ids.
     std::uint64_t first_vertex = stop.first_vertex, first_triangle = stop.first_triangle;
     for (std::size_t slab = 0; slab < slabs; ++slab) {
+      if (slabs > 1 && stop.poll) stop.poll(-1.0);
       base_ = (z_begin + slab * planes) * plane;
       const std::size_t written = std::min(z_end * plane, base_ + planes * plane);  // pass 2's rows
       const std::size_t counted = std::min(rows_, written + plane);
@@ -1155,6 +1154,7 @@ ladder_result detail::ladder_surface(const volume& field, double isovalue,
     clock::time_point sized_at{};
     interrupts stop;
     stop.storage = hooks.storage;
+    stop.slab_bytes = hooks.slab_bytes;
     stop.sized = [&](std::uint64_t v, std::uint64_t t) {
       sized_at = clock::now();
       first_pass = std::chrono::duration<double>(sized_at - start).count();
@@ -1190,6 +1190,9 @@ ladder_result detail::ladder_surface(const volume& field, double isovalue,
       triangle_mesh m = uniform_surface_hooked(field, isovalue, stride, run, parts, watch, stop,
                                                hooks.hierarchy_cuts);
       res.triangles = m.triangles.size();
+      // A grid of more than one slab is not sized at once (`sized` is not told): its output,
+      // counted now, takes the whole cut's time in the model.
+      if (output == 0.0) output = static_cast<double>(m.vertices.size() + m.triangles.size());
       if (hooks.on_cut) {
         hooks.on_cut(std::move(m), stride);
       } else {

@@ -218,6 +218,9 @@ struct ladder_hooks {
   /// it was made (an engine), a cut given up costs nothing shown, and the model, fitted on the
   /// cuts of one call, is pessimistic in a call's first cuts (cold pages and workers).
   bool begin_when_time_is_left = false;
+  /// Corner bytes a cut's slab of z planes may hold (0: finest_slab_planes()'s default). A cut
+  /// of more than one slab is asked to stop between slabs and as its passes report progress.
+  std::size_t slab_bytes = 0;
 };
 
 /// ladder_surface() with hooks (the engine's deadline runs on an unrefined root).
