@@ -1,8 +1,12 @@
 #include <progiso/mpi/detail/distributed_cut.hpp>
 
 #include <algorithm>
+#include <cstring>
 #include <limits>
+#include <span>
 #include <string>
+#include <utility>
+#include <vector>
 
 #include <progiso/core/base/error.hpp>
 #include <progiso/mpi/detail/messages.hpp>
@@ -12,8 +16,7 @@ namespace progiso::detail {
 
 namespace {
 
-constexpr int tag_splits = 31;
-constexpr int tag_groups = 32;
+constexpr int tag_bundle = 31;
 
 int comm_rank(MPI_Comm comm) {
   int r = 0;
@@ -24,6 +27,57 @@ int comm_size(MPI_Comm comm) {
   int n = 1;
   MPI_Comm_size(comm, &n);
   return n;
+}
+
+// A bundle: the new splits of the ranks of a subtree of the gather, each rank's as a head and
+// then its split and group records.
+struct bundle_head {
+  std::int64_t rank;
+  std::uint64_t splits;
+  std::uint64_t groups;
+};
+
+void append_to_bundle(std::vector<char>& b, int rank, std::span<const share_split> splits,
+                      std::span<const packed_group> groups) {
+  const bundle_head h{rank, splits.size(), groups.size()};
+  const auto add = [&b](const void* p, std::size_t n) {
+    const auto* c = static_cast<const char*>(p);
+    b.insert(b.end(), c, c + n);
+  };
+  add(&h, sizeof h);
+  add(splits.data(), splits.size_bytes());
+  add(groups.data(), groups.size_bytes());
+}
+
+// The ranks' pieces of a bundle, by rank; throws progiso::error for a bundle whose heads do not
+// add up to its bytes or name a rank twice or outside the communicator.
+std::vector<std::pair<int, share_splits>> read_bundle(const std::vector<char>& b, int size) {
+  std::vector<std::pair<int, share_splits>> out;
+  std::vector<bool> seen(static_cast<std::size_t>(size), false);
+  std::size_t at = 0;
+  const auto take = [&](void* p, std::uint64_t n) {
+    if (n > b.size() - at) throw error("a rank sent a bundle of splits shorter than its heads say");
+    if (n > 0) std::memcpy(p, b.data() + at, static_cast<std::size_t>(n));
+    at += static_cast<std::size_t>(n);
+  };
+  while (at < b.size()) {
+    bundle_head h{};
+    take(&h, sizeof h);
+    if (h.rank < 0 || h.rank >= size || seen[static_cast<std::size_t>(h.rank)] ||
+        h.splits > (b.size() - at) / sizeof(share_split) ||
+        h.groups > (b.size() - at) / sizeof(packed_group)) {
+      throw error("a rank sent a bundle of splits with a bad head (rank " + std::to_string(h.rank) +
+                  ")");
+    }
+    seen[static_cast<std::size_t>(h.rank)] = true;
+    share_splits piece;
+    piece.splits.resize(static_cast<std::size_t>(h.splits));
+    piece.groups.resize(static_cast<std::size_t>(h.groups));
+    take(piece.splits.data(), h.splits * sizeof(share_split));
+    take(piece.groups.data(), h.groups * sizeof(packed_group));
+    out.emplace_back(static_cast<int>(h.rank), std::move(piece));
+  }
+  return out;
 }
 
 /// A small all-reduce that waits politely (the slowest rank may be a round behind).
@@ -136,21 +190,39 @@ void distributed_cut::gather() {
   const std::size_t groups_end =
       committed_ == 0 ? 0
                       : all.splits[committed_ - 1].first_group + all.splits[committed_ - 1].groups;
-  if (rank_ != root_) {
-    send_records(comm_, all.splits, sent_splits_, committed_, root_, tag_splits);
-    send_records(comm_, all.groups, sent_groups_, groups_end, root_, tag_groups);
-  } else {
-    for (int r = 0; r < size_; ++r) {
-      auto piece = std::make_shared<share_splits>();
-      if (r == root_) {
-        piece->splits.assign(all.splits.begin() + static_cast<std::ptrdiff_t>(sent_splits_),
-                             all.splits.begin() + static_cast<std::ptrdiff_t>(committed_));
-        piece->groups.assign(all.groups.begin() + static_cast<std::ptrdiff_t>(sent_groups_),
-                             all.groups.begin() + static_cast<std::ptrdiff_t>(groups_end));
-      } else {
-        receive_records(comm_, piece->splits, r, tag_splits);
-        receive_records(comm_, piece->groups, r, tag_groups);
-      }
+  // A binomial tree rooted at the root: rank v (counted from the root) takes the bundles of
+  // v + 1, v + 2, v + 4, … below its lowest set bit, then sends its own and theirs to v minus
+  // that bit. The root receives log2(size) messages, not size − 1, and no rank more.
+  std::vector<char> bundle;
+  append_to_bundle(
+      bundle, rank_,
+      std::span<const share_split>(all.splits).subspan(sent_splits_, committed_ - sent_splits_),
+      std::span<const packed_group>(all.groups).subspan(sent_groups_, groups_end - sent_groups_));
+  const int v = (rank_ - root_ + size_) % size_;
+  for (int bit = 1; bit < size_; bit <<= 1) {
+    if ((v & bit) != 0) {
+      send_bytes(comm_, bundle.data(), bundle.size(), (v - bit + root_) % size_, tag_bundle);
+      bundle.clear();
+      bundle.shrink_to_fit();
+      break;
+    }
+    if (v + bit < size_) {
+      receive_bytes(
+          comm_, (v + bit + root_) % size_, tag_bundle,
+          [&bundle](const char* p, std::size_t n) { bundle.insert(bundle.end(), p, p + n); });
+    }
+  }
+  if (rank_ == root_) {
+    std::vector<std::pair<int, share_splits>> ranks = read_bundle(bundle, size_);
+    bundle = {};
+    if (ranks.size() != static_cast<std::size_t>(size_)) {
+      throw error("the gather of splits reached the root with " + std::to_string(ranks.size()) +
+                  " of " + std::to_string(size_) + " ranks");
+    }
+    std::sort(ranks.begin(), ranks.end(),
+              [](const auto& a, const auto& b) { return a.first < b.first; });
+    for (auto& [r, got] : ranks) {
+      auto piece = std::make_shared<share_splits>(std::move(got));
       // The rank's group indices count from its first round; a piece's from its own start.
       std::uint64_t& base = groups_seen_[static_cast<std::size_t>(r)];
       for (share_split& sp : piece->splits) {

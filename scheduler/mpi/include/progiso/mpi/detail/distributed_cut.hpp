@@ -76,8 +76,9 @@ class distributed_cut {
   /// only restart() goes on.
   bool round(double threshold, unsigned threads, const std::function<bool()>& stop = {});
 
-  /// Sends the splits of finished rounds not sent yet to the root, which adds them to pieces()
-  /// as one piece per rank.
+  /// Sends the splits of finished rounds not sent yet to the root, up a binomial tree (each rank
+  /// forwards its subtree's with its own), and the root adds them to pieces() as one piece per
+  /// rank, in rank order.
   void gather();
 
   /// A new isovalue: every rank drops its splits and starts from the roots again, keeping the
