@@ -52,6 +52,10 @@ struct interrupts {
   std::uint64_t first_vertex = 0, first_triangle = 0;
   // Counts alone: the share's vertices and triangles, told here; nothing is sized or written.
   std::function<void(std::uint64_t vertices, std::uint64_t triangles)> counted;
+  // A grid of more than one slab whose output is kept whole: the vertices and triangles to
+  // reserve before its first slab (an estimate; 0: none), so that its output grows slab by slab
+  // in place instead of being copied into larger arrays (which briefly holds both).
+  std::array<std::uint64_t, 2> expected{0, 0};
 };
 
 // A grid point's owned edges, by slot: 0 +x, 1 +y, 2 +z, 3 the diagonal of its xy square,
@@ -350,6 +354,10 @@ class finest_mesher {
         mesh.vertices.resize(static_cast<std::size_t>(next_vertex - first_vertex));
         mesh.triangles.resize(static_cast<std::size_t>(next_triangle - first_triangle));
       } else {
+        if (slab == 0) {
+          mesh.vertices.reserve(static_cast<std::size_t>(stop.expected[0]));
+          mesh.triangles.reserve(static_cast<std::size_t>(stop.expected[1]));
+        }
         mesh.vertices.resize(static_cast<std::size_t>(next_vertex));
         mesh.triangles.resize(static_cast<std::size_t>(next_triangle));
       }
@@ -1131,6 +1139,7 @@ ladder_result detail::ladder_surface(const volume& field, double isovalue,
   double per_output = 0.0;
   double last_output = 0.0;
   double growth = 4.0;
+  std::array<double, 2> last_counts{0.0, 0.0};  // the last cut's vertices and triangles
   for (; stride >= 1; stride /= 2) {
     const index3 sub = uniform_grid_dims(dims, stride);
     const double points =
@@ -1155,6 +1164,11 @@ ladder_result detail::ladder_surface(const volume& field, double isovalue,
     interrupts stop;
     stop.storage = hooks.storage;
     stop.slab_bytes = hooks.slab_bytes;
+    // A cut of more than one slab is not sized at once: room for what the model expects (and a
+    // sixteenth), so that its arrays grow in place.
+    for (std::size_t k = 0; k < 2; ++k) {
+      stop.expected[k] = static_cast<std::uint64_t>(growth * last_counts[k] * 17.0 / 16.0);
+    }
     stop.sized = [&](std::uint64_t v, std::uint64_t t) {
       sized_at = clock::now();
       first_pass = std::chrono::duration<double>(sized_at - start).count();
@@ -1193,6 +1207,8 @@ ladder_result detail::ladder_surface(const volume& field, double isovalue,
       // A grid of more than one slab is not sized at once (`sized` is not told): its output,
       // counted now, takes the whole cut's time in the model.
       if (output == 0.0) output = static_cast<double>(m.vertices.size() + m.triangles.size());
+      last_counts = {static_cast<double>(m.vertices.size()),
+                     static_cast<double>(m.triangles.size())};
       if (hooks.on_cut) {
         hooks.on_cut(std::move(m), stride);
       } else {
