@@ -214,13 +214,9 @@ inline std::uint64_t load8(const std::uint8_t* p) noexcept {
   return v;
 }
 
-/// uniform_surface()'s grid read in place: every `stride`-th sample of the field's grid along
-/// each axis, and the last. Indexed by point (x, y, z) of that grid; rows through row(), so the
-/// colour pass reads the field's samples with a stride instead of a copy of them (which took
-/// 1 / stride³ of the volume's bytes beside it).
-template <class T>
-struct strided_samples {
-  const T* src;
+/// uniform_surface()'s grid in the field's: every `stride`-th sample along each axis, and the
+/// last.
+struct strided_grid {
   std::int64_t stride;
   index3 dims;  // the field's
 
@@ -228,12 +224,24 @@ struct strided_samples {
   [[nodiscard]] std::int64_t field_index(std::size_t q, std::int64_t k) const noexcept {
     return std::min<std::int64_t>(k * stride, dims[q] - 1);
   }
-  [[nodiscard]] T at(std::int64_t x, std::int64_t y, std::int64_t z) const noexcept {
-    return src[field_index(0, x) + dims[0] * (field_index(1, y) + dims[1] * field_index(2, z))];
+  /// The field's index of the first sample of row (y, z).
+  [[nodiscard]] std::int64_t row_start(std::int64_t y, std::int64_t z) const noexcept {
+    return dims[0] * (field_index(1, y) + dims[1] * field_index(2, z));
   }
-  /// The first sample of row (y, z) in the field.
+};
+
+/// That grid's samples read in place: by point (x, y, z), and by rows through row(), so the
+/// colour pass reads the field's samples with a stride instead of a copy of them (which took
+/// 1 / stride³ of the volume's bytes beside it).
+template <class T>
+struct strided_samples : strided_grid {
+  const T* src;
+
+  [[nodiscard]] T at(std::int64_t x, std::int64_t y, std::int64_t z) const noexcept {
+    return src[field_index(0, x) + row_start(y, z)];
+  }
   [[nodiscard]] const T* row(std::int64_t y, std::int64_t z) const noexcept {
-    return src + dims[0] * (field_index(1, y) + dims[1] * field_index(2, z));
+    return src + row_start(y, z);
   }
 };
 
@@ -991,9 +999,7 @@ triangle_mesh uniform_surface_hooked(const volume& field, double isovalue, std::
     throw error("uniform surface: the isovalue must be finite, found " + std::to_string(isovalue));
   }
   const index3 sub = uniform_grid_dims(dims, stride);
-  const auto index_of = [&](std::size_t q, std::int64_t k) {
-    return std::min<std::int64_t>(k * stride, dims[q] - 1);
-  };
+  const strided_grid grid{stride, dims};
   const auto mesh_of = [&](auto samples) {
     finest_mesher<decltype(samples)> m(sub, {1.0, 1.0, 1.0}, {0.0, 0.0, 0.0}, samples, isovalue);
     if (!hierarchy_cut) return m.run(run, parts, progress, stop);
@@ -1007,7 +1013,7 @@ triangle_mesh uniform_surface_hooked(const volume& field, double isovalue, std::
       // Stored samples: read in place, every colour and crossing from the field's own values.
       using T = std::remove_cv_t<std::remove_pointer_t<S>>;
       if (stop.poll) stop.poll(-1.0);
-      return mesh_of(strided_samples<T>{src, stride, dims});
+      return mesh_of(strided_samples<T>{grid, src});
     } else {
       // A computed field (a smoothed one's doubles): its subsampled values made once, so that
       // a crossing reads the value its colour came from; written by the copy, every one.
@@ -1018,9 +1024,8 @@ triangle_mesh uniform_surface_hooked(const volume& field, double isovalue, std::
       const std::int64_t last_x = dims[0] - 1;
       const auto plane = [&](std::size_t k) {
         if (stop.poll) stop.poll(-1.0);
-        const std::int64_t z = index_of(2, static_cast<std::int64_t>(k));
         for (std::int64_t j = 0; j < sub[1]; ++j) {
-          const std::int64_t row = dims[0] * (index_of(1, j) + dims[1] * z);
+          const std::int64_t row = grid.row_start(j, static_cast<std::int64_t>(k));
           double* o = out + nx * (j + sub[1] * static_cast<std::int64_t>(k));
           // Every stride-th sample of the row, then its last.
           for (std::int64_t i = 0; i + 1 < nx; ++i)

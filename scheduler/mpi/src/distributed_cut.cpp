@@ -49,11 +49,13 @@ void append_to_bundle(std::vector<char>& b, int rank, std::span<const share_spli
   add(groups.data(), groups.size_bytes());
 }
 
-// The ranks' pieces of a bundle, by rank; throws progiso::error for a bundle whose heads do not
-// add up to its bytes or name a rank twice or outside the communicator.
-std::vector<std::pair<int, share_splits>> read_bundle(const std::vector<char>& b, int size) {
+// The ranks' pieces of a bundle the root received; throws progiso::error for a bundle whose heads
+// do not add up to its bytes or name a rank twice, the root, or one outside the communicator.
+std::vector<std::pair<int, share_splits>> read_bundle(const std::vector<char>& b, int size,
+                                                      int root) {
   std::vector<std::pair<int, share_splits>> out;
   std::vector<bool> seen(static_cast<std::size_t>(size), false);
+  seen[static_cast<std::size_t>(root)] = true;
   std::size_t at = 0;
   const auto take = [&](void* p, std::uint64_t n) {
     if (n > b.size() - at) throw error("a rank sent a bundle of splits shorter than its heads say");
@@ -192,12 +194,14 @@ void distributed_cut::gather() {
                       : all.splits[committed_ - 1].first_group + all.splits[committed_ - 1].groups;
   // A binomial tree rooted at the root: rank v (counted from the root) takes the bundles of
   // v + 1, v + 2, v + 4, … below its lowest set bit, then sends its own and theirs to v minus
-  // that bit. The root receives log2(size) messages, not size − 1, and no rank more.
+  // that bit. The root receives log2(size) messages, not size − 1, and no rank more. The root's
+  // own splits go into its piece directly, not through a bundle.
+  const std::span<const share_split> own_splits =
+      std::span<const share_split>(all.splits).subspan(sent_splits_, committed_ - sent_splits_);
+  const std::span<const packed_group> own_groups =
+      std::span<const packed_group>(all.groups).subspan(sent_groups_, groups_end - sent_groups_);
   std::vector<char> bundle;
-  append_to_bundle(
-      bundle, rank_,
-      std::span<const share_split>(all.splits).subspan(sent_splits_, committed_ - sent_splits_),
-      std::span<const packed_group>(all.groups).subspan(sent_groups_, groups_end - sent_groups_));
+  if (rank_ != root_) append_to_bundle(bundle, rank_, own_splits, own_groups);
   const int v = (rank_ - root_ + size_) % size_;
   for (int bit = 1; bit < size_; bit <<= 1) {
     if ((v & bit) != 0) {
@@ -213,8 +217,12 @@ void distributed_cut::gather() {
     }
   }
   if (rank_ == root_) {
-    std::vector<std::pair<int, share_splits>> ranks = read_bundle(bundle, size_);
+    std::vector<std::pair<int, share_splits>> ranks = read_bundle(bundle, size_, root_);
     bundle = {};
+    share_splits own;
+    own.splits.assign(own_splits.begin(), own_splits.end());
+    own.groups.assign(own_groups.begin(), own_groups.end());
+    ranks.emplace_back(root_, std::move(own));
     if (ranks.size() != static_cast<std::size_t>(size_)) {
       throw error("the gather of splits reached the root with " + std::to_string(ranks.size()) +
                   " of " + std::to_string(size_) + " ranks");
