@@ -129,7 +129,9 @@ int main(int argc, char** argv) {
   {
     const progiso::volume v = progiso::make_marschner_lobb({257, 257, 257});
     field = &v;
-    progiso::distributed_engine e(MPI_COMM_WORLD, v, isovalues[1], {0, threads_per_rank});
+    progiso::distributed_engine::options o;
+    o.threads = threads_per_rank;
+    progiso::distributed_engine e(MPI_COMM_WORLD, v, isovalues[1], o);
     across = &e;
     if (e.is_root()) {
       e.start(progiso::refine_goal::error(goal_error));

@@ -8,6 +8,7 @@
 #include <progiso/core/refine/refiner.hpp>
 #include <progiso/mpi/distributed_engine.hpp>
 
+#include <algorithm>
 #include <atomic>
 #include <chrono>
 #include <cmath>
@@ -16,6 +17,7 @@
 #include <limits>
 #include <map>
 #include <memory>
+#include <mutex>
 #include <thread>
 #include <utility>
 #include <vector>
@@ -81,6 +83,28 @@ std::vector<snapshot_ptr> watched(const distributed_engine& e, const F& f) {
   return seen;
 }
 
+distributed_engine::options on(int root, unsigned threads) {
+  distributed_engine::options o;
+  o.root = root;
+  o.threads = threads;
+  return o;
+}
+
+/// Every snapshot the engine publishes, heard through options::on_snapshot (which, unlike a
+/// reader polling snapshot(), misses none however loaded the machine).
+struct recorder {
+  std::mutex mutex;
+  std::vector<snapshot_ptr> all;
+  distributed_engine::options options(int root, unsigned threads) {
+    distributed_engine::options o = on(root, threads);
+    o.on_snapshot = [this](const snapshot_ptr& s) {
+      const std::lock_guard lock(mutex);
+      all.push_back(s);
+    };
+    return o;
+  }
+};
+
 /// Each snapshot is the one process's cut of its threshold at its isovalue; the thresholds of
 /// one isovalue fall, and the isovalue changes only with isovalue_changes.
 void expect_consistent(const std::vector<snapshot_ptr>& seen, one_process& ref) {
@@ -113,7 +137,8 @@ constexpr double iso0 = 0.5;
 
 TEST(DistributedEngine, every_snapshot_is_the_one_process_cut_of_its_threshold) {
   const volume v = field();
-  distributed_engine e(MPI_COMM_WORLD, v, iso0, {0, 2});
+  recorder heard;
+  distributed_engine e(MPI_COMM_WORLD, v, iso0, heard.options(0, 2));
   if (!e.is_root()) {
     EXPECT_EQ(e.snapshot(), nullptr);
     EXPECT_THROW(e.start(refine_goal::error(0.0)), error);
@@ -127,7 +152,14 @@ TEST(DistributedEngine, every_snapshot_is_the_one_process_cut_of_its_threshold) 
   });
   expect_consistent(seen, ref);
   EXPECT_TRUE(std::isinf(seen.front()->max_error)) << "the first snapshot is the root surface";
-  EXPECT_GE(seen.size(), 3u) << "the reader saw the cut refine";
+  // Every published snapshot, in order: the polling reader's are among them.
+  expect_consistent(heard.all, ref);
+  ASSERT_GE(heard.all.size(), 3u) << "the cut refined in rounds";
+  EXPECT_EQ(heard.all.front(), seen.front());
+  EXPECT_EQ(heard.all.back(), seen.back());
+  for (const snapshot_ptr& s : seen) {
+    EXPECT_NE(std::find(heard.all.begin(), heard.all.end(), s), heard.all.end());
+  }
   const distributed_snapshot& last = *seen.back();
   EXPECT_TRUE(last.mesh()->triangles == ref.cut(iso0, 0.0).triangles) << "full: the error-0 cut";
   EXPECT_GT(last.splits, 0u);
@@ -150,7 +182,7 @@ TEST(DistributedEngine, an_error_goal_ends_on_its_thresholds_cut) {
 
 TEST(DistributedEngine, an_isovalue_change_reaches_every_rank_and_no_snapshot_mixes_two) {
   const volume v = field();
-  distributed_engine e(MPI_COMM_WORLD, v, iso0, {0, 1});
+  distributed_engine e(MPI_COMM_WORLD, v, iso0, on(0, 1));
   if (!e.is_root()) return;
   one_process ref(v);
   snapshot_ptr middle;
@@ -206,12 +238,12 @@ TEST(DistributedEngine, a_triangle_budget_keeps_the_last_round_within_it) {
   // and a budget of the triangles of the last round seen before the finest.
   std::vector<snapshot_ptr> rounds;
   {
-    distributed_engine e(MPI_COMM_WORLD, v, iso0);
+    recorder heard;
+    distributed_engine e(MPI_COMM_WORLD, v, iso0, heard.options(0, 0));
     if (e.is_root()) {
-      rounds = watched(e, [&] {
-        e.start(refine_goal::full());
-        e.wait();
-      });
+      e.start(refine_goal::full());
+      e.wait();
+      rounds = heard.all;
     }
   }
   if (world_rank() != 0) {
@@ -266,7 +298,7 @@ TEST(DistributedEngine, destruction_during_a_run_ends_every_rank) {
 TEST(DistributedEngine, any_rank_can_be_the_root) {
   const volume v = field();
   const int root = world_size() - 1;
-  distributed_engine e(MPI_COMM_WORLD, v, iso0, {root, 1});
+  distributed_engine e(MPI_COMM_WORLD, v, iso0, on(root, 1));
   EXPECT_EQ(e.is_root(), world_rank() == root);
   if (!e.is_root()) {
     EXPECT_EQ(e.snapshot(), nullptr);
@@ -305,7 +337,7 @@ TEST(DistributedEngine, a_snapshot_outlives_its_engine_and_is_meshed_once_for_ev
 
 TEST(DistributedEngine, refusals) {
   const volume v = field();
-  EXPECT_THROW(distributed_engine(MPI_COMM_WORLD, v, iso0, {world_size(), 1}), error);
+  EXPECT_THROW(distributed_engine(MPI_COMM_WORLD, v, iso0, on(world_size(), 1)), error);
   distributed_engine e(MPI_COMM_WORLD, v, iso0);
   if (!e.is_root()) return;
   EXPECT_THROW(e.set_isovalue(std::numeric_limits<double>::quiet_NaN()), error);
@@ -320,7 +352,7 @@ TEST(DistributedEngineFault, a_rank_killed_mid_run_ends_the_job) {
   const char* kill = std::getenv("PROGISO_MPI_KILL_RANK");
   if (kill == nullptr) GTEST_SKIP() << "PROGISO_MPI_KILL_RANK is not set";
   const volume v = make_gaussian_blobs({64, 60, 70}, 12, 5);
-  distributed_engine e(MPI_COMM_WORLD, v, 0.4, {0, 1});
+  distributed_engine e(MPI_COMM_WORLD, v, 0.4, on(0, 1));
   if (world_rank() == std::atoi(kill)) {
     std::this_thread::sleep_for(std::chrono::milliseconds(20));
     std::raise(SIGKILL);

@@ -32,7 +32,7 @@ enum control_slot : std::size_t {
 
 distributed_engine::distributed_engine(MPI_Comm comm, const volume& vol, double isovalue,
                                        options opt)
-    : threads_(opt.threads), vol_(vol) {
+    : threads_(opt.threads), on_snapshot_(std::move(opt.on_snapshot)), vol_(vol) {
   int level = MPI_THREAD_SINGLE;
   MPI_Query_thread(&level);
   if (level < MPI_THREAD_MULTIPLE) {
@@ -51,7 +51,7 @@ distributed_engine::distributed_engine(MPI_Comm comm, const volume& vol, double 
     MPI_Comm_free(&comm_);
     throw;
   }
-  if (is_root()) publish(0, nullptr);
+  if (is_root()) publish(0, nullptr, false);  // on_snapshot hears it from the engine's thread
   thread_ = std::thread([this] { serve(); });
 }
 
@@ -119,7 +119,8 @@ std::shared_ptr<const triangle_mesh> distributed_snapshot::mesh() const {
   return cut->mesh;
 }
 
-void distributed_engine::publish(std::uint64_t changes, std::shared_ptr<const triangle_mesh> mesh) {
+void distributed_engine::publish(std::uint64_t changes, std::shared_ptr<const triangle_mesh> mesh,
+                                 bool tell) {
   auto c = std::make_shared<detail::snapshot_cut>();
   c->hier = hier_;
   c->vol = &vol_;
@@ -134,12 +135,16 @@ void distributed_engine::publish(std::uint64_t changes, std::shared_ptr<const tr
   s->round = cut_->rounds();
   s->isovalue_changes = changes;
   s->cut = std::move(c);
-  const std::lock_guard lock(mutex_);
-  latest_ = std::move(s);
+  {
+    const std::lock_guard lock(mutex_);
+    latest_ = s;
+  }
+  if (tell && on_snapshot_) on_snapshot_(s);
 }
 
 void distributed_engine::serve() {
   try {
+    if (is_root() && on_snapshot_) on_snapshot_(snapshot());  // the root surface
     cut_->build_ranges(threads_);
     // The run, on every rank (the root decides it, the control block carries it).
     bool running = false;

@@ -31,6 +31,7 @@
 #include <condition_variable>
 #include <cstddef>
 #include <cstdint>
+#include <functional>
 #include <memory>
 #include <mutex>
 #include <thread>
@@ -71,6 +72,13 @@ class distributed_engine {
   struct options {
     int root = 0;          ///< the rank that gathers snapshots and takes commands
     unsigned threads = 0;  ///< worker threads per rank (0: oneTBB's default)
+    /// On the root, called with every snapshot as it is published, in order, the first (the
+    /// root surface) included: what a reader that must see each round (a stream, a log) takes
+    /// instead of polling snapshot(), which shows only the latest. Runs on the engine's own
+    /// thread: it may call snapshot() and mesh(), never wait() or the destructor, and a slow one
+    /// delays the next round. An exception from it aborts the job (MPI_Abort), as any failure
+    /// of the engine's thread does.
+    std::function<void(const std::shared_ptr<const distributed_snapshot>&)> on_snapshot;
   };
 
   /// Collective over `comm`: every rank passes its view of the same volume (each reads only its
@@ -111,13 +119,15 @@ class distributed_engine {
 
  private:
   void serve();
-  /// On the root: the cut gathered so far as the latest snapshot, with its mesh when given.
-  void publish(std::uint64_t changes, std::shared_ptr<const triangle_mesh> mesh);
+  /// On the root: the cut gathered so far as the latest snapshot, with its mesh when given;
+  /// on_snapshot hears of it when `tell`.
+  void publish(std::uint64_t changes, std::shared_ptr<const triangle_mesh> mesh, bool tell = true);
 
   MPI_Comm comm_ = MPI_COMM_NULL;
   int rank_ = 0;
   int root_ = 0;
   unsigned threads_ = 0;
+  std::function<void(const std::shared_ptr<const distributed_snapshot>&)> on_snapshot_;
   const volume& vol_;
   std::shared_ptr<const hierarchy> hier_;  // shared with the snapshots
   std::unique_ptr<detail::distributed_cut> cut_;
