@@ -1,7 +1,8 @@
 // vertex_pages: per-grid-vertex words in bricks made when first written. Every grid point has
 // its own word; a word never written reads 0 and costs nothing; memory follows the words
-// written (a plane of them makes bricks in proportion to its area, not the grid's volume);
-// threads racing to make a brick agree on one; clear() frees everything.
+// written (a plane of them makes bricks in proportion to its area, not the grid's volume, and
+// the sparse centres of a coarse scale share bricks as densely as the finest ones); threads
+// racing to make a brick agree on one; clear() frees everything.
 
 #include <progiso/core/refine/detail/vertex_pages.hpp>
 
@@ -52,21 +53,52 @@ TEST(VertexPages, memory_follows_the_words_written_not_the_grid) {
   const std::uint64_t flat_bytes = hier.vertex_count() * sizeof(std::uint32_t);
   // The table alone: far below a flat array of the grid.
   EXPECT_LT(words.bytes() * 1000, flat_bytes);
-  // One plane z = 200 written: 129² bricks of 4³ words.
+  // One plane z = 200 written: its 513² words in bricks of 4³, about 129² of them (a quarter more
+  // for the plane's points on coarser lattices, each a plane a quarter the size).
   for (std::int32_t y = 0; y <= 512; ++y) {
     for (std::int32_t x = 0; x <= 512; ++x) words.at(ipoint{x, y, 200}) = 1;
   }
-  EXPECT_EQ(words.bricks(), 129U * 129U);
+  const std::size_t plane = words.bricks();
+  EXPECT_GE(plane, 129U * 129U);
+  EXPECT_LE(plane, 129U * 129U * 14 / 10);
   EXPECT_LT(words.bytes(), 4 * (513ULL * 513ULL * 4 * sizeof(std::uint32_t)));
   EXPECT_LT(words.bytes() * 50, flat_bytes);
   // Isolated words, a brick each.
   words.at(ipoint{0, 0, 0}) = 1;
   words.at(ipoint{400, 4, 500}) = 1;
-  EXPECT_EQ(words.bricks(), 129U * 129U + 2);
+  EXPECT_EQ(words.bricks(), plane + 2);
   words.clear();
   EXPECT_EQ(words.bricks(), 0U);
   EXPECT_EQ(words.find(ipoint{7, 9, 200}), nullptr);
   EXPECT_EQ(words.at(ipoint{7, 9, 200}), 0U);  // made again, zeroed
+}
+
+TEST(VertexPages, the_sparse_centres_of_a_coarse_scale_share_bricks) {
+  // Every 16th point of a 513³ grid, as the centres of scale-32 diamonds are spaced: 33³ words
+  // 16 apart. In the grid's own bricks each would hold a brick of 4³ words alone; on their level's
+  // lattice they are neighbours, 4³ to a brick.
+  const hierarchy hier({513, 513, 513});
+  vertex_pages<std::uint32_t> words(hier);
+  std::uint32_t n = 0;
+  for (std::int32_t z = 0; z <= 512; z += 16) {
+    for (std::int32_t y = 0; y <= 512; y += 16) {
+      for (std::int32_t x = 0; x <= 512; x += 16) words.at(ipoint{x, y, z}) = ++n;
+    }
+  }
+  EXPECT_EQ(n, 33U * 33U * 33U);
+  EXPECT_LT(words.bricks() * 16, std::size_t{n});
+  // Each still its own word.
+  n = 0;
+  for (std::int32_t z = 0; z <= 512; z += 16) {
+    for (std::int32_t y = 0; y <= 512; y += 16) {
+      for (std::int32_t x = 0; x <= 512; x += 16) {
+        const std::uint32_t* w = words.find(ipoint{x, y, z});
+        ASSERT_NE(w, nullptr);
+        EXPECT_EQ(*w, ++n);
+      }
+    }
+  }
+  EXPECT_EQ(words.find(ipoint{8, 0, 0}), nullptr);  // a finer lattice's point: never written
 }
 
 TEST(VertexPages, threads_making_the_same_bricks_agree_on_each_word) {

@@ -50,6 +50,33 @@ TEST(CutIndex, dense_and_sparse_agree_with_a_count_of_the_members_below) {
   }
 }
 
+TEST(CutIndex, a_walk_from_any_rank_gives_the_members_in_order) {
+  std::mt19937 rng(5);
+  // Densities down to one member in a few hundred, so the dense walk crosses empty words, and
+  // members at both ends of the grid.
+  for (const double density : {0.003, 0.3, 1.0}) {
+    constexpr std::uint64_t n = 4099;
+    std::bernoulli_distribution pick(density);
+    std::vector<std::uint64_t> members{0};
+    for (std::uint64_t v = 1; v + 1 < n; ++v) {
+      if (pick(rng)) members.push_back(v);
+    }
+    members.push_back(n - 1);
+    detail::cut_index dense = detail::cut_index::dense(n);
+    for (const std::uint64_t v : members) dense.add(v);
+    dense.finish({}, 3);
+    const detail::cut_index sparse = detail::cut_index::sparse(members);
+    for (std::uint64_t first = 0; first < members.size(); ++first) {
+      detail::cut_index::walk d(dense, first);
+      detail::cut_index::walk s(sparse, first);
+      for (std::uint64_t r = first; r < members.size(); ++r) {
+        ASSERT_EQ(d.next(), members[r]) << "dense, from rank " << first;
+        ASSERT_EQ(s.next(), members[r]) << "sparse, from rank " << first;
+      }
+    }
+  }
+}
+
 // A cut_source made from a split set directly (compute_split per diamond, compute_root per root
 // cube), for cut_mesher on any number of parts.
 struct split_set_cut {

@@ -137,8 +137,9 @@ class hierarchy {
     return index + static_cast<std::uint64_t>(std::int64_t{h} * doubled_offset_[code] / 2);
   }
   /// The grid vertex of a linear index (the inverse of index()): two divisions by reciprocal
-  /// multiplication, corrected to the exact quotient (a hot path of the refiners).
-  [[nodiscard]] ipoint point(std::uint64_t index) const noexcept {
+  /// multiplication, corrected to the exact quotient (a hot path of the refiners, inlined always:
+  /// out of line, its call costs as much as its work).
+  [[nodiscard]] [[gnu::always_inline]] inline ipoint point(std::uint64_t index) const noexcept {
     const std::uint64_t z = divide(index, stride_z_, inverse_z_);
     const std::uint64_t r = index - z * stride_z_;
     const std::uint64_t y = divide(r, stride_y_, inverse_y_);

@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <atomic>
+#include <bit>
 #include <cstddef>
 #include <cstdint>
 #include <utility>
@@ -88,6 +89,38 @@ class cut_index {
     return static_cast<std::uint32_t>(std::lower_bound(sorted_.begin(), sorted_.end(), v) -
                                       sorted_.begin());
   }
+
+  /// The grid indices of ranks first, first + 1, ... in turn, each next() one more; first must
+  /// be below size(). What a pass over a range of ranks reads instead of keeping each split's
+  /// grid point in an array by rank.
+  class walk {
+   public:
+    walk(const cut_index& c, std::uint64_t first) noexcept : c_(&c) {
+      if (!c.dense_) {
+        at_ = first;
+        return;
+      }
+      // The word holding rank `first`: the last whose count before it is at most `first`.
+      const auto it =
+          std::upper_bound(c.before_.begin(), c.before_.end(), static_cast<std::uint32_t>(first));
+      at_ = static_cast<std::uint64_t>(it - c.before_.begin()) - 1;
+      bits_ = c.bits_[at_];
+      for (std::uint64_t skip = first - c.before_[at_]; skip != 0; --skip) bits_ &= bits_ - 1;
+    }
+    /// The next rank's grid index.
+    [[nodiscard]] std::uint64_t next() noexcept {
+      if (!c_->dense_) return c_->sorted_[at_++];
+      while (bits_ == 0) bits_ = c_->bits_[++at_];
+      const std::uint64_t v = at_ * 64 + static_cast<std::uint64_t>(std::countr_zero(bits_));
+      bits_ &= bits_ - 1;
+      return v;
+    }
+
+   private:
+    const cut_index* c_;
+    std::uint64_t at_ = 0;    // sparse: the next rank; dense: the word being read
+    std::uint64_t bits_ = 0;  // dense: that word's bits not yet handed out
+  };
 
  private:
   bool dense_ = false;

@@ -28,9 +28,10 @@
 // are then dropped.
 //
 // Passes run over `parts` pieces through a parallel loop: (1) the rank index, from the records in
-// publication order (read in sequence); (2) each split's entry and vertex mask, written at its
-// rank; (3) first ids, over rank ranges; (4) triangles, over rank ranges; (5) vertex positions,
-// over rank ranges; then the ranges' triangles are joined. The two arrays of the mesh are sized
+// publication order (read in sequence); (2) each split's groups and vertex mask, written at its
+// rank (its grid point is not kept: a pass over a rank range walks the rank index for it); (3)
+// first ids, over rank ranges; (4) triangles, over rank ranges; (5) vertex positions, over rank
+// ranges; then the ranges' triangles are joined. The two arrays of the mesh are sized
 // (std::vector's resize, which writes on one thread) beside passes 4 and 5. The mesh is the same
 // for every part count and thread count.
 #pragma once
@@ -108,10 +109,12 @@ class cut_mesher {
     parts_ = std::max<std::size_t>(parts, 1);
     make_index(run);
     const std::uint64_t n = index_.size();
-    // Not zeroed: pass 2 writes every rank's entry and mask, pass 3 every base.
-    entries_ = std::make_unique_for_overwrite<entry[]>(n);
+    // Not zeroed: pass 2 writes every rank's groups and mask, pass 3 every base.
+    groups_ = std::make_unique_for_overwrite<const packed_group*[]>(n);
+    group_counts_ = std::make_unique_for_overwrite<std::uint8_t[]>(n);
     names_ = std::make_unique_for_overwrite<naming[]>(n);
-    prefault_in_parts(run, entries_.get(), n * sizeof(entry));
+    prefault_in_parts(run, groups_.get(), n * sizeof(const packed_group*));
+    prefault_in_parts(run, group_counts_.get(), n);
     prefault_in_parts(run, names_.get(), n * sizeof(naming));
     name_root_vertices();
     run_loop(run, parts_, [this](std::size_t k) { read_records(k); });
@@ -175,12 +178,42 @@ class cut_mesher {
   static constexpr std::uint32_t clip_outside = std::uint32_t{1} << 31;
   static constexpr std::uint32_t outside = ~std::uint32_t{0};  // a vertex past the data box
 
-  // A split as the passes after the first read it, at its rank.
-  struct entry {
-    ipoint centre;
-    std::int32_t scale;
-    const packed_group* groups;
-    std::uint32_t count;
+  // A split's groups, as the passes after the first read them at its rank: one per child
+  // tetrahedron with surface, of which a diamond of k ≤ 8 tetrahedra has 2k (split_record.hpp).
+  // Its centre and scale come from its grid index (cut_index::walk), not from a copy: 17 bytes
+  // per split instead of 40, paid for every split of a cut.
+  static constexpr std::uint32_t max_groups = 16;
+
+  // The grid points of a rank range's splits, in rank (grid index) order: most lie on the row of
+  // the one before, so the point moves along x, and only a new row asks hierarchy::point().
+  class centre_walk {
+   public:
+    centre_walk(const cut_index& index, std::uint64_t first_rank, const hierarchy& hier)
+        : walk_(index, first_rank),
+          hier_(hier),
+          row_(static_cast<std::uint64_t>(hier.grid_max()[0]) + 1) {}
+    // The next rank's grid index; point() is its grid point.
+    std::uint64_t next() noexcept {
+      const std::uint64_t v = walk_.next();
+      const std::uint64_t ahead = v - index_;
+      if (started_ && ahead < row_ - static_cast<std::uint64_t>(p_[0])) {
+        p_[0] += static_cast<std::int32_t>(ahead);
+      } else {
+        p_ = hier_.point(v);
+        started_ = true;
+      }
+      index_ = v;
+      return v;
+    }
+    [[nodiscard]] const ipoint& point() const noexcept { return p_; }
+
+   private:
+    cut_index::walk walk_;
+    const hierarchy& hier_;
+    std::uint64_t row_;  // grid points per x-row
+    std::uint64_t index_ = 0;
+    ipoint p_{};
+    bool started_ = false;
   };
   // Per split (by rank): its first vertex id and its vertex mask, read together.
   struct naming {
@@ -280,7 +313,7 @@ class cut_mesher {
     }
   }
 
-  // Pass 2, over records in publication order (read in sequence): each split's entry and vertex
+  // Pass 2, over records in publication order (read in sequence): each split's groups and vertex
   // mask, at its rank.
   void read_records(std::size_t k) {
     const ipoint& dm = hier_.data_max();
@@ -291,7 +324,9 @@ class cut_mesher {
       const std::int32_t h = rec.scale;
       const ipoint c = hier_.point(rec.diamond);
       const std::uint32_t i = index_.rank(rec.diamond);
-      entries_[i] = entry{c, h, rec.groups, rec.count};
+      PROGISO_ASSERT(rec.count <= max_groups && hier_.scale_of(c) == h);
+      groups_[i] = rec.groups;
+      group_counts_[i] = static_cast<std::uint8_t>(rec.count);
       std::uint32_t m = rec.crossed;
       if (h >= 2) {
         const std::int32_t g = h / 2;
@@ -319,10 +354,15 @@ class cut_mesher {
   // `place_too` its vertices' positions (one part: the vertex array is sized already).
   void number(std::size_t k, std::uint64_t id, bool place_too) {
     const std::uint64_t n = index_.size();
-    for (std::uint64_t i = first(n, k); i < first(n, k + 1); ++i) {
+    const std::uint64_t lo = first(n, k);
+    const std::uint64_t hi = first(n, k + 1);
+    if (lo == hi) return;
+    centre_walk centres(index_, lo, hier_);
+    for (std::uint64_t i = lo; i < hi; ++i) {
+      centres.next();
       naming& nm = names_[i];
       nm.base = static_cast<std::uint32_t>(id);
-      if (place_too && nm.mask != 0) place_split(i, id);
+      if (place_too && nm.mask != 0) place_split(i, centres.point(), id);
       id += bit_count(nm.mask);
     }
   }
@@ -331,18 +371,22 @@ class cut_mesher {
   // positions of the splits' vertices.
   void place(std::size_t k) {
     const std::uint64_t n = index_.size();
-    for (std::uint64_t i = first(n, k); i < first(n, k + 1); ++i) {
-      if (names_[i].mask != 0) place_split(i, names_[i].base);
+    const std::uint64_t lo = first(n, k);
+    const std::uint64_t hi = first(n, k + 1);
+    if (lo == hi) return;
+    centre_walk centres(index_, lo, hier_);
+    for (std::uint64_t i = lo; i < hi; ++i) {
+      centres.next();
+      if (names_[i].mask != 0) place_split(i, centres.point(), names_[i].base);
     }
   }
 
-  // The positions of split i's vertices, from id on.
-  void place_split(std::uint64_t i, std::uint64_t id) {
-    const entry& en = entries_[i];
-    const ipoint& c = en.centre;
+  // The positions of split i's vertices (its centre c), from id on.
+  void place_split(std::uint64_t i, const ipoint& c, std::uint64_t id) {
+    const std::int32_t h = hier_.scale_of(c);
     const double fc = vol_.value(c[0], c[1], c[2]);
     for (std::uint32_t todo = names_[i].mask; todo != 0; todo &= todo - 1) {
-      const ipoint x = at(c, en.scale, static_cast<unsigned>(std::countr_zero(todo)));
+      const ipoint x = at(c, h, static_cast<unsigned>(std::countr_zero(todo)));
       const double fx = vol_.value(x[0], x[1], x[2]);
       const vec3 q =
           vertex_less(c, x) ? interpolate(c, fc, x, fx, w_) : interpolate(x, fx, c, fc, w_);
@@ -422,17 +466,21 @@ class cut_mesher {
     std::array<std::uint32_t, 125> memo{};
     std::array<std::uint64_t, 125> stamp{};
     stamp.fill(~std::uint64_t{0});
+    if (lo == hi) return;
+    centre_walk centres(index_, lo, hier_);
     for (std::uint64_t i = lo; i < hi; ++i) {
       if (i + ahead < hi) {
-        const entry& later = entries_[i + ahead];
-        if (later.count != 0) {  // a split without surface may have no groups (and no pointer)
-          __builtin_prefetch(later.groups);
-          __builtin_prefetch(later.groups + (later.count - 1));
+        const std::uint8_t later = group_counts_[i + ahead];
+        if (later != 0) {  // a split without surface may have no groups (and no pointer)
+          __builtin_prefetch(groups_[i + ahead]);
+          __builtin_prefetch(groups_[i + ahead] + (later - 1));
         }
       }
-      const entry& en = entries_[i];
-      const std::int32_t h = en.scale;
-      const ipoint& c = en.centre;
+      const std::uint64_t centre_index = centres.next();
+      const ipoint c = centres.point();
+      const std::int32_t h = hier_.scale_of(c);
+      const packed_group* const groups = groups_[i];
+      const std::uint32_t count = group_counts_[i];
       const naming own = names_[i];
       const group_edge_table& edges = group_edges(c, h);
       const auto id_of = [&](unsigned code) {
@@ -446,9 +494,8 @@ class cut_mesher {
         memo[code] = id;
         return id;
       };
-      const std::uint64_t centre_index = hier_.index(c);
-      for (std::uint32_t j = 0; j < en.count; ++j) {
-        const packed_group& g = en.groups[j];
+      for (std::uint32_t j = 0; j < count; ++j) {
+        const packed_group& g = groups[j];
         if (!take(group_owner(hier_, centre_index, h, g))) continue;
         for (std::size_t t = 0; t < g.count(); ++t) {
           const std::array<std::uint32_t, 3> ids{id_of(g.edge(t, 0)), id_of(g.edge(t, 1)),
@@ -481,7 +528,8 @@ class cut_mesher {
     const std::size_t n = triangles_.size();
     run_loop(run, n + 2, [&](std::size_t k) {
       if (k == n) {
-        entries_.reset();
+        groups_.reset();
+        group_counts_.reset();
       } else if (k == n + 1) {
         names_.reset();
       } else {
@@ -523,8 +571,9 @@ class cut_mesher {
   vec3 box_{};
   std::uint32_t root_mask_ = 0;
   cut_index index_;
-  std::unique_ptr<entry[]> entries_;  // by rank
-  std::unique_ptr<naming[]> names_;   // by rank
+  std::unique_ptr<const packed_group*[]> groups_;  // by rank
+  std::unique_ptr<std::uint8_t[]> group_counts_;   // by rank
+  std::unique_ptr<naming[]> names_;                // by rank
   flat_map root_ids_;
   std::vector<vec3> root_positions_;
   std::vector<std::vector<std::array<std::uint32_t, 3>>> triangles_;  // per rank range
