@@ -64,16 +64,24 @@ inline void tbb_loop(std::size_t n, const std::function<void(std::size_t)>& body
 // owns; unpacked with the diamond's centre and scale), the diamond and the cut's triangle count
 // once it is published (no error: a cut by error reads them from the range data, see
 // surface_snapshot::mesh_cut). Record 0 is the root surface: its triangles are
-// engine_root::root_triangles, in plain form, and `count` is their number.
+// engine_root::root_triangles, in plain form, and `count` is their number. The diamond's scale and
+// depth are not kept: its centre gives them (hierarchy::scale_of, depth_of), and a record is paid
+// for every split a root keeps, 32 bytes rather than 40.
 struct engine_record {
   std::uint64_t diamond;  // grid index; no_owner for the root record
   const packed_group* groups;
   std::uint32_t count;
-  std::int32_t depth;
-  std::int32_t scale;
   std::uint32_t crossed;  // split_summary::crossed: the new edges the surface crosses
   std::uint64_t cut_triangles;
 };
+static_assert(sizeof(engine_record) == 32);
+// A split record's diamond scale and depth, from its centre.
+[[nodiscard]] inline std::int32_t record_scale(const hierarchy& hier, const engine_record& rec) {
+  return hier.scale_of(hier.point(rec.diamond));
+}
+[[nodiscard]] inline int record_depth(const hierarchy& hier, const engine_record& rec) {
+  return hier.depth_of(hier.point(rec.diamond));
+}
 
 struct ready_item {
   double error;

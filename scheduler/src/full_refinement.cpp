@@ -447,8 +447,8 @@ bool engine_impl::publish_full_task(full_task& t, bool wait, bool stopped) {
   for (std::size_t i = 0; i < kept; ++i) {
     const pending_split& p = t.pending[i];
     std::copy_n(t.groups.data() + p.first, p.count, p.dest);
-    r.records.at_unpublished(first_record + i) = {
-        p.item.index, p.dest, p.count, p.item.depth, p.scale, p.crossed, p.cut_triangles};
+    r.records.at_unpublished(first_record + i) = {p.item.index, p.dest, p.count, p.crossed,
+                                                  p.cut_triangles};
     std::atomic_ref<std::uint32_t>(r.word(p.item.index))
         .store(static_cast<std::uint32_t>(first_record + i),
                // relaxed: published by the release in records.publish() below, which the

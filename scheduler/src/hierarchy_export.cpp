@@ -51,7 +51,7 @@ void hierarchy_exporter::write(const surface_snapshot& s) {
     out.diamond = rec.diamond;
     out.crossed = rec.crossed;
     out.value = field.value(c[0], c[1], c[2]);
-    out.error = rd.get(c, rec.scale).error;
+    out.error = rd.get(c, hier.scale_of(c)).error;
     out.groups = std::span<const packed_group>(rec.groups, rec.count);
     writer_->add(out);
   }

@@ -154,7 +154,7 @@ void engine_impl::commit_batch(batch* b) {
       r.cut_triangles = after;
       r.records.push_back({it.item.index,
                            r.groups.append_contiguous(b->groups.data() + it.first, it.count),
-                           it.count, it.item.depth, it.scale, it.crossed, after});
+                           it.count, it.crossed, after});
       std::atomic_ref<std::uint32_t>(*it.word).store(
           static_cast<std::uint32_t>(index),
           // relaxed: published by the release in records.publish() below.

@@ -16,7 +16,7 @@ engine_root* engine_impl::make_base_root(double w, std::uint64_t gen) {
   auto* r = make_managed<engine_root>(domain, *this, w, gen, std::move(none));
   r->seeded = true;
   // Its first chunk of records, allocated now (set_base() only writes record 0 into it).
-  r->records.push_back({no_owner, nullptr, 0, -1, 0, 0, 0});
+  r->records.push_back({no_owner, nullptr, 0, 0, 0});
   return r;
 }
 
@@ -44,7 +44,7 @@ engine_root* engine_impl::make_root(double w, std::uint64_t gen, bool published)
   }
   r->cut_triangles = tris.size();
   r->records.push_back(
-      {no_owner, nullptr, static_cast<std::uint32_t>(tris.size()), -1, 0, 0, tris.size()});
+      {no_owner, nullptr, static_cast<std::uint32_t>(tris.size()), 0, tris.size()});
   r->root_triangles = std::move(tris);
   r->records.publish();
   r->triangles.set(r->cut_triangles);
@@ -112,8 +112,9 @@ void engine_impl::queue_deadline_leftovers(engine_root& r) {
     split_tally tally;
     for (const std::uint32_t i : r.uncounted) {
       const engine_record& rec = r.records[i];
-      count_children_on_one_thread(r, hier.point(rec.diamond), rec.scale, rec.depth, rec.groups,
-                                   rec.count, rd, tally);
+      const ipoint c = hier.point(rec.diamond);
+      count_children_on_one_thread(r, c, hier.scale_of(c), hier.depth_of(c), rec.groups, rec.count,
+                                   rd, tally);
     }
     if (!errors_needed() && !r.queue.empty()) r.placeholder_keys = true;  // queued by placeholder
     r.uncounted.clear();

@@ -60,8 +60,7 @@ bool engine_impl::split_on_one_thread(engine_root& r, const ready_item& item, co
   PROGISO_ASSERT(index < max_records);
   r.cut_triangles = after;
   r.records.push_back({item.index, r.groups.append_contiguous(groups.data(), groups.size()),
-                       static_cast<std::uint32_t>(groups.size()), item.depth, scale, s.crossed,
-                       after});
+                       static_cast<std::uint32_t>(groups.size()), s.crossed, after});
   std::atomic_ref<std::uint32_t>(r.word(item.index))
       .store(static_cast<std::uint32_t>(index),
              // relaxed: published by the release in records.publish() (the caller's publish).

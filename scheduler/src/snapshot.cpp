@@ -66,7 +66,8 @@ void walk_record(const detail::engine_root& root, const hierarchy& hier, std::ui
     }
     return;
   }
-  for_each_unpacked(hier, rec.diamond, rec.scale, rec.groups, 0, rec.count, take, f);
+  for_each_unpacked(hier, rec.diamond, detail::record_scale(hier, rec), rec.groups, 0, rec.count,
+                    take, f);
 }
 
 }  // namespace
@@ -156,7 +157,8 @@ triangle_mesh surface_snapshot::mesh_cut(double max_error) const {
   const auto mark = [&](std::uint64_t lo, std::uint64_t hi) {
     for (std::uint64_t r = std::max<std::uint64_t>(lo, 1); r < hi; ++r) {
       const detail::engine_record& rec = root_->records[r];
-      coarse[r] = rd.get(hier.point(rec.diamond), rec.scale).error > max_error ? 1 : 0;
+      const ipoint c = hier.point(rec.diamond);
+      coarse[r] = rd.get(c, hier.scale_of(c)).error > max_error ? 1 : 0;
     }
   };
   constexpr std::uint64_t chunk = 4096;
@@ -235,13 +237,13 @@ bool surface_snapshot::check_integrity() const noexcept {
     }
     if (rec.diamond >= vertices || root_->record_index(rec.diamond) != r) return false;
     // At most one group per child tetrahedron: 2 per ring tetrahedron, 8 of those.
-    if (rec.count > 16 || rec.scale <= 0) return false;
+    if (rec.count > 16) return false;
+    const std::int32_t scale = detail::record_scale(owner_->hierarchy_of(), rec);
     for (std::uint32_t k = 0; k < rec.count; ++k) {
       const packed_group& g = rec.groups[k];
       const unsigned code = g.owner_code();
       if (code != packed_group::no_owner_code &&
-          (code >= 125 ||
-           group_owner(owner_->hierarchy_of(), rec.diamond, rec.scale, g) >= vertices)) {
+          (code >= 125 || group_owner(owner_->hierarchy_of(), rec.diamond, scale, g) >= vertices)) {
         return false;
       }
       if (g.count() != 1 && g.count() != 2) return false;

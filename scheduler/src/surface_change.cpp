@@ -88,7 +88,7 @@ class change_maker {
       const detail::engine_record& rec = root_.records[q];
       if (w1_ > 0) {
         remove_owned_by(rec.diamond, out);
-        out.root_split = out.root_split || rec.depth == 0;
+        out.root_split = out.root_split || detail::record_depth(hier_, rec) == 0;
       }
       add_record(q, rec, out, cache);
     }
@@ -121,11 +121,12 @@ class change_maker {
       // A parent split in the window made its triangles there: never seen by the earlier cut.
       if (r == 0 || r >= w1_) continue;
       const detail::engine_record& rec = root_.records[r];
+      const std::int32_t scale = detail::record_scale(hier_, rec);
       std::uint64_t k = 0;
       for (std::uint32_t g = 0; g < rec.count; ++g) {
         const packed_group& group = rec.groups[g];
         const std::size_t c = group.count();
-        if (group_owner(hier_, rec.diamond, rec.scale, group) == d) {
+        if (group_owner(hier_, rec.diamond, scale, group) == d) {
           for (std::size_t t = 0; t < c; ++t) out.gone.push_back(record_triangle_id(r, k + t));
         }
         k += c;
@@ -135,21 +136,22 @@ class change_maker {
 
   void add_record(std::uint64_t q, const detail::engine_record& rec, change_part& out,
                   corner_cache& cache) const {
+    const std::int32_t scale = detail::record_scale(hier_, rec);
     std::uint64_t k = 0;
     std::uint64_t centre_key = 0;
     bool have_centre = false;
     for (std::uint32_t g = 0; g < rec.count; ++g) {
       const packed_group& group = rec.groups[g];
       const std::size_t c = group.count();
-      if (!split_in_later(group_owner(hier_, rec.diamond, rec.scale, group))) {
+      if (!split_in_later(group_owner(hier_, rec.diamond, scale, group))) {
         if (!have_centre) {
           const ipoint ct = hier_.point(rec.diamond);
           centre_key = edge_key(ct, ct);
           have_centre = true;
         }
         for (std::size_t t = 0; t < c; ++t) {
-          add_triangle(record_triangle_id(q, k + t), unpack_at(centre_key, rec.scale, group, t),
-                       out, cache);
+          add_triangle(record_triangle_id(q, k + t), unpack_at(centre_key, scale, group, t), out,
+                       cache);
         }
       }
       k += c;

@@ -70,13 +70,12 @@ namespace progiso::detail {
 
 /// What cut_mesher reads. `records` is the number of records; record 0 is the root surface
 /// (root_triangles), records 1 … records − 1 are splits, each with the fields diamond (grid index
-/// of its centre), scale, groups, count and crossed. split(r) says whether record r is in the cut
-/// (the cut is closed under parents).
+/// of its centre; its scale follows from it), groups, count and crossed. split(r) says whether
+/// record r is in the cut (the cut is closed under parents).
 template <class Source>
 concept cut_source = requires(const Source& s, std::uint64_t i) {
   { s.records() } -> std::convertible_to<std::uint64_t>;
   s.record(i).diamond;
-  s.record(i).scale;
   s.record(i).groups;
   s.record(i).count;
   s.record(i).crossed;
@@ -321,10 +320,10 @@ class cut_mesher {
          r < first(records_, k + 1); ++r) {
       if (!src_.split(r)) continue;
       const auto& rec = src_.record(r);
-      const std::int32_t h = rec.scale;
       const ipoint c = hier_.point(rec.diamond);
+      const std::int32_t h = hier_.scale_of(c);
       const std::uint32_t i = index_.rank(rec.diamond);
-      PROGISO_ASSERT(rec.count <= max_groups && hier_.scale_of(c) == h);
+      PROGISO_ASSERT(rec.count <= max_groups);
       groups_[i] = rec.groups;
       group_counts_[i] = static_cast<std::uint8_t>(rec.count);
       std::uint32_t m = rec.crossed;
