@@ -103,7 +103,10 @@ std::string stats_json(const arguments& a, const std::string& input, double iso,
   // "uniform": a deadline's uniform cut, from the same passes over every stride-th sample.
   o << "  \"path\": \""
     << (r.finest_direct ? "finest" : (r.ladder_stride > 0 ? "uniform" : "refinement")) << "\",\n";
-  if (r.ladder_stride > 0) o << "  \"stride\": " << r.ladder_stride << ",\n";
+  if (r.ladder_stride > 0) {
+    o << "  \"stride\": " << r.ladder_stride << ",\n";
+    o << "  \"out_of_memory\": " << (r.ladder_out_of_memory ? "true" : "false") << ",\n";
+  }
   o << "  \"splits\": " << r.stats.splits << ",\n";
   o << "  \"diamonds_visited\": " << r.stats.visited << ",\n";
   o << "  \"diamonds_culled\": " << r.stats.culled << ",\n";
@@ -602,9 +605,10 @@ int run(const std::vector<std::string>& args) {
                                 : "the uniform cut of every " + std::to_string(r.ladder_stride) +
                                       (r.ladder_stride == 2 ? "nd" : "th") + " sample";
     std::printf(
-        "progiso: %zu triangles, %zu vertices (%zu voxels); %s by the deadline, in %.1f ms "
+        "progiso: %zu triangles, %zu vertices (%zu voxels); %s by the deadline%s, in %.1f ms "
         "(first surface %.3f ms); wrote %s\n",
         r.mesh.triangles.size(), r.mesh.vertices.size(), vol->voxel_count(), cut.c_str(),
+        r.ladder_out_of_memory ? " (the next finer cut did not fit in memory)" : "",
         r.extract_seconds * 1e3, r.first_surface_seconds * 1e3, a.output->c_str());
     return 0;
   }

@@ -205,6 +205,7 @@ extract_result detail::extract_isosurface_parallel(const volume& vol, double iso
             ladder_surface(vol, isovalue, options.goal.deadline, loop, parts, progress);
         res.mesh = std::move(l.mesh);
         res.ladder_stride = l.stride;
+        res.ladder_out_of_memory = l.out_of_memory;
       });
     } else {
       const finest_progress progress = direct_progress(options, max_depth);

@@ -1,7 +1,8 @@
 // A volume larger than the memory the process may allocate: a raw input of at least
 // detail::map_min_bytes is mapped, not read, and the engine's per-vertex words follow what it
 // writes (vertex_pages), so the command refines it under an RLIMIT_DATA below the volume's size,
-// and writes the same surface as without the limit (an error goal), or a surface by a deadline.
+// and writes the same surface as without the limit (an error goal), or by a deadline the finest
+// cut that fits under it.
 // The same bytes as an input that must be read (big-endian 16-bit samples, swapped into memory)
 // are refused under that limit: the limit is real, and the mapping is what lets the first run
 // through. The finest surface of a grid beyond detail::finest_whole_grid_bytes points is made in
@@ -91,10 +92,23 @@ TEST(OutOfCore, a_mapped_volume_larger_than_the_allowed_memory_refines_to_the_sa
   EXPECT_GT(a.size(), 10000U);
   EXPECT_TRUE(a == test::read_whole(dir.path() / "capped.ply"))
       << "the capped run wrote another surface";
-  // A deadline short of the finest cut (a uniform cut of a subsampled copy): a surface by then.
+  // A deadline with time for every cut: the finest cut's corner bytes (one byte per grid point,
+  // one slab) do not fit under the cap, every coarser cut reads the samples in place. The ladder
+  // gives up the finest cut for its memory, not its time, and writes the cut of every 2nd sample:
+  // whatever the machine's load, since time never runs out.
+  std::vector<std::string> deadline_args = args("--time-ms", "600000", "deadline.ply");
+  deadline_args.push_back("--stats-json");
+  deadline_args.push_back((dir.path() / "deadline.json").string());
   const test::bounded_result deadline_run =
-      test::run_bounded(PROGISO_CLI, args("--time-ms", "50", "deadline.ply"), runs.path(), capped);
+      test::run_bounded(PROGISO_CLI, deadline_args, runs.path(), capped);
   ASSERT_EQ(deadline_run.status, 0) << deadline_run.err;
+  EXPECT_NE(deadline_run.out.find("every 2nd sample by the deadline (the next finer cut did not "
+                                  "fit in memory)"),
+            std::string::npos)
+      << deadline_run.out;
+  const std::string stats = test::read_whole(dir.path() / "deadline.json");
+  EXPECT_NE(stats.find("\"stride\": 2,"), std::string::npos) << stats;
+  EXPECT_NE(stats.find("\"out_of_memory\": true"), std::string::npos) << stats;
   EXPECT_GT(fs::file_size(dir.path() / "deadline.ply"), 1000U);
 
   // The same bytes read into memory (swapped from big-endian) do not fit under the cap.

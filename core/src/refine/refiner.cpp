@@ -319,6 +319,7 @@ extract_result detail::extract_isosurface(const volume& vol, double isovalue,
                                        ladder_direct_progress(options, max_depth));
       res.mesh = std::move(l.mesh);
       res.ladder_stride = l.stride;
+      res.ladder_out_of_memory = l.out_of_memory;
       res.first_surface_seconds = l.first_seconds;
     }
     const auto t1 = clock::now();

@@ -10,6 +10,7 @@
 #include <limits>
 #include <memory>
 #include <mutex>
+#include <new>
 #include <string>
 #include <type_traits>
 #include <unordered_map>
@@ -1221,6 +1222,14 @@ ladder_result detail::ladder_surface(const volume& field, double isovalue,
       }
     } catch (const deadline_passed&) {
       res.abandoned = true;
+      break;
+    } catch (const std::bad_alloc&) {
+      // Under a data limit (or past the machine) a finer cut may not fit where a coarser one
+      // did: the time-critical answer is the finest cut that fit, not no surface. Its work is
+      // freed by the unwinding; the first cut has nothing to fall back on.
+      if (must) throw;
+      res.abandoned = true;
+      res.out_of_memory = true;
       break;
     }
     const double took = since(start);

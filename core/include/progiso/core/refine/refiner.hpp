@@ -242,6 +242,8 @@ struct extract_result {
   /// The mesh is a uniform cut of the ladder (extract_options::deadline_ladder): its stride (1:
   /// the finest cut); 0 otherwise. No range data, no splits; extract_seconds is its cuts' time.
   std::int32_t ladder_stride = 0;
+  /// The ladder gave up a finer cut because its memory could not be had (ladder_result).
+  bool ladder_out_of_memory = false;
 };
 
 /// Throws progiso::error for a non-finite isovalue or an invalid goal (check_goal(); shared by

@@ -107,6 +107,9 @@ struct ladder_result {
   std::int32_t stride = 0;     ///< its stride (1: the finest cut)
   int levels_done = 0;         ///< uniform cuts finished, the returned one included
   bool abandoned = false;      ///< a finer cut was begun and given up at the deadline
+  /// A finer cut was begun and given up because its memory could not be had (std::bad_alloc:
+  /// a data limit, or a cut larger than the machine): the finest cut that fit is returned.
+  bool out_of_memory = false;
   double first_seconds = 0.0;  ///< from the call to the first (coarsest) cut done
   std::size_t triangles = 0;   ///< the triangles of the finest cut done (also with on_cut)
 };
@@ -119,8 +122,10 @@ struct ladder_result {
 /// element, its points and four times the last one's output) ends before the deadline, and is
 /// given up (its work dropped) when, after its first pass, its exact output no longer fits, or
 /// when the deadline passes: between planes of its copy, between steps of sizing its output,
-/// every 64 rows of its passes. A 2D field (dims[2] == 1) has one stride: 1. `progress` hears
-/// the rows of each cut in turn, with its stride; what it throws ends the call.
+/// every 64 rows of its passes. A later cut whose memory cannot be had (std::bad_alloc) is given
+/// up the same way (out_of_memory); the first cut's throws. A 2D field (dims[2] == 1) has one
+/// stride: 1. `progress` hears the rows of each cut in turn, with its stride; what it throws ends
+/// the call.
 [[nodiscard]] ladder_result ladder_surface(const volume& field, double isovalue,
                                            std::chrono::steady_clock::time_point deadline,
                                            const parallel_loop& run = {}, std::size_t parts = 1,
