@@ -352,23 +352,34 @@ class cut_mesher {
   // Pass 3, over rank range k: each split's first vertex id, from the range's first id, and with
   // `place_too` its vertices' positions (one part: the vertex array is sized already).
   void number(std::size_t k, std::uint64_t id, bool place_too) {
-    const std::uint64_t n = index_.size();
-    const std::uint64_t lo = first(n, k);
-    const std::uint64_t hi = first(n, k + 1);
-    if (lo == hi) return;
-    centre_walk centres(index_, lo, hier_);
-    for (std::uint64_t i = lo; i < hi; ++i) {
-      centres.next();
+    const auto name = [&](std::uint64_t i) {
       naming& nm = names_[i];
       nm.base = static_cast<std::uint32_t>(id);
-      if (place_too && nm.mask != 0) place_split(i, centres.point(), id);
       id += bit_count(nm.mask);
+      return nm;
+    };
+    if (place_too) {
+      each_split(k, [&](std::uint64_t i, const ipoint& c) {
+        const naming nm = name(i);
+        if (nm.mask != 0) place_split(i, c, nm.base);
+      });
+      return;
     }
+    const std::uint64_t n = index_.size();
+    for (std::uint64_t i = first(n, k); i < first(n, k + 1); ++i) name(i);
   }
 
   // Pass 5 (after the triangles, beside the joined triangles' resize), over rank range k: the
   // positions of the splits' vertices.
   void place(std::size_t k) {
+    each_split(k, [&](std::uint64_t i, const ipoint& c) {
+      if (names_[i].mask != 0) place_split(i, c, names_[i].base);
+    });
+  }
+
+  // f(rank, grid point) for the splits of rank range k, in order.
+  template <class F>
+  void each_split(std::size_t k, F&& f) const {
     const std::uint64_t n = index_.size();
     const std::uint64_t lo = first(n, k);
     const std::uint64_t hi = first(n, k + 1);
@@ -376,7 +387,7 @@ class cut_mesher {
     centre_walk centres(index_, lo, hier_);
     for (std::uint64_t i = lo; i < hi; ++i) {
       centres.next();
-      if (names_[i].mask != 0) place_split(i, centres.point(), names_[i].base);
+      f(i, centres.point());
     }
   }
 
