@@ -103,10 +103,10 @@ using ladder_progress =
 
 /// What ladder_surface() made by its deadline.
 struct ladder_result {
-  triangle_mesh mesh;          ///< the finest uniform cut done
-  std::int32_t stride = 0;     ///< its stride (1: the finest cut)
-  int levels_done = 0;         ///< uniform cuts finished, the returned one included
-  bool abandoned = false;      ///< a finer cut was begun and given up at the deadline
+  triangle_mesh mesh;       ///< the finest uniform cut done
+  std::int32_t stride = 0;  ///< its stride (1: the finest cut)
+  int levels_done = 0;      ///< uniform cuts finished, the returned one included
+  bool abandoned = false;   ///< a finer cut was begun and given up at the deadline
   /// A finer cut was begun and given up because its memory could not be had (std::bad_alloc:
   /// a data limit, or a cut larger than the machine): the finest cut that fit is returned.
   bool out_of_memory = false;
