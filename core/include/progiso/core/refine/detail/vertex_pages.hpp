@@ -32,7 +32,6 @@
 // a table or brick cannot be allocated.
 #pragma once
 
-#include <algorithm>
 #include <array>
 #include <atomic>
 #include <bit>
@@ -65,8 +64,7 @@ class vertex_pages {
     for (const std::int32_t c : g) {
       if (c < 0 || c >= static_cast<std::int32_t>(origin_level_bit)) throw std::bad_alloc();
     }
-    levels_ = max_levels;
-    for (int t = 0; t < levels_; ++t) {
+    for (int t = 0; t < max_levels; ++t) {
       level& l = level_[static_cast<std::size_t>(t)];
       l.base = count_;
       for (std::size_t a = 0; a < 3; ++a) {
@@ -243,7 +241,6 @@ class vertex_pages {
 
   void take(vertex_pages& o) noexcept {
     hier_ = o.hier_;
-    levels_ = o.levels_;
     level_ = o.level_;
     count_ = std::exchange(o.count_, 0);
     top_ = std::exchange(o.top_, nullptr);
@@ -275,7 +272,6 @@ class vertex_pages {
   static constexpr std::uint32_t origin_level_bit = std::uint32_t{1} << (max_levels - 1);
 
   const hierarchy* hier_ = nullptr;
-  int levels_ = 0;
   std::array<level, max_levels> level_{};
   std::uint64_t count_ = 0;  // blocks over all levels
   std::atomic<block*>* top_ = nullptr;
